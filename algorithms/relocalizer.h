@@ -1,0 +1,100 @@
+#pragma once
+// Global and prior-bounded relocalization of a sensor in a tree map.
+//
+// Method (after the thesis in ../shared/papers/000_*, ch. 4-5, made robust to misses and false
+// stems): the query is levelled (gravity, else mean stem axis, else level); candidate
+// correspondences come from rotation-invariant neighbour-distance descriptors indexed with
+// nanoflann; each candidate gets a yaw from its neighbourhood, the resulting (x, y, yaw)
+// hypotheses are clustered, the best clusters are verified against the whole map and refined by
+// ICP-style re-association with least squares in x, y, yaw (z from the matched trees). The answer
+// is LOCALIZED only when the best pose beats every distinct alternative by a clear margin.
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "algorithms/geometry.h"
+
+namespace forestmap::algorithms {
+
+struct MapIndexOptions {
+  double descriptor_radius = 10.0;  // m, neighbourhood that describes a tree
+  int threads = 0;                  // index build threads; 0 = hardware concurrency
+  void Check() const;
+};
+
+class MapIndexImpl;
+
+// The immutable per-map search structure, built once per map version. Thread-safe for
+// concurrent queries.
+class MapIndex {
+ public:
+  MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options = {});
+  ~MapIndex();
+  MapIndex(const MapIndex&) = delete;
+  MapIndex& operator=(const MapIndex&) = delete;
+
+  size_t size() const;
+  const std::vector<MapTree>& trees() const;
+  bool has_z() const;    // every tree has a z
+  bool has_dbh() const;  // most trees have a DBH
+  size_t MemoryBytes() const;  // approximate resident size of the index
+  const MapIndexImpl& impl() const { return *impl_; }
+
+ private:
+  std::unique_ptr<MapIndexImpl> impl_;
+};
+
+struct PriorPose {
+  Pose3 map_from_sensor = Pose3::Identity();
+  double radius = 10.0;  // m, the sensor is within this distance of the prior position
+};
+
+struct RelocalizeQuery {
+  std::vector<DetectedTree> trees;               // sensor frame
+  std::optional<Eigen::Vector3d> gravity;        // gravity (down) in the sensor frame
+  std::optional<PriorPose> prior;
+};
+
+struct RelocalizerOptions {
+  double max_query_range = 40.0;     // m, query trees farther (horizontally) are not used
+  double inlier_distance = 0.5;      // m, a query tree within this of a map tree is an inlier
+  int min_inliers = 6;               // fewer inliers -> NOT_FOUND
+  double min_inlier_ratio = 0.25;    // inliers / query trees in verified range; less -> NOT_FOUND
+  double ambiguity_ratio = 1.4;      // best score must be >= this x the next distinct pose
+  double distinct_distance = 2.0;    // m, poses farther apart than this are distinct
+  double distinct_yaw = 0.17;        // rad (~10 deg), or whose yaw differs more than this
+  int candidates_per_tree = 8;       // descriptor neighbours per query tree
+  int max_seed_trees = 60;           // query trees used to seed hypotheses (nearest first)
+  int max_hypotheses = 40;           // clustered hypotheses verified against the map
+  unsigned seed = 42;                // randomness (sampling), fixed for repeatability
+  void Check() const;
+};
+
+enum class RelocalizeStatus { kLocalized, kAmbiguous, kNotFound };
+
+struct TreeMatch {
+  int query_index = 0;
+  int64_t map_tree_id = 0;
+  double distance = 0;  // m, horizontal, under the final pose
+};
+
+struct RelocalizeResult {
+  RelocalizeStatus status = RelocalizeStatus::kNotFound;
+  Pose3 map_from_sensor = Pose3::Identity();  // meaningful when kLocalized
+  int inliers = 0;
+  std::vector<TreeMatch> matches;
+  double rmse = 0;        // m, horizontal RMS of the matches
+  double confidence = 0;  // [0, 1]
+  std::string detail;     // why ambiguous / not found, for humans
+  int hypotheses = 0;     // pose hypotheses verified
+};
+
+// Throws std::invalid_argument for invalid options; every outcome of a valid query is a value.
+RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
+                            const RelocalizerOptions& options = {});
+
+const char* ToString(RelocalizeStatus status);
+
+}  // namespace forestmap::algorithms
