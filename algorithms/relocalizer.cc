@@ -1,17 +1,353 @@
 #include "algorithms/relocalizer.h"
-// Placeholder while the real implementation lands.
+
+#include <algorithm>
+#include <random>
 #include <stdexcept>
+#include <unordered_map>
+
+#include "algorithms/leveling.h"
+#include "algorithms/map_index_internal.h"
+#include "algorithms/rigid2d.h"
+
 namespace forestmap::algorithms {
-class MapIndexImpl { public: std::vector<MapTree> trees; };
-void MapIndexOptions::Check() const {}
-void RelocalizerOptions::Check() const {}
-MapIndex::MapIndex(std::vector<MapTree> trees, const MapIndexOptions&) : impl_(new MapIndexImpl{std::move(trees)}) {}
-MapIndex::~MapIndex() = default;
-size_t MapIndex::size() const { return impl_->trees.size(); }
-const std::vector<MapTree>& MapIndex::trees() const { return impl_->trees; }
-bool MapIndex::has_z() const { return true; }
-bool MapIndex::has_dbh() const { return true; }
-size_t MapIndex::MemoryBytes() const { return 0; }
-RelocalizeResult Relocalize(const MapIndex&, const RelocalizeQuery&, const RelocalizerOptions&) { return {}; }
-const char* ToString(RelocalizeStatus s) { switch (s) { case RelocalizeStatus::kLocalized: return "localized"; case RelocalizeStatus::kAmbiguous: return "ambiguous"; default: return "not_found"; } }
+namespace {
+
+// The query after levelling, in the map's kd coordinates once a pose is applied.
+struct LevelledQuery {
+  Eigen::Matrix3d level_from_sensor = Eigen::Matrix3d::Identity();
+  std::vector<Eigen::Vector2d> xy;  // levelled horizontal positions (sensor at the origin)
+  std::vector<double> z;            // levelled heights relative to the sensor
+  std::vector<double> dbh;
+  std::vector<uint32_t> used;       // indices into the request's trees, nearest first
+};
+
+struct Hypothesis {
+  Rigid2 pose;       // kd coordinates from levelled sensor coordinates
+  int votes = 0;
+  int inliers = 0;
+  double score = 0;  // sum over inliers of (1 - (d / inlier_distance)^2)
+  double rmse = 0;
+};
+
+LevelledQuery Level(const RelocalizeQuery& query, const RelocalizerOptions& options) {
+  LevelledQuery q;
+  q.level_from_sensor = LevelSensor(query.trees, query.gravity).level_from_sensor;
+  std::vector<std::pair<double, uint32_t>> by_range;
+  for (uint32_t i = 0; i < query.trees.size(); ++i) {
+    const Eigen::Vector3d p = q.level_from_sensor * query.trees[i].position;
+    const double range = p.head<2>().norm();
+    if (range <= options.max_query_range) by_range.push_back({range, i});
+  }
+  std::sort(by_range.begin(), by_range.end());
+  for (auto [range, i] : by_range) {
+    const Eigen::Vector3d p = q.level_from_sensor * query.trees[i].position;
+    q.xy.push_back(p.head<2>());
+    q.z.push_back(p.z());
+    q.dbh.push_back(query.trees[i].dbh);
+    q.used.push_back(i);
+  }
+  return q;
 }
+
+// Sensor pose cell for voting: 2 m x 2 m x ~6 deg.
+uint64_t CellKey(const Rigid2& pose) {
+  const int64_t cx = static_cast<int64_t>(std::floor(pose.translation.x() / 2.0));
+  const int64_t cy = static_cast<int64_t>(std::floor(pose.translation.y() / 2.0));
+  const int64_t cyaw = static_cast<int64_t>(std::floor((pose.yaw + M_PI) / 0.1));
+  return (static_cast<uint64_t>(cx & 0xFFFFFF) << 40) |
+         (static_cast<uint64_t>(cy & 0xFFFFFF) << 16) | static_cast<uint64_t>(cyaw & 0xFFFF);
+}
+
+// One triangle match's vote: the pose it implies and the query seeds that formed it.
+struct Vote {
+  uint64_t cell;
+  uint64_t seeds;  // bit i = seed tree i
+  float yaw, x, y;
+};
+
+double Cross(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
+  const Eigen::Vector2d u = b - a, v = c - a;
+  return u.x() * v.y() - u.y() * v.x();
+}
+
+// Pose of a canonical vertex correspondence of a query and a map triangle; false when the
+// triangles do not superpose within `tolerance` (mirror images, mislabelled near-equal sides).
+bool FitTriangle(const std::array<Eigen::Vector2d, 3>& query,
+                 const std::array<Eigen::Vector2d, 3>& map, double tolerance, Rigid2* pose) {
+  // Rigid motions keep orientation: reject mirror images before any trigonometry.
+  const double cq = Cross(query[0], query[1], query[2]), cm = Cross(map[0], map[1], map[2]);
+  if (cq * cm < 0 && std::abs(cq) > 0.5 && std::abs(cm) > 0.5) return false;
+  Rigid2Accumulator acc;
+  for (int v = 0; v < 3; ++v) acc.Add(query[v], map[v]);
+  *pose = acc.Solve();
+  for (int v = 0; v < 3; ++v) {
+    if (((*pose)(query[v]) - map[v]).squaredNorm() > tolerance * tolerance) return false;
+  }
+  return true;
+}
+
+// Query triangles among the seeds (the nearest query trees), with the index's side limits
+// widened by the matching tolerance.
+std::vector<Triangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy,
+                                     const MapIndexImpl& m, double tolerance) {
+  TriangleOptions tri = m.triangle_options;
+  tri.max_side += tolerance;
+  tri.min_side = std::max(0.0, tri.min_side - tolerance);
+  std::vector<std::vector<uint32_t>> neighbours(seed_xy.size());
+  for (uint32_t i = 0; i < seed_xy.size(); ++i) {
+    for (uint32_t j = 0; j < seed_xy.size(); ++j) {
+      if (i != j && (seed_xy[i] - seed_xy[j]).norm() <= tri.max_side) neighbours[i].push_back(j);
+    }
+  }
+  return EnumerateTriangles(seed_xy, neighbours, tri);
+}
+
+// Votes for sensor poses from every pair of similar query and map triangles. A pose cell is
+// ranked by how many distinct query trees voted for it: near-duplicate query triangles (a stem
+// detected twice, a false stem beside a true one) then cannot pile up support for a wrong pose.
+std::vector<Hypothesis> VoteForPoses(const MapIndexImpl& m, const LevelledQuery& q,
+                                     const std::optional<PriorPose>& prior,
+                                     const Eigen::Vector2d& prior_xy,
+                                     const RelocalizerOptions& options) {
+  const size_t seeds = std::min<size_t>({q.xy.size(), size_t{64},
+                                         static_cast<size_t>(options.max_seed_trees)});
+  const std::vector<Eigen::Vector2d> seed_xy(q.xy.begin(), q.xy.begin() + seeds);
+  const double tol = options.triangle_tolerance;
+  std::vector<Vote> votes;
+  votes.reserve(16384);
+  std::vector<std::pair<uint32_t, float>> found;
+  for (const Triangle& qt : QueryTriangles(seed_xy, m, tol)) {
+    // Per-side tolerance: search the ball that contains the box, then check each side.
+    m.triangle_keys->Radius(qt.sides, static_cast<float>(tol * std::sqrt(3.0)), found);
+    const std::array<Eigen::Vector2d, 3> qv = {seed_xy[qt.vertex[0]], seed_xy[qt.vertex[1]],
+                                               seed_xy[qt.vertex[2]]};
+    const uint64_t mask = (uint64_t{1} << qt.vertex[0]) | (uint64_t{1} << qt.vertex[1]) |
+                          (uint64_t{1} << qt.vertex[2]);
+    for (auto [t, d2] : found) {
+      const auto& key = m.triangle_keys->point(t);
+      if (std::abs(key[0] - qt.sides[0]) > tol || std::abs(key[1] - qt.sides[1]) > tol ||
+          std::abs(key[2] - qt.sides[2]) > tol) {
+        continue;
+      }
+      const auto& mt = m.triangle_vertices[t];
+      const std::array<Eigen::Vector2d, 3> mv = {m.Xy(mt[0]), m.Xy(mt[1]), m.Xy(mt[2])};
+      Rigid2 pose;
+      if (!FitTriangle(qv, mv, 2.0 * tol, &pose)) continue;
+      if (prior && (pose.translation - prior_xy).norm() > prior->radius) continue;
+      votes.push_back({CellKey(pose), mask, static_cast<float>(pose.yaw),
+                       static_cast<float>(pose.translation.x()),
+                       static_cast<float>(pose.translation.y())});
+    }
+  }
+  std::sort(votes.begin(), votes.end(),
+            [](const Vote& a, const Vote& b) { return a.cell < b.cell; });
+  std::vector<Hypothesis> hypotheses;
+  for (size_t begin = 0, end = 0; begin < votes.size(); begin = end) {
+    uint64_t mask = 0;
+    double c = 0, s = 0;
+    Eigen::Vector2d t = Eigen::Vector2d::Zero();
+    for (end = begin; end < votes.size() && votes[end].cell == votes[begin].cell; ++end) {
+      mask |= votes[end].seeds;
+      c += std::cos(votes[end].yaw);
+      s += std::sin(votes[end].yaw);
+      t += Eigen::Vector2d(votes[end].x, votes[end].y);
+    }
+    Hypothesis h;
+    h.votes = __builtin_popcountll(mask);
+    if (h.votes < options.min_votes) continue;
+    h.pose.yaw = std::atan2(s, c);
+    h.pose.translation = t / static_cast<double>(end - begin);
+    hypotheses.push_back(h);
+  }
+  const size_t keep = std::min<size_t>(hypotheses.size(), options.max_hypotheses);
+  std::partial_sort(hypotheses.begin(), hypotheses.begin() + keep, hypotheses.end(),
+                    [](const Hypothesis& a, const Hypothesis& b) { return a.votes > b.votes; });
+  hypotheses.resize(keep);
+  return hypotheses;
+}
+
+// Inliers of a pose: each used query tree whose nearest map tree is within `gate`.
+struct Association {
+  uint32_t query = 0;  // index into LevelledQuery
+  uint32_t map = 0;    // index into the map's trees
+  double distance = 0;
+};
+
+std::vector<Association> Associate(const MapIndexImpl& m, const LevelledQuery& q,
+                                   const Rigid2& pose, double gate) {
+  std::vector<Association> out;
+  const double gate2 = gate * gate;
+  for (uint32_t i = 0; i < q.xy.size(); ++i) {
+    const Eigen::Vector2d p = pose(q.xy[i]);
+    auto [j, d2] = m.positions->Nearest({static_cast<float>(p.x()), static_cast<float>(p.y())});
+    if (j >= 0 && d2 <= gate2) out.push_back({i, static_cast<uint32_t>(j), std::sqrt(d2)});
+  }
+  return out;
+}
+
+void Score(const MapIndexImpl& m, const LevelledQuery& q, double inlier_distance, Hypothesis* h) {
+  const std::vector<Association> inliers = Associate(m, q, h->pose, inlier_distance);
+  h->inliers = static_cast<int>(inliers.size());
+  h->score = 0;
+  double sum2 = 0;
+  for (const Association& a : inliers) {
+    const double r = a.distance / inlier_distance;
+    h->score += 1.0 - r * r;
+    sum2 += a.distance * a.distance;
+  }
+  h->rmse = inliers.empty() ? 0 : std::sqrt(sum2 / inliers.size());
+}
+
+// ICP-style refinement: re-associate with a shrinking gate and solve in x, y, yaw.
+void Refine(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
+            Hypothesis* h) {
+  for (double gate : {1.5 * options.inlier_distance, options.inlier_distance,
+                      options.inlier_distance, 0.7 * options.inlier_distance,
+                      0.7 * options.inlier_distance}) {
+    const std::vector<Association> matches = Associate(m, q, h->pose, gate);
+    if (matches.size() < 3) break;
+    Rigid2Accumulator acc;
+    for (const Association& a : matches) {
+      const double r = a.distance / gate;
+      acc.Add(q.xy[a.query], m.Xy(a.map), 1.0 - 0.5 * r * r);
+    }
+    h->pose = acc.Solve();
+  }
+  Score(m, q, options.inlier_distance, h);
+}
+
+bool Distinct(const Rigid2& a, const Rigid2& b, const RelocalizerOptions& options) {
+  return (a.translation - b.translation).norm() > options.distinct_distance ||
+         std::abs(WrapAngle(a.yaw - b.yaw)) > options.distinct_yaw;
+}
+
+// The final pose in the map frame, with z from the matched trees.
+RelocalizeResult Finish(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizeQuery& query,
+                        const Hypothesis& best, const RelocalizerOptions& options) {
+  RelocalizeResult result;
+  std::vector<double> dz;
+  for (const Association& a : Associate(m, q, best.pose, options.inlier_distance)) {
+    result.matches.push_back({static_cast<int>(q.used[a.query]), m.trees[a.map].id, a.distance});
+    const double map_z = m.trees[a.map].position.z();
+    if (IsKnown(map_z)) dz.push_back(map_z - q.z[a.query]);
+  }
+  double z = 0;  // a 2-D map has no heights: the pose is in its z = 0 plane
+  if (!dz.empty()) {
+    std::nth_element(dz.begin(), dz.begin() + dz.size() / 2, dz.end());
+    z = dz[dz.size() / 2];
+  }
+  const Eigen::Vector2d t = best.pose.translation + m.origin;
+  result.map_from_sensor = PoseFromXyzYaw(t.x(), t.y(), z, best.pose.yaw);
+  result.map_from_sensor.linear() = result.map_from_sensor.linear() * q.level_from_sensor;
+  result.inliers = best.inliers;
+  result.rmse = best.rmse;
+  (void)query;
+  return result;
+}
+
+}  // namespace
+
+void RelocalizerOptions::Check() const {
+  auto require = [](bool ok, const char* what) {
+    if (!ok) throw std::invalid_argument(std::string("RelocalizerOptions: ") + what);
+  };
+  require(max_query_range > 0, "max_query_range must be > 0");
+  require(inlier_distance > 0, "inlier_distance must be > 0");
+  require(triangle_tolerance > 0, "triangle_tolerance must be > 0");
+  require(min_inliers >= 3, "min_inliers must be >= 3");
+  require(min_inlier_ratio >= 0 && min_inlier_ratio <= 1, "min_inlier_ratio must be in [0, 1]");
+  require(ambiguity_ratio >= 1, "ambiguity_ratio must be >= 1");
+  require(distinct_distance > 0 && distinct_yaw > 0, "distinct_distance/yaw must be > 0");
+  require(max_seed_trees >= 3, "max_seed_trees must be >= 3");
+  require(max_hypotheses >= 1 && refine_hypotheses >= 1, "hypothesis counts must be >= 1");
+  require(min_votes >= 1, "min_votes must be >= 1");
+}
+
+const char* ToString(RelocalizeStatus status) {
+  switch (status) {
+    case RelocalizeStatus::kLocalized: return "localized";
+    case RelocalizeStatus::kAmbiguous: return "ambiguous";
+    case RelocalizeStatus::kNotFound: return "not_found";
+  }
+  return "unknown";
+}
+
+RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
+                            const RelocalizerOptions& options) {
+  options.Check();
+  const MapIndexImpl& m = index.impl();
+  RelocalizeResult result;
+  if (query.trees.size() < 3 || m.trees.size() < 3) {
+    result.detail = "need at least 3 query trees and 3 map trees";
+    return result;
+  }
+  const LevelledQuery q = Level(query, options);
+  Eigen::Vector2d prior_xy = Eigen::Vector2d::Zero();
+  if (query.prior) prior_xy = query.prior->map_from_sensor.translation().head<2>() - m.origin;
+
+  std::vector<Hypothesis> hypotheses = VoteForPoses(m, q, query.prior, prior_xy, options);
+  result.hypotheses = static_cast<int>(hypotheses.size());
+  if (hypotheses.empty()) {
+    result.detail = "no constellation of the query's trees matches the map";
+    return result;
+  }
+  for (Hypothesis& h : hypotheses) Score(m, q, options.inlier_distance, &h);
+  std::sort(hypotheses.begin(), hypotheses.end(),
+            [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; });
+  const size_t refine = std::min<size_t>(hypotheses.size(), options.refine_hypotheses);
+  for (size_t i = 0; i < refine; ++i) Refine(m, q, options, &hypotheses[i]);
+  std::sort(hypotheses.begin(), hypotheses.end(),
+            [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; });
+
+#ifdef FORESTMAP_DEBUG_RELOC
+  for (size_t i = 0; i < std::min<size_t>(hypotheses.size(), 8); ++i) {
+    const auto& h = hypotheses[i];
+    std::fprintf(stderr, "hyp %zu votes %d inliers %d score %.1f pose %.2f %.2f yaw %.2f deg\n", i, h.votes, h.inliers, h.score, h.pose.translation.x() + m.origin.x(), h.pose.translation.y() + m.origin.y(), h.pose.yaw * 180 / M_PI);
+  }
+#endif
+  const Hypothesis& best = hypotheses.front();
+  double rival = 0;
+  for (const Hypothesis& h : hypotheses) {
+    if (Distinct(h.pose, best.pose, options)) rival = std::max(rival, h.score);
+  }
+  const int in_range = static_cast<int>(
+      std::count_if(q.xy.begin(), q.xy.end(),
+                    [&](const Eigen::Vector2d& p) { return p.norm() <= options.ratio_range; }));
+  const int inliers_in_range = [&] {
+    int n = 0;
+    for (const Association& a : Associate(m, q, best.pose, options.inlier_distance)) {
+      n += q.xy[a.query].norm() <= options.ratio_range;
+    }
+    return n;
+  }();
+  const double ratio = in_range > 0 ? static_cast<double>(inliers_in_range) / in_range : 0.0;
+
+  result = Finish(m, q, query, best, options);
+  result.hypotheses = static_cast<int>(hypotheses.size());
+  result.confidence = best.score > 0 ? std::clamp(1.0 - rival / best.score, 0.0, 1.0) : 0.0;
+  char detail[160];
+  if (best.inliers < options.min_inliers || ratio < options.min_inlier_ratio) {
+    result.status = RelocalizeStatus::kNotFound;
+    std::snprintf(detail, sizeof detail,
+                  "best pose explains only %d trees (%.0f%% of those within %.0f m); need %d "
+                  "and %.0f%%",
+                  best.inliers, 100 * ratio, options.ratio_range, options.min_inliers,
+                  100 * options.min_inlier_ratio);
+  } else if (rival * options.ambiguity_ratio > best.score) {
+    result.status = RelocalizeStatus::kAmbiguous;
+    std::snprintf(detail, sizeof detail,
+                  "two distinct poses fit almost equally well (scores %.1f and %.1f)", best.score,
+                  rival);
+  } else {
+    result.status = RelocalizeStatus::kLocalized;
+    std::snprintf(detail, sizeof detail, "%d trees matched, next distinct pose scores %.1f",
+                  best.inliers, rival);
+  }
+  result.detail = detail;
+  if (result.status != RelocalizeStatus::kLocalized) {
+    result.map_from_sensor = Pose3::Identity();
+  }
+  return result;
+}
+
+}  // namespace forestmap::algorithms

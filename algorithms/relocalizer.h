@@ -15,36 +15,9 @@
 #include <vector>
 
 #include "algorithms/geometry.h"
+#include "algorithms/map_index.h"
 
 namespace forestmap::algorithms {
-
-struct MapIndexOptions {
-  double descriptor_radius = 10.0;  // m, neighbourhood that describes a tree
-  int threads = 0;                  // index build threads; 0 = hardware concurrency
-  void Check() const;
-};
-
-class MapIndexImpl;
-
-// The immutable per-map search structure, built once per map version. Thread-safe for
-// concurrent queries.
-class MapIndex {
- public:
-  MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options = {});
-  ~MapIndex();
-  MapIndex(const MapIndex&) = delete;
-  MapIndex& operator=(const MapIndex&) = delete;
-
-  size_t size() const;
-  const std::vector<MapTree>& trees() const;
-  bool has_z() const;    // every tree has a z
-  bool has_dbh() const;  // most trees have a DBH
-  size_t MemoryBytes() const;  // approximate resident size of the index
-  const MapIndexImpl& impl() const { return *impl_; }
-
- private:
-  std::unique_ptr<MapIndexImpl> impl_;
-};
 
 struct PriorPose {
   Pose3 map_from_sensor = Pose3::Identity();
@@ -59,16 +32,18 @@ struct RelocalizeQuery {
 
 struct RelocalizerOptions {
   double max_query_range = 40.0;     // m, query trees farther (horizontally) are not used
+  int max_seed_trees = 40;           // nearest query trees whose triangles seed hypotheses (<= 64)
+  double triangle_tolerance = 0.15;  // m, per-side length tolerance of triangle matches
+  int min_votes = 4;                 // distinct query trees voting for a pose cell to verify it
+  int max_hypotheses = 50;           // pose cells verified against the map
+  int refine_hypotheses = 4;         // best verified cells refined by ICP
   double inlier_distance = 0.5;      // m, a query tree within this of a map tree is an inlier
   int min_inliers = 6;               // fewer inliers -> NOT_FOUND
-  double min_inlier_ratio = 0.25;    // inliers / query trees in verified range; less -> NOT_FOUND
-  double ambiguity_ratio = 1.4;      // best score must be >= this x the next distinct pose
+  double ratio_range = 20.0;         // m, query trees within this range count for the ratio
+  double min_inlier_ratio = 0.2;     // inliers / query trees within ratio_range; less -> NOT_FOUND
+  double ambiguity_ratio = 1.5;      // best score must be >= this x the best distinct pose
   double distinct_distance = 2.0;    // m, poses farther apart than this are distinct
-  double distinct_yaw = 0.17;        // rad (~10 deg), or whose yaw differs more than this
-  int candidates_per_tree = 8;       // descriptor neighbours per query tree
-  int max_seed_trees = 60;           // query trees used to seed hypotheses (nearest first)
-  int max_hypotheses = 40;           // clustered hypotheses verified against the map
-  unsigned seed = 42;                // randomness (sampling), fixed for repeatability
+  double distinct_yaw = 0.17;        // rad (~10 deg), or whose yaws differ more than this
   void Check() const;
 };
 

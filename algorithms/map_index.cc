@@ -1,0 +1,120 @@
+#include "algorithms/map_index.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <thread>
+
+#include "algorithms/map_index_internal.h"
+
+namespace forestmap::algorithms {
+
+namespace {
+
+int ThreadCount(int requested) {
+  if (requested > 0) return requested;
+  return std::max(1u, std::thread::hardware_concurrency());
+}
+
+// Runs fn(begin, end) over [0, n) split across threads.
+// Runs fn(chunk, begin, end) over [0, n) split into `chunks` contiguous ranges, one thread each.
+template <typename Fn>
+void ParallelFor(size_t n, int chunks, Fn fn) {
+  if (chunks <= 1) return fn(0, size_t{0}, n);
+  std::vector<std::thread> pool;
+  for (int t = 0; t < chunks; ++t) {
+    pool.emplace_back([&, t] { fn(t, n * t / chunks, n * (t + 1) / chunks); });
+  }
+  for (auto& thread : pool) thread.join();
+}
+
+double MedianNearestNeighbourDistance(const KdTree<float, 2>& kd) {
+  if (kd.size() < 2) return 1.0;
+  std::vector<double> d;
+  const size_t step = std::max<size_t>(1, kd.size() / 5000);
+  for (size_t i = 0; i < kd.size(); i += step) {
+    auto nn = kd.Knn(kd.point(i), 2);
+    if (nn.size() == 2) d.push_back(std::sqrt(nn[1].second));
+  }
+  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+  return std::max(0.3, d[d.size() / 2]);
+}
+
+}  // namespace
+
+void MapIndexOptions::Check() const {
+  if (!(target_neighbours >= 2 && target_neighbours <= 50)) {
+    throw std::invalid_argument("MapIndexOptions: target_neighbours must be in [2, 50]");
+  }
+  if (threads < 0) throw std::invalid_argument("MapIndexOptions: threads must be >= 0");
+}
+
+MapIndex::MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options)
+    : impl_(std::make_unique<MapIndexImpl>()) {
+  options.Check();
+  MapIndexImpl& m = *impl_;
+  m.trees = std::move(trees);
+  const size_t n = m.trees.size();
+  size_t with_z = 0, with_dbh = 0;
+  for (const MapTree& t : m.trees) {
+    m.origin += t.position.head<2>() / static_cast<double>(std::max<size_t>(n, 1));
+    with_z += IsKnown(t.position.z());
+    with_dbh += IsKnown(t.dbh);
+  }
+  m.has_z = n > 0 && with_z == n;
+  m.has_dbh = n > 0 && with_dbh * 2 >= n;
+
+  std::vector<KdTree<float, 2>::Point> xy(n);
+  std::vector<Eigen::Vector2d> local(n);
+  for (size_t i = 0; i < n; ++i) {
+    local[i] = m.trees[i].position.head<2>() - m.origin;
+    xy[i] = {static_cast<float>(local[i].x()), static_cast<float>(local[i].y())};
+  }
+  m.positions = std::make_unique<KdTree<float, 2>>(std::move(xy));
+  m.triangle_options.max_side = std::clamp(
+      TriangleSideForDensity(MedianNearestNeighbourDistance(*m.positions),
+                             options.target_neighbours),
+      2.0, 15.0);
+
+  // Triangles, enumerated in parallel over chunks of anchor trees.
+  // Small maps are built on the calling thread.
+  const int chunks = n < 20000 ? 1 : ThreadCount(options.threads);
+  std::vector<std::vector<Triangle>> parts(chunks);
+  std::vector<std::vector<uint32_t>> neighbours(n);
+  ParallelFor(n, chunks, [&](int, size_t begin, size_t end) {
+    std::vector<std::pair<uint32_t, float>> found;
+    for (size_t i = begin; i < end; ++i) {
+      m.positions->Radius(m.positions->point(i), m.triangle_options.max_side, found);
+      for (auto& [j, d2] : found) neighbours[i].push_back(j);
+    }
+  });
+  ParallelFor(n, chunks, [&](int chunk, size_t begin, size_t end) {
+    parts[chunk] = EnumerateTriangles(local, neighbours, m.triangle_options, begin, end);
+  });
+  neighbours = {};
+  std::vector<KdTree<float, 3>::Point> keys;
+  for (auto& part : parts) {
+    for (const Triangle& t : part) {
+      keys.push_back(t.sides);
+      m.triangle_vertices.push_back(t.vertex);
+    }
+    part = {};
+  }
+  m.triangle_keys = std::make_unique<KdTree<float, 3>>(std::move(keys));
+}
+
+MapIndex::~MapIndex() = default;
+size_t MapIndex::size() const { return impl_->trees.size(); }
+const std::vector<MapTree>& MapIndex::trees() const { return impl_->trees; }
+bool MapIndex::has_z() const { return impl_->has_z; }
+bool MapIndex::has_dbh() const { return impl_->has_dbh; }
+double MapIndex::triangle_side() const { return impl_->triangle_options.max_side; }
+size_t MapIndex::triangle_count() const { return impl_->triangle_vertices.size(); }
+size_t MapIndex::MemoryBytes() const {
+  const MapIndexImpl& m = *impl_;
+  return sizeof(MapIndexImpl) + m.trees.capacity() * sizeof(MapTree) +
+         m.positions->MemoryBytes() +
+         m.triangle_vertices.capacity() * sizeof(m.triangle_vertices[0]) +
+         m.triangle_keys->MemoryBytes();
+}
+
+}  // namespace forestmap::algorithms

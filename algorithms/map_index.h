@@ -1,0 +1,43 @@
+#pragma once
+// The immutable per-map search structure of the relocalizer.
+
+#include <memory>
+#include <vector>
+
+#include "algorithms/geometry.h"
+
+namespace forestmap::algorithms {
+
+struct MapIndexOptions {
+  // Triangle keys use sides up to the length at which a tree has this many neighbours on
+  // average (from the map's nearest-neighbour statistics); more = more robust, bigger index.
+  double target_neighbours = 6.0;
+  int threads = 0;  // index build threads for large maps; 0 = hardware concurrency
+  void Check() const;
+};
+
+class MapIndexImpl;
+
+// The immutable per-map search structure, built once per map version. Thread-safe for
+// concurrent queries.
+class MapIndex {
+ public:
+  MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options = {});
+  ~MapIndex();
+  MapIndex(const MapIndex&) = delete;
+  MapIndex& operator=(const MapIndex&) = delete;
+
+  size_t size() const;
+  const std::vector<MapTree>& trees() const;
+  bool has_z() const;    // every tree has a z
+  bool has_dbh() const;  // most trees have a DBH
+  size_t MemoryBytes() const;  // approximate resident size of the index
+  double triangle_side() const;  // m, longest triangle side indexed
+  size_t triangle_count() const;
+  const MapIndexImpl& impl() const { return *impl_; }
+
+ private:
+  std::unique_ptr<MapIndexImpl> impl_;
+};
+
+}  // namespace forestmap::algorithms
