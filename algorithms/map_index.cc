@@ -1,6 +1,7 @@
 #include "algorithms/map_index.h"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <thread>
 
@@ -39,11 +40,53 @@ double MedianNearestNeighbourDistance(const KdTree<float, 2>& kd) {
   return std::max(0.3, d[d.size() / 2]);
 }
 
+// Triangles anchored at a sample of trees, per tree, for a given maximum side.
+double TrianglesPerTree(const KdTree<float, 2>& kd, const std::vector<Eigen::Vector2d>& local,
+                        const TriangleOptions& options) {
+  const size_t step = std::max<size_t>(1, kd.size() / 2000);
+  std::vector<std::vector<uint32_t>> neighbours(kd.size());
+  std::vector<std::pair<uint32_t, float>> found;
+  size_t anchors = 0;
+  for (size_t i = 0; i < kd.size(); i += step, ++anchors) {
+    kd.Radius(kd.point(i), static_cast<float>(options.max_side), found);
+    for (auto& [j, d2] : found) neighbours[i].push_back(j);
+  }
+  // Each triangle is counted at its smallest index only: scale the sample to all anchors.
+  size_t triangles = 0;
+  for (size_t i = 0; i < kd.size(); i += step) {
+    triangles += EnumerateTriangles(local, neighbours, options, i, i + 1).size();
+  }
+  return anchors ? static_cast<double>(triangles) / anchors : 0.0;
+}
+
+// Side length: what the map's density suggests, at least what a sparse query needs, and small
+// enough for the index budget (triangle count grows as side^4).
+double ChooseTriangleSide(const KdTree<float, 2>& kd, const std::vector<Eigen::Vector2d>& local,
+                          const MapIndexOptions& options) {
+  TriangleOptions tri;
+  tri.max_side = std::max(options.min_triangle_side,
+                          TriangleSideForDensity(MedianNearestNeighbourDistance(kd),
+                                                 options.target_neighbours));
+  const double budget = kd.size() > options.large_map_trees
+                            ? options.max_triangles_per_tree
+                            : options.small_map_triangles_per_tree;
+  for (int i = 0; i < 4; ++i) {
+    const double per_tree = TrianglesPerTree(kd, local, tri);
+    if (per_tree <= budget) break;
+    tri.max_side *= std::pow(budget / per_tree, 0.25);
+  }
+  return std::clamp(tri.max_side, 1.0, 15.0);
+}
+
 }  // namespace
 
 void MapIndexOptions::Check() const {
   if (!(target_neighbours >= 2 && target_neighbours <= 50)) {
     throw std::invalid_argument("MapIndexOptions: target_neighbours must be in [2, 50]");
+  }
+  if (!(min_triangle_side >= 0 && max_triangles_per_tree > 0 &&
+        small_map_triangles_per_tree > 0)) {
+    throw std::invalid_argument("MapIndexOptions: min_triangle_side and triangle budget invalid");
   }
   if (threads < 0) throw std::invalid_argument("MapIndexOptions: threads must be >= 0");
 }
@@ -70,10 +113,7 @@ MapIndex::MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options)
     xy[i] = {static_cast<float>(local[i].x()), static_cast<float>(local[i].y())};
   }
   m.positions = std::make_unique<KdTree<float, 2>>(std::move(xy));
-  m.triangle_options.max_side = std::clamp(
-      TriangleSideForDensity(MedianNearestNeighbourDistance(*m.positions),
-                             options.target_neighbours),
-      2.0, 15.0);
+  m.triangle_options.max_side = ChooseTriangleSide(*m.positions, local, options);
 
   // Triangles, enumerated in parallel over chunks of anchor trees.
   // Small maps are built on the calling thread.

@@ -12,6 +12,13 @@ struct MapIndexOptions {
   // Triangle keys use sides up to the length at which a tree has this many neighbours on
   // average (from the map's nearest-neighbour statistics); more = more robust, bigger index.
   double target_neighbours = 6.0;
+  // A drone sees fewer trees than a dense map holds (occlusion, misses): its triangles need at
+  // least this side length to exist at all. Bounded by the triangle budget below.
+  double min_triangle_side = 3.5;   // m
+  // Index size bound (~28 bytes a triangle): tight for huge maps, generous for small ones.
+  double max_triangles_per_tree = 12.0;        // maps of more than large_map_trees trees
+  double small_map_triangles_per_tree = 40.0;  // smaller maps
+  size_t large_map_trees = 200000;
   int threads = 0;  // index build threads for large maps; 0 = hardware concurrency
   void Check() const;
 };

@@ -216,6 +216,22 @@ void Refine(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOpti
   Score(m, q, options.inlier_distance, h);
 }
 
+// Inliers a random pose would get: each query tree lands within the inlier distance of some map
+// tree with probability 1 - exp(-local density * pi * d^2) (Poisson), summed over query trees.
+double ChanceInliers(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
+                     double inlier_distance) {
+  constexpr double kRadius = 5.0;  // m, neighbourhood for the local density
+  std::vector<std::pair<uint32_t, float>> found;
+  double expected = 0;
+  for (const Eigen::Vector2d& xy : q.xy) {
+    const Eigen::Vector2d p = pose(xy);
+    m.positions->Radius({static_cast<float>(p.x()), static_cast<float>(p.y())}, kRadius, found);
+    const double density = found.size() / (M_PI * kRadius * kRadius);
+    expected += 1.0 - std::exp(-density * M_PI * inlier_distance * inlier_distance);
+  }
+  return expected;
+}
+
 bool Distinct(const Rigid2& a, const Rigid2& b, const RelocalizerOptions& options) {
   return (a.translation - b.translation).norm() > options.distinct_distance ||
          std::abs(WrapAngle(a.yaw - b.yaw)) > options.distinct_yaw;
@@ -257,6 +273,7 @@ void RelocalizerOptions::Check() const {
   require(min_inliers >= 3, "min_inliers must be >= 3");
   require(min_inlier_ratio >= 0 && min_inlier_ratio <= 1, "min_inlier_ratio must be in [0, 1]");
   require(ambiguity_ratio >= 1, "ambiguity_ratio must be >= 1");
+  require(chance_sigmas >= 0, "chance_sigmas must be >= 0");
   require(distinct_distance > 0 && distinct_yaw > 0, "distinct_distance/yaw must be > 0");
   require(max_seed_trees >= 3, "max_seed_trees must be >= 3");
   require(max_hypotheses >= 1 && refine_hypotheses >= 1, "hypothesis counts must be >= 1");
@@ -325,8 +342,16 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   result = Finish(m, q, query, best, options);
   result.hypotheses = static_cast<int>(hypotheses.size());
   result.confidence = best.score > 0 ? std::clamp(1.0 - rival / best.score, 0.0, 1.0) : 0.0;
-  char detail[160];
-  if (best.inliers < options.min_inliers || ratio < options.min_inlier_ratio) {
+  const double chance = ChanceInliers(m, q, best.pose, options.inlier_distance);
+  const double significant = chance + options.chance_sigmas * std::sqrt(chance);
+  char detail[200];
+  if (best.inliers < significant) {
+    result.status = RelocalizeStatus::kNotFound;
+    std::snprintf(detail, sizeof detail,
+                  "best pose matches %d trees, no better than chance here (%.1f expected at "
+                  "random); is the drone in this map?",
+                  best.inliers, chance);
+  } else if (best.inliers < options.min_inliers || ratio < options.min_inlier_ratio) {
     result.status = RelocalizeStatus::kNotFound;
     std::snprintf(detail, sizeof detail,
                   "best pose explains only %d trees (%.0f%% of those within %.0f m); need %d "

@@ -33,14 +33,15 @@ struct RelocalizeQuery {
 struct RelocalizerOptions {
   double max_query_range = 40.0;     // m, query trees farther (horizontally) are not used
   int max_seed_trees = 40;           // nearest query trees whose triangles seed hypotheses (<= 64)
-  double triangle_tolerance = 0.15;  // m, per-side length tolerance of triangle matches
+  double triangle_tolerance = 0.20;  // m, per-side length tolerance of triangle matches
   int min_votes = 4;                 // distinct query trees voting for a pose cell to verify it
-  int max_hypotheses = 50;           // pose cells verified against the map
-  int refine_hypotheses = 4;         // best verified cells refined by ICP
-  double inlier_distance = 0.5;      // m, a query tree within this of a map tree is an inlier
+  int max_hypotheses = 100;          // pose cells verified against the map
+  int refine_hypotheses = 8;         // best verified cells refined by ICP
+  double inlier_distance = 0.4;      // m, a query tree within this of a map tree is an inlier
   int min_inliers = 6;               // fewer inliers -> NOT_FOUND
   double ratio_range = 20.0;         // m, query trees within this range count for the ratio
   double min_inlier_ratio = 0.2;     // inliers / query trees within ratio_range; less -> NOT_FOUND
+  double chance_sigmas = 5.0;        // inliers must exceed chance by this many Poisson sigmas
   double ambiguity_ratio = 1.5;      // best score must be >= this x the best distinct pose
   double distinct_distance = 2.0;    // m, poses farther apart than this are distinct
   double distinct_yaw = 0.17;        // rad (~10 deg), or whose yaws differ more than this
