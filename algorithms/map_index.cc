@@ -70,10 +70,12 @@ double ChooseTriangleSide(const KdTree<float, 2>& kd, const std::vector<Eigen::V
   const double budget = kd.size() > options.large_map_trees
                             ? options.max_triangles_per_tree
                             : options.small_map_triangles_per_tree;
+  const double wanted = std::min(budget, options.min_index_triangles / std::max<size_t>(1, kd.size()));
   for (int i = 0; i < 4; ++i) {
-    const double per_tree = TrianglesPerTree(kd, local, tri);
-    if (per_tree <= budget) break;
-    tri.max_side *= std::pow(budget / per_tree, 0.25);
+    const double per_tree = std::max(0.1, TrianglesPerTree(kd, local, tri));
+    double target = per_tree > budget ? budget : (per_tree < 0.8 * wanted ? wanted : per_tree);
+    if (target == per_tree) break;
+    tri.max_side = std::min(15.0, tri.max_side * std::pow(target / per_tree, 0.25));
   }
   return std::clamp(tri.max_side, 1.0, 15.0);
 }

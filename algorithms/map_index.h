@@ -19,6 +19,9 @@ struct MapIndexOptions {
   double max_triangles_per_tree = 12.0;        // maps of more than large_map_trees trees
   double small_map_triangles_per_tree = 40.0;  // smaller maps
   size_t large_map_trees = 200000;
+  // Small or sparse maps: grow the side until the index holds this many triangles (sparse
+  // views then still contain whole triangles; the search stays cheap on a small index).
+  double min_index_triangles = 50000;
   int threads = 0;  // index build threads for large maps; 0 = hardware concurrency
   void Check() const;
 };

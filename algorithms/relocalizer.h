@@ -34,7 +34,7 @@ struct RelocalizerOptions {
   double max_query_range = 40.0;     // m, query trees farther (horizontally) are not used
   int max_seed_trees = 40;           // nearest query trees whose triangles seed hypotheses (<= 64)
   double triangle_tolerance = 0.20;  // m, per-side length tolerance of triangle matches
-  int min_votes = 4;                 // distinct query trees voting for a pose cell to verify it
+  int min_votes = 3;                 // distinct query trees voting for a pose cell to verify it
   int max_hypotheses = 100;          // pose cells verified against the map
   int refine_hypotheses = 8;         // best verified cells refined by ICP
   double inlier_distance = 0.4;      // m, a query tree within this of a map tree is an inlier
