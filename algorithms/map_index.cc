@@ -82,6 +82,20 @@ double ChooseTriangleSide(const KdTree<float, 2>& kd, const std::vector<Eigen::V
 
 }  // namespace
 
+TriangleFrame FrameOf(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                      const Eigen::Vector2d& c) {
+  const Eigen::Vector2d centroid = (a + b + c) / 3.0;
+  const Eigen::Vector2d ab = b - a, ac = c - a;
+  const double cross = ab.x() * ac.y() - ab.y() * ac.x();
+  // Nearly collinear triangles (height under 5% of the long side) have no reliable orientation.
+  const int turn = std::abs(cross) < 0.05 * ab.squaredNorm() ? 0 : (cross > 0 ? 1 : -1);
+  TriangleFrame frame;
+  frame.cx = static_cast<float>(centroid.x());
+  frame.cy = static_cast<float>(centroid.y());
+  frame.packed = static_cast<float>(std::atan2(ab.y(), ab.x()) + 8.0 * turn);
+  return frame;
+}
+
 void MapIndexOptions::Check() const {
   if (!(target_neighbours >= 2 && target_neighbours <= 50)) {
     throw std::invalid_argument("MapIndexOptions: target_neighbours must be in [2, 50]");
@@ -137,7 +151,8 @@ MapIndex::MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options)
   for (auto& part : parts) {
     for (const Triangle& t : part) {
       keys.push_back(t.sides);
-      m.triangle_vertices.push_back(t.vertex);
+      m.triangle_frames.push_back(
+          FrameOf(local[t.vertex[0]], local[t.vertex[1]], local[t.vertex[2]]));
     }
     part = {};
   }
@@ -150,12 +165,12 @@ const std::vector<MapTree>& MapIndex::trees() const { return impl_->trees; }
 bool MapIndex::has_z() const { return impl_->has_z; }
 bool MapIndex::has_dbh() const { return impl_->has_dbh; }
 double MapIndex::triangle_side() const { return impl_->triangle_options.max_side; }
-size_t MapIndex::triangle_count() const { return impl_->triangle_vertices.size(); }
+size_t MapIndex::triangle_count() const { return impl_->triangle_frames.size(); }
 size_t MapIndex::MemoryBytes() const {
   const MapIndexImpl& m = *impl_;
   return sizeof(MapIndexImpl) + m.trees.capacity() * sizeof(MapTree) +
          m.positions->MemoryBytes() +
-         m.triangle_vertices.capacity() * sizeof(m.triangle_vertices[0]) +
+         m.triangle_frames.capacity() * sizeof(TriangleFrame) +
          m.triangle_keys->MemoryBytes();
 }
 

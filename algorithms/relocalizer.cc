@@ -65,27 +65,6 @@ struct Vote {
   float yaw, x, y;
 };
 
-double Cross(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
-  const Eigen::Vector2d u = b - a, v = c - a;
-  return u.x() * v.y() - u.y() * v.x();
-}
-
-// Pose of a canonical vertex correspondence of a query and a map triangle; false when the
-// triangles do not superpose within `tolerance` (mirror images, mislabelled near-equal sides).
-bool FitTriangle(const std::array<Eigen::Vector2d, 3>& query,
-                 const std::array<Eigen::Vector2d, 3>& map, double tolerance, Rigid2* pose) {
-  // Rigid motions keep orientation: reject mirror images before any trigonometry.
-  const double cq = Cross(query[0], query[1], query[2]), cm = Cross(map[0], map[1], map[2]);
-  if (cq * cm < 0 && std::abs(cq) > 0.5 && std::abs(cm) > 0.5) return false;
-  Rigid2Accumulator acc;
-  for (int v = 0; v < 3; ++v) acc.Add(query[v], map[v]);
-  *pose = acc.Solve();
-  for (int v = 0; v < 3; ++v) {
-    if (((*pose)(query[v]) - map[v]).squaredNorm() > tolerance * tolerance) return false;
-  }
-  return true;
-}
-
 // Query triangles among the seeds (the nearest query trees), with the index's side limits
 // widened by the matching tolerance.
 std::vector<Triangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy,
@@ -119,8 +98,10 @@ std::vector<Hypothesis> VoteForPoses(const MapIndexImpl& m, const LevelledQuery&
   for (const Triangle& qt : QueryTriangles(seed_xy, m, tol)) {
     // Per-side tolerance: search the ball that contains the box, then check each side.
     m.triangle_keys->Radius(qt.sides, static_cast<float>(tol * std::sqrt(3.0)), found);
-    const std::array<Eigen::Vector2d, 3> qv = {seed_xy[qt.vertex[0]], seed_xy[qt.vertex[1]],
-                                               seed_xy[qt.vertex[2]]};
+    const TriangleFrame qf =
+        FrameOf(seed_xy[qt.vertex[0]], seed_xy[qt.vertex[1]], seed_xy[qt.vertex[2]]);
+    const double q_heading = qf.heading();
+    const int q_turn = qf.turn();
     const uint64_t mask = (uint64_t{1} << qt.vertex[0]) | (uint64_t{1} << qt.vertex[1]) |
                           (uint64_t{1} << qt.vertex[2]);
     for (auto [t, d2] : found) {
@@ -129,10 +110,13 @@ std::vector<Hypothesis> VoteForPoses(const MapIndexImpl& m, const LevelledQuery&
           std::abs(key[2] - qt.sides[2]) > tol) {
         continue;
       }
-      const auto& mt = m.triangle_vertices[t];
-      const std::array<Eigen::Vector2d, 3> mv = {m.Xy(mt[0]), m.Xy(mt[1]), m.Xy(mt[2])};
+      const TriangleFrame& mf = m.triangle_frames[t];
+      if (q_turn * mf.turn() < 0) continue;  // mirror image: no rigid motion maps one onto other
+      // map = R(yaw) * query + t, with the long sides and the centroids aligned.
       Rigid2 pose;
-      if (!FitTriangle(qv, mv, 2.0 * tol, &pose)) continue;
+      pose.yaw = WrapAngle(mf.heading() - q_heading);
+      const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
+      pose.translation = {mf.cx - (c * qf.cx - s * qf.cy), mf.cy - (s * qf.cx + c * qf.cy)};
       if (prior && (pose.translation - prior_xy).norm() > prior->radius) continue;
       votes.push_back({CellKey(pose), mask, static_cast<float>(pose.yaw),
                        static_cast<float>(pose.translation.x()),

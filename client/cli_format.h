@@ -1,0 +1,44 @@
+#pragma once
+// What the `forestmap` command line reads from flags and prints, kept apart from the commands so
+// that it can be tested without a server.
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "client/forestmap_client.h"
+
+namespace forestmap::client {
+
+// Parses "X,Y,YAW_DEG,RADIUS_M" (metres, degrees). Throws std::invalid_argument saying what is
+// wrong, without the flag name.
+PriorXyYaw ParsePrior(std::string_view text);
+
+// "localized", "ambiguous", "not_found" (or "unspecified").
+const char* RelocalizeStatusName(v1::RelocalizeResponse::Status status);
+
+// Heading of the sensor x axis in the map frame, degrees counter-clockwise from map x, (-180,180].
+double YawDegrees(const algorithms::Pose3& map_from_sensor);
+
+// One line of `forestmap relocalize` output, keys in this order:
+// frame (when given), status, x, y, z, qx, qy, qz, qw, yaw_deg (pose only when localized),
+// inliers, rmse_m, confidence, server_ms.
+nlohmann::ordered_json RelocalizeJson(const v1::RelocalizeResponse& response,
+                                      std::optional<int64_t> frame = std::nullopt);
+
+// The `map list` table: NAME TREES VERSION CRS EXTENT, one map per line, columns aligned.
+std::string FormatMapTable(const std::vector<v1::Map>& maps);
+
+// The `map show` text: one "field: value" line per field.
+std::string FormatMapDetails(const v1::Map& map);
+
+// "x 0.00..200.00 m, y 8.80..200.00 m" or "-" for an empty map.
+std::string FormatExtent(const v1::Map& map);
+
+// UTC ISO 8601 ("2024-05-01T12:00:00Z"), or "-" for 0.
+std::string FormatUnixMs(int64_t unix_ms);
+
+}  // namespace forestmap::client

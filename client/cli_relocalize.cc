@@ -1,0 +1,150 @@
+// `forestmap relocalize NAME --trees FILE [--prior X,Y,YAW_DEG,RADIUS_M]` and
+// `forestmap relocalize NAME --frames FILE`.
+
+#include <algorithm>
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "client/cli_commands.h"
+#include "client/cli_format.h"
+#include "client/tree_csv.h"
+
+namespace forestmap::client {
+namespace {
+
+constexpr int kProgressEveryFrames = 50;
+
+struct RelocalizeOptions {
+  std::string map;
+  std::string trees_file;
+  std::string frames_file;
+  std::string prior_text;
+  std::optional<PriorXyYaw> prior;  // parsed from prior_text
+};
+
+void PrintLine(const CliContext& context, const v1::RelocalizeResponse& response,
+               std::optional<int64_t> frame) {
+  *context.out << RelocalizeJson(response, frame).dump() << std::endl;
+}
+
+void RunSingle(const RelocalizeOptions& options, const CliContext& context) {
+  const std::vector<DetectedTreeRow> rows = ReadDetectedTreesCsv(options.trees_file);
+  if (rows.empty()) throw CommandError(options.trees_file + ": no trees (header only)");
+  std::set<int64_t> frames;
+  std::vector<algorithms::DetectedTree> trees;
+  trees.reserve(rows.size());
+  for (const DetectedTreeRow& row : rows) {
+    if (row.frame) frames.insert(*row.frame);
+    trees.push_back(row.tree);
+  }
+  if (frames.size() > 1) {
+    throw CommandError(options.trees_file + " holds the trees of " + std::to_string(frames.size()) +
+                       " frames; use --frames to relocalize each frame");
+  }
+  PrintLine(context, context.Connect().Relocalize(options.map, trees, options.prior), {});
+}
+
+struct FrameCounts {
+  int localized = 0, ambiguous = 0, not_found = 0, failed = 0;
+  std::vector<double> server_ms;
+
+  void Add(const v1::RelocalizeResponse& response) {
+    localized += response.status() == v1::RelocalizeResponse::LOCALIZED;
+    ambiguous += response.status() == v1::RelocalizeResponse::AMBIGUOUS;
+    not_found += response.status() == v1::RelocalizeResponse::NOT_FOUND;
+    server_ms.push_back(response.server_time_ms());
+  }
+  std::string Describe() const {
+    return std::to_string(localized) + " localized, " + std::to_string(ambiguous) + " ambiguous, " +
+           std::to_string(not_found) + " not_found" +
+           (failed > 0 ? ", " + std::to_string(failed) + " failed" : "");
+  }
+  double MedianServerMs() {
+    if (server_ms.empty()) return 0;
+    auto middle = server_ms.begin() + static_cast<long>(server_ms.size() / 2);
+    std::nth_element(server_ms.begin(), middle, server_ms.end());
+    return *middle;
+  }
+};
+
+// One request per frame. A frame the server rejects as invalid (too few trees, ...) is a warning
+// and the run goes on; any other error (unreachable server, unknown map) ends it.
+void RunFrames(const RelocalizeOptions& options, const CliContext& context) {
+  const std::vector<Frame> frames = ReadFramesCsv(options.frames_file);
+  if (frames.empty()) throw CommandError(options.frames_file + ": no frames (header only)");
+  ForestMapClient client = context.Connect();
+  FrameCounts counts;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const Frame& frame = frames[i];
+    try {
+      const v1::RelocalizeResponse response = client.Relocalize(options.map, frame.trees);
+      counts.Add(response);
+      PrintLine(context, response, frame.frame);
+    } catch (const RpcError& error) {
+      if (error.code() != grpc::StatusCode::INVALID_ARGUMENT) throw;
+      ++counts.failed;
+      *context.err << "forestmap: warning: frame " << frame.frame << ": " << error.what()
+                   << std::endl;
+    }
+    if ((i + 1) % kProgressEveryFrames == 0 && i + 1 < frames.size()) {
+      *context.err << "relocalize: " << i + 1 << "/" << frames.size()
+                   << " frames: " << counts.Describe() << std::endl;
+    }
+  }
+  char median[32];
+  std::snprintf(median, sizeof(median), "%.1f", counts.MedianServerMs());
+  *context.err << "relocalize: " << frames.size() << " frames: " << counts.Describe()
+               << "; median server time " << median << " ms" << std::endl;
+  if (counts.failed > 0) {
+    throw CommandError(std::to_string(counts.failed) + " of " + std::to_string(frames.size()) +
+                       " frames were rejected by the server (see the warnings above)");
+  }
+}
+
+}  // namespace
+
+void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
+  auto options = std::make_shared<RelocalizeOptions>();
+  CLI::App* sub = app.add_subcommand(
+      "relocalize",
+      "Find the sensor pose in a map from the trees it detected; prints one JSON line per query");
+  sub->add_option("NAME", options->map, "Map name")->required();
+  CLI::Option* trees = sub->add_option(
+      "--trees", options->trees_file,
+      "CSV of the trees detected in one scan, sensor frame: x,y (m) required; z, dbh (m), score, "
+      "axis_x,axis_y,axis_z optional");
+  CLI::Option* frames =
+      sub->add_option("--frames", options->frames_file,
+                      "CSV of many scans with a frame column (frame,x,y,...): one query per frame");
+  CLI::Option* prior = sub->add_option(
+      "--prior", options->prior_text,
+      "Prior pose X,Y,YAW_DEG,RADIUS_M: the sensor is within RADIUS_M of (X,Y) (map frame, m) "
+      "with heading YAW_DEG (deg, counter-clockwise from map x)");
+  trees->excludes(frames);
+  prior->excludes(frames);
+  sub->callback([options, trees, frames, prior, &context] {
+    if (trees->count() == 0 && frames->count() == 0) {
+      throw CLI::RequiredError("--trees FILE or --frames FILE");
+    }
+    if (prior->count() > 0) {
+      try {
+        options->prior = ParsePrior(options->prior_text);
+      } catch (const std::invalid_argument& error) {
+        throw CLI::ValidationError("--prior", error.what());
+      }
+    }
+    context.run = [options, &context] {
+      if (options->frames_file.empty()) {
+        RunSingle(*options, context);
+      } else {
+        RunFrames(*options, context);
+      }
+    };
+  });
+}
+
+}  // namespace forestmap::client

@@ -1,0 +1,247 @@
+#include "client/forestmap_client.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+#include <utility>
+
+#include "client/proto_convert.h"
+
+namespace forestmap::client {
+namespace {
+
+std::chrono::system_clock::time_point After(double seconds) {
+  return std::chrono::system_clock::now() +
+         std::chrono::duration_cast<std::chrono::system_clock::duration>(
+             std::chrono::duration<double>(seconds));
+}
+
+// When the first connection attempt failed, calls get this long at most: a refused connection
+// fails at once, and an address that swallows packets should not hang the command.
+constexpr double kUnconnectedCallTimeout = 1.0;  // s
+
+}  // namespace
+
+void ClientOptions::Check() const {
+  if (!(connect_timeout > 0)) throw std::invalid_argument("connect_timeout must be > 0 s");
+  if (!(call_timeout > 0)) throw std::invalid_argument("call_timeout must be > 0 s");
+  if (!(stream_timeout > 0)) throw std::invalid_argument("stream_timeout must be > 0 s");
+  if (upload_chunk_trees < 1) throw std::invalid_argument("upload_chunk_trees must be >= 1");
+  if (max_receive_bytes < 1) throw std::invalid_argument("max_receive_bytes must be >= 1");
+}
+
+ForestMapClient::ForestMapClient(std::string address, const ClientOptions& options)
+    : address_(std::move(address)), options_(options) {
+  options_.Check();
+  grpc::ChannelArguments arguments;
+  arguments.SetMaxReceiveMessageSize(options_.max_receive_bytes);
+  channel_ = grpc::CreateCustomChannel(address_, grpc::InsecureChannelCredentials(), arguments);
+  stub_ = v1::ForestMap::NewStub(channel_);
+}
+
+void ForestMapClient::EnsureConnected() {
+  if (connect_checked_) return;
+  connect_checked_ = true;
+  // Like WaitForConnected, but gives up at the first failed attempt: a refused connection is
+  // reported at once instead of after the whole timeout of retries.
+  const auto deadline = After(options_.connect_timeout);
+  grpc_connectivity_state state = channel_->GetState(/*try_to_connect=*/true);
+  while (state != GRPC_CHANNEL_READY && state != GRPC_CHANNEL_TRANSIENT_FAILURE &&
+         state != GRPC_CHANNEL_SHUTDOWN) {
+    if (!channel_->WaitForStateChange(state, deadline)) break;  // timed out
+    state = channel_->GetState(/*try_to_connect=*/true);
+  }
+  connected_ = state == GRPC_CHANNEL_READY;
+}
+
+std::unique_ptr<grpc::ClientContext> ForestMapClient::NewContext(double timeout) {
+  EnsureConnected();
+  auto context = std::make_unique<grpc::ClientContext>();
+  context->set_deadline(After(connected_ ? timeout : std::min(timeout, kUnconnectedCallTimeout)));
+  return context;
+}
+
+void ForestMapClient::Check(const grpc::Status& status, const char* call) const {
+  if (status.ok()) return;
+  const grpc::StatusCode code = status.error_code();
+  if (code == grpc::StatusCode::UNAVAILABLE ||
+      (code == grpc::StatusCode::DEADLINE_EXCEEDED && !connected_)) {
+    std::ostringstream detail;
+    if (code == grpc::StatusCode::DEADLINE_EXCEEDED) {
+      detail << "no connection within " << options_.connect_timeout << " s";
+    } else {
+      detail << status.error_message();
+    }
+    throw RpcError(code, "cannot reach forestmapd at " + address_ + ": " + detail.str() +
+                             " (is it running? use --server)");
+  }
+  throw RpcError(code,
+                 std::string(call) + ": " + StatusCodeName(code) + ": " + status.error_message());
+}
+
+v1::Map ForestMapClient::CreateMap(const std::string& name, const std::string& description,
+                                   const std::string& crs) {
+  v1::CreateMapRequest request;
+  request.set_name(name);
+  request.set_description(description);
+  request.set_crs(crs);
+  v1::Map response;
+  const auto context = NewContext(options_.call_timeout);
+  Check(stub_->CreateMap(context.get(), request, &response), "CreateMap");
+  connected_ = true;
+  return response;
+}
+
+std::vector<v1::Map> ForestMapClient::ListMaps() {
+  v1::ListMapsResponse response;
+  const auto context = NewContext(options_.call_timeout);
+  Check(stub_->ListMaps(context.get(), v1::ListMapsRequest(), &response), "ListMaps");
+  connected_ = true;
+  return {response.maps().begin(), response.maps().end()};
+}
+
+v1::Map ForestMapClient::GetMap(const std::string& name) {
+  v1::GetMapRequest request;
+  request.set_name(name);
+  v1::Map response;
+  const auto context = NewContext(options_.call_timeout);
+  Check(stub_->GetMap(context.get(), request, &response), "GetMap");
+  connected_ = true;
+  return response;
+}
+
+void ForestMapClient::DeleteMap(const std::string& name) {
+  v1::DeleteMapRequest request;
+  request.set_name(name);
+  v1::DeleteMapResponse response;
+  const auto context = NewContext(options_.call_timeout);
+  Check(stub_->DeleteMap(context.get(), request, &response), "DeleteMap");
+  connected_ = true;
+}
+
+v1::UploadTreesResponse ForestMapClient::UploadTrees(const std::string& name,
+                                                     const std::vector<MapTreeRow>& rows,
+                                                     bool replace, const UploadProgress& progress) {
+  const auto context = NewContext(options_.stream_timeout);
+  v1::UploadTreesResponse response;
+  const auto writer = stub_->UploadTrees(context.get(), &response);
+  const size_t chunk = static_cast<size_t>(options_.upload_chunk_trees);
+  size_t sent = 0;
+  // At least one message, so that an empty upload with `replace` clears the map.
+  do {
+    v1::UploadTreesRequest request;
+    request.set_map_name(name);
+    if (sent == 0) request.set_replace(replace);
+    const size_t end = std::min(rows.size(), sent + chunk);
+    request.mutable_trees()->Reserve(static_cast<int>(end - sent));
+    for (size_t i = sent; i < end; ++i) *request.add_trees() = ToProto(rows[i]);
+    // A failed write means the server ended the call; Finish() says why.
+    if (!writer->Write(request)) break;
+    sent = end;
+    if (progress) progress(static_cast<int64_t>(sent), static_cast<int64_t>(rows.size()));
+  } while (sent < rows.size());
+  writer->WritesDone();
+  Check(writer->Finish(), "UploadTrees");
+  connected_ = true;
+  return response;
+}
+
+ExportedTrees ForestMapClient::ExportTrees(const std::string& name,
+                                           const std::optional<Box2>& box) {
+  v1::ExportTreesRequest request;
+  request.set_map_name(name);
+  if (box) {
+    request.mutable_box()->set_min_x(box->min_x);
+    request.mutable_box()->set_min_y(box->min_y);
+    request.mutable_box()->set_max_x(box->max_x);
+    request.mutable_box()->set_max_y(box->max_y);
+  }
+  const auto context = NewContext(options_.stream_timeout);
+  const auto reader = stub_->ExportTrees(context.get(), request);
+  ExportedTrees exported;
+  v1::ExportTreesResponse chunk;
+  bool first = true;
+  while (reader->Read(&chunk)) {
+    if (first) exported.map_version = chunk.map_version();
+    if (!first && chunk.map_version() != exported.map_version) {
+      context->TryCancel();
+      reader->Finish();
+      throw RpcError(grpc::StatusCode::INTERNAL, "ExportTrees: the server mixed map versions " +
+                                                     std::to_string(exported.map_version) +
+                                                     " and " + std::to_string(chunk.map_version()));
+    }
+    first = false;
+    for (const v1::Tree& tree : chunk.trees()) exported.trees.push_back(FromProto(tree));
+  }
+  Check(reader->Finish(), "ExportTrees");
+  connected_ = true;
+  return exported;
+}
+
+v1::RelocalizeResponse ForestMapClient::Relocalize(
+    const std::string& name, const std::vector<algorithms::DetectedTree>& trees,
+    const std::optional<PriorXyYaw>& prior, const std::optional<Eigen::Vector3d>& gravity) {
+  v1::RelocalizeRequest request;
+  request.set_map_name(name);
+  request.mutable_trees()->Reserve(static_cast<int>(trees.size()));
+  for (const algorithms::DetectedTree& tree : trees) *request.add_trees() = ToProto(tree);
+  if (prior) {
+    *request.mutable_prior()->mutable_map_from_sensor() =
+        ToProto(algorithms::PoseFromXyzYaw(prior->x, prior->y, 0.0, prior->yaw_rad));
+    request.mutable_prior()->set_radius_m(prior->radius_m);
+  }
+  if (gravity) {
+    request.mutable_gravity()->set_x(gravity->x());
+    request.mutable_gravity()->set_y(gravity->y());
+    request.mutable_gravity()->set_z(gravity->z());
+  }
+  v1::RelocalizeResponse response;
+  const auto context = NewContext(options_.call_timeout);
+  Check(stub_->Relocalize(context.get(), request, &response), "Relocalize");
+  connected_ = true;
+  return response;
+}
+
+const char* StatusCodeName(grpc::StatusCode code) {
+  switch (code) {
+    case grpc::StatusCode::OK:
+      return "OK";
+    case grpc::StatusCode::CANCELLED:
+      return "CANCELLED";
+    case grpc::StatusCode::UNKNOWN:
+      return "UNKNOWN";
+    case grpc::StatusCode::INVALID_ARGUMENT:
+      return "INVALID_ARGUMENT";
+    case grpc::StatusCode::DEADLINE_EXCEEDED:
+      return "DEADLINE_EXCEEDED";
+    case grpc::StatusCode::NOT_FOUND:
+      return "NOT_FOUND";
+    case grpc::StatusCode::ALREADY_EXISTS:
+      return "ALREADY_EXISTS";
+    case grpc::StatusCode::PERMISSION_DENIED:
+      return "PERMISSION_DENIED";
+    case grpc::StatusCode::RESOURCE_EXHAUSTED:
+      return "RESOURCE_EXHAUSTED";
+    case grpc::StatusCode::FAILED_PRECONDITION:
+      return "FAILED_PRECONDITION";
+    case grpc::StatusCode::ABORTED:
+      return "ABORTED";
+    case grpc::StatusCode::OUT_OF_RANGE:
+      return "OUT_OF_RANGE";
+    case grpc::StatusCode::UNIMPLEMENTED:
+      return "UNIMPLEMENTED";
+    case grpc::StatusCode::INTERNAL:
+      return "INTERNAL";
+    case grpc::StatusCode::UNAVAILABLE:
+      return "UNAVAILABLE";
+    case grpc::StatusCode::DATA_LOSS:
+      return "DATA_LOSS";
+    case grpc::StatusCode::UNAUTHENTICATED:
+      return "UNAUTHENTICATED";
+    default:
+      return "UNKNOWN_STATUS";
+  }
+}
+
+}  // namespace forestmap::client

@@ -1,0 +1,109 @@
+#pragma once
+// A blocking client of the ForestMap service (see proto/forestmap/v1/forestmap_service.proto).
+
+#include <grpcpp/grpcpp.h>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "algorithms/geometry.h"
+#include "client/tree_csv.h"
+#include "forestmap/v1/forestmap_service.grpc.pb.h"
+
+namespace forestmap::client {
+
+// A failed call. The message is ready for a user: for an unreachable server it reads
+// "cannot reach forestmapd at ADDR: <detail> (is it running? use --server)"; otherwise it is the
+// server's message prefixed with the call and the status name, e.g.
+// "GetMap: NOT_FOUND: no map named 'x'".
+class RpcError : public std::runtime_error {
+ public:
+  RpcError(grpc::StatusCode code, const std::string& message)
+      : std::runtime_error(message), code_(code) {}
+  grpc::StatusCode code() const { return code_; }
+
+ private:
+  grpc::StatusCode code_;
+};
+
+struct ClientOptions {
+  double connect_timeout = 3.0;      // s, wait for a connection before the first call
+  double call_timeout = 30.0;        // s, deadline of each unary call
+  double stream_timeout = 600.0;     // s, deadline of a whole upload or export
+  int upload_chunk_trees = 5000;     // trees per UploadTrees message
+  int max_receive_bytes = 64 << 20;  // largest message accepted from the server
+  void Check() const;                // throws std::invalid_argument
+};
+
+// A prior pose given as a horizontal position and heading, for Relocalize.
+struct PriorXyYaw {
+  double x = 0;          // m, map frame
+  double y = 0;          // m, map frame
+  double yaw_rad = 0;    // rad, heading of the sensor x axis, counter-clockwise from map x
+  double radius_m = 10;  // m, the sensor is within this distance of (x, y)
+};
+
+// An axis-aligned box in the map frame (m).
+struct Box2 {
+  double min_x = 0, min_y = 0, max_x = 0, max_y = 0;
+};
+
+struct ExportedTrees {
+  std::vector<MapTreeRow> trees;  // by id
+  int64_t map_version = 0;        // the one version every tree comes from (0: no chunk sent)
+};
+
+// (trees sent so far, trees in total), called after each chunk of an upload.
+using UploadProgress = std::function<void(int64_t sent, int64_t total)>;
+
+// Thread-compatible: one instance per thread, or external locking.
+class ForestMapClient {
+ public:
+  // Creates the channel; does not connect yet. `address` is a gRPC target ("host:port").
+  explicit ForestMapClient(std::string address, const ClientOptions& options = {});
+
+  const std::string& address() const { return address_; }
+
+  v1::Map CreateMap(const std::string& name, const std::string& description = "",
+                    const std::string& crs = "");
+  std::vector<v1::Map> ListMaps();
+  v1::Map GetMap(const std::string& name);
+  void DeleteMap(const std::string& name);
+
+  // Streams the rows in chunks; the server applies them in one transaction at the end.
+  v1::UploadTreesResponse UploadTrees(const std::string& name, const std::vector<MapTreeRow>& rows,
+                                      bool replace, const UploadProgress& progress = {});
+
+  ExportedTrees ExportTrees(const std::string& name, const std::optional<Box2>& box = {});
+
+  // `gravity`: direction of gravity (down) in the sensor frame, when known.
+  v1::RelocalizeResponse Relocalize(const std::string& name,
+                                    const std::vector<algorithms::DetectedTree>& trees,
+                                    const std::optional<PriorXyYaw>& prior = {},
+                                    const std::optional<Eigen::Vector3d>& gravity = {});
+
+ private:
+  // Waits (once) for the channel to connect; a failure is remembered so that the first call,
+  // which then fails fast, is reported as "cannot reach".
+  void EnsureConnected();
+  std::unique_ptr<grpc::ClientContext> NewContext(double timeout);
+  // Throws RpcError for a non-OK status of the call named `call`.
+  void Check(const grpc::Status& status, const char* call) const;
+
+  std::string address_;
+  ClientOptions options_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::ForestMap::Stub> stub_;
+  bool connect_checked_ = false;
+  bool connected_ = false;
+};
+
+// "OK", "NOT_FOUND", ...
+const char* StatusCodeName(grpc::StatusCode code);
+
+}  // namespace forestmap::client

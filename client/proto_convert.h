@@ -1,0 +1,23 @@
+#pragma once
+// Conversions between the client's types and the API messages (units and frames are the same on
+// both sides: metres, radians, a_from_b poses).
+
+#include <optional>
+
+#include "algorithms/geometry.h"
+#include "client/tree_csv.h"
+#include "forestmap/v1/maps.pb.h"
+#include "forestmap/v1/relocalization.pb.h"
+
+namespace forestmap::client {
+
+v1::Tree ToProto(const MapTreeRow& row);
+MapTreeRow FromProto(const v1::Tree& tree);
+
+// An unknown dbh or score (NaN) and an unknown axis (zero) are left unset.
+v1::DetectedTree ToProto(const algorithms::DetectedTree& tree);
+
+v1::Pose ToProto(const algorithms::Pose3& pose);
+algorithms::Pose3 FromProto(const v1::Pose& pose);  // normalises the quaternion
+
+}  // namespace forestmap::client

@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# Command 1 of the README: installs dependencies, builds, starts forestmapd on its embedded
+# SQLite database (./forestmap.db), uploads a demo forest map, relocalizes a simulated drone view
+# in it and prints the true and the estimated pose. Then keeps serving until Ctrl-C
+# (pass --no-serve to stop after the demo).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+serve=1
+[ "${1:-}" = "--no-serve" ] && serve=0
+
+bash deploy/build.sh --target forestmapd forestmap
+bin=build
+addr=127.0.0.1:50051
+export FORESTMAP_SERVER=$addr
+
+"$bin/server/forestmapd" --db ./forestmap.db --listen "$addr" &
+server=$!
+trap 'kill $server 2>/dev/null; wait $server 2>/dev/null' EXIT
+for _ in $(seq 50); do "$bin/client/forestmap" map list >/dev/null 2>&1 && break; sleep 0.2; done
+
+# A real surveyed stem map when ../shared/data is beside the clone, else a generated forest.
+"$bin/client/forestmap" demo-data --out demo-out \
+  --stemmap ../shared/data/stemmaps/spatstat_longleaf.csv
+"$bin/client/forestmap" map delete demo >/dev/null 2>&1 || true
+"$bin/client/forestmap" map create demo --trees demo-out/map.csv \
+  --description "ForestMap demo forest"
+"$bin/client/forestmap" map show demo
+answer=$("$bin/client/forestmap" relocalize demo --trees demo-out/query.csv)
+truth=$(cat demo-out/truth.json)
+
+field() { sed -n "s/.*\"$2\":\([^,}]*\).*/\1/p" <<<"$1"; }
+echo
+echo "drone's answer:  $answer"
+printf 'true pose:       x=%9.3f  y=%9.3f  yaw=%8.2f deg\n' \
+  "$(field "$truth" x)" "$(field "$truth" y)" "$(field "$truth" yaw_deg)"
+if [ "$(field "$answer" status)" = '"localized"' ]; then
+  printf 'estimated pose:  x=%9.3f  y=%9.3f  yaw=%8.2f deg  (%s trees matched, confidence %.2f)\n' \
+    "$(field "$answer" x)" "$(field "$answer" y)" "$(field "$answer" yaw_deg)" \
+    "$(field "$answer" inliers)" "$(field "$answer" confidence)"
+  awk -v ex="$(field "$answer" x)" -v ey="$(field "$answer" y)" \
+      -v tx="$(field "$truth" x)" -v ty="$(field "$truth" y)" \
+      'BEGIN { printf "position error:  %.3f m\n", sqrt((ex-tx)^2 + (ey-ty)^2) }'
+else
+  echo "estimated pose:  none ($(field "$answer" status))"
+fi
+
+if [ $serve -eq 1 ]; then
+  echo
+  echo "forestmapd is serving on $addr with ./forestmap.db; try: $bin/client/forestmap map list"
+  echo "(Ctrl-C to stop)"
+  wait $server
+fi

@@ -1,0 +1,97 @@
+// forestmapd: the ForestMap gRPC server. Parses the command line, opens the database, serves
+// until SIGINT or SIGTERM, then shuts down cleanly (running calls get a grace period).
+
+#include <pthread.h>
+#include <signal.h>
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cstdio>
+#include <exception>
+#include <memory>
+#include <string>
+
+#include "server/server.h"
+#include "server/service.h"
+#include "server/status.h"
+#include "storage/sqlite_map_store.h"
+
+namespace {
+
+constexpr auto kShutdownGrace = std::chrono::seconds(5);
+
+struct Config {
+  std::string db = "./forestmap.db";
+  std::string listen = "127.0.0.1:50051";
+  int max_message_mb = 64;
+};
+
+// Blocks SIGINT and SIGTERM in this thread and in every thread started after it (gRPC's), so
+// that they are only ever received by sigwait below: no async signal handler at all.
+sigset_t BlockShutdownSignals() {
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  return signals;
+}
+
+int Serve(const Config& config, const sigset_t& shutdown_signals) {
+  using forestmap::server::LogLine;
+  std::unique_ptr<forestmap::storage::SqliteMapStore> store;
+  try {
+    store = std::make_unique<forestmap::storage::SqliteMapStore>(config.db);
+  } catch (const std::exception& e) {
+    LogLine("cannot open database " + config.db + ": " + e.what());
+    return 1;
+  }
+  const size_t map_count = store->ListMaps().size();
+
+  forestmap::server::ServiceOptions service_options;
+  forestmap::server::ForestMapService service(*store, service_options);
+  forestmap::server::ServerOptions server_options;
+  server_options.max_receive_message_bytes = config.max_message_mb << 20;
+  std::unique_ptr<forestmap::server::ServerRunner> server;
+  try {
+    server =
+        std::make_unique<forestmap::server::ServerRunner>(config.listen, service, server_options);
+  } catch (const std::exception& e) {
+    LogLine(e.what());
+    return 1;
+  }
+  LogLine("serving on " + server->address() + ", database " + config.db + ", " +
+          std::to_string(map_count) + " maps");
+
+  int signal_number = 0;
+  sigwait(&shutdown_signals, &signal_number);
+  LogLine(std::string("received ") + (signal_number == SIGINT ? "SIGINT" : "SIGTERM") +
+          ", shutting down");
+  server->Shutdown(kShutdownGrace);
+  server->Wait();
+  LogLine("stopped");
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Config config;
+  CLI::App app{"forestmapd: the ForestMap gRPC server (maps of trees, relocalization)"};
+  app.add_option("--db", config.db, "SQLite database file (created if missing)")
+      ->capture_default_str();
+  app.add_option("--listen", config.listen, "address to listen on, host:port (port 0: any)")
+      ->capture_default_str();
+  app.add_option("--max-message-mb", config.max_message_mb, "largest request message accepted, MiB")
+      ->check(CLI::Range(1, 2047))
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  const sigset_t shutdown_signals = BlockShutdownSignals();
+  try {
+    return Serve(config, shutdown_signals);
+  } catch (const std::exception& e) {
+    forestmap::server::LogLine(std::string("fatal: ") + e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,147 @@
+#include "server/map_index_cache.h"
+
+#include <stdexcept>
+#include <utility>
+
+#include "server/convert.h"
+#include "server/status.h"
+
+namespace forestmap::server {
+namespace {
+
+bool SameMapVersion(const MapIndexCache::Entry& entry, const storage::MapInfo& info) {
+  return entry.version == info.version && entry.created_unix_ms == info.created_unix_ms;
+}
+
+// Orders entries of one map name: a re-created map is newer than any version of the old one.
+bool Newer(const MapIndexCache::Entry& a, const MapIndexCache::Entry& b) {
+  if (a.created_unix_ms != b.created_unix_ms) return a.created_unix_ms > b.created_unix_ms;
+  return a.version > b.version;
+}
+
+PreconditionError NoTrees(const std::string& name, int64_t version) {
+  return PreconditionError("map \"" + name + "\" has no trees (version " + std::to_string(version) +
+                           "); upload trees before relocalizing");
+}
+
+}  // namespace
+
+void MapIndexCacheOptions::Check() const {
+  if (max_entries < 1) throw std::invalid_argument("MapIndexCacheOptions.max_entries must be >= 1");
+  index.Check();
+}
+
+MapIndexCache::MapIndexCache(storage::MapStore& store, MapIndexCacheOptions options)
+    : store_(store), options_(std::move(options)) {
+  options_.Check();
+}
+
+MapIndexCache::Entry MapIndexCache::Get(const std::string& name) {
+  storage::MapInfo info;
+  try {
+    info = store_.GetMap(name);
+  } catch (const storage::StorageError& e) {
+    if (e.code() == storage::StorageError::Code::kNotFound) Evict(name);
+    throw;
+  }
+  if (info.tree_count == 0) throw NoTrees(name, info.version);
+
+  std::promise<Entry> promise;
+  std::shared_future<Entry> other_build;
+  uint64_t build_id = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    Slot& slot = SlotLocked(name);
+    if (slot.ready && SameMapVersion(*slot.ready, info)) {
+      ++stats_.hits;
+      return *slot.ready;
+    }
+    if (slot.building.valid() && slot.building_version == info.version &&
+        slot.building_created_ms == info.created_unix_ms) {
+      ++stats_.waits;
+      other_build = slot.building;
+    } else {
+      build_id = next_build_id_++;
+      slot.building = promise.get_future().share();
+      slot.building_id = build_id;
+      slot.building_version = info.version;
+      slot.building_created_ms = info.created_unix_ms;
+      ++stats_.builds;
+    }
+  }
+  if (other_build.valid()) return other_build.get();  // rethrows that build's error
+
+  try {
+    Entry entry = BuildEntry(name);
+    Publish(name, build_id, &entry);
+    promise.set_value(entry);
+    return entry;
+  } catch (...) {
+    Publish(name, build_id, nullptr);
+    promise.set_exception(std::current_exception());
+    throw;
+  }
+}
+
+MapIndexCache::Entry MapIndexCache::BuildEntry(const std::string& name) const {
+  // The snapshot may be newer than the MapInfo Get looked at; the entry says which it is.
+  storage::MapSnapshot snapshot = store_.ReadMap(name);
+  if (snapshot.trees.empty()) throw NoTrees(name, snapshot.info.version);
+  Entry entry;
+  entry.version = snapshot.info.version;
+  entry.created_unix_ms = snapshot.info.created_unix_ms;
+  std::vector<algorithms::MapTree> trees = ToMapTrees(snapshot.trees);
+  snapshot.trees = {};  // free the records before the index allocates its own copy
+  entry.index = std::make_shared<const algorithms::MapIndex>(std::move(trees), options_.index);
+  return entry;
+}
+
+void MapIndexCache::Publish(const std::string& name, uint64_t build_id, const Entry* entry) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = slots_.find(name);
+  if (it == slots_.end()) return;  // evicted meanwhile (map deleted or trimmed)
+  Slot& slot = it->second;
+  if (slot.building_id == build_id) {
+    slot.building = {};
+    slot.building_id = 0;
+  }
+  if (entry != nullptr && (!slot.ready || Newer(*entry, *slot.ready))) slot.ready = *entry;
+}
+
+MapIndexCache::Slot& MapIndexCache::SlotLocked(const std::string& name) {
+  auto [it, inserted] = slots_.try_emplace(name);
+  Slot& slot = it->second;
+  if (!inserted) lru_.erase(slot.lru);
+  lru_.push_front(name);
+  slot.lru = lru_.begin();
+  // Drop least recently used maps; `name` is at the front and max_entries >= 1 keeps it.
+  while (slots_.size() > static_cast<size_t>(options_.max_entries)) {
+    const std::string victim = lru_.back();  // a copy: erasing destroys the list's string
+    EraseLocked(victim);
+  }
+  return slot;
+}
+
+void MapIndexCache::EraseLocked(const std::string& name) {
+  const auto it = slots_.find(name);
+  if (it == slots_.end()) return;
+  lru_.erase(it->second.lru);
+  slots_.erase(it);
+}
+
+void MapIndexCache::Evict(const std::string& name) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  EraseLocked(name);
+}
+
+size_t MapIndexCache::size() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return slots_.size();
+}
+
+MapIndexCache::Stats MapIndexCache::stats() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return stats_;
+}
+
+}  // namespace forestmap::server

@@ -1,0 +1,88 @@
+#pragma once
+// Per-map relocalization indexes, built once per map version and shared by concurrent queries.
+//
+// Get(name) asks the store for the map's current MapInfo (cheap) and returns the cached index
+// when it was built for that version; otherwise it builds a new one from a ReadMap snapshot.
+// Builds are single-flight: concurrent Get calls for the same map version wait for the one
+// build in progress instead of starting their own; Get calls for other maps are never blocked
+// by a build (the cache lock is held only for lookups). Entries of deleted maps are evicted;
+// beyond `max_entries` maps, the least recently used ready entry is dropped.
+//
+// Thread-safety: all methods may be called concurrently.
+
+#include <cstdint>
+#include <future>
+#include <list>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <unordered_map>
+
+#include "algorithms/relocalizer.h"
+#include "storage/map_store.h"
+
+namespace forestmap::server {
+
+struct MapIndexCacheOptions {
+  int max_entries = 16;  // maps whose index stays in memory (>= 1)
+  algorithms::MapIndexOptions index;
+  void Check() const;  // throws std::invalid_argument
+};
+
+class MapIndexCache {
+ public:
+  struct Entry {
+    std::shared_ptr<const algorithms::MapIndex> index;  // never null
+    int64_t version = 0;                                // map version the index was built from
+    int64_t created_unix_ms = 0;  // the map's creation time: tells a re-created map apart
+  };
+
+  struct Stats {
+    int64_t builds = 0;  // indexes built (one per map version seen)
+    int64_t hits = 0;    // Get answered from a ready entry
+    int64_t waits = 0;   // Get that waited for another caller's build
+  };
+
+  MapIndexCache(storage::MapStore& store, MapIndexCacheOptions options = {});
+  MapIndexCache(const MapIndexCache&) = delete;
+  MapIndexCache& operator=(const MapIndexCache&) = delete;
+
+  // The index of the map at its current version. Throws storage::StorageError kNotFound for an
+  // unknown map (and evicts it), PreconditionError for a map without trees, and whatever the
+  // store or the index build throws (waiters of a failed build get the same error).
+  Entry Get(const std::string& name);
+
+  void Evict(const std::string& name);
+  size_t size() const;
+  Stats stats() const;
+
+ private:
+  // A map's slot: the ready entry and/or the one build in progress.
+  struct Slot {
+    std::optional<Entry> ready;
+    std::shared_future<Entry> building;  // valid while a build is in progress
+    uint64_t building_id = 0;
+    int64_t building_version = 0;
+    int64_t building_created_ms = 0;
+    std::list<std::string>::iterator lru;
+  };
+
+  // Reads a snapshot and builds its index (no lock held).
+  Entry BuildEntry(const std::string& name) const;
+  // Ends build `build_id`: stores its entry (null when it failed) if the map's slot still exists
+  // and the entry is newer than the ready one.
+  void Publish(const std::string& name, uint64_t build_id, const Entry* entry);
+  Slot& SlotLocked(const std::string& name);
+  void EraseLocked(const std::string& name);
+
+  storage::MapStore& store_;
+  MapIndexCacheOptions options_;
+  mutable std::mutex mutex_;
+  std::unordered_map<std::string, Slot> slots_;
+  std::list<std::string> lru_;  // most recently used first
+  uint64_t next_build_id_ = 1;
+  Stats stats_;
+};
+
+}  // namespace forestmap::server

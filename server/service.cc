@@ -1,0 +1,123 @@
+#include "server/service.h"
+
+#include <chrono>
+#include <stdexcept>
+#include <string_view>
+#include <utility>
+
+#include "server/convert.h"
+#include "server/status.h"
+#include "server/streams.h"
+#include "server/validation.h"
+#include "server/worker_pool.h"
+
+namespace forestmap::server {
+namespace {
+
+// Runs a unary RPC body on `pool` and finishes the call with its status. The body outlives the
+// handler, so it must capture by value (request, response and context stay valid until Finish).
+template <typename Body>
+grpc::ServerUnaryReactor* AnswerOn(WorkerPool& pool, grpc::CallbackServerContext* context,
+                                   const char* rpc, Body body) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  const bool queued = pool.TrySubmit(
+      [reactor, rpc, body = std::move(body)]() mutable { reactor->Finish(RunGuarded(rpc, body)); });
+  if (!queued) reactor->Finish(ServerBusy(rpc));
+  return reactor;
+}
+
+void Require(bool condition, const char* message) {
+  if (!condition) throw std::invalid_argument(message);
+}
+
+ServiceOptions Checked(ServiceOptions options) {
+  options.Check();
+  return options;
+}
+
+}  // namespace
+
+void ServiceOptions::Check() const {
+  Require(max_query_trees >= kMinQueryTrees, "ServiceOptions.max_query_trees must be >= 3");
+  Require(max_upload_trees >= 1, "ServiceOptions.max_upload_trees must be >= 1");
+  Require(export_chunk_trees >= 1, "ServiceOptions.export_chunk_trees must be >= 1");
+  Require(export_chunk_bytes >= 1, "ServiceOptions.export_chunk_bytes must be >= 1");
+  Require(worker_threads >= 1, "ServiceOptions.worker_threads must be >= 1");
+  Require(admin_threads >= 1, "ServiceOptions.admin_threads must be >= 1");
+  Require(max_queued_requests >= 1, "ServiceOptions.max_queued_requests must be >= 1");
+  index_cache.Check();
+  relocalizer.Check();
+}
+
+ForestMapService::ForestMapService(storage::MapStore& store, ServiceOptions options)
+    : store_(store),
+      options_(Checked(std::move(options))),
+      index_cache_(store, options_.index_cache),
+      admin_pool_(options_.admin_threads, options_.max_queued_requests),
+      work_pool_(options_.worker_threads, options_.max_queued_requests) {}
+
+grpc::ServerUnaryReactor* ForestMapService::CreateMap(grpc::CallbackServerContext* context,
+                                                      const v1::CreateMapRequest* request,
+                                                      v1::Map* response) {
+  return AnswerOn(admin_pool_, context, "CreateMap", [this, request, response] {
+    Validate(*request);
+    *response = ToProto(store_.CreateMap(request->name(), request->description(), request->crs()));
+  });
+}
+
+grpc::ServerUnaryReactor* ForestMapService::ListMaps(grpc::CallbackServerContext* context,
+                                                     const v1::ListMapsRequest* /*request*/,
+                                                     v1::ListMapsResponse* response) {
+  return AnswerOn(admin_pool_, context, "ListMaps", [this, response] {
+    for (const storage::MapInfo& info : store_.ListMaps()) *response->add_maps() = ToProto(info);
+  });
+}
+
+grpc::ServerUnaryReactor* ForestMapService::GetMap(grpc::CallbackServerContext* context,
+                                                   const v1::GetMapRequest* request,
+                                                   v1::Map* response) {
+  return AnswerOn(admin_pool_, context, "GetMap", [this, request, response] {
+    Validate(*request);
+    *response = ToProto(store_.GetMap(request->name()));
+  });
+}
+
+grpc::ServerUnaryReactor* ForestMapService::DeleteMap(grpc::CallbackServerContext* context,
+                                                      const v1::DeleteMapRequest* request,
+                                                      v1::DeleteMapResponse* /*response*/) {
+  return AnswerOn(admin_pool_, context, "DeleteMap", [this, request] {
+    Validate(*request);
+    store_.DeleteMap(request->name());
+    index_cache_.Evict(request->name());
+  });
+}
+
+grpc::ServerReadReactor<v1::UploadTreesRequest>* ForestMapService::UploadTrees(
+    grpc::CallbackServerContext* context, v1::UploadTreesResponse* response) {
+  return new UploadTreesReactor(store_, options_, admin_pool_, work_pool_, context, response);
+}
+
+grpc::ServerWriteReactor<v1::ExportTreesResponse>* ForestMapService::ExportTrees(
+    grpc::CallbackServerContext* /*context*/, const v1::ExportTreesRequest* request) {
+  return new ExportTreesReactor(store_, options_, work_pool_, request);
+}
+
+grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerContext* context,
+                                                       const v1::RelocalizeRequest* request,
+                                                       v1::RelocalizeResponse* response) {
+  const auto start = std::chrono::steady_clock::now();
+  return AnswerOn(work_pool_, context, "Relocalize", [this, context, request, response, start] {
+    Validate(*request, options_.max_query_trees);
+    if (context->IsCancelled()) return;  // the client is gone; its status is CANCELLED anyway
+    // No lock around the relocalizer: concurrent queries share the immutable index.
+    const MapIndexCache::Entry entry = index_cache_.Get(request->map_name());
+    *response =
+        ToProto(algorithms::Relocalize(*entry.index, FromProto(*request), options_.relocalizer));
+    response->set_map_version(entry.version);
+    const std::chrono::duration<double, std::milli> elapsed =
+        std::chrono::steady_clock::now() - start;
+    response->set_server_time_ms(elapsed.count());
+  });
+}
+
+}  // namespace forestmap::server

@@ -1,0 +1,90 @@
+#pragma once
+// The ForestMap gRPC service (callback API): validate -> convert -> call storage / algorithms ->
+// convert back -> finish. Every outcome is a grpc::Status built in server/status.cc; no
+// exception crosses an RPC. Handlers never block gRPC's threads: everything that touches the
+// store or the relocalizer runs on the service's thread pools (server/worker_pool.h).
+//
+// Statuses per RPC (besides INTERNAL for server faults and RESOURCE_EXHAUSTED from gRPC itself
+// for a message over the server's receive limit):
+//   CreateMap    INVALID_ARGUMENT (name, description, crs), ALREADY_EXISTS
+//   ListMaps     -
+//   GetMap       INVALID_ARGUMENT (name), NOT_FOUND
+//   DeleteMap    INVALID_ARGUMENT (name), NOT_FOUND
+//   UploadTrees  INVALID_ARGUMENT (first message without map_name, other map name, replace
+//                after the first message, a bad tree "trees[k]...", duplicate id within the
+//                upload or, when appending, against the map), NOT_FOUND (map; checked on the
+//                first message), RESOURCE_EXHAUSTED (more than max_upload_trees), CANCELLED
+//                (client cancelled); ABORTED (write conflict). Nothing is written unless OK.
+//   ExportTrees  INVALID_ARGUMENT (map_name, box), NOT_FOUND, ABORTED (box export: the map kept
+//                changing while being read), CANCELLED (client stopped reading)
+//   any RPC      RESOURCE_EXHAUSTED "server busy" when max_queued_requests calls are waiting
+//   Relocalize   INVALID_ARGUMENT (map_name, fewer than 3 trees, a bad tree / prior / gravity),
+//                RESOURCE_EXHAUSTED (more than max_query_trees), NOT_FOUND (map),
+//                FAILED_PRECONDITION (the map has no trees). "Not localized" is not an error:
+//                it is OK with status AMBIGUOUS or NOT_FOUND in the response.
+
+#include <cstdint>
+
+#include "algorithms/relocalizer.h"
+#include "forestmap/v1/forestmap_service.grpc.pb.h"
+#include "server/map_index_cache.h"
+#include "server/worker_pool.h"
+#include "storage/map_store.h"
+
+namespace forestmap::server {
+
+struct ServiceOptions {
+  int max_query_trees = 20'000;           // trees per Relocalize request
+  int64_t max_upload_trees = 20'000'000;  // trees per UploadTrees stream (held in memory)
+  int export_chunk_trees = 5'000;         // trees per ExportTrees message, at most
+  int64_t export_chunk_bytes = 1 << 20;   // bytes per ExportTrees message, about (below the
+                                          // clients' default 4 MiB receive limit)
+  // Threads for work that may take long or wait: Relocalize (index builds, waits for another
+  // call's build), UploadTrees commits, ExportTrees reads. Waiting calls hold a thread, so
+  // this is more than the core count; CPU use is bounded by the cores anyway.
+  int worker_threads = 16;
+  int admin_threads = 4;             // threads for map metadata RPCs and upload map checks
+  int max_queued_requests = 1'000;   // per thread pool; more -> RESOURCE_EXHAUSTED "busy"
+  MapIndexCacheOptions index_cache;  // relocalization indexes kept in memory
+  algorithms::RelocalizerOptions relocalizer;
+  void Check() const;  // throws std::invalid_argument
+};
+
+class ForestMapService final : public v1::ForestMap::CallbackService {
+ public:
+  // `store` must outlive the service, and the service the grpc::Server it is registered with.
+  // Throws std::invalid_argument for invalid options.
+  ForestMapService(storage::MapStore& store, ServiceOptions options);
+
+  const ServiceOptions& options() const { return options_; }
+  const MapIndexCache& index_cache() const { return index_cache_; }
+
+  grpc::ServerUnaryReactor* CreateMap(grpc::CallbackServerContext* context,
+                                      const v1::CreateMapRequest* request,
+                                      v1::Map* response) override;
+  grpc::ServerUnaryReactor* ListMaps(grpc::CallbackServerContext* context,
+                                     const v1::ListMapsRequest* request,
+                                     v1::ListMapsResponse* response) override;
+  grpc::ServerUnaryReactor* GetMap(grpc::CallbackServerContext* context,
+                                   const v1::GetMapRequest* request, v1::Map* response) override;
+  grpc::ServerUnaryReactor* DeleteMap(grpc::CallbackServerContext* context,
+                                      const v1::DeleteMapRequest* request,
+                                      v1::DeleteMapResponse* response) override;
+  grpc::ServerReadReactor<v1::UploadTreesRequest>* UploadTrees(
+      grpc::CallbackServerContext* context, v1::UploadTreesResponse* response) override;
+  grpc::ServerWriteReactor<v1::ExportTreesResponse>* ExportTrees(
+      grpc::CallbackServerContext* context, const v1::ExportTreesRequest* request) override;
+  grpc::ServerUnaryReactor* Relocalize(grpc::CallbackServerContext* context,
+                                       const v1::RelocalizeRequest* request,
+                                       v1::RelocalizeResponse* response) override;
+
+ private:
+  storage::MapStore& store_;
+  ServiceOptions options_;
+  MapIndexCache index_cache_;
+  // Declared last: destroyed (drained and joined) first, while what their jobs use is alive.
+  WorkerPool admin_pool_;
+  WorkerPool work_pool_;
+};
+
+}  // namespace forestmap::server

@@ -1,0 +1,141 @@
+#include "server/status.h"
+
+#include <cstdio>
+#include <exception>
+#include <mutex>
+#include <new>
+
+#include "storage/map_store.h"
+
+namespace forestmap::server {
+namespace {
+
+grpc::StatusCode CodeOf(storage::StorageError::Code code) {
+  using Code = storage::StorageError::Code;
+  switch (code) {
+    case Code::kNotFound:
+      return grpc::StatusCode::NOT_FOUND;
+    case Code::kAlreadyExists:
+      return grpc::StatusCode::ALREADY_EXISTS;
+    case Code::kInvalidArgument:
+      return grpc::StatusCode::INVALID_ARGUMENT;
+    case Code::kConflict:
+      return grpc::StatusCode::ABORTED;
+    case Code::kInternal:
+      break;
+  }
+  return grpc::StatusCode::INTERNAL;
+}
+
+// A fault of the server: the client gets a generic message, the log gets the real one.
+grpc::Status InternalFault(std::string_view rpc, std::string_view what) {
+  std::string line(rpc);
+  line += ": internal fault: ";
+  line += what;
+  LogLine(line);
+  return grpc::Status(grpc::StatusCode::INTERNAL, kInternalErrorMessage);
+}
+
+grpc::Status Classify(std::string_view rpc) {
+  try {
+    throw;
+  } catch (const ServiceError& e) {
+    return grpc::Status(e.code(), e.what());
+  } catch (const storage::StorageError& e) {
+    if (e.code() == storage::StorageError::Code::kInternal) return InternalFault(rpc, e.what());
+    return grpc::Status(CodeOf(e.code()), e.what());
+  } catch (const std::invalid_argument& e) {
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, e.what());
+  } catch (const std::bad_alloc&) {
+    LogLine(std::string(rpc) + ": out of memory");
+    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, "server out of memory");
+  } catch (const std::exception& e) {
+    return InternalFault(rpc, e.what());
+  } catch (...) {
+    return InternalFault(rpc, "unknown exception");
+  }
+}
+
+}  // namespace
+
+grpc::Status StatusFromCurrentException(std::string_view rpc) noexcept {
+  try {
+    grpc::Status status = Classify(rpc);
+    LogStatus(rpc, status);
+    return status;
+  } catch (...) {
+    // Building the status itself failed (out of memory): answer without allocating more.
+    return grpc::Status(grpc::StatusCode::INTERNAL, kInternalErrorMessage);
+  }
+}
+
+grpc::Status ServerBusy(std::string_view rpc) noexcept {
+  grpc::Status busy(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                    "server busy: too many requests are waiting; retry later");
+  LogStatus(rpc, busy);
+  return busy;
+}
+
+void LogLine(std::string_view line) noexcept {
+  static std::mutex mutex;
+  std::lock_guard<std::mutex> lock(mutex);
+  std::fprintf(stderr, "forestmapd: %.*s\n", static_cast<int>(line.size()), line.data());
+  std::fflush(stderr);
+}
+
+void LogStatus(std::string_view rpc, const grpc::Status& status) noexcept {
+  if (status.ok()) return;
+  try {
+    std::string line(rpc);
+    line += ": ";
+    line += StatusCodeName(status.error_code());
+    line += ": ";
+    line += status.error_message();
+    LogLine(line);
+  } catch (...) {
+    // Logging must never take the server down.
+  }
+}
+
+const char* StatusCodeName(grpc::StatusCode code) noexcept {
+  switch (code) {
+    case grpc::StatusCode::OK:
+      return "OK";
+    case grpc::StatusCode::CANCELLED:
+      return "CANCELLED";
+    case grpc::StatusCode::UNKNOWN:
+      return "UNKNOWN";
+    case grpc::StatusCode::INVALID_ARGUMENT:
+      return "INVALID_ARGUMENT";
+    case grpc::StatusCode::DEADLINE_EXCEEDED:
+      return "DEADLINE_EXCEEDED";
+    case grpc::StatusCode::NOT_FOUND:
+      return "NOT_FOUND";
+    case grpc::StatusCode::ALREADY_EXISTS:
+      return "ALREADY_EXISTS";
+    case grpc::StatusCode::PERMISSION_DENIED:
+      return "PERMISSION_DENIED";
+    case grpc::StatusCode::RESOURCE_EXHAUSTED:
+      return "RESOURCE_EXHAUSTED";
+    case grpc::StatusCode::FAILED_PRECONDITION:
+      return "FAILED_PRECONDITION";
+    case grpc::StatusCode::ABORTED:
+      return "ABORTED";
+    case grpc::StatusCode::OUT_OF_RANGE:
+      return "OUT_OF_RANGE";
+    case grpc::StatusCode::UNIMPLEMENTED:
+      return "UNIMPLEMENTED";
+    case grpc::StatusCode::INTERNAL:
+      return "INTERNAL";
+    case grpc::StatusCode::UNAVAILABLE:
+      return "UNAVAILABLE";
+    case grpc::StatusCode::DATA_LOSS:
+      return "DATA_LOSS";
+    case grpc::StatusCode::UNAUTHENTICATED:
+      return "UNAUTHENTICATED";
+    default:
+      return "UNKNOWN_CODE";
+  }
+}
+
+}  // namespace forestmap::server

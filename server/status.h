@@ -1,0 +1,88 @@
+#pragma once
+// The one place where exceptions become grpc::Status, and the exception types the server throws
+// for outcomes whose status code is known where they are detected.
+//
+// Mapping (see StatusFromCurrentException):
+//   ServiceError (and subclasses)       -> its code, its message
+//   storage::StorageError kNotFound      -> NOT_FOUND
+//                         kAlreadyExists -> ALREADY_EXISTS
+//                         kInvalidArgument -> INVALID_ARGUMENT
+//                         kConflict      -> ABORTED (the client may retry)
+//                         kInternal      -> INTERNAL "internal error; see server log" (logged)
+//   std::invalid_argument                -> INVALID_ARGUMENT
+//   std::bad_alloc                       -> RESOURCE_EXHAUSTED "server out of memory" (logged)
+//   anything else                        -> INTERNAL "internal error; see server log" (logged)
+//   (no exception) work queue full       -> RESOURCE_EXHAUSTED "server busy ..." (ServerBusy)
+// Every non-OK status is logged as one line on stderr.
+
+#include <grpcpp/support/status.h>
+
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <utility>
+
+namespace forestmap::server {
+
+// An error whose gRPC status code is known where it is thrown.
+class ServiceError : public std::runtime_error {
+ public:
+  ServiceError(grpc::StatusCode code, const std::string& message)
+      : std::runtime_error(message), code_(code) {}
+  grpc::StatusCode code() const { return code_; }
+
+ private:
+  grpc::StatusCode code_;
+};
+
+// A request that is invalid in itself: INVALID_ARGUMENT. The message names the field path,
+// e.g. "trees[12].position.x is NaN".
+class ValidationError : public ServiceError {
+ public:
+  explicit ValidationError(const std::string& message)
+      : ServiceError(grpc::StatusCode::INVALID_ARGUMENT, message) {}
+};
+
+// A request over a configured size limit: RESOURCE_EXHAUSTED.
+class LimitError : public ServiceError {
+ public:
+  explicit LimitError(const std::string& message)
+      : ServiceError(grpc::StatusCode::RESOURCE_EXHAUSTED, message) {}
+};
+
+// A valid request that the current state of a map cannot serve (e.g. relocalizing in a map
+// without trees): FAILED_PRECONDITION.
+class PreconditionError : public ServiceError {
+ public:
+  explicit PreconditionError(const std::string& message)
+      : ServiceError(grpc::StatusCode::FAILED_PRECONDITION, message) {}
+};
+
+inline constexpr const char* kInternalErrorMessage = "internal error; see server log";
+
+// Maps the exception currently being handled to a status and logs it. Call only inside a
+// catch block. Never throws.
+grpc::Status StatusFromCurrentException(std::string_view rpc) noexcept;
+
+// RESOURCE_EXHAUSTED "server busy ..." for a call that found the work queue full (logged).
+grpc::Status ServerBusy(std::string_view rpc) noexcept;
+
+// Writes one line "forestmapd: <rpc>: <CODE>: <message>" to stderr (thread-safe, never throws).
+void LogStatus(std::string_view rpc, const grpc::Status& status) noexcept;
+void LogLine(std::string_view line) noexcept;
+
+// "NOT_FOUND", "INVALID_ARGUMENT", ...
+const char* StatusCodeName(grpc::StatusCode code) noexcept;
+
+// Runs `body` and returns OK, or the status of the exception it threw. No exception escapes.
+template <typename Body>
+grpc::Status RunGuarded(std::string_view rpc, Body&& body) noexcept {
+  try {
+    std::forward<Body>(body)();
+    return grpc::Status::OK;
+  } catch (...) {
+    return StatusFromCurrentException(rpc);
+  }
+}
+
+}  // namespace forestmap::server

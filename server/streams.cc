@@ -1,0 +1,156 @@
+#include "server/streams.h"
+
+#include <utility>
+
+#include "server/convert.h"
+#include "server/service.h"
+#include "server/status.h"
+
+namespace forestmap::server {
+
+// ---- UploadTrees ----
+
+UploadTreesReactor::UploadTreesReactor(storage::MapStore& store, const ServiceOptions& options,
+                                       WorkerPool& admin_pool, WorkerPool& work_pool,
+                                       grpc::CallbackServerContext* context,
+                                       v1::UploadTreesResponse* response)
+    : store_(store),
+      admin_pool_(admin_pool),
+      work_pool_(work_pool),
+      context_(context),
+      response_(response),
+      validator_(options.max_upload_trees) {
+  StartRead(&request_);
+}
+
+void UploadTreesReactor::OnReadDone(bool ok) {
+  if (!ok) {
+    // The stream ended: either the client closed it (commit) or the call is gone.
+    if (context_->IsCancelled()) {
+      const grpc::Status cancelled(grpc::StatusCode::CANCELLED,
+                                   "upload cancelled; nothing was written");
+      LogStatus("UploadTrees", cancelled);
+      Finish(cancelled);
+      return;
+    }
+    const bool queued =
+        work_pool_.TrySubmit([this] { Finish(RunGuarded("UploadTrees", [this] { Commit(); })); });
+    if (!queued) Finish(ServerBusy("UploadTrees"));
+    return;
+  }
+  const bool first = validator_.messages() == 0;
+  const grpc::Status status = RunGuarded("UploadTrees", [this] { Accept(); });
+  if (!status.ok()) {
+    Finish(status);  // the rest of the stream is dropped; nothing was written
+    return;
+  }
+  if (first) {
+    // Fail early for an unknown map, before the client streams millions of trees.
+    ThenReadNext(admin_pool_, [this] { store_.GetMap(validator_.map_name()); });
+    return;
+  }
+  StartRead(&request_);
+}
+
+void UploadTreesReactor::ThenReadNext(WorkerPool& pool, std::function<void()> body) {
+  const bool queued = pool.TrySubmit([this, body = std::move(body)] {
+    const grpc::Status status = RunGuarded("UploadTrees", body);
+    if (status.ok()) {
+      StartRead(&request_);
+    } else {
+      Finish(status);
+    }
+  });
+  if (!queued) Finish(ServerBusy("UploadTrees"));
+}
+
+void UploadTreesReactor::Accept() {
+  validator_.Accept(request_);
+  // No reserve() per message: exact reservations would make the accumulation quadratic.
+  for (const v1::Tree& tree : request_.trees()) trees_.push_back(FromProto(tree));
+  request_.Clear();
+}
+
+void UploadTreesReactor::Commit() {
+  validator_.Finish();
+  const storage::WriteMode mode =
+      validator_.replace() ? storage::WriteMode::kReplace : storage::WriteMode::kAppend;
+  const storage::MapInfo info = store_.WriteTrees(validator_.map_name(), trees_, mode);
+  *response_->mutable_map() = ToProto(info);
+  response_->set_trees_received(validator_.trees());
+  trees_ = {};
+}
+
+// ---- ExportTrees ----
+
+ExportTreesReactor::ExportTreesReactor(storage::MapStore& store, const ServiceOptions& options,
+                                       WorkerPool& work_pool, const v1::ExportTreesRequest* request)
+    : chunk_trees_(options.export_chunk_trees), chunk_bytes_(options.export_chunk_bytes) {
+  const bool queued = work_pool.TrySubmit([this, &store, request] {
+    const grpc::Status status = RunGuarded("ExportTrees", [&] { Load(store, *request); });
+    if (status.ok()) {
+      WriteNext();
+    } else {
+      Finish(status);
+    }
+  });
+  if (!queued) Finish(ServerBusy("ExportTrees"));
+}
+
+void ExportTreesReactor::Load(storage::MapStore& store, const v1::ExportTreesRequest& request) {
+  Validate(request);
+  const std::string& name = request.map_name();
+  if (!request.has_box()) {
+    storage::MapSnapshot snapshot = store.ReadMap(name);
+    version_ = snapshot.info.version;
+    trees_ = std::move(snapshot.trees);
+    return;
+  }
+  // TreesInBox uses the spatial index but carries no version: accept its answer only when the
+  // map's version (and creation time) did not change around it.
+  constexpr int kAttempts = 3;
+  const storage::Extent box = FromProto(request.box());
+  for (int attempt = 0; attempt < kAttempts; ++attempt) {
+    const storage::MapInfo before = store.GetMap(name);
+    std::vector<storage::TreeRecord> trees = store.TreesInBox(name, box);
+    const storage::MapInfo after = store.GetMap(name);
+    if (before.version == after.version && before.created_unix_ms == after.created_unix_ms) {
+      version_ = after.version;
+      trees_ = std::move(trees);
+      return;
+    }
+  }
+  throw ServiceError(grpc::StatusCode::ABORTED, "map \"" + name + "\" changed during " +
+                                                    std::to_string(kAttempts) +
+                                                    " attempts to export it; retry");
+}
+
+void ExportTreesReactor::WriteNext() {
+  if (wrote_any_ && next_ >= trees_.size()) {
+    trees_ = {};
+    Finish(grpc::Status::OK);
+    return;
+  }
+  response_.Clear();
+  response_.set_map_version(version_);
+  int64_t bytes = 0;
+  while (next_ < trees_.size() && response_.trees_size() < chunk_trees_ && bytes < chunk_bytes_) {
+    v1::Tree* tree = response_.add_trees();
+    *tree = ToProto(trees_[next_++]);
+    bytes += static_cast<int64_t>(tree->ByteSizeLong());
+  }
+  wrote_any_ = true;
+  StartWrite(&response_);
+}
+
+void ExportTreesReactor::OnWriteDone(bool ok) {
+  if (!ok) {
+    const grpc::Status cancelled(grpc::StatusCode::CANCELLED, "the client stopped reading");
+    LogStatus("ExportTrees", cancelled);
+    Finish(cancelled);
+    return;
+  }
+  WriteNext();
+}
+
+}  // namespace forestmap::server

@@ -1,0 +1,76 @@
+#pragma once
+// The streaming RPCs of ForestMapService as callback reactors. Each deletes itself in OnDone.
+
+#include <grpcpp/grpcpp.h>
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "forestmap/v1/maps.pb.h"
+#include "server/validation.h"
+#include "server/worker_pool.h"
+#include "storage/map_store.h"
+
+namespace forestmap::server {
+
+struct ServiceOptions;
+
+// UploadTrees: reads every message, validates it as it arrives (the first must name an existing
+// map: NOT_FOUND comes before the client sends the rest), accumulates the trees, and writes
+// them in ONE MapStore::WriteTrees call when the client closes the stream. A cancelled or failed
+// upload writes nothing. Store calls run on the pools: the map check on `admin_pool`, the write
+// on `work_pool`; validation and conversion of each message run on gRPC's thread.
+class UploadTreesReactor final : public grpc::ServerReadReactor<v1::UploadTreesRequest> {
+ public:
+  UploadTreesReactor(storage::MapStore& store, const ServiceOptions& options,
+                     WorkerPool& admin_pool, WorkerPool& work_pool,
+                     grpc::CallbackServerContext* context, v1::UploadTreesResponse* response);
+
+  void OnReadDone(bool ok) override;
+  void OnDone() override { delete this; }
+
+ private:
+  void Accept();  // the message in request_; throws
+  void Commit();  // throws
+  // Runs `body` on `pool`, then reads the next message, or finishes on error.
+  void ThenReadNext(WorkerPool& pool, std::function<void()> body);
+
+  storage::MapStore& store_;
+  WorkerPool& admin_pool_;
+  WorkerPool& work_pool_;
+  grpc::CallbackServerContext* context_;
+  v1::UploadTreesResponse* response_;
+  v1::UploadTreesRequest request_;
+  UploadValidator validator_;
+  std::vector<storage::TreeRecord> trees_;
+};
+
+// ExportTrees: streams the trees of one consistent read in chunks (export_chunk_trees trees or
+// about export_chunk_bytes bytes, whichever comes first), every message carrying the same
+// map_version. An empty result is one message with no trees, so the client still learns the
+// version. With a box, trees come from MapStore::TreesInBox, bracketed by two GetMap calls that
+// must agree on the version (retried a few times, then ABORTED). The read runs on `work_pool`.
+class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTreesResponse> {
+ public:
+  // `request` must stay valid until the reactor finishes (gRPC guarantees it).
+  ExportTreesReactor(storage::MapStore& store, const ServiceOptions& options, WorkerPool& work_pool,
+                     const v1::ExportTreesRequest* request);
+
+  void OnWriteDone(bool ok) override;
+  void OnDone() override { delete this; }
+
+ private:
+  void Load(storage::MapStore& store, const v1::ExportTreesRequest& request);  // throws
+  void WriteNext();
+
+  int64_t chunk_trees_;
+  int64_t chunk_bytes_;
+  int64_t version_ = 0;
+  std::vector<storage::TreeRecord> trees_;
+  size_t next_ = 0;
+  bool wrote_any_ = false;
+  v1::ExportTreesResponse response_;
+};
+
+}  // namespace forestmap::server

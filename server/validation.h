@@ -1,0 +1,73 @@
+#pragma once
+// Validation of every request of the ForestMap API, before anything is converted or stored.
+//
+// Each function throws ValidationError (INVALID_ARGUMENT) or LimitError (RESOURCE_EXHAUSTED)
+// from server/status.h, with a message naming the field path and index, e.g.
+//   "trees[12].position.x is NaN"
+//   "trees: a relocalization needs at least 3 trees, got 2"
+//   "trees: 100000 trees exceed the limit of 20000 per query"
+// Rules beyond "finite numbers": dbh >= 0, score in [0, 1], tree ids >= 0 and unique within an
+// upload, rotations unit quaternions within kUnitQuaternionTolerance (normalised afterwards),
+// prior radius > 0, gravity and stem axes non-zero, box min <= max, bounded string lengths.
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <unordered_map>
+
+#include "forestmap/v1/maps.pb.h"
+#include "forestmap/v1/relocalization.pb.h"
+#include "server/status.h"
+
+namespace forestmap::server {
+
+inline constexpr double kUnitQuaternionTolerance = 1e-3;  // | |q| - 1 | allowed
+inline constexpr int kMinQueryTrees = 3;
+inline constexpr size_t kMaxDescriptionLength = 4096;     // bytes
+inline constexpr size_t kMaxCrsLength = 256;              // bytes
+inline constexpr size_t kMaxAttributes = 64;              // per tree
+inline constexpr size_t kMaxAttributeKeyLength = 128;     // bytes
+inline constexpr size_t kMaxAttributeValueLength = 4096;  // bytes
+
+// `field` is the path to report, e.g. "name" or "map_name".
+void ValidateMapName(const std::string& name, std::string_view field);
+
+void Validate(const v1::CreateMapRequest& request);
+void Validate(const v1::GetMapRequest& request);
+void Validate(const v1::DeleteMapRequest& request);
+void Validate(const v1::ExportTreesRequest& request);
+void Validate(const v1::RelocalizeRequest& request, int max_query_trees);
+
+// Pieces, exposed for tests and for the upload stream. `path` prefixes the messages.
+void ValidateTree(const v1::Tree& tree, const std::string& path);
+void ValidateDetectedTree(const v1::DetectedTree& tree, const std::string& path);
+void ValidatePose(const v1::Pose& pose, const std::string& path);
+void ValidateBox(const v1::Box2& box, const std::string& path);
+
+// Checks the messages of one UploadTrees stream, in order: the first names a valid map, later
+// ones repeat that name or leave it empty and do not set `replace` on their own; every tree is
+// valid; explicit ids are unique across the whole stream; the tree total stays within the limit.
+// Tree indices in messages count across the whole stream ("trees[k]" = k-th tree uploaded).
+class UploadValidator {
+ public:
+  explicit UploadValidator(int64_t max_trees) : max_trees_(max_trees) {}
+
+  void Accept(const v1::UploadTreesRequest& message);
+  // Call when the client has closed the stream; throws if it sent no message.
+  void Finish() const;
+
+  const std::string& map_name() const { return map_name_; }
+  bool replace() const { return replace_; }
+  int64_t messages() const { return messages_; }
+  int64_t trees() const { return trees_; }
+
+ private:
+  int64_t max_trees_;
+  std::string map_name_;
+  bool replace_ = false;
+  int64_t messages_ = 0;
+  int64_t trees_ = 0;
+  std::unordered_map<int64_t, int64_t> index_of_id_;  // tree id -> its index in the stream
+};
+
+}  // namespace forestmap::server

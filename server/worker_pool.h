@@ -1,0 +1,43 @@
+#pragma once
+// A fixed set of threads running queued jobs in FIFO order.
+//
+// Why the service needs it: gRPC's callback API runs handlers on a handful of gRPC threads, and
+// a handler that blocks there (an index build, a big SQLite write, a wait on a lock) stalls
+// every other call, health checks included. Handlers therefore hand anything that may block to
+// a pool and finish their reactor from there.
+
+#include <condition_variable>
+#include <cstddef>
+#include <deque>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace forestmap::server {
+
+class WorkerPool {
+ public:
+  // Throws std::invalid_argument unless threads >= 1 and max_queued >= 1.
+  WorkerPool(int threads, size_t max_queued);
+  // Runs the jobs still queued, then joins the threads.
+  ~WorkerPool();
+  WorkerPool(const WorkerPool&) = delete;
+  WorkerPool& operator=(const WorkerPool&) = delete;
+
+  // Queues `job`; false (and the job is dropped) when max_queued jobs are already waiting.
+  // Jobs must not throw; one that does is logged and ignored.
+  bool TrySubmit(std::function<void()> job);
+
+ private:
+  void Run();
+
+  size_t max_queued_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<std::function<void()>> queue_;
+  bool stopping_ = false;
+  std::vector<std::thread> threads_;
+};
+
+}  // namespace forestmap::server

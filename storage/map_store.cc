@@ -1,0 +1,26 @@
+#include "storage/map_store.h"
+
+#include <string>
+
+namespace forestmap::storage {
+
+std::string ValidateMapName(const std::string& name) {
+  constexpr size_t kMaxLength = 128;
+  if (name.empty()) return "a map name must not be empty";
+  if (name.size() > kMaxLength) {
+    return "a map name must be at most 128 characters long (got " + std::to_string(name.size()) +
+           ")";
+  }
+  for (size_t i = 0; i < name.size(); ++i) {
+    const char c = name[i];
+    const bool allowed = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') ||
+                         (c >= '0' && c <= '9') || c == '_' || c == '.' || c == '-';
+    if (!allowed) {
+      return "a map name may only contain the characters A-Z a-z 0-9 _ . - (character " +
+             std::to_string(i + 1) + " is not one of them)";
+    }
+  }
+  return "";
+}
+
+}  // namespace forestmap::storage
