@@ -81,74 +81,86 @@ std::vector<Triangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy
   return EnumerateTriangles(seed_xy, neighbours, tri);
 }
 
-// Votes for sensor poses from every pair of similar query and map triangles. A pose cell is
-// ranked by how many distinct query trees voted for it: near-duplicate query triangles (a stem
-// detected twice, a false stem beside a true one) then cannot pile up support for a wrong pose.
-std::vector<Hypothesis> VoteForPoses(const MapIndexImpl& m, const LevelledQuery& q,
-                                     const std::optional<PriorPose>& prior,
-                                     const Eigen::Vector2d& prior_xy,
-                                     const RelocalizerOptions& options) {
-  const size_t seeds = std::min<size_t>({q.xy.size(), size_t{64},
-                                         static_cast<size_t>(options.max_seed_trees)});
-  const std::vector<Eigen::Vector2d> seed_xy(q.xy.begin(), q.xy.begin() + seeds);
-  const double tol = options.triangle_tolerance;
-  std::vector<Vote> votes;
-  votes.reserve(16384);
-  std::vector<std::pair<uint32_t, float>> found;
-  for (const Triangle& qt : QueryTriangles(seed_xy, m, tol)) {
+// Votes for sensor poses from pairs of similar query and map triangles. A pose cell is ranked by
+// how many distinct query trees voted for it: near-duplicate query triangles (a stem detected
+// twice, a false stem beside a true one) then cannot pile up support for a wrong pose.
+class PoseVoter {
+ public:
+  PoseVoter(const MapIndexImpl& m, const std::vector<Eigen::Vector2d>& seed_xy,
+            const std::optional<PriorPose>& prior, const Eigen::Vector2d& prior_xy,
+            double tolerance)
+      : m_(m), seed_xy_(seed_xy), prior_(prior), prior_xy_(prior_xy), tol_(tolerance) {
+    votes_.reserve(16384);
+  }
+
+  void Add(const Triangle& qt) {
     // Per-side tolerance: search the ball that contains the box, then check each side.
-    m.triangle_keys->Radius(qt.sides, static_cast<float>(tol * std::sqrt(3.0)), found);
+    m_.triangle_keys->Radius(qt.sides, static_cast<float>(tol_ * std::sqrt(3.0)), found_);
     const TriangleFrame qf =
-        FrameOf(seed_xy[qt.vertex[0]], seed_xy[qt.vertex[1]], seed_xy[qt.vertex[2]]);
+        FrameOf(seed_xy_[qt.vertex[0]], seed_xy_[qt.vertex[1]], seed_xy_[qt.vertex[2]]);
     const double q_heading = qf.heading();
     const int q_turn = qf.turn();
     const uint64_t mask = (uint64_t{1} << qt.vertex[0]) | (uint64_t{1} << qt.vertex[1]) |
                           (uint64_t{1} << qt.vertex[2]);
-    for (auto [t, d2] : found) {
-      const auto& key = m.triangle_keys->point(t);
-      if (std::abs(key[0] - qt.sides[0]) > tol || std::abs(key[1] - qt.sides[1]) > tol ||
-          std::abs(key[2] - qt.sides[2]) > tol) {
+    for (auto [t, d2] : found_) {
+      const auto& key = m_.triangle_keys->point(t);
+      if (std::abs(key[0] - qt.sides[0]) > tol_ || std::abs(key[1] - qt.sides[1]) > tol_ ||
+          std::abs(key[2] - qt.sides[2]) > tol_) {
         continue;
       }
-      const TriangleFrame& mf = m.triangle_frames[t];
+      const TriangleFrame& mf = m_.triangle_frames[t];
       if (q_turn * mf.turn() < 0) continue;  // mirror image: no rigid motion maps one onto other
       // map = R(yaw) * query + t, with the long sides and the centroids aligned.
       Rigid2 pose;
       pose.yaw = WrapAngle(mf.heading() - q_heading);
       const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
       pose.translation = {mf.cx - (c * qf.cx - s * qf.cy), mf.cy - (s * qf.cx + c * qf.cy)};
-      if (prior && (pose.translation - prior_xy).norm() > prior->radius) continue;
-      votes.push_back({CellKey(pose), mask, static_cast<float>(pose.yaw),
-                       static_cast<float>(pose.translation.x()),
-                       static_cast<float>(pose.translation.y())});
+      if (prior_ && (pose.translation - prior_xy_).norm() > prior_->radius) continue;
+      votes_.push_back({CellKey(pose), mask, static_cast<float>(pose.yaw),
+                        static_cast<float>(pose.translation.x()),
+                        static_cast<float>(pose.translation.y())});
     }
   }
-  std::sort(votes.begin(), votes.end(),
-            [](const Vote& a, const Vote& b) { return a.cell < b.cell; });
-  std::vector<Hypothesis> hypotheses;
-  for (size_t begin = 0, end = 0; begin < votes.size(); begin = end) {
-    uint64_t mask = 0;
-    double c = 0, s = 0;
-    Eigen::Vector2d t = Eigen::Vector2d::Zero();
-    for (end = begin; end < votes.size() && votes[end].cell == votes[begin].cell; ++end) {
-      mask |= votes[end].seeds;
-      c += std::cos(votes[end].yaw);
-      s += std::sin(votes[end].yaw);
-      t += Eigen::Vector2d(votes[end].x, votes[end].y);
+
+  // The `max` cells with the most distinct voting seeds (at least `min_votes`), each as the
+  // mean pose of its votes.
+  std::vector<Hypothesis> Best(int min_votes, size_t max) {
+    std::sort(votes_.begin(), votes_.end(),
+              [](const Vote& a, const Vote& b) { return a.cell < b.cell; });
+    std::vector<Hypothesis> hypotheses;
+    for (size_t begin = 0, end = 0; begin < votes_.size(); begin = end) {
+      uint64_t mask = 0;
+      double c = 0, s = 0;
+      Eigen::Vector2d t = Eigen::Vector2d::Zero();
+      for (end = begin; end < votes_.size() && votes_[end].cell == votes_[begin].cell; ++end) {
+        mask |= votes_[end].seeds;
+        c += std::cos(votes_[end].yaw);
+        s += std::sin(votes_[end].yaw);
+        t += Eigen::Vector2d(votes_[end].x, votes_[end].y);
+      }
+      Hypothesis h;
+      h.votes = __builtin_popcountll(mask);
+      if (h.votes < min_votes) continue;
+      h.pose.yaw = std::atan2(s, c);
+      h.pose.translation = t / static_cast<double>(end - begin);
+      hypotheses.push_back(h);
     }
-    Hypothesis h;
-    h.votes = __builtin_popcountll(mask);
-    if (h.votes < options.min_votes) continue;
-    h.pose.yaw = std::atan2(s, c);
-    h.pose.translation = t / static_cast<double>(end - begin);
-    hypotheses.push_back(h);
+    const size_t keep = std::min(hypotheses.size(), max);
+    std::partial_sort(hypotheses.begin(), hypotheses.begin() + keep, hypotheses.end(),
+                      [](const Hypothesis& a, const Hypothesis& b) { return a.votes > b.votes; });
+    hypotheses.resize(keep);
+    return hypotheses;
   }
-  const size_t keep = std::min<size_t>(hypotheses.size(), options.max_hypotheses);
-  std::partial_sort(hypotheses.begin(), hypotheses.begin() + keep, hypotheses.end(),
-                    [](const Hypothesis& a, const Hypothesis& b) { return a.votes > b.votes; });
-  hypotheses.resize(keep);
-  return hypotheses;
-}
+
+ private:
+  const MapIndexImpl& m_;
+  const std::vector<Eigen::Vector2d>& seed_xy_;
+  const std::optional<PriorPose>& prior_;
+  Eigen::Vector2d prior_xy_;
+  double tol_;
+  std::vector<Vote> votes_;
+  std::vector<std::pair<uint32_t, float>> found_;
+};
 
 // Inliers of a pose: each used query tree whose nearest map tree is within `gate`.
 struct Association {
@@ -158,10 +170,10 @@ struct Association {
 };
 
 std::vector<Association> Associate(const MapIndexImpl& m, const LevelledQuery& q,
-                                   const Rigid2& pose, double gate) {
+                                   const Rigid2& pose, double gate, size_t limit = SIZE_MAX) {
   std::vector<Association> out;
   const double gate2 = gate * gate;
-  for (uint32_t i = 0; i < q.xy.size(); ++i) {
+  for (uint32_t i = 0; i < std::min(limit, q.xy.size()); ++i) {
     const Eigen::Vector2d p = pose(q.xy[i]);
     auto [j, d2] = m.positions->Nearest({static_cast<float>(p.x()), static_cast<float>(p.y())});
     if (j >= 0 && d2 <= gate2) out.push_back({i, static_cast<uint32_t>(j), std::sqrt(d2)});
@@ -169,8 +181,10 @@ std::vector<Association> Associate(const MapIndexImpl& m, const LevelledQuery& q
   return out;
 }
 
-void Score(const MapIndexImpl& m, const LevelledQuery& q, double inlier_distance, Hypothesis* h) {
-  const std::vector<Association> inliers = Associate(m, q, h->pose, inlier_distance);
+// Scores a pose on the `limit` nearest query trees (all by default).
+void Score(const MapIndexImpl& m, const LevelledQuery& q, double inlier_distance, Hypothesis* h,
+           size_t limit = SIZE_MAX) {
+  const std::vector<Association> inliers = Associate(m, q, h->pose, inlier_distance, limit);
   h->inliers = static_cast<int>(inliers.size());
   h->score = 0;
   double sum2 = 0;
@@ -245,6 +259,41 @@ RelocalizeResult Finish(const MapIndexImpl& m, const LevelledQuery& q, const Rel
   return result;
 }
 
+int InRange(const LevelledQuery& q, double range) {
+  return static_cast<int>(std::count_if(q.xy.begin(), q.xy.end(),
+                                        [&](const Eigen::Vector2d& p) { return p.norm() <= range; }));
+}
+
+// Votes with the query's triangles, nearest seeds first. Every `early_exit_batch` triangles the
+// best cells are verified; a pose that already explains most nearby trees ends the voting (the
+// usual case), so only hard queries pay for all their triangles.
+std::vector<Hypothesis> Search(const MapIndexImpl& m, const LevelledQuery& q,
+                               const std::optional<PriorPose>& prior,
+                               const Eigen::Vector2d& prior_xy, const RelocalizerOptions& options) {
+  const size_t seeds = std::min<size_t>({q.xy.size(), size_t{64},
+                                         static_cast<size_t>(options.max_seed_trees)});
+  const std::vector<Eigen::Vector2d> seed_xy(q.xy.begin(), q.xy.begin() + seeds);
+  std::vector<Triangle> triangles = QueryTriangles(seed_xy, m, options.triangle_tolerance);
+  auto farthest = [](const Triangle& t) { return std::max({t.vertex[0], t.vertex[1], t.vertex[2]}); };
+  std::stable_sort(triangles.begin(), triangles.end(),
+                   [&](const Triangle& a, const Triangle& b) { return farthest(a) < farthest(b); });
+  const int strong = std::max(2 * options.min_inliers,
+                              static_cast<int>(options.early_exit_fraction *
+                                               InRange(q, options.ratio_range)));
+  PoseVoter voter(m, seed_xy, prior, prior_xy, options.triangle_tolerance);
+  for (size_t i = 0; i < triangles.size(); ++i) {
+    voter.Add(triangles[i]);
+    const bool batch_done = options.early_exit_batch > 0 &&
+                            (i + 1) % options.early_exit_batch == 0 && i + 1 < triangles.size();
+    if (!batch_done) continue;
+    for (Hypothesis h : voter.Best(options.min_votes, 2)) {
+      Score(m, q, options.inlier_distance, &h);
+      if (h.inliers >= strong) return voter.Best(options.min_votes, options.max_hypotheses);
+    }
+  }
+  return voter.Best(options.min_votes, options.max_hypotheses);
+}
+
 }  // namespace
 
 void RelocalizerOptions::Check() const {
@@ -260,8 +309,10 @@ void RelocalizerOptions::Check() const {
   require(chance_sigmas >= 0, "chance_sigmas must be >= 0");
   require(distinct_distance > 0 && distinct_yaw > 0, "distinct_distance/yaw must be > 0");
   require(max_seed_trees >= 3, "max_seed_trees must be >= 3");
-  require(max_hypotheses >= 1 && refine_hypotheses >= 1, "hypothesis counts must be >= 1");
+  require(max_hypotheses >= 1 && refine_hypotheses >= 1 && quick_score_trees >= 3,
+          "hypothesis counts must be >= 1 and quick_score_trees >= 3");
   require(min_votes >= 1, "min_votes must be >= 1");
+  require(early_exit_batch >= 0 && early_exit_fraction > 0, "early exit settings invalid");
 }
 
 const char* ToString(RelocalizeStatus status) {
@@ -286,19 +337,20 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   Eigen::Vector2d prior_xy = Eigen::Vector2d::Zero();
   if (query.prior) prior_xy = query.prior->map_from_sensor.translation().head<2>() - m.origin;
 
-  std::vector<Hypothesis> hypotheses = VoteForPoses(m, q, query.prior, prior_xy, options);
+  std::vector<Hypothesis> hypotheses = Search(m, q, query.prior, prior_xy, options);
   result.hypotheses = static_cast<int>(hypotheses.size());
   if (hypotheses.empty()) {
     result.detail = "no constellation of the query's trees matches the map";
     return result;
   }
-  for (Hypothesis& h : hypotheses) Score(m, q, options.inlier_distance, &h);
-  std::sort(hypotheses.begin(), hypotheses.end(),
-            [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; });
-  const size_t refine = std::min<size_t>(hypotheses.size(), options.refine_hypotheses);
-  for (size_t i = 0; i < refine; ++i) Refine(m, q, options, &hypotheses[i]);
-  std::sort(hypotheses.begin(), hypotheses.end(),
-            [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; });
+  // Rank every hypothesis on the nearest trees; refine and fully score the best few. Only fully
+  // scored hypotheses take part in the decision below.
+  auto by_score = [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; };
+  for (Hypothesis& h : hypotheses) Score(m, q, options.inlier_distance, &h, options.quick_score_trees);
+  std::sort(hypotheses.begin(), hypotheses.end(), by_score);
+  hypotheses.resize(std::min<size_t>(hypotheses.size(), options.refine_hypotheses));
+  for (Hypothesis& h : hypotheses) Refine(m, q, options, &h);
+  std::sort(hypotheses.begin(), hypotheses.end(), by_score);
 
 #ifdef FORESTMAP_DEBUG_RELOC
   for (size_t i = 0; i < std::min<size_t>(hypotheses.size(), 8); ++i) {
@@ -311,9 +363,7 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   for (const Hypothesis& h : hypotheses) {
     if (Distinct(h.pose, best.pose, options)) rival = std::max(rival, h.score);
   }
-  const int in_range = static_cast<int>(
-      std::count_if(q.xy.begin(), q.xy.end(),
-                    [&](const Eigen::Vector2d& p) { return p.norm() <= options.ratio_range; }));
+  const int in_range = InRange(q, options.ratio_range);
   const int inliers_in_range = [&] {
     int n = 0;
     for (const Association& a : Associate(m, q, best.pose, options.inlier_distance)) {

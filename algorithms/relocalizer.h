@@ -34,8 +34,11 @@ struct RelocalizerOptions {
   double max_query_range = 40.0;     // m, query trees farther (horizontally) are not used
   int max_seed_trees = 40;           // nearest query trees whose triangles seed hypotheses (<= 64)
   double triangle_tolerance = 0.20;  // m, per-side length tolerance of triangle matches
+  int early_exit_batch = 8;          // query triangles between checks for a decisive pose; 0 = off
+  double early_exit_fraction = 0.5;  // decisive: explains this share of trees within ratio_range
   int min_votes = 3;                 // distinct query trees voting for a pose cell to verify it
   int max_hypotheses = 100;          // pose cells verified against the map
+  int quick_score_trees = 30;        // hypotheses are ranked on this many nearest query trees
   int refine_hypotheses = 8;         // best verified cells refined by ICP
   double inlier_distance = 0.4;      // m, a query tree within this of a map tree is an inlier
   int min_inliers = 6;               // fewer inliers -> NOT_FOUND
