@@ -8,6 +8,7 @@
 #include "algorithms/leveling.h"
 #include "algorithms/map_index_internal.h"
 #include "algorithms/rigid2d.h"
+#include "algorithms/tilt_refinement.h"
 
 namespace forestmap::algorithms {
 namespace {
@@ -29,9 +30,10 @@ struct Hypothesis {
   double rmse = 0;
 };
 
-LevelledQuery Level(const RelocalizeQuery& query, const RelocalizerOptions& options) {
+LevelledQuery Level(const RelocalizeQuery& query, const Eigen::Matrix3d& level_from_sensor,
+                    const RelocalizerOptions& options) {
   LevelledQuery q;
-  q.level_from_sensor = LevelSensor(query.trees, query.gravity).level_from_sensor;
+  q.level_from_sensor = level_from_sensor;
   std::vector<std::pair<double, uint32_t>> by_range;
   for (uint32_t i = 0; i < query.trees.size(); ++i) {
     const Eigen::Vector3d p = q.level_from_sensor * query.trees[i].position;
@@ -259,6 +261,32 @@ RelocalizeResult Finish(const MapIndexImpl& m, const LevelledQuery& q, const Rel
   return result;
 }
 
+// With map heights, refines roll and pitch from the matched trees' heights (tilt_refinement.h),
+// then the pose again in x, y, yaw; keeps the refinement only when it fits at least as well.
+RelocalizeResult FinishWithTilt(const MapIndexImpl& m, const LevelledQuery& q,
+                                const RelocalizeQuery& query, const Hypothesis& best,
+                                const RelocalizerOptions& options) {
+  std::vector<Eigen::Vector3d> levelled;
+  std::vector<double> map_z;
+  for (const Association& a : Associate(m, q, best.pose, options.inlier_distance)) {
+    const double z = m.trees[a.map].position.z();
+    if (!IsKnown(z)) continue;
+    levelled.push_back({q.xy[a.query].x(), q.xy[a.query].y(), q.z[a.query]});
+    map_z.push_back(z);
+  }
+  const std::optional<Eigen::Matrix3d> correction =
+      options.refine_tilt ? RefineTilt(levelled, map_z) : std::nullopt;
+  if (correction) {
+    const LevelledQuery tilted = Level(query, *correction * q.level_from_sensor, options);
+    Hypothesis refined = best;
+    Refine(m, tilted, options, &refined);
+    if (refined.inliers >= best.inliers && refined.rmse <= best.rmse) {
+      return Finish(m, tilted, query, refined, options);
+    }
+  }
+  return Finish(m, q, query, best, options);
+}
+
 int InRange(const LevelledQuery& q, double range) {
   return static_cast<int>(std::count_if(q.xy.begin(), q.xy.end(),
                                         [&](const Eigen::Vector2d& p) { return p.norm() <= range; }));
@@ -333,7 +361,8 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
     result.detail = "need at least 3 query trees and 3 map trees";
     return result;
   }
-  const LevelledQuery q = Level(query, options);
+  const LevelledQuery q =
+      Level(query, LevelSensor(query.trees, query.gravity).level_from_sensor, options);
   Eigen::Vector2d prior_xy = Eigen::Vector2d::Zero();
   if (query.prior) prior_xy = query.prior->map_from_sensor.translation().head<2>() - m.origin;
 
@@ -373,7 +402,7 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   }();
   const double ratio = in_range > 0 ? static_cast<double>(inliers_in_range) / in_range : 0.0;
 
-  result = Finish(m, q, query, best, options);
+  result = FinishWithTilt(m, q, query, best, options);
   result.hypotheses = static_cast<int>(hypotheses.size());
   result.confidence = best.score > 0 ? std::clamp(1.0 - rival / best.score, 0.0, 1.0) : 0.0;
   const double chance = ChanceInliers(m, q, best.pose, options.inlier_distance);

@@ -5,6 +5,7 @@
 
 #include "algorithms/leveling.h"
 #include "algorithms/rigid2d.h"
+#include "algorithms/tilt_refinement.h"
 #include "algorithms/triangles.h"
 
 namespace forestmap::algorithms {
@@ -97,6 +98,27 @@ TEST(Leveling, GravityWinsAndNoAxesMeansLevel) {
   EXPECT_TRUE(g.level_from_sensor.isApprox(Eigen::Matrix3d::Identity()));
   const LevelingResult none = LevelSensor(trees, std::nullopt);
   EXPECT_EQ(none.source, LevelSource::kAssumedLevel);
+}
+
+TEST(TiltRefinement, RecoversAResidualTiltFromTreeHeightsDespiteOutliers) {
+  // The levelled frame is still tilted 2 deg about x: heights seen = true heights rotated.
+  const Eigen::Matrix3d residual = Eigen::AngleAxisd(-0.035, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> u(-20, 20);
+  std::normal_distribution<double> noise(0, 0.05);
+  std::vector<Eigen::Vector3d> levelled;
+  std::vector<double> map_z;
+  for (int i = 0; i < 60; ++i) {
+    const Eigen::Vector3d truth(u(rng), u(rng), -1.5 + noise(rng));
+    levelled.push_back(residual * truth);
+    map_z.push_back(10.0 + truth.z() + (i % 10 == 0 ? 2.0 : 0.0));  // 10% gross outliers
+  }
+  const std::optional<Eigen::Matrix3d> correction = RefineTilt(levelled, map_z);
+  ASSERT_TRUE(correction.has_value());
+  const Eigen::AngleAxisd left(*correction * residual);
+  EXPECT_LT(left.angle(), 0.004);  // rad: the 0.035 rad tilt is removed to within 0.25 deg
+  // Too few trees, or no tilt to speak of: no correction.
+  EXPECT_FALSE(RefineTilt({levelled.begin(), levelled.begin() + 5}, {map_z.begin(), map_z.begin() + 5}));
 }
 
 }  // namespace
