@@ -305,6 +305,10 @@ std::vector<Hypothesis> Search(const MapIndexImpl& m, const LevelledQuery& q,
   auto farthest = [](const Triangle& t) { return std::max({t.vertex[0], t.vertex[1], t.vertex[2]}); };
   std::stable_sort(triangles.begin(), triangles.end(),
                    [&](const Triangle& a, const Triangle& b) { return farthest(a) < farthest(b); });
+  // Dense forests give hundreds of triangles among a few metres of seeds: the nearest suffice.
+  if (triangles.size() > static_cast<size_t>(options.max_query_triangles)) {
+    triangles.resize(options.max_query_triangles);
+  }
   const int strong = std::max(2 * options.min_inliers,
                               static_cast<int>(options.early_exit_fraction *
                                                InRange(q, options.ratio_range)));
@@ -340,6 +344,7 @@ void RelocalizerOptions::Check() const {
   require(max_hypotheses >= 1 && refine_hypotheses >= 1 && quick_score_trees >= 3,
           "hypothesis counts must be >= 1 and quick_score_trees >= 3");
   require(min_votes >= 1, "min_votes must be >= 1");
+  require(max_query_triangles >= 1, "max_query_triangles must be >= 1");
   require(early_exit_batch >= 0 && early_exit_fraction > 0, "early exit settings invalid");
 }
 

@@ -33,6 +33,7 @@ struct RelocalizeQuery {
 struct RelocalizerOptions {
   double max_query_range = 40.0;     // m, query trees farther (horizontally) are not used
   int max_seed_trees = 40;           // nearest query trees whose triangles seed hypotheses (<= 64)
+  int max_query_triangles = 1000;    // at most this many query triangles vote (nearest first)
   double triangle_tolerance = 0.20;  // m, per-side length tolerance of triangle matches
   int early_exit_batch = 8;          // query triangles between checks for a decisive pose; 0 = off
   double early_exit_fraction = 0.5;  // decisive: explains this share of trees within ratio_range

@@ -146,7 +146,14 @@ void RunSimulated(const std::vector<algorithms::MapTree>& map, Runner& runner,
   algorithms::ViewSimulator simulator(map);
   algorithms::ViewOptions view;  // occlusion, 30% misses, 20% false stems, 5 cm noise
   view.range = o.range;
-  const auto poses = simulator.SamplePoses(o.simulate, o.range, o.seed, 8, o.range);
+  // Keep the sensor a range away from the plot's border, or a quarter of a small plot.
+  const Eigen::Vector2d size = simulator.grid().max_corner() - simulator.grid().min_corner();
+  const double margin = std::min(o.range, 0.25 * size.minCoeff());
+  const auto poses = simulator.SamplePoses(o.simulate, margin, o.seed, 8, o.range);
+  if (poses.empty()) {
+    err << "bench-reloc: no place in the map where the sensor sees 8 trees within " << o.range
+        << " m\n";
+  }
   for (size_t i = 0; i < poses.size(); ++i) {
     view.seed = o.seed * 100003u + static_cast<unsigned>(i);
     const algorithms::SimulatedView v = simulator.Simulate(poses[i].head<2>(), poses[i].z(), view);
