@@ -7,6 +7,7 @@
 
 #include "algorithms/leveling.h"
 #include "algorithms/map_index_internal.h"
+#include "algorithms/pose_voting.h"
 #include "algorithms/rigid2d.h"
 #include "algorithms/tilt_refinement.h"
 
@@ -20,14 +21,6 @@ struct LevelledQuery {
   std::vector<double> z;            // levelled heights relative to the sensor
   std::vector<double> dbh;
   std::vector<uint32_t> used;       // indices into the request's trees, nearest first
-};
-
-struct Hypothesis {
-  Rigid2 pose;       // kd coordinates from levelled sensor coordinates
-  int votes = 0;
-  int inliers = 0;
-  double score = 0;  // sum over inliers of (1 - (d / inlier_distance)^2)
-  double rmse = 0;
 };
 
 LevelledQuery Level(const RelocalizeQuery& query, const Eigen::Matrix3d& level_from_sensor,
@@ -51,22 +44,6 @@ LevelledQuery Level(const RelocalizeQuery& query, const Eigen::Matrix3d& level_f
   return q;
 }
 
-// Sensor pose cell for voting: 2 m x 2 m x ~6 deg.
-uint64_t CellKey(const Rigid2& pose) {
-  const int64_t cx = static_cast<int64_t>(std::floor(pose.translation.x() / 2.0));
-  const int64_t cy = static_cast<int64_t>(std::floor(pose.translation.y() / 2.0));
-  const int64_t cyaw = static_cast<int64_t>(std::floor((pose.yaw + M_PI) / 0.1));
-  return (static_cast<uint64_t>(cx & 0xFFFFFF) << 40) |
-         (static_cast<uint64_t>(cy & 0xFFFFFF) << 16) | static_cast<uint64_t>(cyaw & 0xFFFF);
-}
-
-// One triangle match's vote: the pose it implies and the query seeds that formed it.
-struct Vote {
-  uint64_t cell;
-  uint64_t seeds;  // bit i = seed tree i
-  float yaw, x, y;
-};
-
 // Query triangles among the seeds (the nearest query trees), with the index's side limits
 // widened by the matching tolerance.
 std::vector<Triangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy,
@@ -82,87 +59,6 @@ std::vector<Triangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy
   }
   return EnumerateTriangles(seed_xy, neighbours, tri);
 }
-
-// Votes for sensor poses from pairs of similar query and map triangles. A pose cell is ranked by
-// how many distinct query trees voted for it: near-duplicate query triangles (a stem detected
-// twice, a false stem beside a true one) then cannot pile up support for a wrong pose.
-class PoseVoter {
- public:
-  PoseVoter(const MapIndexImpl& m, const std::vector<Eigen::Vector2d>& seed_xy,
-            const std::optional<PriorPose>& prior, const Eigen::Vector2d& prior_xy,
-            double tolerance)
-      : m_(m), seed_xy_(seed_xy), prior_(prior), prior_xy_(prior_xy), tol_(tolerance) {
-    votes_.reserve(16384);
-  }
-
-  void Add(const Triangle& qt) {
-    // Per-side tolerance: search the ball that contains the box, then check each side.
-    m_.triangle_keys->Radius(qt.sides, static_cast<float>(tol_ * std::sqrt(3.0)), found_);
-    const TriangleFrame qf =
-        FrameOf(seed_xy_[qt.vertex[0]], seed_xy_[qt.vertex[1]], seed_xy_[qt.vertex[2]]);
-    const double q_heading = qf.heading();
-    const int q_turn = qf.turn();
-    const uint64_t mask = (uint64_t{1} << qt.vertex[0]) | (uint64_t{1} << qt.vertex[1]) |
-                          (uint64_t{1} << qt.vertex[2]);
-    for (auto [t, d2] : found_) {
-      const auto& key = m_.triangle_keys->point(t);
-      if (std::abs(key[0] - qt.sides[0]) > tol_ || std::abs(key[1] - qt.sides[1]) > tol_ ||
-          std::abs(key[2] - qt.sides[2]) > tol_) {
-        continue;
-      }
-      const TriangleFrame& mf = m_.triangle_frames[t];
-      if (q_turn * mf.turn() < 0) continue;  // mirror image: no rigid motion maps one onto other
-      // map = R(yaw) * query + t, with the long sides and the centroids aligned.
-      Rigid2 pose;
-      pose.yaw = WrapAngle(mf.heading() - q_heading);
-      const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
-      pose.translation = {mf.cx - (c * qf.cx - s * qf.cy), mf.cy - (s * qf.cx + c * qf.cy)};
-      if (prior_ && (pose.translation - prior_xy_).norm() > prior_->radius) continue;
-      votes_.push_back({CellKey(pose), mask, static_cast<float>(pose.yaw),
-                        static_cast<float>(pose.translation.x()),
-                        static_cast<float>(pose.translation.y())});
-    }
-  }
-
-  // The `max` cells with the most distinct voting seeds (at least `min_votes`), each as the
-  // mean pose of its votes.
-  std::vector<Hypothesis> Best(int min_votes, size_t max) {
-    std::sort(votes_.begin(), votes_.end(),
-              [](const Vote& a, const Vote& b) { return a.cell < b.cell; });
-    std::vector<Hypothesis> hypotheses;
-    for (size_t begin = 0, end = 0; begin < votes_.size(); begin = end) {
-      uint64_t mask = 0;
-      double c = 0, s = 0;
-      Eigen::Vector2d t = Eigen::Vector2d::Zero();
-      for (end = begin; end < votes_.size() && votes_[end].cell == votes_[begin].cell; ++end) {
-        mask |= votes_[end].seeds;
-        c += std::cos(votes_[end].yaw);
-        s += std::sin(votes_[end].yaw);
-        t += Eigen::Vector2d(votes_[end].x, votes_[end].y);
-      }
-      Hypothesis h;
-      h.votes = __builtin_popcountll(mask);
-      if (h.votes < min_votes) continue;
-      h.pose.yaw = std::atan2(s, c);
-      h.pose.translation = t / static_cast<double>(end - begin);
-      hypotheses.push_back(h);
-    }
-    const size_t keep = std::min(hypotheses.size(), max);
-    std::partial_sort(hypotheses.begin(), hypotheses.begin() + keep, hypotheses.end(),
-                      [](const Hypothesis& a, const Hypothesis& b) { return a.votes > b.votes; });
-    hypotheses.resize(keep);
-    return hypotheses;
-  }
-
- private:
-  const MapIndexImpl& m_;
-  const std::vector<Eigen::Vector2d>& seed_xy_;
-  const std::optional<PriorPose>& prior_;
-  Eigen::Vector2d prior_xy_;
-  double tol_;
-  std::vector<Vote> votes_;
-  std::vector<std::pair<uint32_t, float>> found_;
-};
 
 // Inliers of a pose: each used query tree whose nearest map tree is within `gate`.
 struct Association {
@@ -386,12 +282,6 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   for (Hypothesis& h : hypotheses) Refine(m, q, options, &h);
   std::sort(hypotheses.begin(), hypotheses.end(), by_score);
 
-#ifdef FORESTMAP_DEBUG_RELOC
-  for (size_t i = 0; i < std::min<size_t>(hypotheses.size(), 8); ++i) {
-    const auto& h = hypotheses[i];
-    std::fprintf(stderr, "hyp %zu votes %d inliers %d score %.1f pose %.2f %.2f yaw %.2f deg\n", i, h.votes, h.inliers, h.score, h.pose.translation.x() + m.origin.x(), h.pose.translation.y() + m.origin.y(), h.pose.yaw * 180 / M_PI);
-  }
-#endif
   const Hypothesis& best = hypotheses.front();
   double rival = 0;
   for (const Hypothesis& h : hypotheses) {

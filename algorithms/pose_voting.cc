@@ -1,0 +1,77 @@
+#include "algorithms/pose_voting.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace forestmap::algorithms {
+namespace {
+
+// Sensor pose cell for voting: 2 m x 2 m x ~6 deg.
+uint64_t CellKey(const Rigid2& pose) {
+  const int64_t cx = static_cast<int64_t>(std::floor(pose.translation.x() / 2.0));
+  const int64_t cy = static_cast<int64_t>(std::floor(pose.translation.y() / 2.0));
+  const int64_t cyaw = static_cast<int64_t>(std::floor((pose.yaw + M_PI) / 0.1));
+  return (static_cast<uint64_t>(cx & 0xFFFFFF) << 40) |
+         (static_cast<uint64_t>(cy & 0xFFFFFF) << 16) | static_cast<uint64_t>(cyaw & 0xFFFF);
+}
+
+}  // namespace
+
+void PoseVoter::Add(const Triangle& qt) {
+  // Per-side tolerance: search the ball that contains the box, then check each side.
+  m_.triangle_keys->Radius(qt.sides, static_cast<float>(tol_ * std::sqrt(3.0)), found_);
+  const TriangleFrame qf =
+      FrameOf(seed_xy_[qt.vertex[0]], seed_xy_[qt.vertex[1]], seed_xy_[qt.vertex[2]]);
+  const double q_heading = qf.heading();
+  const int q_turn = qf.turn();
+  const uint64_t mask = (uint64_t{1} << qt.vertex[0]) | (uint64_t{1} << qt.vertex[1]) |
+                        (uint64_t{1} << qt.vertex[2]);
+  for (auto [t, d2] : found_) {
+    const auto& key = m_.triangle_keys->point(t);
+    if (std::abs(key[0] - qt.sides[0]) > tol_ || std::abs(key[1] - qt.sides[1]) > tol_ ||
+        std::abs(key[2] - qt.sides[2]) > tol_) {
+      continue;
+    }
+    const TriangleFrame& mf = m_.triangle_frames[t];
+    if (q_turn * mf.turn() < 0) continue;  // mirror image: no rigid motion maps one onto other
+    // map = R(yaw) * query + t, with the long sides and the centroids aligned.
+    Rigid2 pose;
+    pose.yaw = WrapAngle(mf.heading() - q_heading);
+    const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
+    pose.translation = {mf.cx - (c * qf.cx - s * qf.cy), mf.cy - (s * qf.cx + c * qf.cy)};
+    if (prior_ && (pose.translation - prior_xy_).norm() > prior_->radius) continue;
+    votes_.push_back({CellKey(pose), mask, static_cast<float>(pose.yaw),
+                      static_cast<float>(pose.translation.x()),
+                      static_cast<float>(pose.translation.y())});
+  }
+}
+
+std::vector<Hypothesis> PoseVoter::Best(int min_votes, size_t max) {
+  std::sort(votes_.begin(), votes_.end(),
+            [](const Vote& a, const Vote& b) { return a.cell < b.cell; });
+  std::vector<Hypothesis> hypotheses;
+  for (size_t begin = 0, end = 0; begin < votes_.size(); begin = end) {
+    uint64_t mask = 0;
+    double c = 0, s = 0;
+    Eigen::Vector2d t = Eigen::Vector2d::Zero();
+    for (end = begin; end < votes_.size() && votes_[end].cell == votes_[begin].cell; ++end) {
+      mask |= votes_[end].seeds;
+      c += std::cos(votes_[end].yaw);
+      s += std::sin(votes_[end].yaw);
+      t += Eigen::Vector2d(votes_[end].x, votes_[end].y);
+    }
+    Hypothesis h;
+    h.votes = __builtin_popcountll(mask);
+    if (h.votes < min_votes) continue;
+    h.pose.yaw = std::atan2(s, c);
+    h.pose.translation = t / static_cast<double>(end - begin);
+    hypotheses.push_back(h);
+  }
+  const size_t keep = std::min(hypotheses.size(), max);
+  std::partial_sort(hypotheses.begin(), hypotheses.begin() + keep, hypotheses.end(),
+                    [](const Hypothesis& a, const Hypothesis& b) { return a.votes > b.votes; });
+  hypotheses.resize(keep);
+  return hypotheses;
+}
+
+}  // namespace forestmap::algorithms
