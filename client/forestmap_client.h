@@ -1,6 +1,7 @@
 #pragma once
 // A blocking client of the ForestMap service (see proto/forestmap/v1/forestmap_service.proto).
 
+#include "proto/status_code_name.h"
 #include <grpcpp/grpcpp.h>
 
 #include <cstdint>
@@ -103,7 +104,6 @@ class ForestMapClient {
   bool connected_ = false;
 };
 
-// "OK", "NOT_FOUND", ...
-const char* StatusCodeName(grpc::StatusCode code);
+using forestmap::StatusCodeName;  // proto/status_code_name.h
 
 }  // namespace forestmap::client

@@ -15,6 +15,7 @@
 //   (no exception) work queue full       -> RESOURCE_EXHAUSTED "server busy ..." (ServerBusy)
 // Every non-OK status is logged as one line on stderr.
 
+#include "proto/status_code_name.h"
 #include <grpcpp/support/status.h>
 
 #include <stdexcept>
@@ -71,8 +72,7 @@ grpc::Status ServerBusy(std::string_view rpc) noexcept;
 void LogStatus(std::string_view rpc, const grpc::Status& status) noexcept;
 void LogLine(std::string_view line) noexcept;
 
-// "NOT_FOUND", "INVALID_ARGUMENT", ...
-const char* StatusCodeName(grpc::StatusCode code) noexcept;
+using forestmap::StatusCodeName;  // proto/status_code_name.h
 
 // Runs `body` and returns OK, or the status of the exception it threw. No exception escapes.
 template <typename Body>
