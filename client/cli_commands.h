@@ -37,5 +37,6 @@ void AddMapCommand(CLI::App& app, CliContext& context);         // cli_map.cc
 void AddRelocalizeCommand(CLI::App& app, CliContext& context);  // cli_relocalize.cc
 void AddBenchRelocCommand(CLI::App& app, CliContext& context);  // cli_bench_reloc.cc
 void AddDemoDataCommand(CLI::App& app, CliContext& context);    // cli_demo_data.cc
+void AddBenchServerCommand(CLI::App& app, CliContext& context);  // cli_bench_server.cc
 
 }  // namespace forestmap::client

@@ -31,6 +31,7 @@ int main(int argc, char** argv) {
   forestmap::client::AddRelocalizeCommand(app, context);
   forestmap::client::AddBenchRelocCommand(app, context);
   forestmap::client::AddDemoDataCommand(app, context);
+  forestmap::client::AddBenchServerCommand(app, context);
 
   try {
     app.parse(argc, argv);
