@@ -16,7 +16,6 @@ int ThreadCount(int requested) {
   return std::max(1u, std::thread::hardware_concurrency());
 }
 
-// Runs fn(begin, end) over [0, n) split across threads.
 // Runs fn(chunk, begin, end) over [0, n) split into `chunks` contiguous ranges, one thread each.
 template <typename Fn>
 void ParallelFor(size_t n, int chunks, Fn fn) {
@@ -77,7 +76,8 @@ double ChooseTriangleSide(const KdTree<float, 2>& kd, const std::vector<Eigen::V
     if (target == per_tree) break;
     tri.max_side = std::min(15.0, tri.max_side * std::pow(target / per_tree, 0.25));
   }
-  return std::clamp(tri.max_side, 1.0, 15.0);
+  // Keep room above the shortest side allowed (maps in odd units can be very dense).
+  return std::clamp(tri.max_side, tri.min_side + 0.5, 15.0);
 }
 
 }  // namespace

@@ -20,12 +20,13 @@ uint64_t CellKey(const Rigid2& pose) {
 void PoseVoter::Add(const Triangle& qt) {
   // Per-side tolerance: search the ball that contains the box, then check each side.
   m_.triangle_keys->Radius(qt.sides, static_cast<float>(tol_ * std::sqrt(3.0)), found_);
-  const TriangleFrame qf =
-      FrameOf(seed_xy_[qt.vertex[0]], seed_xy_[qt.vertex[1]], seed_xy_[qt.vertex[2]]);
-  const double q_heading = qf.heading();
-  const int q_turn = qf.turn();
-  const uint64_t mask = (uint64_t{1} << qt.vertex[0]) | (uint64_t{1} << qt.vertex[1]) |
-                        (uint64_t{1} << qt.vertex[2]);
+  const uint32_t a = qt.vertex[0], b = qt.vertex[1], c = qt.vertex[2];
+  // The canonical labels come from sorted side lengths; where two sides are within the
+  // tolerance, noise may have swapped them in the map, so the swapped labelling votes as well.
+  std::vector<TriangleFrame> frames = {FrameOf(seed_xy_[a], seed_xy_[b], seed_xy_[c])};
+  if (qt.sides[1] - qt.sides[0] < tol_) frames.push_back(FrameOf(seed_xy_[b], seed_xy_[a], seed_xy_[c]));
+  if (qt.sides[2] - qt.sides[1] < tol_) frames.push_back(FrameOf(seed_xy_[a], seed_xy_[c], seed_xy_[b]));
+  const uint64_t mask = (uint64_t{1} << a) | (uint64_t{1} << b) | (uint64_t{1} << c);
   for (auto [t, d2] : found_) {
     const auto& key = m_.triangle_keys->point(t);
     if (std::abs(key[0] - qt.sides[0]) > tol_ || std::abs(key[1] - qt.sides[1]) > tol_ ||
@@ -33,22 +34,27 @@ void PoseVoter::Add(const Triangle& qt) {
       continue;
     }
     const TriangleFrame& mf = m_.triangle_frames[t];
-    if (q_turn * mf.turn() < 0) continue;  // mirror image: no rigid motion maps one onto other
-    // map = R(yaw) * query + t, with the long sides and the centroids aligned.
-    Rigid2 pose;
-    pose.yaw = WrapAngle(mf.heading() - q_heading);
-    const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
-    pose.translation = {mf.cx - (c * qf.cx - s * qf.cy), mf.cy - (s * qf.cx + c * qf.cy)};
-    if (prior_ && (pose.translation - prior_xy_).norm() > prior_->radius) continue;
-    votes_.push_back({CellKey(pose), mask, static_cast<float>(pose.yaw),
-                      static_cast<float>(pose.translation.x()),
-                      static_cast<float>(pose.translation.y())});
+    for (const TriangleFrame& qf : frames) {
+      if (qf.turn() * mf.turn() < 0) continue;  // mirror image: no rigid motion maps it
+      // map = R(yaw) * query + t, with the long sides and the centroids aligned.
+      Rigid2 pose;
+      pose.yaw = WrapAngle(mf.heading() - qf.heading());
+      const double cy = std::cos(pose.yaw), sy = std::sin(pose.yaw);
+      pose.translation = {mf.cx - (cy * qf.cx - sy * qf.cy), mf.cy - (sy * qf.cx + cy * qf.cy)};
+      if (prior_ && (pose.translation - prior_xy_).norm() > prior_->radius) continue;
+      votes_.push_back({CellKey(pose), mask, static_cast<float>(pose.yaw),
+                        static_cast<float>(pose.translation.x()),
+                        static_cast<float>(pose.translation.y())});
+    }
   }
 }
 
 std::vector<Hypothesis> PoseVoter::Best(int min_votes, size_t max) {
-  std::sort(votes_.begin(), votes_.end(),
-            [](const Vote& a, const Vote& b) { return a.cell < b.cell; });
+  // Votes before sorted_ are already in cell order: sort the new ones and merge.
+  auto by_cell = [](const Vote& a, const Vote& b) { return a.cell < b.cell; };
+  std::sort(votes_.begin() + sorted_, votes_.end(), by_cell);
+  std::inplace_merge(votes_.begin(), votes_.begin() + sorted_, votes_.end(), by_cell);
+  sorted_ = votes_.size();
   std::vector<Hypothesis> hypotheses;
   for (size_t begin = 0, end = 0; begin < votes_.size(); begin = end) {
     uint64_t mask = 0;

@@ -54,6 +54,7 @@ class PoseVoter {
   Eigen::Vector2d prior_xy_;
   double tol_;
   std::vector<Vote> votes_;
+  size_t sorted_ = 0;  // votes_[0, sorted_) are in cell order
   std::vector<std::pair<uint32_t, float>> found_;
 };
 

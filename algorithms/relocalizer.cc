@@ -134,8 +134,8 @@ bool Distinct(const Rigid2& a, const Rigid2& b, const RelocalizerOptions& option
 }
 
 // The final pose in the map frame, with z from the matched trees.
-RelocalizeResult Finish(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizeQuery& query,
-                        const Hypothesis& best, const RelocalizerOptions& options) {
+RelocalizeResult Finish(const MapIndexImpl& m, const LevelledQuery& q, const Hypothesis& best,
+                        const RelocalizerOptions& options) {
   RelocalizeResult result;
   std::vector<double> dz;
   for (const Association& a : Associate(m, q, best.pose, options.inlier_distance)) {
@@ -153,7 +153,6 @@ RelocalizeResult Finish(const MapIndexImpl& m, const LevelledQuery& q, const Rel
   result.map_from_sensor.linear() = result.map_from_sensor.linear() * q.level_from_sensor;
   result.inliers = best.inliers;
   result.rmse = best.rmse;
-  (void)query;
   return result;
 }
 
@@ -177,10 +176,10 @@ RelocalizeResult FinishWithTilt(const MapIndexImpl& m, const LevelledQuery& q,
     Hypothesis refined = best;
     Refine(m, tilted, options, &refined);
     if (refined.inliers >= best.inliers && refined.rmse <= best.rmse) {
-      return Finish(m, tilted, query, refined, options);
+      return Finish(m, tilted, refined, options);
     }
   }
-  return Finish(m, q, query, best, options);
+  return Finish(m, q, best, options);
 }
 
 int InRange(const LevelledQuery& q, double range) {
@@ -214,9 +213,12 @@ std::vector<Hypothesis> Search(const MapIndexImpl& m, const LevelledQuery& q,
     const bool batch_done = options.early_exit_batch > 0 &&
                             (i + 1) % options.early_exit_batch == 0 && i + 1 < triangles.size();
     if (!batch_done) continue;
-    for (Hypothesis h : voter.Best(options.min_votes, 2)) {
-      Score(m, q, options.inlier_distance, &h);
-      if (h.inliers >= strong) return voter.Best(options.min_votes, options.max_hypotheses);
+    for (const Hypothesis& h : voter.Best(options.min_votes, 2)) {
+      int near = 0;  // inliers within ratio_range, as counted by `strong`
+      for (const Association& a : Associate(m, q, h.pose, options.inlier_distance)) {
+        near += q.xy[a.query].norm() <= options.ratio_range;
+      }
+      if (near >= strong) return voter.Best(options.min_votes, options.max_hypotheses);
     }
   }
   return voter.Best(options.min_votes, options.max_hypotheses);
@@ -268,7 +270,8 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   if (query.prior) prior_xy = query.prior->map_from_sensor.translation().head<2>() - m.origin;
 
   std::vector<Hypothesis> hypotheses = Search(m, q, query.prior, prior_xy, options);
-  result.hypotheses = static_cast<int>(hypotheses.size());
+  const int verified = static_cast<int>(hypotheses.size());
+  result.hypotheses = verified;
   if (hypotheses.empty()) {
     result.detail = "no constellation of the query's trees matches the map";
     return result;
@@ -298,7 +301,7 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   const double ratio = in_range > 0 ? static_cast<double>(inliers_in_range) / in_range : 0.0;
 
   result = FinishWithTilt(m, q, query, best, options);
-  result.hypotheses = static_cast<int>(hypotheses.size());
+  result.hypotheses = verified;
   result.confidence = best.score > 0 ? std::clamp(1.0 - rival / best.score, 0.0, 1.0) : 0.0;
   const double chance = ChanceInliers(m, q, best.pose, options.inlier_distance);
   const double significant = chance + options.chance_sigmas * std::sqrt(chance);

@@ -1,13 +1,15 @@
 #pragma once
 // Global and prior-bounded relocalization of a sensor in a tree map.
 //
-// Method (after the thesis in ../shared/papers/000_*, ch. 4-5, made robust to misses and false
-// stems): the query is levelled (gravity, else mean stem axis, else level); candidate
-// correspondences come from rotation-invariant neighbour-distance descriptors indexed with
-// nanoflann; each candidate gets a yaw from its neighbourhood, the resulting (x, y, yaw)
-// hypotheses are clustered, the best clusters are verified against the whole map and refined by
-// ICP-style re-association with least squares in x, y, yaw (z from the matched trees). The answer
-// is LOCALIZED only when the best pose beats every distinct alternative by a clear margin.
+// Method (after the thesis in ../shared/papers/000_*: tree constellations, RANSAC-style pair
+// matching, ICP; made robust to misses and false stems): the query is levelled (gravity, else the
+// mean stem axis, else level); triangles of nearby query trees are looked up by their side
+// lengths in the map's triangle index (map_index.h); every match implies a sensor pose (x, y,
+// yaw) that votes into a pose cell (pose_voting.h); the best cells are verified against the whole
+// map and refined by ICP-style re-association with least squares in x, y, yaw (z from the
+// matched trees). The answer is LOCALIZED only when the best pose is far above chance and beats
+// every distinct alternative by a clear margin. A prior bounds the search to a radius around
+// its position; its heading is not used (odometry yaw drifts).
 
 #include <memory>
 #include <optional>

@@ -36,18 +36,6 @@ struct BenchOptions {
   bool json = false;
 };
 
-std::vector<algorithms::MapTree> ToMapTrees(const std::vector<MapTreeRow>& rows) {
-  std::vector<algorithms::MapTree> trees;
-  trees.reserve(rows.size());
-  for (size_t i = 0; i < rows.size(); ++i) {
-    const MapTreeRow& r = rows[i];
-    trees.push_back({r.id.value_or(static_cast<int64_t>(i)),
-                     {r.x, r.y, r.z.value_or(algorithms::kUnknown)},
-                     r.dbh.value_or(algorithms::kUnknown)});
-  }
-  return trees;
-}
-
 double Ms(std::chrono::steady_clock::duration d) {
   return std::chrono::duration<double, std::milli>(d).count();
 }
@@ -115,8 +103,7 @@ void Progress(std::ostream& err, size_t done, size_t total) {
   if (done == total) err << "\n";
 }
 
-void RunSequence(const std::vector<algorithms::MapTree>& map, Runner& runner,
-                 const BenchOptions& o, std::ostream& err) {
+void RunSequence(Runner& runner, const BenchOptions& o, std::ostream& err) {
   const auto poses = ReadPosesCsv(o.poses_path);
   const auto frames = ReadFramesCsv(o.frames_path);
   Pose3 map_from_world = Pose3::Identity();
@@ -138,7 +125,6 @@ void RunSequence(const std::vector<algorithms::MapTree>& map, Runner& runner,
     runner.Run(frame.trees, map_from_world * pose->second);
     Progress(err, k + 1, chosen.size());
   }
-  (void)map;
 }
 
 void RunSimulated(const std::vector<algorithms::MapTree>& map, Runner& runner,
@@ -182,7 +168,7 @@ void Run(const BenchOptions& o, CliContext& context) {
   if (o.simulate > 0) {
     RunSimulated(map, runner, o, *context.err);
   } else {
-    RunSequence(map, runner, o, *context.err);
+    RunSequence(runner, o, *context.err);
   }
   const nlohmann::ordered_json report = runner.Report(map.size());
   if (o.json) {

@@ -24,15 +24,8 @@ struct DemoOptions {
 
 std::vector<algorithms::MapTree> DemoForest(const DemoOptions& o, std::string* source) {
   if (!o.stemmap.empty() && std::filesystem::exists(o.stemmap)) {
-    std::vector<algorithms::MapTree> trees;
-    const std::vector<MapTreeRow> rows = ReadMapTreesCsv(o.stemmap);
-    for (size_t i = 0; i < rows.size(); ++i) {
-      trees.push_back({rows[i].id.value_or(static_cast<int64_t>(i)),
-                       {rows[i].x, rows[i].y, rows[i].z.value_or(0.0)},
-                       rows[i].dbh.value_or(algorithms::kUnknown)});
-    }
     *source = "real stem map " + o.stemmap;
-    return trees;
+    return ToMapTrees(ReadMapTreesCsv(o.stemmap));
   }
   algorithms::StemMapStatistics stats;  // ~500 trees/ha, DBH log-normal around 20 cm
   algorithms::ForestOptions forest;

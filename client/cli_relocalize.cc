@@ -123,7 +123,8 @@ void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
   CLI::Option* prior = sub->add_option(
       "--prior", options->prior_text,
       "Prior pose X,Y,YAW_DEG,RADIUS_M: the sensor is within RADIUS_M of (X,Y) (map frame, m) "
-      "with heading YAW_DEG (deg, counter-clockwise from map x)");
+      "(YAW_DEG, deg counter-clockwise from map x, is accepted but not used: only the position "
+      "bounds the search)");
   trees->excludes(frames);
   prior->excludes(frames);
   sub->callback([options, trees, frames, prior, &context] {

@@ -90,7 +90,11 @@ Eigen::Vector3d ReadAxis(const CsvReader& reader, const std::array<size_t, 3>& c
     axis[i] = value.value_or(0.0);
     known += value.has_value();
   }
-  if (known == 0 || known == 3) return axis;
+  if (known == 0) return axis;
+  if (known == 3) {
+    // A stem axis is a direction: normalised here so that every consumer sees a unit vector.
+    return axis.norm() > 1e-9 ? Eigen::Vector3d(axis.normalized()) : Eigen::Vector3d::Zero();
+  }
   for (size_t column : columns) {
     if (IsMissing(reader.fields()[column])) {
       reader.FailAt(column, "missing while other axis components are given");
@@ -194,6 +198,18 @@ std::map<int64_t, algorithms::Pose3> ReadPosesCsv(const std::string& path) {
 
 std::map<int64_t, algorithms::Pose3> ParsePosesCsv(std::string content, const std::string& name) {
   return ReadPoses(CsvReader(std::move(content), name));
+}
+
+std::vector<algorithms::MapTree> ToMapTrees(const std::vector<MapTreeRow>& rows) {
+  std::vector<algorithms::MapTree> trees;
+  trees.reserve(rows.size());
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const MapTreeRow& r = rows[i];
+    trees.push_back({r.id.value_or(static_cast<int64_t>(i)),
+                     {r.x, r.y, r.z.value_or(algorithms::kUnknown)},
+                     r.dbh.value_or(algorithms::kUnknown)});
+  }
+  return trees;
 }
 
 }  // namespace forestmap::client

@@ -58,6 +58,10 @@ struct Frame {
 };
 
 std::vector<MapTreeRow> ReadMapTreesCsv(const std::string& path);
+
+// Map rows as the relocalizer's trees: unknown z / dbh become NaN; a row without an id gets its
+// index.
+std::vector<algorithms::MapTree> ToMapTrees(const std::vector<MapTreeRow>& rows);
 // As above for text in memory; `name` stands for the file name in messages.
 std::vector<MapTreeRow> ParseMapTreesCsv(std::string content, const std::string& name);
 

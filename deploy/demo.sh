@@ -17,6 +17,8 @@ export FORESTMAP_SERVER=$addr
 server=$!
 trap 'kill $server 2>/dev/null; wait $server 2>/dev/null' EXIT
 for _ in $(seq 50); do "$bin/client/forestmap" map list >/dev/null 2>&1 && break; sleep 0.2; done
+# Our server must be the one answering (another process may hold the port).
+kill -0 $server 2>/dev/null || { echo "demo: forestmapd did not start (is $addr in use?)" >&2; exit 1; }
 
 # A real surveyed stem map when ../shared/data is beside the clone, else a generated forest.
 "$bin/client/forestmap" demo-data --out demo-out \

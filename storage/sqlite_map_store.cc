@@ -360,6 +360,9 @@ SqliteMapStore::SqliteMapStore(const std::string& path, const SqliteMapStoreOpti
       path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX,
       options_.busy_timeout_ms);
   ConfigureConnection(*writer_, options_, /*read_only=*/false);
+  if (static_cast<int64_t>(kSchemaSteps.size()) != kSchemaVersion) {
+    throw StorageError(StorageError::Code::kInternal, "schema steps and kSchemaVersion disagree");
+  }
   sqlite::MigrateSchema(*writer_, kSchemaSteps);  // refuses a newer schema before any change
   if (path == ":memory:") return;                 // the database exists on this one connection only
   writer_->EnableWal();

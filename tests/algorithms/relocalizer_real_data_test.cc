@@ -14,22 +14,13 @@ namespace {
 
 const std::string kSequences = std::string(FORESTMAP_SHARED_DATA) + "/sequences/";
 
-std::vector<MapTree> ReadMap(const std::string& path) {
-  std::vector<MapTree> map;
-  for (const client::MapTreeRow& row : client::ReadMapTreesCsv(path)) {
-    map.push_back({row.id.value_or(0), {row.x, row.y, row.z.value_or(kUnknown)},
-                   row.dbh.value_or(kUnknown)});
-  }
-  return map;
-}
-
 // Wild_V02's ground truth is offset from Wild_V01's (../shared/data/README.md):
 // map_V01_from_map_V02 = translation (0.051, 0.102, -0.039) m, yaw -0.014 deg.
 const Pose3 kV01FromV02 = PoseFromXyzYaw(0.051, 0.102, -0.039, -0.014 * M_PI / 180.0);
 
 RelocSummary RunSequence(const std::string& map_name, const std::string& sequence, int step,
                          const Pose3& map_from_world) {
-  const std::vector<MapTree> map = ReadMap(kSequences + map_name + "/map.csv");
+  const std::vector<MapTree> map = client::ToMapTrees(client::ReadMapTreesCsv(kSequences + map_name + "/map.csv"));
   const MapIndex index(map);
   RelocEvaluator evaluator(map);
   const auto poses = client::ReadPosesCsv(kSequences + sequence + "/poses.csv");

@@ -64,9 +64,7 @@ TEST_F(EndToEnd, SecondVisitFramesRelocalizeThroughTheServer) {
   client_->CreateMap("venman", "Wild_V01 traversal map", "");
   client_->UploadTrees("venman", map_rows, false, {});
 
-  std::vector<algorithms::MapTree> map;
-  for (const auto& r : map_rows) map.push_back({*r.id, {r.x, r.y, *r.z}, *r.dbh});
-  algorithms::RelocEvaluator evaluator(map);
+  algorithms::RelocEvaluator evaluator(client::ToMapTrees(map_rows));
   // map_V01_from_map_V02 (../shared/data/README.md).
   const algorithms::Pose3 v01_from_v02 =
       algorithms::PoseFromXyzYaw(0.051, 0.102, -0.039, -0.014 * M_PI / 180.0);
