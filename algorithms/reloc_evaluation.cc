@@ -3,16 +3,12 @@
 #include <algorithm>
 
 namespace forestmap::algorithms {
-namespace {
-
 double Percentile(std::vector<double> values, double p) {
   if (values.empty()) return 0;
   std::sort(values.begin(), values.end());
   const size_t i = std::min(values.size() - 1, static_cast<size_t>(p * values.size()));
   return values[i];
 }
-
-}  // namespace
 
 PoseError ComparePoses(const Pose3& estimate, const Pose3& truth) {
   PoseError e;

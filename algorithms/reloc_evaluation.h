@@ -40,6 +40,9 @@ struct PoseError {
 
 PoseError ComparePoses(const Pose3& estimate, const Pose3& truth);
 
+// The p-quantile (p in [0, 1]) of `values` by the nearest-rank rule; 0 for no values.
+double Percentile(std::vector<double> values, double p);
+
 class RelocEvaluator {
  public:
   explicit RelocEvaluator(const std::vector<MapTree>& map, const RelocCriteria& criteria = {});

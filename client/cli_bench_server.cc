@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "algorithms/reloc_evaluation.h"
 #include "client/cli_commands.h"
 #include "client/tree_csv.h"
 
@@ -21,12 +22,6 @@ struct ServerBenchOptions {
   int concurrency = 8;
   int requests = 2000;
 };
-
-double Percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<size_t>(p * v.size()))];
-}
 
 void Run(const ServerBenchOptions& o, CliContext& context) {
   const std::vector<Frame> frames = ReadFramesCsv(o.frames_path);
@@ -67,8 +62,8 @@ void Run(const ServerBenchOptions& o, CliContext& context) {
   nlohmann::ordered_json report = {
       {"requests", all.size()},         {"concurrency", o.concurrency},
       {"seconds", seconds},             {"requests_per_second", all.size() / seconds},
-      {"localized", localized.load()},  {"latency_p50_ms", Percentile(all, 0.5)},
-      {"latency_p95_ms", Percentile(all, 0.95)}, {"latency_p99_ms", Percentile(all, 0.99)}};
+      {"localized", localized.load()},  {"latency_p50_ms", algorithms::Percentile(all, 0.5)},
+      {"latency_p95_ms", algorithms::Percentile(all, 0.95)}, {"latency_p99_ms", algorithms::Percentile(all, 0.99)}};
   *context.out << report.dump() << "\n";
 }
 

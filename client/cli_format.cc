@@ -1,5 +1,7 @@
 #include "client/cli_format.h"
 
+#include "client/csv_columns.h"
+
 #include <algorithm>
 #include <array>
 #include <charconv>
@@ -12,12 +14,6 @@
 
 namespace forestmap::client {
 namespace {
-
-std::string_view Trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
-  return s;
-}
 
 std::string Printf(const char* format, double a, double b) {
   char buffer[128];

@@ -46,4 +46,7 @@ std::optional<double> OptionalDiameter(const CsvReader& reader, size_t column); 
 int64_t RequiredInteger(const CsvReader& reader, size_t column);
 std::optional<int64_t> OptionalInteger(const CsvReader& reader, size_t column);
 
+// `s` without leading and trailing white space.
+std::string_view Trim(std::string_view s);
+
 }  // namespace forestmap::client
