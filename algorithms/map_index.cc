@@ -101,7 +101,7 @@ void MapIndexOptions::Check() const {
     throw std::invalid_argument("MapIndexOptions: target_neighbours must be in [2, 50]");
   }
   if (!(min_triangle_side >= 0 && max_triangles_per_tree > 0 &&
-        small_map_triangles_per_tree > 0)) {
+        small_map_triangles_per_tree > 0 && min_index_triangles >= 0)) {
     throw std::invalid_argument("MapIndexOptions: min_triangle_side and triangle budget invalid");
   }
   if (threads < 0) throw std::invalid_argument("MapIndexOptions: threads must be >= 0");

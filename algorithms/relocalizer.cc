@@ -170,7 +170,7 @@ RelocalizeResult FinishWithTilt(const MapIndexImpl& m, const LevelledQuery& q,
     map_z.push_back(z);
   }
   const std::optional<Eigen::Matrix3d> correction =
-      options.refine_tilt ? RefineTilt(levelled, map_z) : std::nullopt;
+      options.refine_tilt ? RefineTilt(levelled, map_z, options.tilt) : std::nullopt;
   if (correction) {
     const LevelledQuery tilted = Level(query, *correction * q.level_from_sensor, options);
     Hypothesis refined = best;
@@ -243,6 +243,8 @@ void RelocalizerOptions::Check() const {
           "hypothesis counts must be >= 1 and quick_score_trees >= 3");
   require(min_votes >= 1, "min_votes must be >= 1");
   require(max_query_triangles >= 1, "max_query_triangles must be >= 1");
+  tilt.Check();
+  leveling.Check();
   require(early_exit_batch >= 0 && early_exit_fraction > 0, "early exit settings invalid");
 }
 
@@ -265,7 +267,8 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
     return result;
   }
   const LevelledQuery q =
-      Level(query, LevelSensor(query.trees, query.gravity).level_from_sensor, options);
+      Level(query, LevelSensor(query.trees, query.gravity, options.leveling).level_from_sensor,
+            options);
   Eigen::Vector2d prior_xy = Eigen::Vector2d::Zero();
   if (query.prior) prior_xy = query.prior->map_from_sensor.translation().head<2>() - m.origin;
 

@@ -17,7 +17,9 @@
 #include <vector>
 
 #include "algorithms/geometry.h"
+#include "algorithms/leveling.h"
 #include "algorithms/map_index.h"
+#include "algorithms/tilt_refinement.h"
 
 namespace forestmap::algorithms {
 
@@ -45,6 +47,8 @@ struct RelocalizerOptions {
   // it helps steeply tilted sensors (Stein: median error 0.096 -> 0.086 m) but costs ~1 pp
   // strict recall where map heights are noisy (Venman).
   bool refine_tilt = false;
+  TiltRefinementOptions tilt;
+  LevelingOptions leveling;          // roll and pitch from stem axes when no gravity is given
   int quick_score_trees = 30;        // hypotheses are ranked on this many nearest query trees
   int refine_hypotheses = 8;         // best verified cells refined by ICP
   double inlier_distance = 0.4;      // m, a query tree within this of a map tree is an inlier

@@ -72,6 +72,11 @@ void UploadTreesReactor::Accept() {
 }
 
 void UploadTreesReactor::Commit() {
+  // The client may have given up while the commit waited in the work queue. (A cancel during
+  // the write itself cannot be honoured: the transaction then commits whole.)
+  if (context_->IsCancelled()) {
+    throw ServiceError(grpc::StatusCode::CANCELLED, "upload cancelled; nothing was written");
+  }
   validator_.Finish();
   const storage::WriteMode mode =
       validator_.replace() ? storage::WriteMode::kReplace : storage::WriteMode::kAppend;
