@@ -1,38 +1,22 @@
 // The relocalizer against simulator truth: simulated drone views of real stem maps, tilted
 // sensors, 2-D maps, the prior path and honest refusals.
-#include <fstream>
-#include <sstream>
+#include <filesystem>
 
 #include <gtest/gtest.h>
 
 #include "algorithms/reloc_evaluation.h"
 #include "algorithms/relocalizer.h"
 #include "algorithms/simulation.h"
+#include "client/tree_csv.h"
 
 namespace forestmap::algorithms {
 namespace {
 
-// A real surveyed stem map (tree_id,x_m,y_m,dbh_m,...) read with a few lines of test code.
+// A real surveyed stem map of ../shared/data/stemmaps, or empty when the data is missing.
 std::vector<MapTree> ReadStemMap(const std::string& name) {
-  std::ifstream in(std::string(FORESTMAP_SHARED_DATA) + "/stemmaps/" + name);
-  std::vector<MapTree> trees;
-  std::string line;
-  std::getline(in, line);
-  const bool has_dbh = line.find("dbh_m") != std::string::npos;
-  while (std::getline(in, line)) {
-    std::stringstream ss(line);
-    std::string id, x, y, dbh;
-    std::getline(ss, id, ',');
-    std::getline(ss, x, ',');
-    std::getline(ss, y, ',');
-    std::getline(ss, dbh, ',');
-    MapTree t;
-    t.id = static_cast<int64_t>(trees.size());
-    t.position = {std::stod(x), std::stod(y), kUnknown};
-    t.dbh = !has_dbh || dbh.empty() || dbh == "NA" ? kUnknown : std::stod(dbh);
-    trees.push_back(t);
-  }
-  return trees;
+  const std::string path = std::string(FORESTMAP_SHARED_DATA) + "/stemmaps/" + name;
+  if (!std::filesystem::exists(path)) return {};
+  return client::ToMapTrees(client::ReadMapTreesCsv(path));
 }
 
 // Relocalizes `count` simulated views of `map` (truth from the simulator).

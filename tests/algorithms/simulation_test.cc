@@ -5,13 +5,13 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <random>
 #include <set>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include "client/tree_csv.h"
 
 namespace forestmap::algorithms {
 namespace {
@@ -40,24 +40,9 @@ std::vector<MapTree> Forest(const StemMapStatistics& stats, double size, unsigne
 
 // The real longleaf stem map (tree_id,x_m,y_m,dbh_m), or empty when the data is missing.
 std::vector<MapTree> LoadLongleaf() {
-  std::ifstream in(std::string(FORESTMAP_SHARED_DATA) + "/stemmaps/spatstat_longleaf.csv");
-  std::vector<MapTree> trees;
-  std::string line;
-  std::getline(in, line);  // header
-  while (std::getline(in, line)) {
-    std::stringstream fields(line);
-    std::string id, x, y, dbh;
-    std::getline(fields, id, ',');
-    std::getline(fields, x, ',');
-    std::getline(fields, y, ',');
-    std::getline(fields, dbh, ',');
-    MapTree tree;
-    tree.id = std::stoll(id);
-    tree.position = Eigen::Vector3d(std::stod(x), std::stod(y), kUnknown);
-    tree.dbh = dbh.empty() ? kUnknown : std::stod(dbh);
-    trees.push_back(tree);
-  }
-  return trees;
+  const std::string path = std::string(FORESTMAP_SHARED_DATA) + "/stemmaps/spatstat_longleaf.csv";
+  if (!std::filesystem::exists(path)) return {};
+  return client::ToMapTrees(client::ReadMapTreesCsv(path));
 }
 
 TEST(GenerateForestTest, RespectsAreaSpacingIdsAndDbh) {
