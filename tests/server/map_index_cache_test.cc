@@ -13,70 +13,10 @@
 
 #include "server/status.h"
 #include "storage/sqlite_map_store.h"
+#include "tests/server/gated_store.h"
 
 namespace forestmap::server {
 namespace {
-
-constexpr auto kSyncTimeout = std::chrono::seconds(20);  // only guards against a hang
-
-// A MapStore that forwards to another one and can hold ReadMap of chosen maps at a gate, so
-// that tests can line up concurrent callers deterministically.
-class GatedStore final : public storage::MapStore {
- public:
-  explicit GatedStore(storage::MapStore& inner) : inner_(inner) {}
-
-  void Close(const std::string& name) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    closed_.insert(name);
-  }
-  void Open() {
-    std::lock_guard<std::mutex> lock(mutex_);
-    closed_.clear();
-    changed_.notify_all();
-  }
-  int reads(const std::string& name) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return reads_[name];
-  }
-  // Waits until ReadMap(name) has been entered `count` times.
-  bool WaitForReads(const std::string& name, int count) {
-    std::unique_lock<std::mutex> lock(mutex_);
-    return changed_.wait_for(lock, kSyncTimeout, [&] { return reads_[name] >= count; });
-  }
-
-  storage::MapSnapshot ReadMap(const std::string& name) override {
-    {
-      std::unique_lock<std::mutex> lock(mutex_);
-      ++reads_[name];
-      changed_.notify_all();
-      changed_.wait(lock, [&] { return closed_.count(name) == 0; });
-    }
-    return inner_.ReadMap(name);
-  }
-  storage::MapInfo CreateMap(const std::string& name, const std::string& description,
-                             const std::string& crs) override {
-    return inner_.CreateMap(name, description, crs);
-  }
-  std::vector<storage::MapInfo> ListMaps() override { return inner_.ListMaps(); }
-  storage::MapInfo GetMap(const std::string& name) override { return inner_.GetMap(name); }
-  void DeleteMap(const std::string& name) override { inner_.DeleteMap(name); }
-  storage::MapInfo WriteTrees(const std::string& name,
-                              const std::vector<storage::TreeRecord>& trees,
-                              storage::WriteMode mode) override {
-    return inner_.WriteTrees(name, trees, mode);
-  }
-  std::vector<storage::TreeRecord> TreesInBox(const std::string& name,
-                                              const storage::Extent& box) override {
-    return inner_.TreesInBox(name, box);
-  }
-
- private:
-  storage::MapStore& inner_;
-  std::mutex mutex_;
-  std::condition_variable changed_;
-  std::set<std::string> closed_;
-  std::map<std::string, int> reads_;
-};
 
 std::vector<storage::TreeRecord> Trees(int count, double offset = 0) {
   std::vector<storage::TreeRecord> trees(count);
@@ -86,16 +26,6 @@ std::vector<storage::TreeRecord> Trees(int count, double offset = 0) {
     if (i % 2 == 0) trees[i].dbh = 0.2;
   }
   return trees;
-}
-
-// Polls `condition` (a cache counter another thread is about to bump) until true or timeout.
-bool Eventually(const std::function<bool()>& condition) {
-  const auto deadline = std::chrono::steady_clock::now() + kSyncTimeout;
-  while (!condition()) {
-    if (std::chrono::steady_clock::now() > deadline) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  }
-  return true;
 }
 
 class MapIndexCacheTest : public ::testing::Test {

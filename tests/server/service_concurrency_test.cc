@@ -19,6 +19,7 @@
 #include "server/convert.h"
 #include "server/server.h"
 #include "server/service.h"
+#include "tests/server/gated_store.h"
 #include "storage/sqlite_map_store.h"
 
 namespace forestmap::server {
@@ -27,7 +28,6 @@ namespace {
 using ::testing::HasSubstr;
 
 constexpr auto kCallDeadline = std::chrono::seconds(20);  // turns a hang into a failure
-constexpr auto kSyncTimeout = std::chrono::seconds(20);
 constexpr double kPositionTolerance = 0.05;  // m, noise-free query
 constexpr double kYawTolerance = 0.005;      // rad
 
@@ -36,76 +36,6 @@ std::unique_ptr<grpc::ClientContext> Context() {
   context->set_deadline(std::chrono::system_clock::now() + kCallDeadline);
   return context;
 }
-
-bool Eventually(const std::function<bool()>& condition) {
-  const auto deadline = std::chrono::steady_clock::now() + kSyncTimeout;
-  while (!condition()) {
-    if (std::chrono::steady_clock::now() > deadline) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  }
-  return true;
-}
-
-// Forwards to an in-memory SQLite store; counts calls; ReadMap of a closed map waits.
-class ObservedStore final : public storage::MapStore {
- public:
-  void Close(const std::string& name) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    closed_.insert(name);
-  }
-  void Open() {
-    std::lock_guard<std::mutex> lock(mutex_);
-    closed_.clear();
-    changed_.notify_all();
-  }
-  int reads(const std::string& name) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return reads_[name];
-  }
-  int get_calls() {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return get_calls_;
-  }
-
-  storage::MapSnapshot ReadMap(const std::string& name) override {
-    {
-      std::unique_lock<std::mutex> lock(mutex_);
-      ++reads_[name];
-      changed_.wait(lock, [&] { return closed_.count(name) == 0; });
-    }
-    return inner_.ReadMap(name);
-  }
-  storage::MapInfo GetMap(const std::string& name) override {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      ++get_calls_;
-    }
-    return inner_.GetMap(name);
-  }
-  storage::MapInfo CreateMap(const std::string& name, const std::string& description,
-                             const std::string& crs) override {
-    return inner_.CreateMap(name, description, crs);
-  }
-  std::vector<storage::MapInfo> ListMaps() override { return inner_.ListMaps(); }
-  void DeleteMap(const std::string& name) override { inner_.DeleteMap(name); }
-  storage::MapInfo WriteTrees(const std::string& name,
-                              const std::vector<storage::TreeRecord>& trees,
-                              storage::WriteMode mode) override {
-    return inner_.WriteTrees(name, trees, mode);
-  }
-  std::vector<storage::TreeRecord> TreesInBox(const std::string& name,
-                                              const storage::Extent& box) override {
-    return inner_.TreesInBox(name, box);
-  }
-
- private:
-  storage::SqliteMapStore inner_{":memory:"};
-  std::mutex mutex_;
-  std::condition_variable changed_;
-  std::set<std::string> closed_;
-  std::map<std::string, int> reads_;
-  int get_calls_ = 0;
-};
 
 // A forest of `count` trees with ids 1..count, x, y uniform in [0, 100) m, z = 0, dbh known.
 std::vector<storage::TreeRecord> Forest(int count, unsigned seed) {
@@ -166,7 +96,8 @@ class ServiceConcurrencyTest : public ::testing::Test {
     EXPECT_TRUE(status.ok()) << status.error_message();
   }
 
-  ObservedStore store_;
+  storage::SqliteMapStore sqlite_{":memory:"};
+  GatedStore store_{sqlite_};
   ForestMapService service_;
   ServerRunner runner_;
   std::shared_ptr<grpc::Channel> channel_;

@@ -1,0 +1,102 @@
+#pragma once
+// Test helpers for the server's concurrency tests. GatedStore: a MapStore that forwards to another one, counts ReadMap and GetMap calls, and can
+// hold ReadMap of chosen maps at a gate, so tests can line up concurrent callers deterministically.
+
+#include <chrono>
+#include <condition_variable>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "storage/map_store.h"
+
+namespace forestmap::server {
+
+// Upper bound on waits for other threads; only turns a hang into a failure.
+inline constexpr auto kSyncTimeout = std::chrono::seconds(20);
+
+// Polls `condition` (something another thread is about to change) until true or kSyncTimeout.
+inline bool Eventually(const std::function<bool()>& condition) {
+  const auto deadline = std::chrono::steady_clock::now() + kSyncTimeout;
+  while (!condition()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return true;
+}
+
+class GatedStore final : public storage::MapStore {
+ public:
+  explicit GatedStore(storage::MapStore& inner) : inner_(inner) {}
+
+  // ReadMap(name) waits until Open().
+  void Close(const std::string& name) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    closed_.insert(name);
+  }
+  void Open() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    closed_.clear();
+    changed_.notify_all();
+  }
+  int reads(const std::string& name) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return reads_[name];
+  }
+  int get_calls() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return get_calls_;
+  }
+  // Waits (up to kSyncTimeout) until ReadMap(name) was entered `count` times.
+  bool WaitForReads(const std::string& name, int count) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    return changed_.wait_for(lock, kSyncTimeout,
+                             [&] { return reads_[name] >= count; });
+  }
+
+  storage::MapSnapshot ReadMap(const std::string& name) override {
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      ++reads_[name];
+      changed_.notify_all();
+      changed_.wait(lock, [&] { return closed_.count(name) == 0; });
+    }
+    return inner_.ReadMap(name);
+  }
+  storage::MapInfo GetMap(const std::string& name) override {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++get_calls_;
+    }
+    return inner_.GetMap(name);
+  }
+  storage::MapInfo CreateMap(const std::string& name, const std::string& description,
+                             const std::string& crs) override {
+    return inner_.CreateMap(name, description, crs);
+  }
+  std::vector<storage::MapInfo> ListMaps() override { return inner_.ListMaps(); }
+  void DeleteMap(const std::string& name) override { inner_.DeleteMap(name); }
+  storage::MapInfo WriteTrees(const std::string& name,
+                              const std::vector<storage::TreeRecord>& trees,
+                              storage::WriteMode mode) override {
+    return inner_.WriteTrees(name, trees, mode);
+  }
+  std::vector<storage::TreeRecord> TreesInBox(const std::string& name,
+                                              const storage::Extent& box) override {
+    return inner_.TreesInBox(name, box);
+  }
+
+ private:
+  storage::MapStore& inner_;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::set<std::string> closed_;
+  std::map<std::string, int> reads_;
+  int get_calls_ = 0;
+};
+
+}  // namespace forestmap::server
