@@ -1,15 +1,6 @@
 #include "client/proto_convert.h"
 
 namespace forestmap::client {
-namespace {
-
-void SetVector(const Eigen::Vector3d& v, v1::Vector3* out) {
-  out->set_x(v.x());
-  out->set_y(v.y());
-  out->set_z(v.z());
-}
-
-}  // namespace
 
 v1::Tree ToProto(const MapTreeRow& row) {
   v1::Tree tree;
@@ -35,33 +26,10 @@ MapTreeRow FromProto(const v1::Tree& tree) {
 
 v1::DetectedTree ToProto(const algorithms::DetectedTree& tree) {
   v1::DetectedTree out;
-  SetVector(tree.position, out.mutable_position());
+  *out.mutable_position() = ToProto(tree.position);
   if (algorithms::IsKnown(tree.dbh)) out.set_dbh(tree.dbh);
-  if (tree.HasAxis()) SetVector(tree.axis, out.mutable_axis());
+  if (tree.HasAxis()) *out.mutable_axis() = ToProto(tree.axis);
   if (algorithms::IsKnown(tree.score)) out.set_score(tree.score);
-  return out;
-}
-
-v1::Pose ToProto(const algorithms::Pose3& pose) {
-  v1::Pose out;
-  SetVector(pose.translation(), out.mutable_translation());
-  const Eigen::Quaterniond q(pose.linear());
-  out.mutable_rotation()->set_x(q.x());
-  out.mutable_rotation()->set_y(q.y());
-  out.mutable_rotation()->set_z(q.z());
-  out.mutable_rotation()->set_w(q.w());
-  return out;
-}
-
-algorithms::Pose3 FromProto(const v1::Pose& pose) {
-  const v1::Quaternion& r = pose.rotation();
-  Eigen::Quaterniond q(r.w(), r.x(), r.y(), r.z());
-  // An unset rotation (all zero) is the identity rather than a division by zero.
-  q = q.norm() > 0 ? q.normalized() : Eigen::Quaterniond::Identity();
-  algorithms::Pose3 out = algorithms::Pose3::Identity();
-  out.linear() = q.toRotationMatrix();
-  out.translation() =
-      Eigen::Vector3d(pose.translation().x(), pose.translation().y(), pose.translation().z());
   return out;
 }
 

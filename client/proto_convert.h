@@ -8,6 +8,7 @@
 #include "client/tree_csv.h"
 #include "forestmap/v1/maps.pb.h"
 #include "forestmap/v1/relocalization.pb.h"
+#include "proto/geometry_convert.h"
 
 namespace forestmap::client {
 
@@ -17,7 +18,7 @@ MapTreeRow FromProto(const v1::Tree& tree);
 // An unknown dbh or score (NaN) and an unknown axis (zero) are left unset.
 v1::DetectedTree ToProto(const algorithms::DetectedTree& tree);
 
-v1::Pose ToProto(const algorithms::Pose3& pose);
-algorithms::Pose3 FromProto(const v1::Pose& pose);  // normalises the quaternion
+using forestmap::FromProto;  // Vector3 and Pose: proto/geometry_convert.h
+using forestmap::ToProto;
 
 }  // namespace forestmap::client

@@ -14,6 +14,7 @@
 #include "algorithms/relocalizer.h"
 #include "forestmap/v1/maps.pb.h"
 #include "forestmap/v1/relocalization.pb.h"
+#include "proto/geometry_convert.h"
 #include "storage/map_store.h"
 
 namespace forestmap::server {
@@ -30,10 +31,8 @@ algorithms::MapTree ToMapTree(const storage::TreeRecord& tree);
 std::vector<algorithms::MapTree> ToMapTrees(const std::vector<storage::TreeRecord>& trees);
 
 // Geometry.
-v1::Vector3 ToProto(const Eigen::Vector3d& v);
-Eigen::Vector3d FromProto(const v1::Vector3& v);
-v1::Pose ToProto(const algorithms::Pose3& pose);
-algorithms::Pose3 FromProto(const v1::Pose& pose);
+using forestmap::FromProto;  // Vector3 and Pose: proto/geometry_convert.h
+using forestmap::ToProto;
 
 // Relocalization.
 algorithms::DetectedTree FromProto(const v1::DetectedTree& tree);
