@@ -80,44 +80,40 @@ void ForestMapClient::Check(const grpc::Status& status, const char* call) const 
                  std::string(call) + ": " + StatusCodeName(code) + ": " + status.error_message());
 }
 
+template <typename Response, typename Method, typename Request>
+Response ForestMapClient::Unary(Method method, const Request& request, const char* call) {
+  Response response;
+  const auto context = NewContext(options_.call_timeout);
+  Check((stub_.get()->*method)(context.get(), request, &response), call);
+  connected_ = true;
+  return response;
+}
+
 v1::Map ForestMapClient::CreateMap(const std::string& name, const std::string& description,
                                    const std::string& crs) {
   v1::CreateMapRequest request;
   request.set_name(name);
   request.set_description(description);
   request.set_crs(crs);
-  v1::Map response;
-  const auto context = NewContext(options_.call_timeout);
-  Check(stub_->CreateMap(context.get(), request, &response), "CreateMap");
-  connected_ = true;
-  return response;
+  return Unary<v1::Map>(&v1::ForestMap::Stub::CreateMap, request, "CreateMap");
 }
 
 std::vector<v1::Map> ForestMapClient::ListMaps() {
-  v1::ListMapsResponse response;
-  const auto context = NewContext(options_.call_timeout);
-  Check(stub_->ListMaps(context.get(), v1::ListMapsRequest(), &response), "ListMaps");
-  connected_ = true;
+  const auto response = Unary<v1::ListMapsResponse>(&v1::ForestMap::Stub::ListMaps,
+                                                    v1::ListMapsRequest(), "ListMaps");
   return {response.maps().begin(), response.maps().end()};
 }
 
 v1::Map ForestMapClient::GetMap(const std::string& name) {
   v1::GetMapRequest request;
   request.set_name(name);
-  v1::Map response;
-  const auto context = NewContext(options_.call_timeout);
-  Check(stub_->GetMap(context.get(), request, &response), "GetMap");
-  connected_ = true;
-  return response;
+  return Unary<v1::Map>(&v1::ForestMap::Stub::GetMap, request, "GetMap");
 }
 
 void ForestMapClient::DeleteMap(const std::string& name) {
   v1::DeleteMapRequest request;
   request.set_name(name);
-  v1::DeleteMapResponse response;
-  const auto context = NewContext(options_.call_timeout);
-  Check(stub_->DeleteMap(context.get(), request, &response), "DeleteMap");
-  connected_ = true;
+  Unary<v1::DeleteMapResponse>(&v1::ForestMap::Stub::DeleteMap, request, "DeleteMap");
 }
 
 v1::UploadTreesResponse ForestMapClient::UploadTrees(const std::string& name,
@@ -196,11 +192,7 @@ v1::RelocalizeResponse ForestMapClient::Relocalize(
     request.mutable_gravity()->set_y(gravity->y());
     request.mutable_gravity()->set_z(gravity->z());
   }
-  v1::RelocalizeResponse response;
-  const auto context = NewContext(options_.call_timeout);
-  Check(stub_->Relocalize(context.get(), request, &response), "Relocalize");
-  connected_ = true;
-  return response;
+  return Unary<v1::RelocalizeResponse>(&v1::ForestMap::Stub::Relocalize, request, "Relocalize");
 }
 
 }  // namespace forestmap::client

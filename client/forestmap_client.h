@@ -95,6 +95,9 @@ class ForestMapClient {
   std::unique_ptr<grpc::ClientContext> NewContext(double timeout);
   // Throws RpcError for a non-OK status of the call named `call`.
   void Check(const grpc::Status& status, const char* call) const;
+  // One unary RPC with the call timeout: `(stub->*method)(context, request, &response)`.
+  template <typename Response, typename Method, typename Request>
+  Response Unary(Method method, const Request& request, const char* call);
 
   std::string address_;
   ClientOptions options_;
