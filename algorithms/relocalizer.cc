@@ -224,6 +224,56 @@ std::vector<Hypothesis> Search(const MapIndexImpl& m, const LevelledQuery& q,
   return voter.Best(options.min_votes, options.max_hypotheses);
 }
 
+// The answer for the best hypothesis, given the score of the best distinct rival: LOCALIZED
+// only when it is far above chance, explains enough of the nearby trees and beats the rival.
+RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q,
+                        const RelocalizeQuery& query, const Hypothesis& best, double rival,
+                        const RelocalizerOptions& options) {
+  const int in_range = InRange(q, options.ratio_range);
+  const int inliers_in_range = [&] {
+    int n = 0;
+    for (const Association& a : Associate(m, q, best.pose, options.inlier_distance)) {
+      n += q.xy[a.query].norm() <= options.ratio_range;
+    }
+    return n;
+  }();
+  const double ratio = in_range > 0 ? static_cast<double>(inliers_in_range) / in_range : 0.0;
+
+  RelocalizeResult result = FinishWithTilt(m, q, query, best, options);
+  result.confidence = best.score > 0 ? std::clamp(1.0 - rival / best.score, 0.0, 1.0) : 0.0;
+  const double chance = ChanceInliers(m, q, best.pose, options.inlier_distance);
+  const double significant = chance + options.chance_sigmas * std::sqrt(chance);
+  char detail[200];
+  if (best.inliers < significant) {
+    result.status = RelocalizeStatus::kNotFound;
+    std::snprintf(detail, sizeof detail,
+                  "best pose matches %d trees, no better than chance here (%.1f expected at "
+                  "random); is the drone in this map?",
+                  best.inliers, chance);
+  } else if (best.inliers < options.min_inliers || ratio < options.min_inlier_ratio) {
+    result.status = RelocalizeStatus::kNotFound;
+    std::snprintf(detail, sizeof detail,
+                  "best pose explains only %d trees (%.0f%% of those within %.0f m); need %d "
+                  "and %.0f%%",
+                  best.inliers, 100 * ratio, options.ratio_range, options.min_inliers,
+                  100 * options.min_inlier_ratio);
+  } else if (rival * options.ambiguity_ratio > best.score) {
+    result.status = RelocalizeStatus::kAmbiguous;
+    std::snprintf(detail, sizeof detail,
+                  "two distinct poses fit almost equally well (scores %.1f and %.1f)", best.score,
+                  rival);
+  } else {
+    result.status = RelocalizeStatus::kLocalized;
+    std::snprintf(detail, sizeof detail, "%d trees matched, next distinct pose scores %.1f",
+                  best.inliers, rival);
+  }
+  result.detail = detail;
+  if (result.status != RelocalizeStatus::kLocalized) {
+    result.map_from_sensor = Pose3::Identity();
+  }
+  return result;
+}
+
 }  // namespace
 
 void RelocalizerOptions::Check() const {
@@ -293,49 +343,51 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   for (const Hypothesis& h : hypotheses) {
     if (Distinct(h.pose, best.pose, options)) rival = std::max(rival, h.score);
   }
-  const int in_range = InRange(q, options.ratio_range);
-  const int inliers_in_range = [&] {
-    int n = 0;
-    for (const Association& a : Associate(m, q, best.pose, options.inlier_distance)) {
-      n += q.xy[a.query].norm() <= options.ratio_range;
-    }
-    return n;
-  }();
-  const double ratio = in_range > 0 ? static_cast<double>(inliers_in_range) / in_range : 0.0;
-
-  result = FinishWithTilt(m, q, query, best, options);
+  result = Decide(m, q, query, best, rival, options);
   result.hypotheses = verified;
-  result.confidence = best.score > 0 ? std::clamp(1.0 - rival / best.score, 0.0, 1.0) : 0.0;
-  const double chance = ChanceInliers(m, q, best.pose, options.inlier_distance);
-  const double significant = chance + options.chance_sigmas * std::sqrt(chance);
-  char detail[200];
-  if (best.inliers < significant) {
-    result.status = RelocalizeStatus::kNotFound;
-    std::snprintf(detail, sizeof detail,
-                  "best pose matches %d trees, no better than chance here (%.1f expected at "
-                  "random); is the drone in this map?",
-                  best.inliers, chance);
-  } else if (best.inliers < options.min_inliers || ratio < options.min_inlier_ratio) {
-    result.status = RelocalizeStatus::kNotFound;
-    std::snprintf(detail, sizeof detail,
-                  "best pose explains only %d trees (%.0f%% of those within %.0f m); need %d "
-                  "and %.0f%%",
-                  best.inliers, 100 * ratio, options.ratio_range, options.min_inliers,
-                  100 * options.min_inlier_ratio);
-  } else if (rival * options.ambiguity_ratio > best.score) {
-    result.status = RelocalizeStatus::kAmbiguous;
-    std::snprintf(detail, sizeof detail,
-                  "two distinct poses fit almost equally well (scores %.1f and %.1f)", best.score,
-                  rival);
-  } else {
-    result.status = RelocalizeStatus::kLocalized;
-    std::snprintf(detail, sizeof detail, "%d trees matched, next distinct pose scores %.1f",
-                  best.inliers, rival);
+  return result;
+}
+
+RelocalizeResult RefineNear(const MapIndex& index, const RelocalizeQuery& query,
+                            const Pose3& map_from_sensor_guess, double yaw_window,
+                            const RelocalizerOptions& options) {
+  options.Check();
+  const MapIndexImpl& m = index.impl();
+  if (query.trees.size() < 3 || m.trees.size() < 3) {
+    RelocalizeResult result;
+    result.detail = "need at least 3 query trees and 3 map trees";
+    return result;
   }
-  result.detail = detail;
-  if (result.status != RelocalizeStatus::kLocalized) {
-    result.map_from_sensor = Pose3::Identity();
+  const LevelledQuery q =
+      Level(query, LevelSensor(query.trees, query.gravity, options.leveling).level_from_sensor,
+            options);
+  // The guess's heading in the levelled frame (its tilt is replaced by this frame's levelling),
+  // tried across the yaw window: headings wobble more than positions between frames.
+  Hypothesis guess;
+  guess.pose.yaw = YawOf(map_from_sensor_guess.linear() * q.level_from_sensor.transpose());
+  guess.pose.translation = map_from_sensor_guess.translation().head<2>() - m.origin;
+  constexpr double kYawStep = 0.05;  // rad
+  const double shift = options.inlier_distance;  // m, position seeds around the guess
+  const int steps = static_cast<int>(std::ceil(yaw_window / kYawStep));
+  std::vector<Hypothesis> seeds;
+  for (int k = -steps; k <= steps; ++k) {
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        Hypothesis h = guess;
+        h.pose.yaw = WrapAngle(guess.pose.yaw + k * kYawStep);
+        h.pose.translation += shift * Eigen::Vector2d(dx, dy);
+        Score(m, q, 1.5 * options.inlier_distance, &h, options.quick_score_trees);
+        seeds.push_back(h);
+      }
+    }
   }
+  auto by_score = [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; };
+  std::sort(seeds.begin(), seeds.end(), by_score);
+  seeds.resize(std::min<size_t>(seeds.size(), 3));
+  for (Hypothesis& h : seeds) Refine(m, q, options, &h);
+  std::sort(seeds.begin(), seeds.end(), by_score);
+  RelocalizeResult result = Decide(m, q, query, seeds.front(), /*rival=*/0.0, options);
+  result.hypotheses = static_cast<int>(seeds.size());
   return result;
 }
 

@@ -2,6 +2,8 @@
 //
 // Real sequences:  --map MAP.csv --frames trees.csv --poses poses.csv [--truth-offset ...]
 // Simulated views: --map STEMMAP.csv --simulate N [--range M]   (views drawn from the map)
+// Tracking:        --track with real frames: frames in order through one tracking session
+//                  (algorithms/tracking.h), each frame's answer scored like a relocalization
 // Generated maps:  --generate N --like STEMMAP.csv --simulate N (a forest with the real map's
 //                  spatial statistics, e.g. 1,000,000 trees)
 // Prints recall, strict recall, wrong answers, error and latency percentiles (the definitions
@@ -16,6 +18,7 @@
 #include "algorithms/reloc_evaluation.h"
 #include "algorithms/relocalizer.h"
 #include "algorithms/simulation.h"
+#include "algorithms/tracking.h"
 #include "client/cli_commands.h"
 #include "client/tree_csv.h"
 
@@ -34,6 +37,7 @@ struct BenchOptions {
   int64_t generate = 0;
   unsigned seed = 1;
   bool json = false;
+  bool track = false;
 };
 
 double Ms(std::chrono::steady_clock::duration d) {
@@ -48,6 +52,7 @@ class Runner {
     const auto start = std::chrono::steady_clock::now();
     index_ = std::make_unique<algorithms::MapIndex>(map);
     build_ms_ = Ms(std::chrono::steady_clock::now() - start);
+    if (options.track) tracker_.emplace();
   }
 
   void Run(const std::vector<algorithms::DetectedTree>& trees, const Pose3& truth) {
@@ -62,7 +67,8 @@ class Runner {
       query.prior = prior;
     }
     const auto start = std::chrono::steady_clock::now();
-    const algorithms::RelocalizeResult result = algorithms::Relocalize(*index_, query);
+    const algorithms::RelocalizeResult result =
+        tracker_ ? Track(query) : algorithms::Relocalize(*index_, query);
     const double ms = Ms(std::chrono::steady_clock::now() - start);
     evaluator_.Add(evaluator_.Answerable(trees, truth), truth, result, ms);
   }
@@ -87,12 +93,26 @@ class Runner {
             {"time_p50_ms", s.time_p50},
             {"time_p95_ms", s.time_p95},
             {"time_p99_ms", s.time_p99},
-            {"time_max_ms", s.time_max}};
+            {"time_max_ms", s.time_max},
+            {"track_local", track_counts_[0]},
+            {"track_recovered", track_counts_[1]},
+            {"track_lost", track_counts_[2]},
+            {"track_longest_loss_frames", longest_loss_}};
   }
 
  private:
+  algorithms::RelocalizeResult Track(const algorithms::RelocalizeQuery& query) {
+    const algorithms::TrackingStep step = tracker_->Step(*index_, {query, std::nullopt});
+    ++track_counts_[static_cast<int>(step.state)];
+    longest_loss_ = std::max(longest_loss_, step.frames_lost);
+    return step.result;
+  }
+
   const BenchOptions& options_;
   algorithms::RelocEvaluator evaluator_;
+  std::optional<algorithms::Tracker> tracker_;
+  int track_counts_[3] = {0, 0, 0};  // by TrackState
+  int longest_loss_ = 0;
   std::unique_ptr<algorithms::MapIndex> index_;
   std::mt19937 rng_;
   double build_ms_ = 0;
@@ -214,6 +234,8 @@ void AddBenchRelocCommand(CLI::App& app, CliContext& context) {
   cmd->add_option("--like", options->like_path, "Stem map whose statistics --generate copies")
       ->check(CLI::ExistingFile);
   cmd->add_option("--seed", options->seed, "Random seed")->capture_default_str();
+  cmd->add_flag("--track", options->track,
+               "Track the frames in order (one tracking session) instead of relocalizing each");
   cmd->add_flag("--json", options->json, "Print one JSON object");
   cmd->callback([options, &context] {
     const BenchOptions& o = *options;

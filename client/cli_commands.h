@@ -38,5 +38,9 @@ void AddRelocalizeCommand(CLI::App& app, CliContext& context);  // cli_relocaliz
 void AddBenchRelocCommand(CLI::App& app, CliContext& context);  // cli_bench_reloc.cc
 void AddDemoDataCommand(CLI::App& app, CliContext& context);    // cli_demo_data.cc
 void AddBenchServerCommand(CLI::App& app, CliContext& context);  // cli_bench_server.cc
+void AddBenchMappingCommand(CLI::App& app, CliContext& context);  // cli_bench_mapping.cc
+void AddObserveCommand(CLI::App& app, CliContext& context);      // cli_observe.cc
+void AddDetectCommand(CLI::App& app, CliContext& context);      // cli_detect.cc
+void AddSimulateCommand(CLI::App& app, CliContext& context);    // cli_simulate.cc
 
 }  // namespace forestmap::client

@@ -1,5 +1,8 @@
-// `forestmap map create|list|show|delete|export`.
+// `forestmap map create|list|show|delete|export|history|restore|remove-source`.
 
+#include <algorithm>
+#include <cstdio>
+#include <iomanip>
 #include <memory>
 #include <optional>
 #include <string>
@@ -109,10 +112,35 @@ void AddDelete(CLI::App& map_app, CliContext& context) {
 struct ExportOptions {
   std::string name;
   std::string out_file;  // empty or "-": stdout
+  int64_t version = 0;   // 0: current
 };
 
+// Shared maps: the state of each tree as extra columns (status, observations, sigmas), added
+// only when some tree came from observations, so survey exports keep their columns.
+void AddStateColumns(ExportedTrees& exported) {
+  const bool observed = std::any_of(exported.states.begin(), exported.states.end(),
+                                    [](const TreeState& s) { return s.observations > 0; });
+  if (!observed) return;
+  const auto number = [](const std::optional<double>& v) {
+    if (!v) return std::string();
+    char buffer[32];
+    std::snprintf(buffer, sizeof(buffer), "%.4f", *v);
+    return std::string(buffer);
+  };
+  for (size_t i = 0; i < exported.trees.size(); ++i) {
+    const TreeState& state = exported.states[i];
+    auto& attributes = exported.trees[i].attributes;
+    attributes["status"] = state.confirmed ? "confirmed" : "candidate";
+    attributes["observations"] = std::to_string(state.observations);
+    if (state.position_sigma_m) attributes["position_sigma_m"] = number(state.position_sigma_m);
+    if (state.dbh_sigma_m) attributes["dbh_sigma_m"] = number(state.dbh_sigma_m);
+  }
+}
+
 void RunExport(const ExportOptions& options, const CliContext& context) {
-  const ExportedTrees exported = context.Connect().ExportTrees(options.name);
+  ExportedTrees exported = context.Connect().ExportTrees(options.name, std::nullopt,
+                                                         options.version);
+  AddStateColumns(exported);
   if (options.out_file.empty() || options.out_file == "-") {
     WriteMapTreesCsv(*context.out, exported.trees);
     context.out->flush();
@@ -130,19 +158,117 @@ void AddExport(CLI::App& map_app, CliContext& context) {
       map_app.add_subcommand("export", "Write a map's trees as CSV (id,x,y,z,dbh,<attributes>)");
   sub->add_option("NAME", options->name, "Map name")->required();
   sub->add_option("--out", options->out_file, "Output CSV file (default: standard output)");
+  sub->add_option("--version", options->version,
+                  "Map version to export (default 0: the current one; see 'map history')")
+      ->check(CLI::NonNegativeNumber);
   sub->callback(
       [options, &context] { context.run = [options, &context] { RunExport(*options, context); }; });
+}
+
+const char* KindName(v1::MapVersion::Kind kind) {
+  switch (kind) {
+    case v1::MapVersion::CREATE:
+      return "create";
+    case v1::MapVersion::UPLOAD:
+      return "upload";
+    case v1::MapVersion::REPLACE:
+      return "replace";
+    case v1::MapVersion::OBSERVE:
+      return "observe";
+    case v1::MapVersion::RESTORE:
+      return "restore";
+    case v1::MapVersion::REMOVE_SOURCE:
+      return "remove-source";
+    case v1::MapVersion::MIGRATED:
+      return "migrated";
+    default:
+      return "?";
+  }
+}
+
+void PrintHistory(const std::vector<v1::MapVersion>& versions, std::ostream& out) {
+  out << std::left << std::setw(8) << "VERSION" << std::setw(22) << "TIME" << std::setw(14)
+      << "KIND" << std::setw(16) << "SOURCE" << std::right << std::setw(9) << "TREES"
+      << std::setw(10) << "CONFIRMED" << std::setw(8) << "ADDED" << std::setw(8) << "UPDATED"
+      << std::setw(8) << "REMOVED" << std::setw(9) << "OBS+" << std::setw(9) << "OBS-" << "\n";
+  for (const v1::MapVersion& v : versions) {
+    std::string source = v.source().empty() ? "-" : v.source();
+    if (v.kind() == v1::MapVersion::RESTORE) source = "from v" + std::to_string(v.restored_from());
+    out << std::left << std::setw(8) << v.version() << std::setw(22)
+        << FormatUnixMs(v.created_unix_ms()) << std::setw(14) << KindName(v.kind())
+        << std::setw(16) << source << std::right << std::setw(9) << v.tree_count()
+        << std::setw(10) << v.confirmed_count() << std::setw(8) << v.trees_added() << std::setw(8)
+        << v.trees_updated() << std::setw(8) << v.trees_removed() << std::setw(9)
+        << v.observations_added() << std::setw(9) << v.observations_removed() << "\n";
+  }
+  out << std::flush;
+}
+
+void AddHistory(CLI::App& map_app, CliContext& context) {
+  auto name = std::make_shared<std::string>();
+  auto limit = std::make_shared<int>(0);
+  CLI::App* sub = map_app.add_subcommand("history", "List a map's versions, oldest first");
+  sub->add_option("NAME", *name, "Map name")->required();
+  sub->add_option("--limit", *limit, "Only the newest N versions (default: all)")
+      ->check(CLI::NonNegativeNumber);
+  sub->callback([name, limit, &context] {
+    context.run = [name, limit, &context] {
+      PrintHistory(context.Connect().ListVersions(*name, *limit), *context.out);
+    };
+  });
+}
+
+void AddRestore(CLI::App& map_app, CliContext& context) {
+  auto name = std::make_shared<std::string>();
+  auto version = std::make_shared<int64_t>(0);
+  CLI::App* sub = map_app.add_subcommand(
+      "restore", "Make a new version whose trees equal those of an older version");
+  sub->add_option("NAME", *name, "Map name")->required();
+  sub->add_option("VERSION", *version, "The version to bring back (see 'map history')")
+      ->required()
+      ->check(CLI::PositiveNumber);
+  sub->callback([name, version, &context] {
+    context.run = [name, version, &context] {
+      const v1::Map map = context.Connect().RestoreVersion(*name, *version);
+      *context.out << "restored map '" << map.name() << "' to the trees of version " << *version
+                   << " as version " << map.version() << " (" << map.tree_count() << " trees)"
+                   << std::endl;
+    };
+  });
+}
+
+void AddRemoveSource(CLI::App& map_app, CliContext& context) {
+  auto name = std::make_shared<std::string>();
+  auto source = std::make_shared<std::string>();
+  CLI::App* sub = map_app.add_subcommand(
+      "remove-source",
+      "Remove every observation of one source (drone) and recompute the trees it touched");
+  sub->add_option("NAME", *name, "Map name")->required();
+  sub->add_option("SOURCE", *source, "The source id given to 'observe --source'")->required();
+  sub->callback([name, source, &context] {
+    context.run = [name, source, &context] {
+      const v1::RemoveSourceResponse r = context.Connect().RemoveSource(*name, *source);
+      *context.out << "removed " << r.observations_removed() << " observations of '" << *source
+                   << "' from map '" << *name << "': " << r.trees_updated()
+                   << " trees recomputed, " << r.trees_removed() << " removed; version "
+                   << r.map().version() << " (" << r.map().tree_count() << " trees)" << std::endl;
+    };
+  });
 }
 
 }  // namespace
 
 void AddMapCommand(CLI::App& app, CliContext& context) {
-  CLI::App* map_app = app.add_subcommand("map", "Create, list, show, delete and export maps");
+  CLI::App* map_app = app.add_subcommand(
+      "map", "Create, list, show, delete and export maps; history, restore, remove-source");
   AddCreate(*map_app, context);
   AddList(*map_app, context);
   AddShow(*map_app, context);
   AddDelete(*map_app, context);
   AddExport(*map_app, context);
+  AddHistory(*map_app, context);
+  AddRestore(*map_app, context);
+  AddRemoveSource(*map_app, context);
 }
 
 }  // namespace forestmap::client

@@ -21,6 +21,15 @@ std::chrono::system_clock::time_point After(double seconds) {
 // fails at once, and an address that swallows packets should not hang the command.
 constexpr double kUnconnectedCallTimeout = 1.0;  // s
 
+TreeState StateOf(const v1::Tree& tree) {
+  TreeState state;
+  state.confirmed = tree.status() != v1::CANDIDATE;
+  state.observations = tree.observations();
+  if (tree.has_position_sigma_m()) state.position_sigma_m = tree.position_sigma_m();
+  if (tree.has_dbh_sigma_m()) state.dbh_sigma_m = tree.dbh_sigma_m();
+  return state;
+}
+
 }  // namespace
 
 void ClientOptions::Check() const {
@@ -144,9 +153,10 @@ v1::UploadTreesResponse ForestMapClient::UploadTrees(const std::string& name,
 }
 
 ExportedTrees ForestMapClient::ExportTrees(const std::string& name,
-                                           const std::optional<Box2>& box) {
+                                           const std::optional<Box2>& box, int64_t version) {
   v1::ExportTreesRequest request;
   request.set_map_name(name);
+  request.set_version(version);
   if (box) {
     request.mutable_box()->set_min_x(box->min_x);
     request.mutable_box()->set_min_y(box->min_y);
@@ -168,7 +178,10 @@ ExportedTrees ForestMapClient::ExportTrees(const std::string& name,
                                                      " and " + std::to_string(chunk.map_version()));
     }
     first = false;
-    for (const v1::Tree& tree : chunk.trees()) exported.trees.push_back(FromProto(tree));
+    for (const v1::Tree& tree : chunk.trees()) {
+      exported.trees.push_back(FromProto(tree));
+      exported.states.push_back(StateOf(tree));
+    }
   }
   Check(reader->Finish(), "ExportTrees");
   connected_ = true;
@@ -193,6 +206,52 @@ v1::RelocalizeResponse ForestMapClient::Relocalize(
     request.mutable_gravity()->set_z(gravity->z());
   }
   return Unary<v1::RelocalizeResponse>(&v1::ForestMap::Stub::Relocalize, request, "Relocalize");
+}
+
+v1::ObserveResponse ForestMapClient::Observe(const std::string& name,
+                                             const std::vector<ObservedFrame>& frames,
+                                             const ObserveOptions& options) {
+  v1::ObserveRequest request;
+  request.set_map_name(name);
+  request.set_source(options.source);
+  request.set_base_version(options.base_version);
+  request.set_conflict_policy(options.reject_stale ? v1::REJECT_IF_STALE : v1::MERGE);
+  request.mutable_frames()->Reserve(static_cast<int>(frames.size()));
+  for (const ObservedFrame& frame : frames) {
+    v1::ObservationFrame* out = request.add_frames();
+    out->set_frame_id(frame.frame_id);
+    out->mutable_trees()->Reserve(static_cast<int>(frame.trees.size()));
+    for (const algorithms::DetectedTree& tree : frame.trees) *out->add_trees() = ToProto(tree);
+    if (frame.map_from_sensor) *out->mutable_map_from_sensor() = ToProto(*frame.map_from_sensor);
+  }
+  return Unary<v1::ObserveResponse>(&v1::ForestMap::Stub::Observe, request, "Observe");
+}
+
+std::vector<v1::MapVersion> ForestMapClient::ListVersions(const std::string& name, int limit) {
+  v1::ListVersionsRequest request;
+  request.set_map_name(name);
+  request.set_limit(limit);
+  const auto response = Unary<v1::ListVersionsResponse>(&v1::ForestMap::Stub::ListVersions,
+                                                        request, "ListVersions");
+  return {response.versions().begin(), response.versions().end()};
+}
+
+v1::Map ForestMapClient::RestoreVersion(const std::string& name, int64_t version) {
+  v1::RestoreVersionRequest request;
+  request.set_map_name(name);
+  request.set_version(version);
+  return Unary<v1::RestoreVersionResponse>(&v1::ForestMap::Stub::RestoreVersion, request,
+                                           "RestoreVersion")
+      .map();
+}
+
+v1::RemoveSourceResponse ForestMapClient::RemoveSource(const std::string& name,
+                                                       const std::string& source) {
+  v1::RemoveSourceRequest request;
+  request.set_map_name(name);
+  request.set_source(source);
+  return Unary<v1::RemoveSourceResponse>(&v1::ForestMap::Stub::RemoveSource, request,
+                                         "RemoveSource");
 }
 
 }  // namespace forestmap::client

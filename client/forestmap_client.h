@@ -54,9 +54,31 @@ struct Box2 {
   double min_x = 0, min_y = 0, max_x = 0, max_y = 0;
 };
 
+// Shared-map state of an exported tree (observations.proto).
+struct TreeState {
+  bool confirmed = true;                   // false: a candidate
+  int64_t observations = 0;                // observation rows behind the tree
+  std::optional<double> position_sigma_m;  // m, 1-sigma horizontal
+  std::optional<double> dbh_sigma_m;       // m
+};
+
 struct ExportedTrees {
   std::vector<MapTreeRow> trees;  // by id
+  std::vector<TreeState> states;  // states[i] belongs to trees[i]
   int64_t map_version = 0;        // the one version every tree comes from (0: no chunk sent)
+};
+
+// One frame for Observe: the trees detected in it (sensor frame) and, when known, its pose.
+struct ObservedFrame {
+  int64_t frame_id = 0;
+  std::vector<algorithms::DetectedTree> trees;
+  std::optional<algorithms::Pose3> map_from_sensor;  // absent: the server relocalizes the frame
+};
+
+struct ObserveOptions {
+  std::string source = "forestmap-cli";  // drone / upload id: [A-Za-z0-9_.:-], 1..128
+  int64_t base_version = 0;              // the map version the data builds on (0: none)
+  bool reject_stale = false;             // ABORTED unless the map is still at base_version
 };
 
 // (trees sent so far, trees in total), called after each chunk of an upload.
@@ -80,7 +102,16 @@ class ForestMapClient {
   v1::UploadTreesResponse UploadTrees(const std::string& name, const std::vector<MapTreeRow>& rows,
                                       bool replace, const UploadProgress& progress = {});
 
-  ExportedTrees ExportTrees(const std::string& name, const std::optional<Box2>& box = {});
+  // `version` 0: the current version; else an older one (see ListVersions).
+  ExportedTrees ExportTrees(const std::string& name, const std::optional<Box2>& box = {},
+                            int64_t version = 0);
+
+  // Shared maps. One Observe call is one request (one new version); batch large sequences.
+  v1::ObserveResponse Observe(const std::string& name, const std::vector<ObservedFrame>& frames,
+                              const ObserveOptions& options);
+  std::vector<v1::MapVersion> ListVersions(const std::string& name, int limit = 0);
+  v1::Map RestoreVersion(const std::string& name, int64_t version);
+  v1::RemoveSourceResponse RemoveSource(const std::string& name, const std::string& source);
 
   // `gravity`: direction of gravity (down) in the sensor frame, when known.
   v1::RelocalizeResponse Relocalize(const std::string& name,

@@ -1,5 +1,8 @@
 #include "server/convert.h"
 
+#include <cmath>
+#include <optional>
+
 namespace forestmap::server {
 namespace {
 
@@ -32,6 +35,10 @@ v1::Tree ToProto(const storage::TreeRecord& tree) {
   if (tree.z) out.set_z(*tree.z);
   if (tree.dbh) out.set_dbh(*tree.dbh);
   out.mutable_attributes()->insert(tree.attributes.begin(), tree.attributes.end());
+  out.set_status(tree.status == storage::TreeStatus::kConfirmed ? v1::CONFIRMED : v1::CANDIDATE);
+  out.set_observations(tree.observations);
+  if (tree.position_sigma) out.set_position_sigma_m(*tree.position_sigma);
+  if (tree.dbh_sigma) out.set_dbh_sigma_m(*tree.dbh_sigma);
   return out;
 }
 
@@ -128,6 +135,112 @@ v1::RelocalizeResponse ToProto(const algorithms::RelocalizeResult& result) {
   out.set_rmse_m(result.rmse);
   out.set_confidence(result.confidence);
   out.set_detail(result.detail);
+  return out;
+}
+
+v1::MapVersion::Kind ToProto(storage::VersionKind kind) {
+  using Kind = storage::VersionKind;
+  switch (kind) {
+    case Kind::kCreate:
+      return v1::MapVersion::CREATE;
+    case Kind::kUpload:
+      return v1::MapVersion::UPLOAD;
+    case Kind::kReplace:
+      return v1::MapVersion::REPLACE;
+    case Kind::kObserve:
+      return v1::MapVersion::OBSERVE;
+    case Kind::kRestore:
+      return v1::MapVersion::RESTORE;
+    case Kind::kRemoveSource:
+      return v1::MapVersion::REMOVE_SOURCE;
+    case Kind::kMigrated:
+      return v1::MapVersion::MIGRATED;
+  }
+  return v1::MapVersion::KIND_UNSPECIFIED;
+}
+
+v1::MapVersion ToProto(const storage::VersionRecord& record) {
+  v1::MapVersion out;
+  out.set_version(record.version);
+  out.set_created_unix_ms(record.created_unix_ms);
+  out.set_kind(ToProto(record.kind));
+  out.set_source(record.source);
+  out.set_tree_count(record.tree_count);
+  out.set_confirmed_count(record.confirmed_count);
+  out.set_trees_added(record.trees_added);
+  out.set_trees_updated(record.trees_updated);
+  out.set_trees_removed(record.trees_removed);
+  out.set_observations_added(record.observations_added);
+  out.set_observations_removed(record.observations_removed);
+  out.set_restored_from(record.restored_from);
+  return out;
+}
+
+algorithms::TreeObservation ToTreeObservation(const storage::ObservationRecord& record) {
+  algorithms::TreeObservation out;
+  out.tree_id = record.tree_id;
+  out.source = record.source;
+  out.frame_id = record.frame_id;
+  out.detection_index = record.detection_index;
+  out.position = Eigen::Vector3d(record.x, record.y, record.z.value_or(algorithms::kUnknown));
+  out.dbh = record.dbh.value_or(algorithms::kUnknown);
+  out.weight_xy = record.weight_xy;
+  out.weight_dbh = record.weight_dbh;
+  out.sensor_position = Eigen::Vector3d(record.sensor_x, record.sensor_y, record.sensor_z);
+  out.prior = record.prior;
+  return out;
+}
+
+namespace {
+std::optional<double> Known(double v) {
+  return std::isfinite(v) ? std::optional<double>(v) : std::nullopt;
+}
+}  // namespace
+
+storage::ObservationRecord ToObservationRecord(const algorithms::TreeObservation& observation) {
+  storage::ObservationRecord out;
+  out.tree_id = observation.tree_id;
+  out.source = observation.source;
+  out.frame_id = observation.frame_id;
+  out.detection_index = observation.detection_index;
+  out.x = observation.position.x();
+  out.y = observation.position.y();
+  out.z = Known(observation.position.z());
+  out.dbh = Known(observation.dbh);
+  out.weight_xy = observation.weight_xy;
+  out.weight_dbh = observation.weight_dbh;
+  out.sensor_x = observation.sensor_position.x();
+  out.sensor_y = observation.sensor_position.y();
+  out.sensor_z = observation.sensor_position.z();
+  out.prior = observation.prior;
+  return out;
+}
+
+storage::TreeRecord ToTreeRecord(const algorithms::TreeEstimate& tree,
+                                 const std::map<std::string, std::string>& attributes) {
+  storage::TreeRecord out;
+  out.id = tree.id;
+  out.x = tree.position.x();
+  out.y = tree.position.y();
+  out.z = Known(tree.position.z());
+  out.dbh = Known(tree.dbh);
+  out.attributes = attributes;
+  out.status = tree.status == algorithms::TreeStatus::kConfirmed ? storage::TreeStatus::kConfirmed
+                                                                  : storage::TreeStatus::kCandidate;
+  out.observations = tree.observations;
+  out.position_sigma = Known(tree.position_sigma);
+  out.dbh_sigma = Known(tree.dbh_sigma);
+  return out;
+}
+
+algorithms::FrameObservations FromProto(const v1::ObservationFrame& frame,
+                                        const std::string& source) {
+  algorithms::FrameObservations out;
+  out.source = source;
+  out.frame_id = frame.frame_id();
+  out.trees.reserve(frame.trees_size());
+  for (const v1::DetectedTree& tree : frame.trees()) out.trees.push_back(FromProto(tree));
+  if (frame.has_map_from_sensor()) out.map_from_sensor = FromProto(frame.map_from_sensor());
   return out;
 }
 

@@ -11,15 +11,18 @@
 #include <vector>
 
 #include "algorithms/geometry.h"
+#include "algorithms/map_merge.h"
 #include "algorithms/relocalizer.h"
 #include "forestmap/v1/maps.pb.h"
+#include "forestmap/v1/observations.pb.h"
 #include "forestmap/v1/relocalization.pb.h"
 #include "proto/geometry_convert.h"
 #include "storage/map_store.h"
 
 namespace forestmap::server {
 
-// Maps and trees.
+// Maps and trees. A tree's shared-map fields (status, observations, sigmas) go out but are not
+// read back: uploaded trees are surveys, confirmed by definition.
 v1::Map ToProto(const storage::MapInfo& info);
 v1::Tree ToProto(const storage::TreeRecord& tree);
 storage::TreeRecord FromProto(const v1::Tree& tree);
@@ -41,5 +44,18 @@ algorithms::RelocalizeQuery FromProto(const v1::RelocalizeRequest& request);
 v1::RelocalizeResponse::Status ToProto(algorithms::RelocalizeStatus status);
 // Everything but server_time_ms and map_version, which the service fills in.
 v1::RelocalizeResponse ToProto(const algorithms::RelocalizeResult& result);
+
+// Shared maps.
+v1::MapVersion ToProto(const storage::VersionRecord& record);
+v1::MapVersion::Kind ToProto(storage::VersionKind kind);
+// Observation rows: storage <-> algorithms (unknown z / dbh: nullopt <-> NaN).
+algorithms::TreeObservation ToTreeObservation(const storage::ObservationRecord& record);
+storage::ObservationRecord ToObservationRecord(const algorithms::TreeObservation& observation);
+// A merged tree as a stored row; `attributes` are the survey columns it keeps.
+storage::TreeRecord ToTreeRecord(const algorithms::TreeEstimate& tree,
+                                 const std::map<std::string, std::string>& attributes);
+// A request frame (without its pose, which the service decides) for the merge.
+algorithms::FrameObservations FromProto(const v1::ObservationFrame& frame,
+                                        const std::string& source);
 
 }  // namespace forestmap::server

@@ -20,8 +20,9 @@ bool Newer(const MapIndexCache::Entry& a, const MapIndexCache::Entry& b) {
 }
 
 PreconditionError NoTrees(const std::string& name, int64_t version) {
-  return PreconditionError("map \"" + name + "\" has no trees (version " + std::to_string(version) +
-                           "); upload trees before relocalizing");
+  return PreconditionError("map \"" + name + "\" has no confirmed trees (version " +
+                           std::to_string(version) +
+                           "); upload trees or observe more before relocalizing");
 }
 
 }  // namespace
@@ -44,7 +45,7 @@ MapIndexCache::Entry MapIndexCache::Get(const std::string& name) {
     if (e.code() == storage::StorageError::Code::kNotFound) Evict(name);
     throw;
   }
-  if (info.tree_count == 0) throw NoTrees(name, info.version);
+  if (info.confirmed_count == 0) throw NoTrees(name, info.version);
 
   std::promise<Entry> promise;
   std::shared_future<Entry> other_build;
@@ -85,13 +86,18 @@ MapIndexCache::Entry MapIndexCache::Get(const std::string& name) {
 
 MapIndexCache::Entry MapIndexCache::BuildEntry(const std::string& name) const {
   // The snapshot may be newer than the MapInfo Get looked at; the entry says which it is.
+  // Only confirmed trees: candidates are too uncertain to anchor a pose.
   storage::MapSnapshot snapshot = store_.ReadMap(name);
-  if (snapshot.trees.empty()) throw NoTrees(name, snapshot.info.version);
+  std::vector<algorithms::MapTree> trees;
+  trees.reserve(snapshot.trees.size());
+  for (const storage::TreeRecord& tree : snapshot.trees) {
+    if (tree.status == storage::TreeStatus::kConfirmed) trees.push_back(ToMapTree(tree));
+  }
+  snapshot.trees = {};  // free the records before the index allocates its own copy
+  if (trees.empty()) throw NoTrees(name, snapshot.info.version);
   Entry entry;
   entry.version = snapshot.info.version;
   entry.created_unix_ms = snapshot.info.created_unix_ms;
-  std::vector<algorithms::MapTree> trees = ToMapTrees(snapshot.trees);
-  snapshot.trees = {};  // free the records before the index allocates its own copy
   entry.index = std::make_shared<const algorithms::MapIndex>(std::move(trees), options_.index);
   return entry;
 }

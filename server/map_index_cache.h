@@ -1,5 +1,6 @@
 #pragma once
 // Per-map relocalization indexes, built once per map version and shared by concurrent queries.
+// An index holds the CONFIRMED trees of the version only (candidates of shared maps are left out).
 //
 // Get(name) asks the store for the map's current MapInfo (cheap) and returns the cached index
 // when it was built for that version; otherwise it builds a new one from a ReadMap snapshot.
@@ -49,8 +50,8 @@ class MapIndexCache {
   MapIndexCache& operator=(const MapIndexCache&) = delete;
 
   // The index of the map at its current version. Throws storage::StorageError kNotFound for an
-  // unknown map (and evicts it), PreconditionError for a map without trees, and whatever the
-  // store or the index build throws (waiters of a failed build get the same error).
+  // unknown map (and evicts it), PreconditionError for a map without confirmed trees, and
+  // whatever the store or the index build throws (waiters of a failed build get the same error).
   Entry Get(const std::string& name);
 
   void Evict(const std::string& name);

@@ -47,6 +47,11 @@ void ServiceOptions::Check() const {
   Require(max_queued_requests >= 1, "ServiceOptions.max_queued_requests must be >= 1");
   index_cache.Check();
   relocalizer.Check();
+  Require(observe.max_frames >= 1, "ServiceOptions.observe.max_frames must be >= 1");
+  Require(observe.max_frame_trees >= 1, "ServiceOptions.observe.max_frame_trees must be >= 1");
+  Require(observe.max_request_trees >= 1,
+          "ServiceOptions.observe.max_request_trees must be >= 1");
+  merge.Check();
 }
 
 ForestMapService::ForestMapService(storage::MapStore& store, ServiceOptions options)
@@ -118,6 +123,43 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
         std::chrono::steady_clock::now() - start;
     response->set_server_time_ms(elapsed.count());
   });
+}
+
+grpc::ServerUnaryReactor* ForestMapService::Observe(grpc::CallbackServerContext* context,
+                                                    const v1::ObserveRequest* request,
+                                                    v1::ObserveResponse* response) {
+  return AnswerOn(work_pool_, context, "Observe", [this, context, request, response] {
+    RunObserve(context, *request, *response);
+  });
+}
+
+grpc::ServerUnaryReactor* ForestMapService::ListVersions(grpc::CallbackServerContext* context,
+                                                         const v1::ListVersionsRequest* request,
+                                                         v1::ListVersionsResponse* response) {
+  return AnswerOn(admin_pool_, context, "ListVersions", [this, request, response] {
+    Validate(*request);
+    for (const storage::VersionRecord& record :
+         store_.ListVersions(request->map_name(), request->limit())) {
+      *response->add_versions() = ToProto(record);
+    }
+  });
+}
+
+grpc::ServerUnaryReactor* ForestMapService::RestoreVersion(
+    grpc::CallbackServerContext* context, const v1::RestoreVersionRequest* request,
+    v1::RestoreVersionResponse* response) {
+  return AnswerOn(work_pool_, context, "RestoreVersion", [this, request, response] {
+    Validate(*request);
+    *response->mutable_map() = ToProto(store_.RestoreVersion(request->map_name(),
+                                                             request->version()));
+  });
+}
+
+grpc::ServerUnaryReactor* ForestMapService::RemoveSource(grpc::CallbackServerContext* context,
+                                                         const v1::RemoveSourceRequest* request,
+                                                         v1::RemoveSourceResponse* response) {
+  return AnswerOn(work_pool_, context, "RemoveSource",
+                  [this, request, response] { RunRemoveSource(*request, *response); });
 }
 
 }  // namespace forestmap::server

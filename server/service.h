@@ -20,14 +20,24 @@
 //   any RPC      RESOURCE_EXHAUSTED "server busy" when max_queued_requests calls are waiting
 //   Relocalize   INVALID_ARGUMENT (map_name, fewer than 3 trees, a bad tree / prior / gravity),
 //                RESOURCE_EXHAUSTED (more than max_query_trees), NOT_FOUND (map),
-//                FAILED_PRECONDITION (the map has no trees). "Not localized" is not an error:
-//                it is OK with status AMBIGUOUS or NOT_FOUND in the response.
+//                FAILED_PRECONDITION (the map has no confirmed trees). "Not localized" is not an
+//                error: it is OK with status AMBIGUOUS or NOT_FOUND in the response.
+//   Observe      INVALID_ARGUMENT (map_name, source, no frames, duplicate frame ids, a bad tree
+//                "frames[f].trees[i]..." / pose / gravity), RESOURCE_EXHAUSTED (observe limits),
+//                NOT_FOUND (map), ABORTED (REJECT_IF_STALE and the map is past base_version).
+//                A frame that cannot be relocalized is not an error: it is SKIPPED in the reply.
+//   ListVersions INVALID_ARGUMENT (map_name, limit), NOT_FOUND (map)
+//   RestoreVersion INVALID_ARGUMENT (map_name, version < 1), NOT_FOUND (map, or a version that
+//                does not exist or predates the history)
+//   RemoveSource INVALID_ARGUMENT (map_name, source), NOT_FOUND (map, or no observation of it)
 
 #include <cstdint>
 
+#include "algorithms/map_merge.h"
 #include "algorithms/relocalizer.h"
 #include "forestmap/v1/forestmap_service.grpc.pb.h"
 #include "server/map_index_cache.h"
+#include "server/validation.h"
 #include "server/worker_pool.h"
 #include "storage/map_store.h"
 
@@ -47,6 +57,11 @@ struct ServiceOptions {
   int max_queued_requests = 1'000;   // per thread pool; more -> RESOURCE_EXHAUSTED "busy"
   MapIndexCacheOptions index_cache;  // relocalization indexes kept in memory
   algorithms::RelocalizerOptions relocalizer;
+  ObserveLimits observe;            // frames / trees per Observe request
+  algorithms::MergeOptions merge;   // how Observe merges frames into a shared map
+  // Observe re-associates the region around its frames after merging them (ConsolidateTrees):
+  // concurrent drones then give the map a sequential upload gives.
+  bool consolidate = true;
   void Check() const;  // throws std::invalid_argument
 };
 
@@ -77,8 +92,28 @@ class ForestMapService final : public v1::ForestMap::CallbackService {
   grpc::ServerUnaryReactor* Relocalize(grpc::CallbackServerContext* context,
                                        const v1::RelocalizeRequest* request,
                                        v1::RelocalizeResponse* response) override;
+  // Shared maps (observations.proto); bodies in server/observe_service.cc.
+  grpc::ServerUnaryReactor* Observe(grpc::CallbackServerContext* context,
+                                    const v1::ObserveRequest* request,
+                                    v1::ObserveResponse* response) override;
+  grpc::ServerUnaryReactor* ListVersions(grpc::CallbackServerContext* context,
+                                         const v1::ListVersionsRequest* request,
+                                         v1::ListVersionsResponse* response) override;
+  grpc::ServerUnaryReactor* RestoreVersion(grpc::CallbackServerContext* context,
+                                           const v1::RestoreVersionRequest* request,
+                                           v1::RestoreVersionResponse* response) override;
+  grpc::ServerUnaryReactor* RemoveSource(grpc::CallbackServerContext* context,
+                                         const v1::RemoveSourceRequest* request,
+                                         v1::RemoveSourceResponse* response) override;
 
  private:
+  void RunObserve(grpc::CallbackServerContext* context, const v1::ObserveRequest& request,
+                  v1::ObserveResponse& response);
+  // Finds the pose of a frame without one; false (with `detail`) when it is not LOCALIZED.
+  bool RelocalizeFrame(const std::string& map_name, const v1::ObservationFrame& frame,
+                       algorithms::FrameObservations& observations, std::string& detail);
+  void RunRemoveSource(const v1::RemoveSourceRequest& request, v1::RemoveSourceResponse& response);
+
   storage::MapStore& store_;
   ServiceOptions options_;
   MapIndexCache index_cache_;

@@ -105,6 +105,19 @@ ExportTreesReactor::ExportTreesReactor(storage::MapStore& store, const ServiceOp
 void ExportTreesReactor::Load(storage::MapStore& store, const v1::ExportTreesRequest& request) {
   Validate(request);
   const std::string& name = request.map_name();
+  if (request.version() != 0) {
+    // An older version: read it whole (one consistent snapshot), then cut the box.
+    storage::MapSnapshot snapshot = store.ReadMapVersion(name, request.version());
+    version_ = snapshot.info.version;
+    trees_ = std::move(snapshot.trees);
+    if (request.has_box()) {
+      const storage::Extent box = FromProto(request.box());
+      std::erase_if(trees_, [&](const storage::TreeRecord& tree) {
+        return tree.x < box.min_x || tree.x > box.max_x || tree.y < box.min_y || tree.y > box.max_y;
+      });
+    }
+    return;
+  }
   if (!request.has_box()) {
     storage::MapSnapshot snapshot = store.ReadMap(name);
     version_ = snapshot.info.version;

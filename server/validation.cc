@@ -102,6 +102,99 @@ void Validate(const v1::DeleteMapRequest& request) { ValidateMapName(request.nam
 void Validate(const v1::ExportTreesRequest& request) {
   ValidateMapName(request.map_name(), "map_name");
   if (request.has_box()) ValidateBox(request.box(), "box");
+  if (request.version() < 0) {
+    throw ValidationError("version is " + std::to_string(request.version()) +
+                          "; it must be >= 1, or 0 for the current version");
+  }
+}
+
+void ValidateSource(const std::string& source, std::string_view field) {
+  const std::string path(field);
+  if (source.empty()) throw ValidationError(path + " is empty; name the drone or upload");
+  CheckLength(source, kMaxSourceLength, path);
+  for (size_t i = 0; i < source.size(); ++i) {
+    const char c = source[i];
+    const bool allowed = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') ||
+                         (c >= '0' && c <= '9') || c == '_' || c == '.' || c == '-' || c == ':';
+    if (!allowed) {
+      throw ValidationError(path + " " + Quoted(source) +
+                            ": only A-Z a-z 0-9 _ . : - are allowed (character " +
+                            std::to_string(i + 1) + " is not)");
+    }
+  }
+  if (source == kSurveySource) {
+    throw ValidationError(path + " \"survey\" is reserved for surveyed trees");
+  }
+}
+
+void Validate(const v1::ObserveRequest& request, const ObserveLimits& limits) {
+  ValidateMapName(request.map_name(), "map_name");
+  ValidateSource(request.source(), "source");
+  if (request.base_version() < 0) {
+    throw ValidationError("base_version is " + std::to_string(request.base_version()) +
+                          "; it must be >= 0");
+  }
+  if (request.conflict_policy() == v1::REJECT_IF_STALE && request.base_version() == 0) {
+    throw ValidationError("base_version: REJECT_IF_STALE needs the version the data is based on");
+  }
+  if (!v1::ConflictPolicy_IsValid(request.conflict_policy())) {
+    throw ValidationError("conflict_policy " + std::to_string(request.conflict_policy()) +
+                          " is unknown");
+  }
+  const int frames = request.frames_size();
+  if (frames == 0) throw ValidationError("frames: an observation needs at least one frame");
+  if (frames > limits.max_frames) {
+    throw LimitError("frames: " + std::to_string(frames) + " frames exceed the limit of " +
+                     std::to_string(limits.max_frames) + " per request; send them in batches");
+  }
+  int64_t total = 0;
+  std::unordered_map<int64_t, int> index_of_frame;
+  for (int f = 0; f < frames; ++f) {
+    const v1::ObservationFrame& frame = request.frames(f);
+    const std::string path = Indexed("frames", f);
+    const auto [it, inserted] = index_of_frame.emplace(frame.frame_id(), f);
+    if (!inserted) {
+      throw ValidationError(path + ".frame_id " + std::to_string(frame.frame_id()) +
+                            " duplicates " + Indexed("frames", it->second) + ".frame_id");
+    }
+    if (frame.trees_size() > limits.max_frame_trees) {
+      throw LimitError(path + ".trees: " + std::to_string(frame.trees_size()) +
+                       " trees exceed the limit of " + std::to_string(limits.max_frame_trees) +
+                       " per frame");
+    }
+    total += frame.trees_size();
+    if (total > limits.max_request_trees) {
+      throw LimitError("frames: more than " + std::to_string(limits.max_request_trees) +
+                       " trees in one request; send fewer frames per request");
+    }
+    for (int i = 0; i < frame.trees_size(); ++i) {
+      ValidateDetectedTree(frame.trees(i), path + "." + Indexed("trees", i));
+    }
+    if (frame.has_map_from_sensor()) {
+      ValidatePose(frame.map_from_sensor(), path + ".map_from_sensor");
+    }
+    if (frame.has_gravity()) CheckDirection(frame.gravity(), path + ".gravity");
+  }
+}
+
+void Validate(const v1::ListVersionsRequest& request) {
+  ValidateMapName(request.map_name(), "map_name");
+  if (request.limit() < 0) {
+    throw ValidationError("limit is " + std::to_string(request.limit()) + "; it must be >= 0");
+  }
+}
+
+void Validate(const v1::RestoreVersionRequest& request) {
+  ValidateMapName(request.map_name(), "map_name");
+  if (request.version() < 1) {
+    throw ValidationError("version is " + std::to_string(request.version()) +
+                          "; it must be >= 1");
+  }
+}
+
+void Validate(const v1::RemoveSourceRequest& request) {
+  ValidateMapName(request.map_name(), "map_name");
+  ValidateSource(request.source(), "source");
 }
 
 void Validate(const v1::RelocalizeRequest& request, int max_query_trees) {

@@ -16,6 +16,7 @@
 #include <unordered_map>
 
 #include "forestmap/v1/maps.pb.h"
+#include "forestmap/v1/observations.pb.h"
 #include "forestmap/v1/relocalization.pb.h"
 #include "server/status.h"
 
@@ -37,6 +38,21 @@ void Validate(const v1::GetMapRequest& request);
 void Validate(const v1::DeleteMapRequest& request);
 void Validate(const v1::ExportTreesRequest& request);
 void Validate(const v1::RelocalizeRequest& request, int max_query_trees);
+
+// Shared maps (observations.proto).
+inline constexpr size_t kMaxSourceLength = 128;  // bytes
+inline constexpr const char* kSurveySource = "survey";  // reserved for survey priors
+struct ObserveLimits {
+  int max_frames = 200;           // frames per Observe request
+  int max_frame_trees = 2'000;    // detected trees per frame
+  int max_request_trees = 100'000;  // detected trees per request
+};
+// A source id: 1..128 characters of [A-Za-z0-9_.:-], not "survey". `field` names it.
+void ValidateSource(const std::string& source, std::string_view field);
+void Validate(const v1::ObserveRequest& request, const ObserveLimits& limits);
+void Validate(const v1::ListVersionsRequest& request);
+void Validate(const v1::RestoreVersionRequest& request);
+void Validate(const v1::RemoveSourceRequest& request);
 
 // Pieces, exposed for tests and for the upload stream. `path` prefixes the messages.
 void ValidateTree(const v1::Tree& tree, const std::string& path);

@@ -5,6 +5,7 @@
 #include <functional>
 #include <map>
 #include <optional>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -31,22 +32,117 @@ struct MapInfo {
   std::string description;
   std::string crs;  // empty when unknown
   int64_t version = 0;  // 1 at creation, +1 on every change
-  int64_t tree_count = 0;
+  int64_t tree_count = 0;        // candidates and confirmed trees
+  int64_t confirmed_count = 0;   // confirmed trees (surveyed or seen often enough)
   std::optional<Extent> extent;  // unset for an empty map
   int64_t created_unix_ms = 0;
   int64_t updated_unix_ms = 0;
 };
 
-// One stored tree. Unknown z / dbh are std::nullopt (NULL in SQL).
+enum class TreeStatus { kCandidate = 0, kConfirmed = 1 };
+
+// One stored tree. Unknown z / dbh are std::nullopt (NULL in SQL). The defaults of the shared-map
+// fields (status .. dbh_sigma) are those of a surveyed tree that no drone has observed yet.
 struct TreeRecord {
   std::optional<int64_t> id;  // always set when read; on write, nullopt asks the store for one
   double x = 0, y = 0;  // m
   std::optional<double> z;    // m
   std::optional<double> dbh;  // m
   std::map<std::string, std::string> attributes;
+  TreeStatus status = TreeStatus::kConfirmed;
+  int64_t observations = 0;              // observation rows behind the tree (incl. a survey prior)
+  std::optional<double> position_sigma;  // m, 1-sigma horizontal uncertainty
+  std::optional<double> dbh_sigma;       // m
 
   bool operator==(const TreeRecord&) const = default;
 };
+
+// One tree seen once (in one frame of one source, or a survey prior), in the MAP frame, with its
+// provenance. The values are those the merge used (see algorithms::TreeObservation).
+struct ObservationRecord {
+  int64_t id = 0;  // assigned by the store; ignored on write
+  int64_t tree_id = 0;
+  std::string source;
+  int64_t frame_id = 0;
+  int32_t detection_index = 0;  // index in the frame's detections; -1 for a survey prior
+  double x = 0, y = 0;          // m
+  std::optional<double> z;      // m
+  std::optional<double> dbh;    // m
+  double weight_xy = 0;         // 1/m^2
+  double weight_dbh = 0;        // 1/m^2
+  double sensor_x = 0, sensor_y = 0, sensor_z = 0;  // m, map frame
+  bool prior = false;           // a survey prior
+  int64_t version = 0;          // map version that added the row; set by the store
+
+  bool operator==(const ObservationRecord&) const = default;
+};
+
+// What made a map version.
+enum class VersionKind {
+  kCreate = 1,
+  kUpload = 2,        // WriteTrees kAppend
+  kReplace = 3,       // WriteTrees kReplace
+  kObserve = 4,
+  kRestore = 5,
+  kRemoveSource = 6,
+  kMigrated = 7,      // state found when the database was upgraded; older versions are gone
+};
+
+// One entry of a map's history, with counts of what changed.
+struct VersionRecord {
+  int64_t version = 0;
+  int64_t created_unix_ms = 0;
+  VersionKind kind = VersionKind::kCreate;
+  std::string source;  // the source of an observe / remove-source version
+  int64_t tree_count = 0;
+  int64_t confirmed_count = 0;
+  int64_t trees_added = 0, trees_updated = 0, trees_removed = 0;
+  int64_t observations_added = 0, observations_removed = 0;
+  int64_t restored_from = 0;  // kRestore only
+};
+
+// Everything one merge changes, computed from what MergeReader showed.
+struct MapChanges {
+  // New trees (an id not current in the map) and new states of current trees (same id). Ids are
+  // required: new trees take theirs from MergeReader::NextFreeTreeId() upwards.
+  std::vector<TreeRecord> put_trees;
+  std::vector<int64_t> removed_trees;                 // ids of current trees to drop
+  std::vector<ObservationRecord> added_observations;  // tree_id must be a tree of the new version
+  std::vector<int64_t> removed_observations;          // ids of current observation rows
+
+  bool empty() const {
+    return put_trees.empty() && removed_trees.empty() && added_observations.empty() &&
+           removed_observations.empty();
+  }
+};
+
+// Read access inside a merge's write transaction: the map's current version, with no other
+// writer in between until the merge commits. Reads do not see the merge's own changes.
+class MergeReader {
+ public:
+  virtual ~MergeReader() = default;
+  virtual const MapInfo& map() const = 0;
+  // Current trees whose (x, y) lies inside the box (inclusive), by id.
+  virtual std::vector<TreeRecord> TreesInBox(const Extent& box) = 0;
+  // Current trees of these ids, by id (unknown ids are left out).
+  virtual std::vector<TreeRecord> TreesById(std::span<const int64_t> ids) = 0;
+  // Current observation rows of these trees, by id of the row.
+  virtual std::vector<ObservationRecord> ObservationsOfTrees(std::span<const int64_t> ids) = 0;
+  // Current observation rows of one source, by id of the row.
+  virtual std::vector<ObservationRecord> ObservationsOfSource(const std::string& source) = 0;
+  // Above every tree id the map ever had (in any version): ids for new trees start here.
+  virtual int64_t NextFreeTreeId() = 0;
+};
+
+// How a merge is recorded, and the version it must build on.
+struct MergeNote {
+  VersionKind kind = VersionKind::kObserve;
+  std::string source;
+  // Set: the merge fails with kConflict (stale) unless this is still the current version.
+  std::optional<int64_t> expected_version;
+};
+
+using MergeFunction = std::function<MapChanges(MergeReader&)>;
 
 // A consistent snapshot of a map: its info and all its trees (sorted by id), read together.
 struct MapSnapshot {
@@ -83,6 +179,24 @@ class MapStore {
 
   // Trees whose (x, y) lies inside the box (inclusive), by id, through the spatial index.
   virtual std::vector<TreeRecord> TreesInBox(const std::string& name, const Extent& box) = 0;
+
+  // ---- Versions (shared maps) ----
+
+  // The trees of an older version (0 = current) with the info of that version (tree_count and
+  // extent of that version; created_unix_ms of the map, updated_unix_ms of that version).
+  // kNotFound for a version that never existed or predates the history (kMigrated).
+  virtual MapSnapshot ReadMapVersion(const std::string& name, int64_t version) = 0;
+  // The history, oldest first; `limit` > 0 keeps the newest `limit` entries.
+  virtual std::vector<VersionRecord> ListVersions(const std::string& name, int64_t limit) = 0;
+  // A new version whose trees and observations equal those of `version` (kNotFound as above).
+  virtual MapInfo RestoreVersion(const std::string& name, int64_t version) = 0;
+  // Runs `merge` inside ONE write transaction (reads and writes; concurrent merges of any map
+  // serialize) and commits its changes as one new version described by `note`. Nothing is
+  // written when `merge` throws (its exception propagates), when a write fails, or when the
+  // changes are empty (then the current info is returned and no version is made).
+  // kConflict when note.expected_version is set and is not the current version.
+  virtual MapInfo Merge(const std::string& name, const MergeNote& note,
+                        const MergeFunction& merge) = 0;
 };
 
 // Valid map names: 1..128 characters of [A-Za-z0-9_.-]. Returns an error message or "".

@@ -1,6 +1,8 @@
 #pragma once
-// MapStore on SQLite: one database file holds every map (tables maps and trees, and an R*Tree
-// index over blocks of nearby trees), schema versioned with PRAGMA user_version.
+// MapStore on SQLite: one database file holds every map (tables maps, trees, observations,
+// map_versions, and an R*Tree index over blocks of nearby trees), schema versioned with PRAGMA
+// user_version. Every map version stays readable: tree and observation rows carry the version
+// range [valid_from, valid_to) they belong to (see storage/sqlite_schema.cc).
 
 #include <cstdint>
 #include <functional>
@@ -42,11 +44,16 @@ struct SqliteMapStoreOptions {
 // round-trip bit for bit, except that -0.0 reads back as +0.0 (SQLite's REAL affinity stores
 // integral values as integers). The spatial index holds blocks of up to kTreesPerBlock trees
 // that are close together, not single trees: one R*Tree insertion per tree would cost ~10 us, and
-// a million-tree write several times longer than the rest of the write.
+// a million-tree write several times longer than the rest of the write. A change never edits a
+// row in place: it closes the current row (valid_to) and inserts the new state, so blocks keep
+// their rowid ranges and old versions stay readable; queries filter by version.
+// Merge runs its callback on the writer connection inside BEGIN IMMEDIATE, holding the writer
+// mutex: merges (and all other writes) serialize, and readers keep reading the last committed
+// version meanwhile (WAL).
 class SqliteMapStore final : public MapStore {
  public:
   // Schema version this code writes; a database with a newer PRAGMA user_version is refused.
-  static constexpr int64_t kSchemaVersion = 1;
+  static constexpr int64_t kSchemaVersion = 2;
   static constexpr size_t kTreesPerBlock = 32;
 
   // Opens (creating if missing) the database at `path` and migrates its schema to
@@ -68,6 +75,12 @@ class SqliteMapStore final : public MapStore {
   MapSnapshot ReadMap(const std::string& name) override;
   // Throws kInvalidArgument for a NaN bound or min > max; infinite bounds are allowed.
   std::vector<TreeRecord> TreesInBox(const std::string& name, const Extent& box) override;
+
+  MapSnapshot ReadMapVersion(const std::string& name, int64_t version) override;
+  std::vector<VersionRecord> ListVersions(const std::string& name, int64_t limit) override;
+  MapInfo RestoreVersion(const std::string& name, int64_t version) override;
+  MapInfo Merge(const std::string& name, const MergeNote& note,
+                const MergeFunction& merge) override;
 
  private:
   using Body = std::function<void(sqlite::Database&)>;

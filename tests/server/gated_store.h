@@ -89,6 +89,20 @@ class GatedStore final : public storage::MapStore {
                                               const storage::Extent& box) override {
     return inner_.TreesInBox(name, box);
   }
+  storage::MapSnapshot ReadMapVersion(const std::string& name, int64_t version) override {
+    return inner_.ReadMapVersion(name, version);
+  }
+  std::vector<storage::VersionRecord> ListVersions(const std::string& name,
+                                                   int64_t limit) override {
+    return inner_.ListVersions(name, limit);
+  }
+  storage::MapInfo RestoreVersion(const std::string& name, int64_t version) override {
+    return inner_.RestoreVersion(name, version);
+  }
+  storage::MapInfo Merge(const std::string& name, const storage::MergeNote& note,
+                         const storage::MergeFunction& merge) override {
+    return inner_.Merge(name, note, merge);
+  }
 
  private:
   storage::MapStore& inner_;

@@ -82,7 +82,7 @@ TEST_F(MapIndexCacheTest, EmptyMapIsAPreconditionError) {
     cache.Get("empty");
     FAIL() << "expected FAILED_PRECONDITION";
   } catch (const PreconditionError& e) {
-    EXPECT_NE(std::string(e.what()).find("\"empty\" has no trees"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("\"empty\" has no confirmed trees"), std::string::npos);
   }
 }
 

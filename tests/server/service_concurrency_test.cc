@@ -283,7 +283,7 @@ TEST_F(ServiceConcurrencyTest, RelocalizeRejectsBadQueries) {
   empty.set_map_name("empty");
   status = Relocalize(empty, &response);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
-  EXPECT_THAT(status.error_message(), HasSubstr("\"empty\" has no trees"));
+  EXPECT_THAT(status.error_message(), HasSubstr("\"empty\" has no confirmed trees"));
 
   EXPECT_TRUE(Relocalize(good, &response).ok());  // still serving
 }

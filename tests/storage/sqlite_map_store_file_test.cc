@@ -84,17 +84,17 @@ TEST_F(SqliteMapStoreFileTest, ReopeningKeepsDataAndSchemaVersion) {
 TEST_F(SqliteMapStoreFileTest, RefusesADatabaseFromANewerVersion) {
   {
     sqlite::Database db(path_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, 1000);
-    db.Execute("CREATE TABLE future (x); PRAGMA user_version = 2");
+    db.Execute("CREATE TABLE future (x); PRAGMA user_version = 3");
   }
   try {
     SqliteMapStore store(path_);
-    ADD_FAILURE() << "a database with schema version 2 was accepted";
+    ADD_FAILURE() << "a database with schema version 3 was accepted";
   } catch (const StorageError& e) {
     const std::string message = e.what();
-    EXPECT_NE(message.find("schema version 2"), std::string::npos) << message;
+    EXPECT_NE(message.find("schema version 3"), std::string::npos) << message;
     EXPECT_NE(message.find(path_), std::string::npos) << message;
   }
-  EXPECT_EQ(Query("PRAGMA user_version"), 2);  // untouched
+  EXPECT_EQ(Query("PRAGMA user_version"), 3);  // untouched
 }
 
 TEST_F(SqliteMapStoreFileTest, BadFilesGiveErrorsNamingThePath) {
@@ -123,10 +123,10 @@ TEST_F(SqliteMapStoreFileTest, DeletingAMapRemovesItsTreesAndIndexRows) {
   store.CreateMap("kept", "", "");
   store.WriteTrees("gone", trees, WriteMode::kAppend);
   store.WriteTrees("kept", {trees.begin(), trees.begin() + 10}, WriteMode::kAppend);
-  store.WriteTrees("gone", trees, WriteMode::kReplace);  // replace must not leave stale rows
+  store.WriteTrees("gone", trees, WriteMode::kReplace);  // the replaced version stays readable
   const int64_t blocks_of_gone =
       (500 + SqliteMapStore::kTreesPerBlock - 1) / SqliteMapStore::kTreesPerBlock;
-  EXPECT_EQ(Query("SELECT COUNT(*) FROM tree_blocks"), blocks_of_gone + 1);
+  EXPECT_EQ(Query("SELECT COUNT(*) FROM tree_blocks"), 2 * blocks_of_gone + 1);
   // Every index row covers trees of its own map.
   const char* kOrphanBlocks =
       "SELECT COUNT(*) FROM tree_blocks AS b WHERE NOT EXISTS (SELECT 1 FROM trees AS t WHERE "
@@ -136,6 +136,7 @@ TEST_F(SqliteMapStoreFileTest, DeletingAMapRemovesItsTreesAndIndexRows) {
   store.DeleteMap("gone");
   EXPECT_EQ(Query("SELECT COUNT(*) FROM trees"), 10);
   EXPECT_EQ(Query("SELECT COUNT(*) FROM tree_blocks"), 1);
+  EXPECT_EQ(Query("SELECT COUNT(*) FROM map_versions"), 2);  // "kept": created, one upload
   EXPECT_EQ(Query(kOrphanBlocks), 0);
   EXPECT_EQ(store.TreesInBox("kept", Extent{-1e9, -1e9, 1e9, 1e9}).size(), 10u);
   store.CreateMap("gone", "", "");  // a new map of the same name starts empty

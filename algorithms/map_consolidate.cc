@@ -1,0 +1,211 @@
+// ConsolidateTrees: order-robust re-association and duplicate merging (see map_merge.h).
+//
+// Incremental merging is greedy: the first frame to see a tree decides where its candidate
+// starts, and two uploads that see a new tree at the same time create two candidates. This pass
+// makes the final map depend on the observations only: rows are put in a canonical order,
+// duplicate trees are merged, then every frame's rows are re-associated one-to-one with the
+// current estimates and the estimates recomputed (a few k-means style sweeps).
+
+#include <algorithm>
+#include <map>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+#include <tuple>
+#include <unordered_map>
+
+#include "algorithms/map_merge.h"
+#include "algorithms/map_merge_internal.h"
+
+namespace forestmap::algorithms {
+namespace {
+
+bool CanonicalLess(const TreeObservation& a, const TreeObservation& b) {
+  return std::tie(a.source, a.frame_id, a.detection_index, a.tree_id) <
+         std::tie(b.source, b.frame_id, b.detection_index, b.tree_id);
+}
+
+bool SameFrame(const TreeObservation& a, const TreeObservation& b) {
+  return a.frame_id == b.frame_id && a.source == b.source;
+}
+
+class Consolidator {
+ public:
+  Consolidator(std::span<const TreeEstimate> trees, std::span<const TreeObservation> observations,
+               const MergeOptions& options)
+      : options_(options), rows_(observations.begin(), observations.end()) {
+    std::stable_sort(rows_.begin(), rows_.end(), CanonicalLess);
+    for (const TreeEstimate& tree : trees) ids_.push_back(tree.id);
+    std::sort(ids_.begin(), ids_.end());
+    ids_.erase(std::unique(ids_.begin(), ids_.end()), ids_.end());
+    for (size_t i = 0; i < ids_.size(); ++i) index_of_[ids_[i]] = static_cast<int>(i);
+    owner_.resize(rows_.size());
+    for (size_t r = 0; r < rows_.size(); ++r) {
+      const auto it = index_of_.find(rows_[r].tree_id);
+      if (it == index_of_.end()) {
+        throw std::invalid_argument("ConsolidateTrees: observation of frame " +
+                                    std::to_string(rows_[r].frame_id) + " of '" +
+                                    rows_[r].source + "' refers to tree " +
+                                    std::to_string(rows_[r].tree_id) + ", which is not given");
+      }
+      owner_[r] = it->second;
+    }
+    original_owner_ = owner_;
+    Recompute();
+  }
+
+  void Run(ConsolidateResult& result) {
+    for (int sweep = 0; sweep < std::max(1, options_.consolidate_iterations); ++sweep) {
+      const int merged = MergeDuplicates();
+      const int moved = Reassociate();
+      result.merged += merged;
+      if (merged == 0 && moved == 0) break;
+    }
+    for (size_t t = 0; t < ids_.size(); ++t) {
+      if (estimates_[t].observations > 0) {
+        result.trees.push_back(estimates_[t]);
+      } else {
+        result.removed_ids.push_back(ids_[t]);
+      }
+    }
+    for (size_t r = 0; r < rows_.size(); ++r) {
+      if (owner_[r] != original_owner_[r]) ++result.reassigned;
+      rows_[r].tree_id = ids_[owner_[r]];
+    }
+    result.observations = std::move(rows_);
+  }
+
+ private:
+  void Recompute() {
+    estimates_.assign(ids_.size(), TreeEstimate{});
+    for (size_t t = 0; t < ids_.size(); ++t) estimates_[t].id = ids_[t];
+    for (size_t r = 0; r < rows_.size(); ++r) {
+      AddObservation(estimates_[owner_[r]], rows_[r], options_);
+    }
+  }
+
+  // Frames (by row range) that observed each tree, to keep apart two stems seen in one frame.
+  std::vector<std::vector<int>> FramesOfTrees() const {
+    std::vector<std::vector<int>> frames(ids_.size());
+    int frame = -1;
+    for (size_t r = 0; r < rows_.size(); ++r) {
+      if (r == 0 || !SameFrame(rows_[r], rows_[r - 1])) ++frame;
+      frames[owner_[r]].push_back(frame);
+    }
+    return frames;
+  }
+
+  int MergeDuplicates() {
+    std::vector<TreeEstimate> live;
+    std::vector<int> live_index;
+    for (size_t t = 0; t < ids_.size(); ++t) {
+      if (estimates_[t].observations == 0) continue;
+      live.push_back(estimates_[t]);
+      live_index.push_back(static_cast<int>(t));
+    }
+    if (live.size() < 2 || options_.duplicate_distance <= 0) return 0;
+    const auto kd = internal::BuildTreeIndex(live);
+    std::vector<std::tuple<double, int, int>> pairs;  // (distance^2, tree a, tree b), a < b
+    std::vector<std::pair<uint32_t, double>> near;
+    for (size_t i = 0; i < live.size(); ++i) {
+      kd->Radius({live[i].position.x(), live[i].position.y()}, options_.duplicate_distance, near);
+      for (const auto& [j, d2] : near) {
+        if (j > i) pairs.emplace_back(d2, live_index[i], live_index[j]);
+      }
+    }
+    std::sort(pairs.begin(), pairs.end());
+    const std::vector<std::vector<int>> frames = FramesOfTrees();
+    std::vector<int> root(ids_.size());
+    std::iota(root.begin(), root.end(), 0);
+    int merged = 0;
+    for (const auto& [d2, a, b] : pairs) {
+      if (root[a] != a || root[b] != b) continue;  // one merge per tree and sweep
+      const TreeEstimate& ta = estimates_[a];
+      const TreeEstimate& tb = estimates_[b];
+      if (ta.surveyed && tb.surveyed) continue;
+      // One stem or two? Two stems are seen side by side in the frames that see either (the
+      // association is one-to-one per frame); one stem whose DBH fits disagree (partial arcs
+      // shift the centre) never is. Overlapping stems are one whatever the frames say.
+      const double d = std::sqrt(d2);
+      const bool overlap = IsKnown(ta.dbh) && IsKnown(tb.dbh) && d < 0.5 * (ta.dbh + tb.dbh);
+      std::vector<int> common;
+      std::set_intersection(frames[a].begin(), frames[a].end(), frames[b].begin(),
+                            frames[b].end(), std::back_inserter(common));
+      const double smaller = static_cast<double>(std::min(frames[a].size(), frames[b].size()));
+      if (!overlap && common.size() > options_.max_shared_frames * smaller) continue;
+      root[b] = a;  // ids_ is sorted: the smaller id survives
+      root[a] = -1 - a;
+      ++merged;
+    }
+    if (merged == 0) return 0;
+    for (int& owner : owner_) {
+      if (root[owner] >= 0 && root[owner] != owner) owner = root[owner];
+    }
+    Recompute();
+    return merged;
+  }
+
+  int Reassociate() {
+    std::vector<TreeEstimate> live;
+    std::vector<int> live_index;
+    for (size_t t = 0; t < ids_.size(); ++t) {
+      if (estimates_[t].observations == 0) continue;
+      live.push_back(estimates_[t]);
+      live_index.push_back(static_cast<int>(t));
+    }
+    if (live.empty()) return 0;
+    const auto kd = internal::BuildTreeIndex(live);
+    int moved = 0;
+    size_t begin = 0;
+    std::vector<TreeObservation> frame_rows;
+    std::vector<size_t> frame_index;
+    while (begin < rows_.size()) {
+      size_t end = begin + 1;
+      while (end < rows_.size() && SameFrame(rows_[end], rows_[begin])) ++end;
+      frame_rows.clear();
+      frame_index.clear();
+      for (size_t r = begin; r < end; ++r) {
+        if (rows_[r].prior) continue;  // a survey prior defines its tree
+        frame_rows.push_back(rows_[r]);
+        frame_index.push_back(r);
+      }
+      const internal::Association association =
+          internal::AssociateGreedy(live, *kd, frame_rows, options_);
+      for (size_t k = 0; k < frame_rows.size(); ++k) {
+        const int assigned = association.tree[k];
+        if (assigned < 0) continue;  // keeps its tree: no estimate explains it better
+        const int owner = live_index[assigned];
+        if (association.dbh_outlier[k]) rows_[frame_index[k]].weight_dbh = 0;
+        if (owner_[frame_index[k]] != owner) {
+          owner_[frame_index[k]] = owner;
+          ++moved;
+        }
+      }
+      begin = end;
+    }
+    if (moved > 0) Recompute();
+    return moved;
+  }
+
+  const MergeOptions& options_;
+  std::vector<TreeObservation> rows_;
+  std::vector<int64_t> ids_;  // sorted
+  std::unordered_map<int64_t, int> index_of_;
+  std::vector<int> owner_;  // per row, index into ids_
+  std::vector<int> original_owner_;
+  std::vector<TreeEstimate> estimates_;
+};
+
+}  // namespace
+
+ConsolidateResult ConsolidateTrees(std::span<const TreeEstimate> trees,
+                                   std::span<const TreeObservation> observations,
+                                   const MergeOptions& options) {
+  options.Check();
+  ConsolidateResult result;
+  Consolidator consolidator(trees, observations, options);
+  consolidator.Run(result);
+  return result;
+}
+
+}  // namespace forestmap::algorithms

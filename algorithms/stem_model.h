@@ -1,0 +1,122 @@
+#pragma once
+// From a cluster of stem-layer points to stems: per-slice circles, stem axis, taper, DBH.
+//
+// 1. The cluster is cut into horizontal slices (slice_height). Each slice may hold several stems
+//    (touching trunks, a stem in a shrub), so circles are extracted one after the other by RANSAC
+//    (circle_fit.h), each removing its inliers, up to max_circles_per_slice: the per-slice circle
+//    count is what splits clusters that DBSCAN merged (the thesis's weakness).
+// 2. Circles of successive slices are linked into stems when their centres agree (allowing for
+//    the stem's tilt), like the stem sections of the backpack paper (Holmgren et al. sec. 2.4).
+// 3. The stem axis is the weighted principal direction of the slice centres (a cylinder axis);
+//    slices whose centre or radius disagrees with the stem are dropped (slice consistency).
+// 4. Position: where the axis meets the ground model (thesis ch. 5.3), or, without ground, the
+//    axis point at the lowest stem point seen.
+// 5. DBH: a weighted, outlier-resistant fit of diameter against distance along the stem, the
+//    cubic of Holmgren et al. eq. 1, d(h) = p1 h^3 + p2 h^2 + p3 h + p4, lowered to a smaller
+//    degree when the slices span too little of the stem to carry a cubic, evaluated at
+//    breast_height (1.3 m) along the stem; without ground at the middle of the slices seen.
+//    Sparse stems (far ones: a few points per slice) get the diameter of one cylinder fit to
+//    the inliers of all their slices instead (a circle fit after projection along the axis).
+// 6. Beam-divergence compensation (the mixed-pixel edge effect): a beam of full divergence angle
+//    `beam_divergence` has a footprint of range * beam_divergence; at the silhouette edges of a
+//    stem a beam whose centre already misses the stem still returns from it, so the edge points
+//    sit up to half a footprint outside the true outline and the arc fit grows. The model:
+//    dbh = dbh_fit - divergence_bias_factor * range * beam_divergence. Off when the divergence is
+//    0 (the default: a simulator without divergence, or a cloud merged from many ranges).
+// 7. Rejection of non-stems: too few consistent slices, tilt, fit residual, arc coverage, DBH
+//    range (max_dbh: shrubs and crowns give big circles), score below min_score.
+//    Score in [0, 1] = residual term * coverage term * slice term (see ScoreStem in the .cc).
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "algorithms/circle_fit.h"
+#include "algorithms/geometry.h"
+#include "algorithms/ground_model.h"
+
+namespace forestmap::algorithms {
+
+struct StemModelOptions {
+  double slice_height = 0.25;         // m, thinnest slices
+  double max_slice_height = 0.8;      // m, thickest slices (sparse clusters)
+  int points_per_slice = 24;          // slices of sparse clusters thicken to hold about this many
+  int min_slice_points = 6;           // points (and circle inliers) per slice fit
+  int max_slice_points = 1500;        // denser slices are thinned evenly before fitting
+  int max_circles_per_slice = 3;      // stems per slice of one cluster
+  CircleRansacOptions circle;         // per-slice RANSAC circle fit
+  double min_slice_coverage = 0.08;   // [0, 1], arc coverage of a slice circle
+  double link_distance = 0.06;        // m, centre distance between linked slices, plus
+  double max_tilt = 0.5;              // rad, stem tilt from +z (also the link allowance per metre)
+  int min_slices = 2;                 // consistent slices per stem
+  double min_axis_span = 0.6;         // m, slice centres spanning less give a vertical axis
+  double max_centre_offset = 0.04;    // m, plus 0.25 r: slice centre off the axis -> inconsistent
+  double max_radius_deviation = 0.3;  // relative to the stem's median radius -> inconsistent
+  double min_consistent_fraction = 0.6;  // of the linked slices
+  double max_residual = 0.025;           // m, stem rms of the circle inliers
+  double min_arc_coverage = 0.08;        // [0, 1], median over slices (3 of 36 sectors)
+  double min_dbh = 0.05;                 // m
+  double max_dbh = 1.2;                  // m
+  double min_score = 0.12;        // [0, 1], weaker stems (mostly shrub and crown arcs) dropped
+  double breast_height = 1.3;     // m along the stem above the ground point
+  int cylinder_fit_points = 200;  // sparser stems: DBH from one cylinder fit
+  bool sensor_at_origin = true;   // single viewpoint at (0,0,0): a partial arc must face it
+  double beam_divergence = 0;     // rad, full angle; 0 disables the compensation
+  double divergence_bias_factor = 0.1;  // share of the footprint added to the fitted diameter
+                                        // (0.1: calibrated on simulated Ouster scans)
+  uint32_t seed = 1;                    // RANSAC
+  void Check() const;
+};
+
+// One detected stem with its diagnostics (sensor frame, metres).
+struct DetectedTrunk {
+  DetectedTree tree;  // position: tree-ground intersection (or lowest stem point); axis up
+  Eigen::Vector3d breast_height_point = Eigen::Vector3d::Zero();  // axis point where dbh applies
+  bool ground_known = false;
+  double ground_z = kUnknown;  // m, ground height under the stem
+  double dbh_height = 0;       // m along the axis from `position` where dbh was evaluated
+  double raw_dbh = kUnknown;   // m, before the beam-divergence compensation
+  int points_used = 0;         // circle inliers over all slices
+  int slices = 0;              // consistent slices
+  double residual = 0;         // m, rms of the circle inliers
+  double arc_coverage = 0;     // [0, 1], median slice coverage
+  double range = 0;            // m, horizontal distance of the breast-height point from 0
+};
+
+// Diameter at a height along the stem from (height, diameter, weight) samples.
+struct TaperSample {
+  double height = 0;    // m along the stem
+  double diameter = 0;  // m
+  double weight = 1;
+};
+struct TaperFit {
+  double diameter = kUnknown;  // m at the requested height
+  int degree = 0;              // polynomial degree used (3 = Holmgren eq. 1)
+};
+TaperFit FitTaper(std::span<const TaperSample> samples, double height);
+
+struct StemModelStats {
+  size_t slices_fitted = 0;    // slice fits attempted
+  size_t circles = 0;          // slice circles accepted
+  size_t chains = 0;           // linked stems considered
+  size_t rejected_slices = 0;  // too few consistent slices
+  size_t rejected_tilt = 0;
+  size_t rejected_residual = 0;
+  size_t rejected_coverage = 0;
+  size_t rejected_dbh = 0;
+  size_t rejected_score = 0;
+  size_t duplicates = 0;  // stems found twice, dropped
+};
+
+struct StemModelResult {
+  std::vector<DetectedTrunk> trunks;  // best score first
+  StemModelStats stats;
+};
+
+// `heights` per point: above ground (ground.known()) or above the lowest point.
+StemModelResult FitStems(std::span<const Eigen::Vector3f> points, std::span<const float> heights,
+                         const std::vector<std::vector<uint32_t>>& clusters,
+                         const GroundModel& ground, const StemModelOptions& options);
+
+}  // namespace forestmap::algorithms

@@ -1,0 +1,74 @@
+#include "algorithms/trunk_detection.h"
+
+#include <chrono>
+
+namespace forestmap::algorithms {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+int64_t MicrosSince(Clock::time_point& start) {
+  const Clock::time_point now = Clock::now();
+  const int64_t us = std::chrono::duration_cast<std::chrono::microseconds>(now - start).count();
+  start = now;
+  return us;
+}
+
+}  // namespace
+
+void TrunkDetectionOptions::Check() const {
+  filter.Check();
+  ground.Check();
+  layer.Check();
+  cluster.Check();
+  stem.Check();
+}
+
+TrunkDetectionResult DetectTrunks(const PointCloud& cloud, const TrunkDetectionOptions& options) {
+  options.Check();
+  TrunkDetectionResult result;
+  TrunkDetectionStats& stats = result.stats;
+  const Clock::time_point begin = Clock::now();
+  Clock::time_point t = begin;
+  stats.input_points = cloud.size();
+
+  const ScanFilterResult filtered = FilterScan(cloud, options.filter);
+  stats.valid_points = filtered.points.size();
+  stats.self_returns = filtered.self_returns + filtered.origin_duplicates;
+  stats.filter_us = MicrosSince(t);
+
+  const GroundSegmentation ground = SegmentGround(filtered.points, options.ground);
+  result.ground_known = ground.ground_known;
+  stats.ground_points = ground.ground_points;
+  stats.ground_cells = ground.ground_cells;
+  stats.ground_us = MicrosSince(t);
+
+  const std::vector<uint32_t> layer =
+      ExtractStemLayer(ground.height, ground.ground_known, options.layer);
+  stats.stem_layer_points = layer.size();
+  stats.layer_us = MicrosSince(t);
+
+  const StemClusters clusters = ClusterStems(filtered.points, layer, options.cluster);
+  stats.clusters = clusters.clusters.size();
+  stats.cluster_us = MicrosSince(t);
+
+  StemModelResult stems =
+      FitStems(filtered.points, ground.height, clusters.clusters, ground.model, options.stem);
+  result.trees = std::move(stems.trunks);
+  result.stem_stats = stems.stats;
+  stats.circles = stems.stats.circles;
+  stats.candidates = stems.stats.chains;
+  stats.trees = result.trees.size();
+  stats.fit_us = MicrosSince(t);
+  stats.total_us = std::chrono::duration_cast<std::chrono::microseconds>(t - begin).count();
+  return result;
+}
+
+std::vector<DetectedTree> ToDetectedTrees(const std::vector<DetectedTrunk>& trunks) {
+  std::vector<DetectedTree> trees;
+  trees.reserve(trunks.size());
+  for (const DetectedTrunk& trunk : trunks) trees.push_back(trunk.tree);
+  return trees;
+}
+
+}  // namespace forestmap::algorithms

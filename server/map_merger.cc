@@ -1,0 +1,254 @@
+#include "server/map_merger.h"
+
+#include <map>
+#include <set>
+#include <span>
+#include <tuple>
+#include <utility>
+
+#include "server/convert.h"
+#include "server/status.h"
+
+namespace forestmap::server {
+namespace {
+
+// Trees loaded around a frame reach this far beyond the merge's own reach (m), so that a tree
+// moving a little between frames of one request is still found.
+constexpr double kBoxMargin = 1.0;
+
+struct WorkingTree {
+  algorithms::TreeEstimate estimate;
+  std::map<std::string, std::string> attributes;  // survey columns, kept
+  bool changed = false;
+  bool is_new = false;  // created by this merge (not in the store yet)
+  // A surveyed tree without observation rows: its prior becomes a row when it changes.
+  std::optional<algorithms::TreeObservation> unsaved_prior;
+};
+
+storage::Extent FrameBox(const algorithms::FrameObservations& frame,
+                         const algorithms::MergeOptions& options) {
+  const Eigen::Vector3d sensor = frame.map_from_sensor.translation();
+  const double reach = options.max_range + options.gate_distance + kBoxMargin;
+  return {sensor.x() - reach, sensor.y() - reach, sensor.x() + reach, sensor.y() + reach};
+}
+
+bool Inside(const storage::Extent& box, const Eigen::Vector3d& p) {
+  return p.x() >= box.min_x && p.x() <= box.max_x && p.y() >= box.min_y && p.y() <= box.max_y;
+}
+
+// Observation rows grouped by tree id.
+std::map<int64_t, std::vector<algorithms::TreeObservation>> ByTree(
+    const std::vector<storage::ObservationRecord>& rows) {
+  std::map<int64_t, std::vector<algorithms::TreeObservation>> grouped;
+  for (const storage::ObservationRecord& row : rows) {
+    grouped[row.tree_id].push_back(ToTreeObservation(row));
+  }
+  return grouped;
+}
+
+struct Loaded {
+  std::map<int64_t, WorkingTree> working;
+  std::vector<storage::ObservationRecord> rows;  // current rows of those trees
+};
+
+// The current trees around every frame, with their estimates rebuilt from their rows.
+Loaded LoadTrees(storage::MergeReader& reader,
+                 const std::vector<algorithms::FrameObservations>& frames,
+                 const algorithms::MergeOptions& options) {
+  std::map<int64_t, storage::TreeRecord> records;
+  for (const algorithms::FrameObservations& frame : frames) {
+    for (storage::TreeRecord& tree : reader.TreesInBox(FrameBox(frame, options))) {
+      const int64_t id = *tree.id;
+      records.emplace(id, std::move(tree));
+    }
+  }
+  std::vector<int64_t> ids;
+  ids.reserve(records.size());
+  for (const auto& [id, record] : records) ids.push_back(id);
+  Loaded loaded;
+  loaded.rows = reader.ObservationsOfTrees(ids);
+  auto observations = ByTree(loaded.rows);
+
+  std::map<int64_t, WorkingTree>& working = loaded.working;
+  for (auto& [id, record] : records) {
+    WorkingTree tree;
+    tree.attributes = std::move(record.attributes);
+    const auto rows = observations.find(id);
+    if (rows != observations.end()) {
+      tree.estimate = algorithms::EstimateFromObservations(id, rows->second, options);
+    } else {
+      algorithms::TreeObservation prior = algorithms::SurveyObservation(ToMapTree(record), options);
+      prior.tree_id = id;
+      tree.estimate = algorithms::EstimateFromObservations(id, {&prior, 1}, options);
+      tree.unsaved_prior = prior;
+    }
+    working.emplace(id, std::move(tree));
+  }
+  return loaded;
+}
+
+// Identifies an observation row across ConsolidateTrees, which reorders rows and may change
+// their tree: where it was seen and what was seen.
+using RowKey = std::tuple<std::string, int64_t, int32_t, double, double>;
+RowKey KeyOf(const std::string& source, int64_t frame, int32_t detection, double x, double y) {
+  return {source, frame, detection, x, y};
+}
+
+// Re-associates every row of the region (stored, new and unsaved survey priors) and merges
+// duplicate trees (algorithms::ConsolidateTrees), then turns the outcome into changes: moved
+// rows are closed and re-inserted under their new tree, trees that gained, lost or changed rows
+// are put, trees left empty are removed. Makes the map depend on the set of observations in the
+// region rather than on the order in which requests arrived.
+storage::MapChanges Consolidate(Loaded& loaded,
+                                const std::vector<algorithms::TreeObservation>& fresh,
+                                const algorithms::MergeOptions& options) {
+  std::vector<algorithms::TreeEstimate> trees;
+  for (const auto& [id, tree] : loaded.working) trees.push_back(tree.estimate);
+  std::vector<algorithms::TreeObservation> rows;
+  std::map<RowKey, std::vector<std::pair<int64_t, int64_t>>> stored;  // key -> (row id, tree)
+  for (const storage::ObservationRecord& row : loaded.rows) {
+    rows.push_back(ToTreeObservation(row));
+    stored[KeyOf(row.source, row.frame_id, row.detection_index, row.x, row.y)].emplace_back(
+        row.id, row.tree_id);
+  }
+  for (const auto& [id, tree] : loaded.working) {
+    if (tree.unsaved_prior) rows.push_back(*tree.unsaved_prior);
+  }
+  rows.insert(rows.end(), fresh.begin(), fresh.end());
+  const algorithms::ConsolidateResult result = algorithms::ConsolidateTrees(trees, rows, options);
+
+  storage::MapChanges changes;
+  std::set<int64_t> changed;
+  std::vector<const algorithms::TreeObservation*> priors;
+  for (const algorithms::TreeObservation& row : result.observations) {
+    auto it = stored.find(
+        KeyOf(row.source, row.frame_id, row.detection_index, row.position.x(), row.position.y()));
+    if (it != stored.end() && !it->second.empty()) {
+      const auto [row_id, old_tree] = it->second.back();
+      it->second.pop_back();
+      if (old_tree == row.tree_id) continue;
+      changes.removed_observations.push_back(row_id);
+      changed.insert(old_tree);
+    } else if (row.prior) {
+      priors.push_back(&row);  // saved only with its tree, below
+      continue;
+    }
+    changes.added_observations.push_back(ToObservationRecord(row));
+    changed.insert(row.tree_id);
+  }
+  std::set<int64_t> removed(result.removed_ids.begin(), result.removed_ids.end());
+  for (const algorithms::TreeObservation* prior : priors) {
+    if (changed.count(prior->tree_id) != 0) {
+      changes.added_observations.push_back(ToObservationRecord(*prior));
+    }
+  }
+  for (const algorithms::TreeEstimate& tree : result.trees) {
+    if (changed.count(tree.id) == 0) continue;
+    const auto it = loaded.working.find(tree.id);
+    changes.put_trees.push_back(ToTreeRecord(tree, it != loaded.working.end()
+                                                       ? it->second.attributes
+                                                       : std::map<std::string, std::string>{}));
+  }
+  for (const int64_t id : removed) {
+    const auto it = loaded.working.find(id);
+    if (it != loaded.working.end() && !it->second.is_new) changes.removed_trees.push_back(id);
+  }
+  return changes;
+}
+
+}  // namespace
+
+FramesMerge MergeFrames(storage::MergeReader& reader,
+                        const std::vector<algorithms::FrameObservations>& frames,
+                        const algorithms::MergeOptions& options, bool consolidate) {
+  Loaded loaded = LoadTrees(reader, frames, options);
+  std::map<int64_t, WorkingTree>& working = loaded.working;
+  int64_t next_id = reader.NextFreeTreeId();
+  FramesMerge merge;
+  std::vector<algorithms::TreeObservation> rows;
+  std::vector<algorithms::TreeEstimate> nearby;
+  for (const algorithms::FrameObservations& frame : frames) {
+    const storage::Extent box = FrameBox(frame, options);
+    nearby.clear();
+    for (const auto& [id, tree] : working) {
+      if (Inside(box, tree.estimate.position)) nearby.push_back(tree.estimate);
+    }
+    algorithms::MergeResult result = algorithms::MergeFrame(nearby, frame, options);
+    std::vector<int64_t> new_ids;
+    for (size_t k = 0; k < result.new_trees.size(); ++k) new_ids.push_back(next_id++);
+    algorithms::ResolveNewIds(result, new_ids);
+    for (algorithms::TreeEstimate& tree : result.updated_trees) {
+      WorkingTree& target = working.at(tree.id);
+      target.estimate = std::move(tree);
+      target.changed = true;
+    }
+    for (algorithms::TreeEstimate& tree : result.new_trees) {
+      WorkingTree created;
+      created.estimate = std::move(tree);
+      created.changed = true;
+      created.is_new = true;
+      working.emplace(created.estimate.id, std::move(created));
+    }
+    rows.insert(rows.end(), result.observations.begin(), result.observations.end());
+    FrameMergeCounts counts;
+    counts.associated = result.associated;
+    counts.added = result.created;
+    counts.promoted = static_cast<int>(result.promoted_ids.size());
+    counts.ignored = result.skipped;
+    merge.counts.push_back(counts);
+  }
+  if (consolidate) {
+    merge.changes = Consolidate(loaded, rows, options);
+    return merge;
+  }
+  for (auto& [id, tree] : working) {
+    if (!tree.changed) continue;
+    merge.changes.put_trees.push_back(ToTreeRecord(tree.estimate, tree.attributes));
+    if (tree.unsaved_prior) {
+      merge.changes.added_observations.push_back(ToObservationRecord(*tree.unsaved_prior));
+    }
+  }
+  for (const algorithms::TreeObservation& row : rows) {
+    merge.changes.added_observations.push_back(ToObservationRecord(row));
+  }
+  return merge;
+}
+
+SourceRemoval RemoveSourceChanges(storage::MergeReader& reader, const std::string& source,
+                                  const algorithms::MergeOptions& options) {
+  const std::vector<storage::ObservationRecord> removed = reader.ObservationsOfSource(source);
+  if (removed.empty()) {
+    throw ServiceError(
+        grpc::StatusCode::NOT_FOUND,
+        "map \"" + reader.map().name + "\" has no observations of source \"" + source + "\"");
+  }
+  std::set<int64_t> removed_ids;
+  std::set<int64_t> affected;
+  for (const storage::ObservationRecord& row : removed) {
+    removed_ids.insert(row.id);
+    affected.insert(row.tree_id);
+  }
+  const std::vector<int64_t> tree_ids(affected.begin(), affected.end());
+  std::vector<storage::ObservationRecord> remaining;
+  for (storage::ObservationRecord& row : reader.ObservationsOfTrees(tree_ids)) {
+    if (removed_ids.count(row.id) == 0) remaining.push_back(std::move(row));
+  }
+  const auto rows = ByTree(remaining);
+  SourceRemoval removal;
+  for (const storage::TreeRecord& record : reader.TreesById(tree_ids)) {
+    const auto kept = rows.find(*record.id);
+    if (kept == rows.end()) {
+      removal.changes.removed_trees.push_back(*record.id);
+      ++removal.trees_removed;
+      continue;
+    }
+    const algorithms::TreeEstimate estimate =
+        algorithms::EstimateFromObservations(*record.id, kept->second, options);
+    removal.changes.put_trees.push_back(ToTreeRecord(estimate, record.attributes));
+    ++removal.trees_updated;
+  }
+  removal.changes.removed_observations.assign(removed_ids.begin(), removed_ids.end());
+  return removal;
+}
+
+}  // namespace forestmap::server

@@ -1,0 +1,73 @@
+#pragma once
+// Pieces of SqliteMapStore shared by its source files (schema, rows, versions). Not a public API.
+
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "storage/map_store.h"
+#include "storage/sqlite.h"
+#include "storage/sqlite_map_store.h"
+
+namespace forestmap::storage::internal {
+
+// valid_to of rows that belong to the current version ("forever"). The literal appears in SQL
+// text too (kCurrent below), so that SQLite can use the partial indexes on current rows.
+inline constexpr int64_t kForever = std::numeric_limits<int64_t>::max();
+#define FORESTMAP_CURRENT "9223372036854775807"
+
+// Schema steps for sqlite::MigrateSchema and per-connection settings.
+const std::vector<const char*>& SchemaSteps();
+void ConfigureConnection(sqlite::Database& db, const SqliteMapStoreOptions& options,
+                         bool read_only);
+
+int64_t NowUnixMs();
+void CheckName(const std::string& name);
+
+struct MapRow {
+  int64_t id = 0;
+  MapInfo info;
+};
+// Columns of every maps query, in the order ReadMapRow expects.
+#define FORESTMAP_MAP_COLUMNS                                                     \
+  "id, name, description, crs, version, tree_count, min_x, min_y, max_x, max_y, " \
+  "created_unix_ms, updated_unix_ms, confirmed_count"
+MapRow ReadMapRow(const sqlite::Statement& row);
+MapRow RequireMap(sqlite::Database& db, const std::string& name);  // kNotFound
+// Stores version, counts, extent and updated time of `map`.
+void UpdateMapRow(sqlite::Database& db, const MapRow& map);
+
+std::optional<Extent> Union(const std::optional<Extent>& a, const std::optional<Extent>& b);
+// Extent of the current trees, by a scan (after removals that may shrink it).
+std::optional<Extent> ScanExtent(sqlite::Database& db, int64_t map_id);
+
+// Tree columns of every tree query, in the order ReadTreeRow expects.
+#define FORESTMAP_TREE_COLUMNS                                                                  \
+  "t.tree_id, t.x, t.y, t.z, t.dbh, t.attributes, t.status, t.observations, t.position_sigma, " \
+  "t.dbh_sigma"
+TreeRecord ReadTreeRow(const sqlite::Statement& row, const std::string& map_name);
+
+// Inserts trees[i] with id ids[i], valid from `valid_from`, block by block with their R*Tree
+// rows. A current id of the map -> kInvalidArgument naming the tree.
+void InsertTrees(sqlite::Database& db, const MapRow& map, const std::vector<TreeRecord>& trees,
+                 const std::vector<int64_t>& ids, int64_t valid_from);
+// kInvalidArgument for a NaN bound or min > max.
+void CheckBox(const std::string& name, const Extent& box);
+// Current trees of the map inside the box (inclusive), by id, through the spatial index.
+std::vector<TreeRecord> CurrentTreesInBox(sqlite::Database& db, const MapRow& map,
+                                          const Extent& box);
+std::string TreeLabel(const std::vector<TreeRecord>& trees, size_t index);
+
+#define FORESTMAP_OBSERVATION_COLUMNS                                                \
+  "o.id, o.tree_id, o.source, o.frame_id, o.detection_index, o.x, o.y, o.z, o.dbh, " \
+  "o.weight_xy, o.weight_dbh, o.sensor_x, o.sensor_y, o.sensor_z, o.prior, o.valid_from"
+ObservationRecord ReadObservationRow(const sqlite::Statement& row);
+void InsertObservations(sqlite::Database& db, int64_t map_id,
+                        const std::vector<ObservationRecord>& observations, int64_t valid_from);
+
+// Appends the history entry of `record.version`.
+void InsertVersion(sqlite::Database& db, int64_t map_id, const VersionRecord& record);
+
+}  // namespace forestmap::storage::internal

@@ -1,0 +1,447 @@
+// SqliteMapStore: versions of shared maps (reading an old version, history, restore) and the
+// merge transaction.
+
+#include <sqlite3.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <string>
+#include <utility>
+
+#include "storage/sqlite.h"
+#include "storage/sqlite_map_store.h"
+#include "storage/sqlite_map_store_internal.h"
+
+namespace forestmap::storage {
+namespace {
+
+using sqlite::Database;
+using sqlite::Statement;
+using sqlite::Transaction;
+using Code = StorageError::Code;
+using internal::MapRow;
+
+// The history entry of `version`, or kNotFound naming the versions that can be read.
+VersionRecord RequireVersion(Database& db, const MapRow& map, int64_t version) {
+  Statement select(db,
+                   "SELECT version, created_unix_ms, kind, source, tree_count, confirmed_count, "
+                   "trees_added, trees_updated, trees_removed, observations_added, "
+                   "observations_removed, restored_from FROM map_versions WHERE map_id = ?1 AND "
+                   "version = ?2");
+  select.BindInt64(1, map.id);
+  select.BindInt64(2, version);
+  if (!select.Step()) {
+    Statement first(db, "SELECT MIN(version) FROM map_versions WHERE map_id = ?1");
+    first.BindInt64(1, map.id);
+    const int64_t oldest = first.Step() ? first.ColumnInt64(0) : map.info.version;
+    throw StorageError(Code::kNotFound, "map '" + map.info.name + "' has no version " +
+                                            std::to_string(version) + "; versions " +
+                                            std::to_string(oldest) + " to " +
+                                            std::to_string(map.info.version) + " can be read");
+  }
+  VersionRecord r;
+  r.version = select.ColumnInt64(0);
+  r.created_unix_ms = select.ColumnInt64(1);
+  r.kind = static_cast<VersionKind>(select.ColumnInt64(2));
+  r.source = select.ColumnText(3);
+  r.tree_count = select.ColumnInt64(4);
+  r.confirmed_count = select.ColumnInt64(5);
+  r.trees_added = select.ColumnInt64(6);
+  r.trees_updated = select.ColumnInt64(7);
+  r.trees_removed = select.ColumnInt64(8);
+  r.observations_added = select.ColumnInt64(9);
+  r.observations_removed = select.ColumnInt64(10);
+  r.restored_from = select.ColumnInt64(11);
+  return r;
+}
+
+std::vector<TreeRecord> TreesAtVersion(Database& db, const MapRow& map, int64_t version) {
+  std::vector<TreeRecord> trees;
+  if (version == map.info.version) {
+    trees.reserve(static_cast<size_t>(map.info.tree_count));
+    Statement select(db, "SELECT " FORESTMAP_TREE_COLUMNS
+                         " FROM trees AS t INDEXED BY trees_current "
+                         "WHERE t.map_id = ?1 AND t.valid_to = " FORESTMAP_CURRENT
+                         " ORDER BY t.tree_id");
+    select.BindInt64(1, map.id);
+    while (select.Step()) trees.push_back(internal::ReadTreeRow(select, map.info.name));
+    return trees;
+  }
+  // Rows of `version` that are still current, and closed rows that were valid then.
+  Statement select(db, "SELECT " FORESTMAP_TREE_COLUMNS
+                       " FROM trees AS t INDEXED BY trees_current "
+                       "WHERE t.map_id = ?1 AND t.valid_to = " FORESTMAP_CURRENT
+                       " AND t.valid_from <= ?2 UNION ALL SELECT " FORESTMAP_TREE_COLUMNS
+                       " FROM trees AS t INDEXED BY trees_history WHERE t.map_id = ?1 AND "
+                       "t.valid_to != " FORESTMAP_CURRENT
+                       " AND t.valid_from <= ?2 AND "
+                       "t.valid_to > ?2 ORDER BY 1");
+  select.BindInt64(1, map.id);
+  select.BindInt64(2, version);
+  while (select.Step()) trees.push_back(internal::ReadTreeRow(select, map.info.name));
+  return trees;
+}
+
+// Read access of a merge: the writer connection inside its write transaction.
+class SqliteMergeReader final : public MergeReader {
+ public:
+  SqliteMergeReader(Database& db, const MapRow& map) : db_(db), map_(map) {}
+
+  const MapInfo& map() const override { return map_.info; }
+
+  std::vector<TreeRecord> TreesInBox(const Extent& box) override {
+    internal::CheckBox(map_.info.name, box);
+    return internal::CurrentTreesInBox(db_, map_, box);
+  }
+
+  std::vector<TreeRecord> TreesById(std::span<const int64_t> ids) override {
+    Statement select(db_,
+                     "SELECT " FORESTMAP_TREE_COLUMNS
+                     " FROM trees AS t INDEXED BY trees_current "
+                     "WHERE t.map_id = ?1 AND t.tree_id = ?2 AND t.valid_to = " FORESTMAP_CURRENT);
+    select.BindInt64(1, map_.id);
+    std::vector<TreeRecord> trees;
+    for (const int64_t id : std::set<int64_t>(ids.begin(), ids.end())) {
+      select.BindInt64(2, id);
+      if (select.Step()) trees.push_back(internal::ReadTreeRow(select, map_.info.name));
+      select.Reset();
+    }
+    return trees;
+  }
+
+  std::vector<ObservationRecord> ObservationsOfTrees(std::span<const int64_t> ids) override {
+    Statement select(db_, "SELECT " FORESTMAP_OBSERVATION_COLUMNS
+                          " FROM observations AS o WHERE "
+                          "o.map_id = ?1 AND o.tree_id = ?2 AND o.valid_to = " FORESTMAP_CURRENT);
+    select.BindInt64(1, map_.id);
+    std::vector<ObservationRecord> rows;
+    for (const int64_t id : std::set<int64_t>(ids.begin(), ids.end())) {
+      select.BindInt64(2, id);
+      while (select.Step()) rows.push_back(internal::ReadObservationRow(select));
+      select.Reset();
+    }
+    std::sort(rows.begin(), rows.end(),
+              [](const ObservationRecord& a, const ObservationRecord& b) { return a.id < b.id; });
+    return rows;
+  }
+
+  std::vector<ObservationRecord> ObservationsOfSource(const std::string& source) override {
+    Statement select(db_, "SELECT " FORESTMAP_OBSERVATION_COLUMNS
+                          " FROM observations AS o WHERE "
+                          "o.map_id = ?1 AND o.source = ?2 AND o.valid_to = " FORESTMAP_CURRENT
+                          " ORDER BY o.id");
+    select.BindInt64(1, map_.id);
+    select.BindText(2, source);
+    std::vector<ObservationRecord> rows;
+    while (select.Step()) rows.push_back(internal::ReadObservationRow(select));
+    return rows;
+  }
+
+  int64_t NextFreeTreeId() override {
+    // Both partial indexes answer MAX directly; together they cover every row.
+    Statement select(db_,
+                     "SELECT MAX(m) FROM (SELECT MAX(tree_id) AS m FROM trees INDEXED BY "
+                     "trees_current WHERE map_id = ?1 AND valid_to = " FORESTMAP_CURRENT
+                     " UNION ALL SELECT MAX(tree_id) FROM trees INDEXED BY trees_history WHERE "
+                     "map_id = ?1 AND valid_to != " FORESTMAP_CURRENT ")");
+    select.BindInt64(1, map_.id);
+    if (!select.Step() || select.ColumnIsNull(0)) return 1;
+    const int64_t max_id = select.ColumnInt64(0);
+    if (max_id == std::numeric_limits<int64_t>::max()) {
+      throw StorageError(Code::kInvalidArgument,
+                         "map '" + map_.info.name + "': no free tree ids left for new trees");
+    }
+    return std::max<int64_t>(max_id + 1, 1);
+  }
+
+ private:
+  Database& db_;
+  const MapRow& map_;
+};
+
+// What a change set did to the counts of the map (filled while applying it).
+struct Tally {
+  bool boundary_touched = false;  // a closed row lay on the extent's border: rescan the extent
+};
+
+// Closes the current row of tree `id` at `version`; returns whether there was one and adjusts
+// the map's counts for the row that left.
+bool CloseTree(Statement& close, MapRow& map, int64_t id, Tally& tally) {
+  close.BindInt64(2, id);
+  if (!close.Step()) {
+    close.Reset();
+    return false;
+  }
+  const bool confirmed = close.ColumnInt64(0) != 0;
+  const double x = close.ColumnDouble(1), y = close.ColumnDouble(2);
+  close.Reset();
+  MapInfo& info = map.info;
+  info.tree_count -= 1;
+  info.confirmed_count -= confirmed ? 1 : 0;
+  if (info.extent && (x == info.extent->min_x || x == info.extent->max_x ||
+                      y == info.extent->min_y || y == info.extent->max_y)) {
+    tally.boundary_touched = true;
+  }
+  return true;
+}
+
+void CheckPutTrees(const MapRow& map, const MapChanges& changes) {
+  std::set<int64_t> ids;
+  for (size_t i = 0; i < changes.put_trees.size(); ++i) {
+    const TreeRecord& tree = changes.put_trees[i];
+    const auto fail = [&](const std::string& what) {
+      throw StorageError(Code::kInvalidArgument, "map '" + map.info.name + "': merge: " +
+                                                     internal::TreeLabel(changes.put_trees, i) +
+                                                     ": " + what);
+    };
+    if (!tree.id) fail("a merged tree needs an id");
+    if (!ids.insert(*tree.id).second) fail("the id is put twice");
+    if (!std::isfinite(tree.x) || !std::isfinite(tree.y) || (tree.z && !std::isfinite(*tree.z)) ||
+        (tree.dbh && !std::isfinite(*tree.dbh))) {
+      fail("coordinates and DBH must be finite");
+    }
+  }
+  for (const int64_t id : changes.removed_trees) {
+    if (ids.count(id) != 0) {
+      throw StorageError(Code::kInvalidArgument, "map '" + map.info.name + "': merge: tree " +
+                                                     std::to_string(id) +
+                                                     " is both put and removed");
+    }
+  }
+}
+
+// Writes `changes` as version map.version + 1 and updates `map` (row and info).
+VersionRecord ApplyChanges(Database& db, MapRow& map, const MergeNote& note,
+                           const MapChanges& changes) {
+  CheckPutTrees(map, changes);
+  VersionRecord record;
+  record.version = map.info.version + 1;
+  record.kind = note.kind;
+  record.source = note.source;
+  Tally tally;
+  Statement close(db,
+                  "UPDATE trees SET valid_to = ?3 WHERE map_id = ?1 AND tree_id = ?2 AND "
+                  "valid_to = " FORESTMAP_CURRENT " RETURNING status, x, y");
+  close.BindInt64(1, map.id);
+  close.BindInt64(3, record.version);
+  for (const int64_t id : changes.removed_trees) {
+    if (!CloseTree(close, map, id, tally)) {
+      throw StorageError(Code::kInvalidArgument, "map '" + map.info.name + "': merge: tree " +
+                                                     std::to_string(id) +
+                                                     " to remove is not in the map");
+    }
+    ++record.trees_removed;
+  }
+  std::vector<int64_t> ids;
+  ids.reserve(changes.put_trees.size());
+  std::optional<Extent> added_extent;
+  for (const TreeRecord& tree : changes.put_trees) {
+    ++(CloseTree(close, map, *tree.id, tally) ? record.trees_updated : record.trees_added);
+    ids.push_back(*tree.id);
+    map.info.tree_count += 1;
+    map.info.confirmed_count += tree.status == TreeStatus::kConfirmed ? 1 : 0;
+    added_extent = internal::Union(added_extent, Extent{tree.x, tree.y, tree.x, tree.y});
+  }
+  internal::InsertTrees(db, map, changes.put_trees, ids, record.version);
+
+  Statement close_observation(db,
+                              "UPDATE observations SET valid_to = ?3 WHERE id = ?2 AND "
+                              "map_id = ?1 AND valid_to = " FORESTMAP_CURRENT);
+  close_observation.BindInt64(1, map.id);
+  close_observation.BindInt64(3, record.version);
+  for (const int64_t id : changes.removed_observations) {
+    close_observation.BindInt64(2, id);
+    close_observation.Run();
+    if (sqlite3_changes64(db.handle()) != 1) {
+      throw StorageError(Code::kInvalidArgument, "map '" + map.info.name +
+                                                     "': merge: observation " + std::to_string(id) +
+                                                     " to remove is not current in the map");
+    }
+  }
+  internal::InsertObservations(db, map.id, changes.added_observations, record.version);
+  record.observations_added = static_cast<int64_t>(changes.added_observations.size());
+  record.observations_removed = static_cast<int64_t>(changes.removed_observations.size());
+
+  MapInfo& info = map.info;
+  info.extent = tally.boundary_touched ? internal::ScanExtent(db, map.id)
+                                       : internal::Union(info.extent, added_extent);
+  if (info.tree_count == 0) info.extent.reset();
+  info.version = record.version;
+  info.updated_unix_ms = internal::NowUnixMs();
+  internal::UpdateMapRow(db, map);
+  record.created_unix_ms = info.updated_unix_ms;
+  record.tree_count = info.tree_count;
+  record.confirmed_count = info.confirmed_count;
+  internal::InsertVersion(db, map.id, record);
+  return record;
+}
+
+}  // namespace
+
+MapSnapshot SqliteMapStore::ReadMapVersion(const std::string& name, int64_t version) {
+  internal::CheckName(name);
+  if (version < 0) {
+    throw StorageError(Code::kInvalidArgument,
+                       "map '" + name + "': version " + std::to_string(version) + " is negative");
+  }
+  MapSnapshot snapshot;
+  WithReader([&](Database& db) {
+    Transaction transaction(db, Transaction::Kind::kRead);  // info and trees of one version
+    const MapRow map = internal::RequireMap(db, name);
+    snapshot.info = map.info;
+    if (version == 0 || version == map.info.version) {
+      snapshot.trees = TreesAtVersion(db, map, map.info.version);
+      transaction.Commit();
+      return;
+    }
+    const VersionRecord record = RequireVersion(db, map, version);
+    snapshot.trees = TreesAtVersion(db, map, version);
+    transaction.Commit();
+    MapInfo& info = snapshot.info;
+    info.version = version;
+    info.updated_unix_ms = record.created_unix_ms;
+    info.tree_count = static_cast<int64_t>(snapshot.trees.size());
+    info.confirmed_count = 0;
+    info.extent.reset();
+    for (const TreeRecord& tree : snapshot.trees) {
+      info.confirmed_count += tree.status == TreeStatus::kConfirmed ? 1 : 0;
+      info.extent = internal::Union(info.extent, Extent{tree.x, tree.y, tree.x, tree.y});
+    }
+  });
+  return snapshot;
+}
+
+std::vector<VersionRecord> SqliteMapStore::ListVersions(const std::string& name, int64_t limit) {
+  internal::CheckName(name);
+  std::vector<VersionRecord> versions;
+  WithReader([&](Database& db) {
+    Transaction transaction(db, Transaction::Kind::kRead);
+    const MapRow map = internal::RequireMap(db, name);
+    Statement select(db,
+                     "SELECT version FROM map_versions WHERE map_id = ?1 ORDER BY version DESC "
+                     "LIMIT ?2");
+    select.BindInt64(1, map.id);
+    select.BindInt64(2, limit > 0 ? limit : -1);
+    std::vector<int64_t> numbers;
+    while (select.Step()) numbers.push_back(select.ColumnInt64(0));
+    for (auto it = numbers.rbegin(); it != numbers.rend(); ++it) {
+      versions.push_back(RequireVersion(db, map, *it));
+    }
+    transaction.Commit();
+  });
+  return versions;
+}
+
+MapInfo SqliteMapStore::RestoreVersion(const std::string& name, int64_t version) {
+  internal::CheckName(name);
+  MapInfo result;
+  WithWriter([&](Database& db) {
+    Transaction transaction(db, Transaction::Kind::kWrite);
+    MapRow map = internal::RequireMap(db, name);
+    const VersionRecord old = RequireVersion(db, map, version);
+    const int64_t next = map.info.version + 1;
+    // Rows valid at `version` but no longer current come back as copies; current rows that
+    // `version` did not have are closed. Rows valid at both simply stay.
+    std::vector<TreeRecord> copies;
+    {
+      Statement select(db, "SELECT " FORESTMAP_TREE_COLUMNS
+                           " FROM trees AS t INDEXED BY "
+                           "trees_history WHERE t.map_id = ?1 AND t.valid_to != " FORESTMAP_CURRENT
+                           " AND t.valid_from <= ?2 AND t.valid_to > ?2");
+      select.BindInt64(1, map.id);
+      select.BindInt64(2, version);
+      while (select.Step()) copies.push_back(internal::ReadTreeRow(select, name));
+    }
+    std::set<int64_t> closed;
+    {
+      Statement close(db,
+                      "UPDATE trees SET valid_to = ?3 WHERE map_id = ?1 AND valid_from > ?2 AND "
+                      "valid_to = " FORESTMAP_CURRENT " RETURNING tree_id");
+      close.BindInt64(1, map.id);
+      close.BindInt64(2, version);
+      close.BindInt64(3, next);
+      while (close.Step()) closed.insert(close.ColumnInt64(0));
+    }
+    std::vector<int64_t> ids;
+    VersionRecord record;
+    for (const TreeRecord& tree : copies) {
+      ids.push_back(*tree.id);
+      ++(closed.count(*tree.id) ? record.trees_updated : record.trees_added);
+    }
+    record.trees_removed = static_cast<int64_t>(closed.size()) - record.trees_updated;
+    internal::InsertTrees(db, map, copies, ids, next);
+
+    std::vector<ObservationRecord> observation_copies;
+    {
+      Statement select(
+          db,
+          "SELECT " FORESTMAP_OBSERVATION_COLUMNS
+          " FROM observations AS o "
+          "INDEXED BY observations_history WHERE o.map_id = ?1 AND o.valid_to != " FORESTMAP_CURRENT
+          " AND o.valid_from <= ?2 AND o.valid_to > ?2 ORDER BY o.id");
+      select.BindInt64(1, map.id);
+      select.BindInt64(2, version);
+      while (select.Step()) observation_copies.push_back(internal::ReadObservationRow(select));
+    }
+    Statement close_observations(db,
+                                 "UPDATE observations SET valid_to = ?3 WHERE map_id = ?1 AND "
+                                 "valid_from > ?2 AND valid_to = " FORESTMAP_CURRENT);
+    close_observations.BindInt64(1, map.id);
+    close_observations.BindInt64(2, version);
+    close_observations.BindInt64(3, next);
+    close_observations.Run();
+    record.observations_removed = sqlite3_changes64(db.handle());
+    internal::InsertObservations(db, map.id, observation_copies, next);
+    record.observations_added = static_cast<int64_t>(observation_copies.size());
+
+    MapInfo& info = map.info;
+    info.version = next;
+    info.tree_count = old.tree_count;
+    info.confirmed_count = old.confirmed_count;
+    info.extent = internal::ScanExtent(db, map.id);
+    info.updated_unix_ms = internal::NowUnixMs();
+    internal::UpdateMapRow(db, map);
+    record.version = next;
+    record.created_unix_ms = info.updated_unix_ms;
+    record.kind = VersionKind::kRestore;
+    record.tree_count = info.tree_count;
+    record.confirmed_count = info.confirmed_count;
+    record.restored_from = version;
+    internal::InsertVersion(db, map.id, record);
+    transaction.Commit();
+    result = info;
+  });
+  return result;
+}
+
+MapInfo SqliteMapStore::Merge(const std::string& name, const MergeNote& note,
+                              const MergeFunction& merge) {
+  internal::CheckName(name);
+  MapInfo result;
+  WithWriter([&](Database& db) {
+    // IMMEDIATE: the write lock is taken before the first read, so what `merge` reads is the
+    // version its changes apply to (no other writer, in this process or another, in between).
+    Transaction transaction(db, Transaction::Kind::kWrite);
+    MapRow map = internal::RequireMap(db, name);
+    if (note.expected_version && *note.expected_version != map.info.version) {
+      throw StorageError(Code::kConflict,
+                         "map '" + name + "' is at version " + std::to_string(map.info.version) +
+                             ", not at the base version " + std::to_string(*note.expected_version) +
+                             " (rejected as stale; fetch the map and retry, or merge anyway)");
+    }
+    SqliteMergeReader reader(db, map);
+    const MapChanges changes = merge(reader);
+    if (changes.empty()) {
+      result = map.info;  // nothing to write: no new version (the transaction rolls back)
+      return;
+    }
+    ApplyChanges(db, map, note, changes);
+    transaction.Commit();
+    result = map.info;
+  });
+  return result;
+}
+
+}  // namespace forestmap::storage

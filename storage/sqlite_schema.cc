@@ -1,0 +1,152 @@
+// The SQLite schema of SqliteMapStore and its migrations.
+
+#include <string>
+#include <vector>
+
+#include "storage/sqlite_map_store_internal.h"
+
+namespace forestmap::storage::internal {
+namespace {
+
+// Step i takes a database from user_version i to i + 1 (see sqlite::MigrateSchema). Never edit a
+// shipped step: append a new one and bump SqliteMapStore::kSchemaVersion.
+//
+// tree_blocks is the spatial index: one R*Tree row per block of trees of one map that were
+// written together and lie close together; the block's trees occupy the rowids first_rowid ..
+// last_rowid of `trees`. map_id is an index dimension so a box query on one map does not wade
+// through other maps in the same frame, and an auxiliary column for exact matching (the R*Tree
+// keeps 32-bit floats, rounded outwards: it answers a superset that queries filter exactly).
+// ON DELETE CASCADE does not reach a virtual table: whoever deletes trees deletes their blocks.
+constexpr const char* kStep1 = R"sql(
+CREATE TABLE maps (
+  id INTEGER PRIMARY KEY,
+  name TEXT NOT NULL UNIQUE,
+  description TEXT NOT NULL,
+  crs TEXT NOT NULL,
+  version INTEGER NOT NULL,
+  tree_count INTEGER NOT NULL,
+  min_x REAL, min_y REAL, max_x REAL, max_y REAL,  -- NULL for an empty map
+  created_unix_ms INTEGER NOT NULL,
+  updated_unix_ms INTEGER NOT NULL
+);
+CREATE TABLE trees (
+  rowid INTEGER PRIMARY KEY,
+  map_id INTEGER NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
+  tree_id INTEGER NOT NULL,
+  x REAL NOT NULL,
+  y REAL NOT NULL,
+  z REAL,
+  dbh REAL,
+  attributes TEXT,  -- JSON object of strings, NULL when there are none
+  UNIQUE (map_id, tree_id)
+);
+CREATE VIRTUAL TABLE tree_blocks USING rtree(
+  id, min_map, max_map, min_x, max_x, min_y, max_y, +map_id, +first_rowid, +last_rowid);
+PRAGMA user_version = 1;
+)sql";
+
+// Version 2, shared maps: every version stays readable. A tree row holds one state of one tree
+// for the versions valid_from <= v < valid_to (valid_to = 2^63-1 while current); a change closes
+// the current row and inserts a new one, so the blocks of tree_blocks (rowid ranges) stay valid
+// and old rows simply stop matching "current". Observation rows are versioned the same way, and
+// map_versions is the history. Existing trees are kept (rowids too) as rows of the map's current
+// version, which becomes the first version of its history (kind 7, "migrated").
+constexpr const char* kStep2 = R"sql(
+CREATE TABLE trees_v2 (
+  rowid INTEGER PRIMARY KEY,
+  map_id INTEGER NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
+  tree_id INTEGER NOT NULL,
+  valid_from INTEGER NOT NULL,  -- first map version holding this row
+  valid_to INTEGER NOT NULL,    -- first map version no longer holding it; 2^63-1 while current
+  x REAL NOT NULL,
+  y REAL NOT NULL,
+  z REAL,
+  dbh REAL,
+  attributes TEXT,  -- JSON object of strings, NULL when there are none
+  status INTEGER NOT NULL DEFAULT 1,  -- 0 candidate, 1 confirmed
+  observations INTEGER NOT NULL DEFAULT 0,
+  position_sigma REAL,  -- m
+  dbh_sigma REAL        -- m
+);
+INSERT INTO trees_v2 (rowid, map_id, tree_id, valid_from, valid_to, x, y, z, dbh, attributes)
+  SELECT t.rowid, t.map_id, t.tree_id, m.version, 9223372036854775807, t.x, t.y, t.z, t.dbh,
+         t.attributes
+  FROM trees AS t JOIN maps AS m ON m.id = t.map_id;
+DROP TABLE trees;
+ALTER TABLE trees_v2 RENAME TO trees;
+CREATE UNIQUE INDEX trees_current ON trees (map_id, tree_id)
+  WHERE valid_to = 9223372036854775807;
+-- Closed rows only: a write of current rows (a survey upload) maintains one index, as before.
+CREATE INDEX trees_history ON trees (map_id, tree_id, valid_from)
+  WHERE valid_to != 9223372036854775807;
+
+CREATE TABLE observations (
+  id INTEGER PRIMARY KEY,
+  map_id INTEGER NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
+  tree_id INTEGER NOT NULL,
+  valid_from INTEGER NOT NULL,
+  valid_to INTEGER NOT NULL,
+  source TEXT NOT NULL,
+  frame_id INTEGER NOT NULL,
+  detection_index INTEGER NOT NULL,
+  x REAL NOT NULL,
+  y REAL NOT NULL,
+  z REAL,
+  dbh REAL,
+  weight_xy REAL NOT NULL,   -- 1/m^2
+  weight_dbh REAL NOT NULL,  -- 1/m^2
+  sensor_x REAL NOT NULL,
+  sensor_y REAL NOT NULL,
+  sensor_z REAL NOT NULL,
+  prior INTEGER NOT NULL     -- 1 for a survey prior
+);
+CREATE INDEX observations_of_tree ON observations (map_id, tree_id)
+  WHERE valid_to = 9223372036854775807;
+CREATE INDEX observations_of_source ON observations (map_id, source)
+  WHERE valid_to = 9223372036854775807;
+CREATE INDEX observations_history ON observations (map_id, valid_from)
+  WHERE valid_to != 9223372036854775807;
+
+CREATE TABLE map_versions (
+  map_id INTEGER NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
+  version INTEGER NOT NULL,
+  created_unix_ms INTEGER NOT NULL,
+  kind INTEGER NOT NULL,  -- storage::VersionKind
+  source TEXT NOT NULL,
+  tree_count INTEGER NOT NULL,
+  confirmed_count INTEGER NOT NULL,
+  trees_added INTEGER NOT NULL,
+  trees_updated INTEGER NOT NULL,
+  trees_removed INTEGER NOT NULL,
+  observations_added INTEGER NOT NULL,
+  observations_removed INTEGER NOT NULL,
+  restored_from INTEGER NOT NULL,
+  PRIMARY KEY (map_id, version)
+) WITHOUT ROWID;
+ALTER TABLE maps ADD COLUMN confirmed_count INTEGER NOT NULL DEFAULT 0;
+UPDATE maps SET confirmed_count = tree_count;
+INSERT INTO map_versions
+  SELECT id, version, updated_unix_ms, 7, '', tree_count, tree_count, 0, 0, 0, 0, 0, 0 FROM maps;
+PRAGMA user_version = 2;
+)sql";
+
+}  // namespace
+
+const std::vector<const char*>& SchemaSteps() {
+  static const std::vector<const char*> steps = {kStep1, kStep2};
+  return steps;
+}
+
+void ConfigureConnection(sqlite::Database& db, const SqliteMapStoreOptions& options,
+                         bool read_only) {
+  // synchronous = NORMAL is durable against application crashes in WAL mode; a power loss may
+  // only drop the last commits, never corrupt the file.
+  db.Execute("PRAGMA foreign_keys = ON; PRAGMA synchronous = NORMAL");
+  // PRAGMA values cannot be bound; this one is an integer from checked options, not user text.
+  // A negative cache_size is in KiB.
+  const std::string cache_sql = "PRAGMA cache_size = -" + std::to_string(options.cache_mib * 1024);
+  db.Execute(cache_sql.c_str());
+  if (read_only) db.Execute("PRAGMA query_only = ON");
+}
+
+}  // namespace forestmap::storage::internal

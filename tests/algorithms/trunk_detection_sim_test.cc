@@ -1,0 +1,186 @@
+// Trunk detection against the scan simulator's exact truth, over drone poses in real stem maps
+// (../shared/data/stemmaps): recall of visible trunks (DBH >= 10 cm, within 20 m), precision,
+// position and DBH RMSE. 20 poses by default; the full evaluation runs with
+//   FORESTMAP_DETECT_POSES=120 ./trunk_detection_sim_test
+// and prints the summary (also per scanner).
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <random>
+
+#include "algorithms/scan_simulation.h"
+#include "algorithms/trunk_detection.h"
+#include "client/tree_csv.h"
+
+namespace forestmap::algorithms {
+namespace {
+
+const std::string kStemMaps = std::string(FORESTMAP_SHARED_DATA) + "/stemmaps/";
+// Real surveyed maps with DBH and a plot of at least 50 x 38 m.
+const char* const kMaps[] = {"spatstat_spruces",    "siplab_boreasSP", "ads_BPoirier",
+                             "lidaRtRee_chablais3", "spatstat_waka",   "siplab_boreasSA"};
+const char* const kScanners[] = {"os0-64", "os0-128", "os1-64", "os1-128"};
+constexpr double kMinDbh = 0.10;        // m, trunks that count for recall
+constexpr double kMaxRange = 20.0;      // m
+constexpr double kMatchDistance = 0.5;  // m, detection to true stem (horizontal, at the ground)
+
+struct Tally {
+  int targets = 0, found = 0, detections = 0, true_detections = 0;
+  double position2 = 0, horizontal2 = 0, dbh2 = 0, dbh_bias = 0;
+  int matched = 0;
+  double recall() const { return targets ? static_cast<double>(found) / targets : 1; }
+  double precision() const {
+    return detections ? static_cast<double>(true_detections) / detections : 1;
+  }
+  double position_rmse() const { return matched ? std::sqrt(position2 / matched) : 0; }
+  double horizontal_rmse() const { return matched ? std::sqrt(horizontal2 / matched) : 0; }
+  double dbh_rmse() const { return matched ? std::sqrt(dbh2 / matched) : 0; }
+  void Add(const Tally& o) {
+    targets += o.targets, found += o.found, detections += o.detections;
+    true_detections += o.true_detections, position2 += o.position2;
+    horizontal2 += o.horizontal2, dbh2 += o.dbh2, dbh_bias += o.dbh_bias, matched += o.matched;
+  }
+};
+
+std::ostream& operator<<(std::ostream& out, const Tally& t) {
+  return out << "recall " << t.recall() << " (" << t.found << "/" << t.targets << "), precision "
+             << t.precision() << " (" << t.true_detections << "/" << t.detections
+             << "), position rmse " << t.position_rmse() << " m (horizontal " << t.horizontal_rmse()
+             << "), dbh rmse " << t.dbh_rmse() << " m, dbh bias "
+             << (t.matched ? t.dbh_bias / t.matched : 0) << " m";
+}
+
+// Scores one scan: detections within kMaxRange against every scene tree (precision) and the
+// visible trees of DBH >= kMinDbh within kMaxRange (recall, accuracy).
+Tally Score(const ScanSimulationResult& scan, const std::vector<DetectedTrunk>& trunks) {
+  Tally tally;
+  std::vector<int> owner(trunks.size(), -1);
+  for (size_t d = 0; d < trunks.size(); ++d) {
+    double best = kMatchDistance;
+    for (size_t k = 0; k < scan.trees.size(); ++k) {
+      const double dist =
+          (trunks[d].tree.position.head<2>() - scan.trees[k].position.head<2>()).norm();
+      if (dist < best) {
+        best = dist;
+        owner[d] = static_cast<int>(k);
+      }
+    }
+    if (trunks[d].range > kMaxRange) continue;
+    ++tally.detections;
+    tally.true_detections += owner[d] >= 0;
+  }
+  for (size_t k = 0; k < scan.trees.size(); ++k) {
+    const SimulatedTreeTruth& truth = scan.trees[k];
+    if (!truth.visible || truth.dbh < kMinDbh || truth.range > kMaxRange) continue;
+    ++tally.targets;
+    bool found = false;
+    for (size_t d = 0; d < trunks.size() && !found; ++d) {
+      if (owner[d] != static_cast<int>(k)) continue;
+      found = true;
+      if (std::getenv("FORESTMAP_DETECT_VERBOSE")) {
+        std::cout << "hit  tree " << k << " range " << truth.range << " dbh " << truth.dbh
+                  << " det " << trunks[d].tree.dbh << " raw " << trunks[d].raw_dbh << " dz "
+                  << trunks[d].tree.position.z() - truth.position.z() << " dxy "
+                  << (trunks[d].tree.position - truth.position).head<2>().norm() << " slices "
+                  << trunks[d].slices << " ground " << trunks[d].ground_known << "\n";
+      }
+      ++tally.found;
+      ++tally.matched;
+      const Eigen::Vector3d error = trunks[d].tree.position - truth.position;
+      tally.position2 += error.squaredNorm();
+      tally.horizontal2 += error.head<2>().squaredNorm();
+      const double dbh_error = trunks[d].tree.dbh - truth.dbh;
+      tally.dbh2 += dbh_error * dbh_error;
+      tally.dbh_bias += dbh_error;
+    }
+    if (!found && std::getenv("FORESTMAP_DETECT_VERBOSE")) {
+      std::cout << "miss tree " << k << " range " << truth.range << " dbh " << truth.dbh
+                << " breast_points " << truth.breast_points << " at " << truth.position.transpose()
+                << "\n";
+    }
+  }
+  if (std::getenv("FORESTMAP_DETECT_VERBOSE")) {
+    for (size_t d = 0; d < trunks.size(); ++d) {
+      if (owner[d] < 0 && trunks[d].range <= kMaxRange) {
+        std::cout << "false at " << trunks[d].tree.position.transpose() << " dbh "
+                  << trunks[d].tree.dbh << " slices " << trunks[d].slices << " score "
+                  << trunks[d].tree.score << "\n";
+      }
+    }
+  }
+  return tally;
+}
+
+struct Evaluation {
+  Tally all;
+  std::map<std::string, Tally> by_scanner;
+};
+
+Evaluation Evaluate(int poses, const TrunkDetectionOptions& options) {
+  Evaluation evaluation;
+  std::map<std::string, std::unique_ptr<ForestScene>> scenes;
+  std::mt19937 rng(2024);
+  for (int pose = 0; pose < poses; ++pose) {
+    const std::string name = kMaps[pose % std::size(kMaps)];
+    if (!scenes.count(name)) {
+      const std::vector<MapTree> map =
+          client::ToMapTrees(client::ReadMapTreesCsv(kStemMaps + name + ".csv"));
+      SceneOptions scene_options;
+      scene_options.seed = 7 + pose;
+      scenes[name] = std::make_unique<ForestScene>(map, scene_options);
+    }
+    const ForestScene& scene = *scenes[name];
+    const std::string scanner_name = kScanners[(pose / std::size(kMaps)) % std::size(kScanners)];
+    const ScannerModel scanner = ScannerPreset(scanner_name);
+    // Anywhere over the plot, at least 10 m inside its edge when it is large enough.
+    const Eigen::Vector2d lo = scene.min_corner() + Eigen::Vector2d::Constant(40);
+    const Eigen::Vector2d hi = scene.max_corner() - Eigen::Vector2d::Constant(40);
+    std::uniform_real_distribution<double> u(0, 1), tilt(-0.05, 0.05), height(2, 15);
+    const double x =
+        lo.x() < hi.x() ? lo.x() + u(rng) * (hi.x() - lo.x()) : 0.5 * (lo.x() + hi.x());
+    const double y =
+        lo.y() < hi.y() ? lo.y() + u(rng) * (hi.y() - lo.y()) : 0.5 * (lo.y() + hi.y());
+    const Pose3 pose3 =
+        DronePose(scene, x, y, height(rng), 2 * M_PI * u(rng), tilt(rng), tilt(rng));
+    const ScanSimulationResult scan = SimulateScan(scene, pose3, scanner, ScanNoiseOptions{}, pose);
+    const TrunkDetectionResult result = DetectTrunks(scan.cloud, options);
+    const Tally tally = Score(scan, result.trees);
+    evaluation.all.Add(tally);
+    evaluation.by_scanner[scanner_name].Add(tally);
+  }
+  return evaluation;
+}
+
+int PosesFromEnvironment(int fallback) {
+  const char* text = std::getenv("FORESTMAP_DETECT_POSES");
+  return text ? std::max(1, std::atoi(text)) : fallback;
+}
+
+TEST(TrunkDetectionSimTest, RecallPrecisionAndAccuracyOverDronePoses) {
+  if (!std::filesystem::exists(kStemMaps)) GTEST_SKIP() << "no stem maps at " << kStemMaps;
+  const int poses = PosesFromEnvironment(20);
+  TrunkDetectionOptions options;
+  options.stem.beam_divergence = 3.1e-3;  // the simulated Ouster beams
+  const Evaluation evaluation = Evaluate(poses, options);
+  std::cout << poses << " poses: " << evaluation.all << std::endl;
+  for (const auto& [name, tally] : evaluation.by_scanner) {
+    std::cout << "  " << name << ": " << tally << std::endl;
+  }
+  // Regression floors at what the detector reaches today (these 20 poses: recall 0.81,
+  // precision 0.97, horizontal position rmse 4.8 cm, DBH rmse 2.9 cm; 120 poses: see the report).
+  // The bars are recall 0.95, precision 0.97, position rmse 5 cm and DBH rmse 1.5 cm:
+  // recall and DBH are NOT met yet (far, sparse stems).
+  const Tally& t = evaluation.all;
+  ASSERT_GT(t.targets, 50);
+  EXPECT_GE(t.recall(), 0.78);
+  EXPECT_GE(t.precision(), 0.94);
+  EXPECT_LE(t.horizontal_rmse(), 0.06);
+  EXPECT_LE(t.dbh_rmse(), 0.04);
+}
+
+}  // namespace
+}  // namespace forestmap::algorithms
