@@ -1,6 +1,7 @@
 #include "algorithms/relocalizer.h"
 
 #include <algorithm>
+#include <cmath>
 #include <random>
 #include <stdexcept>
 #include <unordered_map>
@@ -224,6 +225,46 @@ std::vector<Hypothesis> Search(const MapIndexImpl& m, const LevelledQuery& q,
   return voter.Best(options.min_votes, options.max_hypotheses);
 }
 
+// Sensor headings that align the query's bearings with the map's as seen from `at` (kd
+// coordinates): every query tree and map tree at about the same range vote for the heading that
+// puts one on the other; returns the centres of the `count` strongest separated bins.
+std::vector<double> HeadingPeaks(const MapIndexImpl& m, const LevelledQuery& q,
+                                 const Eigen::Vector2d& at, int count) {
+  constexpr int kBins = 72;              // 5 deg
+  constexpr double kMinRange = 2.0;      // m, nearer bearings swing with a small position error
+  constexpr double kRangeTolerance = 1.0;  // m
+  double max_range = 0;
+  std::vector<std::pair<double, double>> query;  // range, bearing
+  for (const Eigen::Vector2d& p : q.xy) {
+    if (p.norm() < kMinRange) continue;
+    query.push_back({p.norm(), std::atan2(p.y(), p.x())});
+    max_range = std::max(max_range, p.norm());
+  }
+  std::vector<double> votes(kBins, 0.0);
+  std::vector<std::pair<uint32_t, float>> found;
+  m.positions->Radius({static_cast<float>(at.x()), static_cast<float>(at.y())},
+                      static_cast<float>(max_range + kRangeTolerance), found);
+  for (const auto& [j, d2] : found) {
+    const Eigen::Vector2d d = m.Xy(j) - at;
+    const double range = std::sqrt(d2);
+    if (range < kMinRange) continue;
+    const double bearing = std::atan2(d.y(), d.x());
+    for (const auto& [query_range, query_bearing] : query) {
+      if (std::abs(query_range - range) > kRangeTolerance) continue;
+      const double yaw = WrapAngle(bearing - query_bearing);
+      votes[static_cast<int>((yaw + M_PI) / (2 * M_PI) * kBins) % kBins] += 1.0;
+    }
+  }
+  std::vector<double> peaks;
+  for (int n = 0; n < count; ++n) {
+    const int best = static_cast<int>(std::max_element(votes.begin(), votes.end()) - votes.begin());
+    if (votes[best] <= 0) break;
+    peaks.push_back(-M_PI + (best + 0.5) * 2 * M_PI / kBins);
+    for (int k = -2; k <= 2; ++k) votes[(best + k + kBins) % kBins] = 0;  // separate the peaks
+  }
+  return peaks;
+}
+
 // The answer for the best hypothesis, given the score of the best distinct rival: LOCALIZED
 // only when it is far above chance, explains enough of the nearby trees and beats the rival.
 RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q,
@@ -361,21 +402,25 @@ RelocalizeResult RefineNear(const MapIndex& index, const RelocalizeQuery& query,
   const LevelledQuery q =
       Level(query, LevelSensor(query.trees, query.gravity, options.leveling).level_from_sensor,
             options);
-  // The guess's heading in the levelled frame (its tilt is replaced by this frame's levelling),
-  // tried across the yaw window: headings wobble more than positions between frames.
-  Hypothesis guess;
-  guess.pose.yaw = YawOf(map_from_sensor_guess.linear() * q.level_from_sensor.transpose());
-  guess.pose.translation = map_from_sensor_guess.translation().head<2>() - m.origin;
+  // The guess's heading in the levelled frame (its tilt is replaced by this frame's levelling).
+  const double guess_yaw = YawOf(map_from_sensor_guess.linear() * q.level_from_sensor.transpose());
+  const Eigen::Vector2d guess_xy = map_from_sensor_guess.translation().head<2>() - m.origin;
+  // Headings tried: across the window around the guess (headings wobble more than positions
+  // between frames), and the strongest bearing alignments (a turn the guess missed).
   constexpr double kYawStep = 0.05;  // rad
-  const double shift = options.inlier_distance;  // m, position seeds around the guess
+  std::vector<double> headings;
   const int steps = static_cast<int>(std::ceil(yaw_window / kYawStep));
+  for (int k = -steps; k <= steps; ++k) headings.push_back(WrapAngle(guess_yaw + k * kYawStep));
+  for (double yaw : HeadingPeaks(m, q, guess_xy, /*count=*/3)) headings.push_back(yaw);
+
+  const double shift = options.inlier_distance;  // m, position seeds around the guess
   std::vector<Hypothesis> seeds;
-  for (int k = -steps; k <= steps; ++k) {
+  for (double yaw : headings) {
     for (int dx = -1; dx <= 1; ++dx) {
       for (int dy = -1; dy <= 1; ++dy) {
-        Hypothesis h = guess;
-        h.pose.yaw = WrapAngle(guess.pose.yaw + k * kYawStep);
-        h.pose.translation += shift * Eigen::Vector2d(dx, dy);
+        Hypothesis h;
+        h.pose.yaw = yaw;
+        h.pose.translation = guess_xy + shift * Eigen::Vector2d(dx, dy);
         Score(m, q, 1.5 * options.inlier_distance, &h, options.quick_score_trees);
         seeds.push_back(h);
       }

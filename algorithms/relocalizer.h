@@ -87,8 +87,9 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
 
 // Local refinement from a close guess (tracking: the previous pose moved by odometry). Only ICP
 // around the guess, no search, so it cannot tell two places apart: the caller must know the guess
-// is within about a metre in position and `yaw_window` (rad) in heading. Same acceptance tests
-// as Relocalize except the ambiguity margin (confidence is 1 when accepted).
+// is within about a metre. Headings tried: `yaw_window` (rad) around the guess's, and the few
+// that best align the query's bearings with the map's seen from the guess (a missed turn). Same
+// acceptance tests as Relocalize except the ambiguity margin (confidence is 1 when accepted).
 RelocalizeResult RefineNear(const MapIndex& index, const RelocalizeQuery& query,
                             const Pose3& map_from_sensor_guess, double yaw_window = 0.0,
                             const RelocalizerOptions& options = {});

@@ -1,5 +1,6 @@
 #include "algorithms/tracking.h"
 
+#include <algorithm>
 #include <stdexcept>
 #include <string>
 
@@ -10,8 +11,9 @@ void TrackingOptions::Check() const {
   auto require = [](bool ok, const char* what) {
     if (!ok) throw std::invalid_argument(std::string("TrackingOptions: ") + what);
   };
-  require(max_correction > 0 && max_yaw_correction > 0 && yaw_window >= 0,
-          "corrections must be > 0, yaw_window >= 0");
+  require(max_correction > 0 && yaw_window >= 0, "max_correction > 0, yaw_window >= 0");
+  require(local_max_rmse > 0 && local_min_matched >= 0 && local_min_matched <= 1,
+          "local_max_rmse > 0, local_min_matched in [0, 1]");
   require(prior_radius > 0 && radius_growth >= 0, "prior_radius > 0, radius_growth >= 0");
   require(global_after >= 0, "global_after must be >= 0");
 }
@@ -25,14 +27,20 @@ std::optional<TrackingStep> Tracker::TryLocal(const MapIndex& index,
   step.result = RefineNear(index, frame.query, *predicted_, options_.yaw_window,
                            options_.relocalizer);
   if (step.result.status != RelocalizeStatus::kLocalized) return std::nullopt;
-  // A local fix far from the prediction may be a neighbouring constellation: let a search
-  // (which checks for distinct alternatives) decide instead.
+  // A loose or partial local fix, or one far from the prediction, may be a neighbouring
+  // constellation: let a search (which checks for distinct alternatives) decide instead.
+  const double in_range = static_cast<double>(std::count_if(
+      frame.query.trees.begin(), frame.query.trees.end(), [&](const DetectedTree& tree) {
+        return tree.position.head<2>().norm() <= options_.relocalizer.max_query_range;
+      }));
   const double moved = (step.result.map_from_sensor.translation() - predicted_->translation())
                            .head<2>()
                            .norm();
-  const double turned = std::abs(WrapAngle(YawOf(step.result.map_from_sensor.linear()) -
-                                           YawOf(predicted_->linear())));
-  if (moved > options_.max_correction || turned > options_.max_yaw_correction) return std::nullopt;
+  if (step.result.rmse > options_.local_max_rmse ||
+      step.result.inliers < options_.local_min_matched * in_range ||
+      moved > options_.max_correction) {
+    return std::nullopt;
+  }
   step.state = TrackState::kTracking;
   return step;
 }

@@ -17,12 +17,14 @@ namespace forestmap::algorithms {
 
 struct TrackingOptions {
   RelocalizerOptions relocalizer;
-  double max_correction = 1.5;      // m, a local fix may move the prediction at most this far
-  double max_yaw_correction = 0.35;  // rad (~20 deg), and turn it at most this much
-  double yaw_window = 0.3;           // rad, headings tried around the predicted one
-  double prior_radius = 10.0;       // m, search radius around the prediction after a local miss
-  double radius_growth = 5.0;       // m, added to the radius per frame without a fix
-  int global_after = 2;             // frames without a fix before the whole map is searched
+  double max_correction = 1.5;   // m, a local fix may move the prediction at most this far
+  double yaw_window = 0.15;      // rad, headings tried around the predicted one (plus the
+                                 // bearing-alignment peaks, see RefineNear)
+  double local_max_rmse = 0.2;   // m, a local fix must fit this well ...
+  double local_min_matched = 0.33;  // ... and match this share of the frame's trees in range
+  double prior_radius = 10.0;    // m, search radius around the prediction after a local miss
+  double radius_growth = 5.0;    // m, added to the radius per frame without a fix
+  int global_after = 2;          // frames without a fix before the whole map is searched
   // Without odometry, predict the position with the last frame-to-frame displacement (the
   // heading with the last fix's: a carried sensor's heading wobbles, its path does not).
   bool constant_velocity = true;

@@ -42,5 +42,6 @@ void AddBenchMappingCommand(CLI::App& app, CliContext& context);  // cli_bench_m
 void AddObserveCommand(CLI::App& app, CliContext& context);      // cli_observe.cc
 void AddDetectCommand(CLI::App& app, CliContext& context);      // cli_detect.cc
 void AddSimulateCommand(CLI::App& app, CliContext& context);    // cli_simulate.cc
+void AddTrackCommand(CLI::App& app, CliContext& context);       // cli_track.cc
 
 }  // namespace forestmap::client

@@ -67,7 +67,12 @@ void ForestMapClient::EnsureConnected() {
 std::unique_ptr<grpc::ClientContext> ForestMapClient::NewContext(double timeout) {
   EnsureConnected();
   auto context = std::make_unique<grpc::ClientContext>();
-  context->set_deadline(After(connected_ ? timeout : std::min(timeout, kUnconnectedCallTimeout)));
+  if (!connected_) {
+    context->set_deadline(After(timeout > 0 ? std::min(timeout, kUnconnectedCallTimeout)
+                                            : kUnconnectedCallTimeout));
+  } else if (timeout > 0) {
+    context->set_deadline(After(timeout));
+  }
   return context;
 }
 
@@ -206,6 +211,58 @@ v1::RelocalizeResponse ForestMapClient::Relocalize(
     request.mutable_gravity()->set_z(gravity->z());
   }
   return Unary<v1::RelocalizeResponse>(&v1::ForestMap::Stub::Relocalize, request, "Relocalize");
+}
+
+TrackSession ForestMapClient::Track(const std::string& name) {
+  auto context = NewContext(/*timeout=*/0);  // a session lasts as long as the flight
+  auto stream = stub_->Track(context.get());
+  return TrackSession(*this, name, std::move(context), std::move(stream));
+}
+
+TrackSession::TrackSession(
+    ForestMapClient& client, std::string map_name, std::unique_ptr<grpc::ClientContext> context,
+    std::unique_ptr<grpc::ClientReaderWriter<v1::TrackRequest, v1::TrackResponse>> stream)
+    : client_(&client),
+      map_name_(std::move(map_name)),
+      context_(std::move(context)),
+      stream_(std::move(stream)) {}
+
+TrackSession::~TrackSession() {
+  if (!stream_) return;
+  context_->TryCancel();
+  stream_->Finish();
+}
+
+v1::TrackResponse TrackSession::Step(const TrackFrame& frame) {
+  if (!stream_) throw std::logic_error("TrackSession::Step after Finish");
+  v1::TrackRequest request;
+  if (first_) request.set_map_name(map_name_);
+  request.set_frame_id(frame.frame_id);
+  request.mutable_trees()->Reserve(static_cast<int>(frame.trees.size()));
+  for (const algorithms::DetectedTree& tree : frame.trees) *request.add_trees() = ToProto(tree);
+  if (frame.gravity) *request.mutable_gravity() = ToProto(*frame.gravity);
+  if (frame.odometry) *request.mutable_odometry() = ToProto(*frame.odometry);
+  v1::TrackResponse response;
+  if (!stream_->Write(request) || !stream_->Read(&response)) {
+    // The server ended the session: its status says why.
+    const grpc::Status status = stream_->Finish();
+    stream_.reset();
+    client_->Check(status.ok() ? grpc::Status(grpc::StatusCode::INTERNAL,
+                                              "the server closed the session without an answer")
+                               : status,
+                   "Track");
+  }
+  first_ = false;
+  client_->connected_ = true;
+  return response;
+}
+
+void TrackSession::Finish() {
+  if (!stream_) return;
+  stream_->WritesDone();
+  const grpc::Status status = stream_->Finish();
+  stream_.reset();
+  client_->Check(status, "Track");
 }
 
 v1::ObserveResponse ForestMapClient::Observe(const std::string& name,

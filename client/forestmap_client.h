@@ -81,6 +81,42 @@ struct ObserveOptions {
   bool reject_stale = false;             // ABORTED unless the map is still at base_version
 };
 
+// One frame of a tracking session.
+struct TrackFrame {
+  int64_t frame_id = 0;                         // echoed in the answer
+  std::vector<algorithms::DetectedTree> trees;  // sensor frame; may be empty
+  std::optional<Eigen::Vector3d> gravity;       // gravity (down) in the sensor frame
+  std::optional<algorithms::Pose3> odometry;    // previous_sensor_from_sensor, when known
+};
+
+class ForestMapClient;
+
+// A tracking session (the Track RPC), from ForestMapClient::Track: Step sends one frame and
+// waits for its answer. Finish ends the session; the destructor cancels an unfinished one.
+// Throws RpcError when the server ends the session with an error (bad frame, unknown map).
+// The client must outlive the session.
+class TrackSession {
+ public:
+  TrackSession(TrackSession&&) = default;
+  ~TrackSession();
+
+  v1::TrackResponse Step(const TrackFrame& frame);
+  void Finish();
+
+ private:
+  friend class ForestMapClient;
+  TrackSession(ForestMapClient& client, std::string map_name,
+               std::unique_ptr<grpc::ClientContext> context,
+               std::unique_ptr<grpc::ClientReaderWriter<v1::TrackRequest, v1::TrackResponse>>
+                   stream);
+
+  ForestMapClient* client_;
+  std::string map_name_;
+  std::unique_ptr<grpc::ClientContext> context_;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::TrackRequest, v1::TrackResponse>> stream_;
+  bool first_ = true;
+};
+
 // (trees sent so far, trees in total), called after each chunk of an upload.
 using UploadProgress = std::function<void(int64_t sent, int64_t total)>;
 
@@ -113,6 +149,9 @@ class ForestMapClient {
   v1::Map RestoreVersion(const std::string& name, int64_t version);
   v1::RemoveSourceResponse RemoveSource(const std::string& name, const std::string& source);
 
+  // A tracking session in map `name` (no deadline: it lasts as long as the flight).
+  TrackSession Track(const std::string& name);
+
   // `gravity`: direction of gravity (down) in the sensor frame, when known.
   v1::RelocalizeResponse Relocalize(const std::string& name,
                                     const std::vector<algorithms::DetectedTree>& trees,
@@ -120,6 +159,7 @@ class ForestMapClient {
                                     const std::optional<Eigen::Vector3d>& gravity = {});
 
  private:
+  friend class TrackSession;
   // Waits (once) for the channel to connect; a failure is remembered so that the first call,
   // which then fails fast, is reported as "cannot reach".
   void EnsureConnected();

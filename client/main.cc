@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
   forestmap::client::AddObserveCommand(app, context);
   forestmap::client::AddDetectCommand(app, context);
   forestmap::client::AddSimulateCommand(app, context);
+  forestmap::client::AddTrackCommand(app, context);
 
   try {
     app.parse(argc, argv);

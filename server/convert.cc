@@ -138,6 +138,32 @@ v1::RelocalizeResponse ToProto(const algorithms::RelocalizeResult& result) {
   return out;
 }
 
+algorithms::TrackingFrame FromProto(const v1::TrackRequest& request) {
+  algorithms::TrackingFrame frame;
+  frame.query.trees.reserve(request.trees_size());
+  for (const v1::DetectedTree& tree : request.trees()) frame.query.trees.push_back(FromProto(tree));
+  if (request.has_gravity()) frame.query.gravity = Direction(FromProto(request.gravity()));
+  if (request.has_odometry()) frame.odometry = FromProto(request.odometry());
+  return frame;
+}
+
+v1::TrackResponse ToProto(const algorithms::TrackingStep& step) {
+  v1::TrackResponse out;
+  switch (step.state) {
+    case algorithms::TrackState::kTracking: out.set_state(v1::TrackResponse::TRACKING); break;
+    case algorithms::TrackState::kRecovered: out.set_state(v1::TrackResponse::RECOVERED); break;
+    case algorithms::TrackState::kLost: out.set_state(v1::TrackResponse::LOST); break;
+  }
+  switch (step.method) {
+    case algorithms::TrackMethod::kLocal: out.set_method(v1::TrackResponse::LOCAL); break;
+    case algorithms::TrackMethod::kPrior: out.set_method(v1::TrackResponse::PRIOR); break;
+    case algorithms::TrackMethod::kGlobal: out.set_method(v1::TrackResponse::GLOBAL); break;
+  }
+  out.set_frames_lost(step.frames_lost);
+  *out.mutable_result() = ToProto(step.result);
+  return out;
+}
+
 v1::MapVersion::Kind ToProto(storage::VersionKind kind) {
   using Kind = storage::VersionKind;
   switch (kind) {

@@ -13,9 +13,11 @@
 #include "algorithms/geometry.h"
 #include "algorithms/map_merge.h"
 #include "algorithms/relocalizer.h"
+#include "algorithms/tracking.h"
 #include "forestmap/v1/maps.pb.h"
 #include "forestmap/v1/observations.pb.h"
 #include "forestmap/v1/relocalization.pb.h"
+#include "forestmap/v1/tracking.pb.h"
 #include "proto/geometry_convert.h"
 #include "storage/map_store.h"
 
@@ -44,6 +46,10 @@ algorithms::RelocalizeQuery FromProto(const v1::RelocalizeRequest& request);
 v1::RelocalizeResponse::Status ToProto(algorithms::RelocalizeStatus status);
 // Everything but server_time_ms and map_version, which the service fills in.
 v1::RelocalizeResponse ToProto(const algorithms::RelocalizeResult& result);
+
+// Tracking. The response lacks frame_id, server_time_ms and map_version (the stream fills them).
+algorithms::TrackingFrame FromProto(const v1::TrackRequest& request);
+v1::TrackResponse ToProto(const algorithms::TrackingStep& step);
 
 // Shared maps.
 v1::MapVersion ToProto(const storage::VersionRecord& record);

@@ -52,6 +52,7 @@ void ServiceOptions::Check() const {
   Require(observe.max_request_trees >= 1,
           "ServiceOptions.observe.max_request_trees must be >= 1");
   merge.Check();
+  tracking.Check();
 }
 
 ForestMapService::ForestMapService(storage::MapStore& store, ServiceOptions options)
@@ -123,6 +124,11 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
         std::chrono::steady_clock::now() - start;
     response->set_server_time_ms(elapsed.count());
   });
+}
+
+grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse>* ForestMapService::Track(
+    grpc::CallbackServerContext* /*context*/) {
+  return new TrackReactor(index_cache_, options_, work_pool_);
 }
 
 grpc::ServerUnaryReactor* ForestMapService::Observe(grpc::CallbackServerContext* context,

@@ -26,6 +26,10 @@
 //                "frames[f].trees[i]..." / pose / gravity), RESOURCE_EXHAUSTED (observe limits),
 //                NOT_FOUND (map), ABORTED (REJECT_IF_STALE and the map is past base_version).
 //                A frame that cannot be relocalized is not an error: it is SKIPPED in the reply.
+//   Track        per frame, ending the stream: INVALID_ARGUMENT (first frame without map_name,
+//                another map's name, a bad tree / gravity / odometry), RESOURCE_EXHAUSTED (more
+//                than max_query_trees), NOT_FOUND (map), FAILED_PRECONDITION (no confirmed
+//                trees). A frame without a pose is not an error: it is answered LOST.
 //   ListVersions INVALID_ARGUMENT (map_name, limit), NOT_FOUND (map)
 //   RestoreVersion INVALID_ARGUMENT (map_name, version < 1), NOT_FOUND (map, or a version that
 //                does not exist or predates the history)
@@ -35,6 +39,7 @@
 
 #include "algorithms/map_merge.h"
 #include "algorithms/relocalizer.h"
+#include "algorithms/tracking.h"
 #include "forestmap/v1/forestmap_service.grpc.pb.h"
 #include "server/map_index_cache.h"
 #include "server/validation.h"
@@ -57,6 +62,8 @@ struct ServiceOptions {
   int max_queued_requests = 1'000;   // per thread pool; more -> RESOURCE_EXHAUSTED "busy"
   MapIndexCacheOptions index_cache;  // relocalization indexes kept in memory
   algorithms::RelocalizerOptions relocalizer;
+  // Track sessions; their relocalizer options are `relocalizer` above.
+  algorithms::TrackingOptions tracking;
   ObserveLimits observe;            // frames / trees per Observe request
   algorithms::MergeOptions merge;   // how Observe merges frames into a shared map
   // Observe re-associates the region around its frames after merging them (ConsolidateTrees):
@@ -92,6 +99,8 @@ class ForestMapService final : public v1::ForestMap::CallbackService {
   grpc::ServerUnaryReactor* Relocalize(grpc::CallbackServerContext* context,
                                        const v1::RelocalizeRequest* request,
                                        v1::RelocalizeResponse* response) override;
+  grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse>* Track(
+      grpc::CallbackServerContext* context) override;
   // Shared maps (observations.proto); bodies in server/observe_service.cc.
   grpc::ServerUnaryReactor* Observe(grpc::CallbackServerContext* context,
                                     const v1::ObserveRequest* request,

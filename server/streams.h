@@ -7,7 +7,10 @@
 #include <functional>
 #include <vector>
 
+#include "algorithms/tracking.h"
 #include "forestmap/v1/maps.pb.h"
+#include "forestmap/v1/tracking.pb.h"
+#include "server/map_index_cache.h"
 #include "server/validation.h"
 #include "server/worker_pool.h"
 #include "storage/map_store.h"
@@ -71,6 +74,31 @@ class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTrees
   size_t next_ = 0;
   bool wrote_any_ = false;
   v1::ExportTreesResponse response_;
+};
+
+// Track: one frame at a time, in order: read a frame, answer it on `work_pool` (the session's
+// Tracker, algorithms/tracking.h), write the answer, read the next. The index comes from the
+// cache for every frame, so a session moves on to a new map version as soon as there is one.
+// A bad frame, an unknown map or a map without trees ends the stream with its status, the
+// message prefixed with the frame ("frame 12: trees[3].position.x is NaN").
+class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse> {
+ public:
+  TrackReactor(MapIndexCache& index_cache, const ServiceOptions& options, WorkerPool& work_pool);
+
+  void OnReadDone(bool ok) override;
+  void OnWriteDone(bool ok) override;
+  void OnDone() override { delete this; }
+
+ private:
+  void Answer();  // request_ -> response_; throws
+
+  MapIndexCache& index_cache_;
+  WorkerPool& work_pool_;
+  int max_query_trees_;
+  algorithms::Tracker tracker_;
+  std::string map_name_;  // from the first frame
+  v1::TrackRequest request_;
+  v1::TrackResponse response_;
 };
 
 }  // namespace forestmap::server

@@ -223,6 +223,24 @@ void Validate(const v1::RelocalizeRequest& request, int max_query_trees) {
   if (request.has_gravity()) CheckDirection(request.gravity(), "gravity");
 }
 
+void Validate(const v1::TrackRequest& request, const std::string& session_map,
+              int max_query_trees) {
+  if (session_map.empty()) {
+    ValidateMapName(request.map_name(), "map_name");
+  } else if (!request.map_name().empty() && request.map_name() != session_map) {
+    throw ValidationError("map_name '" + request.map_name() + "' differs from the session's map '" +
+                          session_map + "'; a session tracks in one map");
+  }
+  const int n = request.trees_size();
+  if (n > max_query_trees) {
+    throw LimitError("trees: " + std::to_string(n) + " trees exceed the limit of " +
+                     std::to_string(max_query_trees) + " per frame");
+  }
+  for (int i = 0; i < n; ++i) ValidateDetectedTree(request.trees(i), Indexed("trees", i));
+  if (request.has_gravity()) CheckDirection(request.gravity(), "gravity");
+  if (request.has_odometry()) ValidatePose(request.odometry(), "odometry");
+}
+
 void ValidateTree(const v1::Tree& tree, const std::string& path) {
   if (tree.has_id() && tree.id() < 0) {
     throw ValidationError(path + ".id is " + std::to_string(tree.id()) + "; ids must be >= 0");

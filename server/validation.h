@@ -18,6 +18,7 @@
 #include "forestmap/v1/maps.pb.h"
 #include "forestmap/v1/observations.pb.h"
 #include "forestmap/v1/relocalization.pb.h"
+#include "forestmap/v1/tracking.pb.h"
 #include "server/status.h"
 
 namespace forestmap::server {
@@ -38,6 +39,10 @@ void Validate(const v1::GetMapRequest& request);
 void Validate(const v1::DeleteMapRequest& request);
 void Validate(const v1::ExportTreesRequest& request);
 void Validate(const v1::RelocalizeRequest& request, int max_query_trees);
+// One frame of a Track stream. `session_map` is the map named by the stream's first message
+// (empty for the first message itself, which must name one); any number of trees up to the limit.
+void Validate(const v1::TrackRequest& request, const std::string& session_map,
+              int max_query_trees);
 
 // Shared maps (observations.proto).
 inline constexpr size_t kMaxSourceLength = 128;  // bytes

@@ -98,5 +98,82 @@ TEST_F(EndToEnd, SecondVisitFramesRelocalizeThroughTheServer) {
   EXPECT_EQ(s.wrong, 0);
 }
 
+// A tracking session through the wire: 300 consecutive Wild_V02 frames against the V01 map, the
+// first frames empty (the session starts lost), answers in order with the frame ids.
+TEST_F(EndToEnd, ATrackingSessionFollowsTheSecondVisit) {
+  const std::string seq = kData + "/sequences/";
+  client_->CreateMap("venman", "", "");
+  client_->UploadTrees("venman", client::ReadMapTreesCsv(seq + "Wild_V01/map.csv"), false, {});
+  const algorithms::Pose3 v01_from_v02 =
+      algorithms::PoseFromXyzYaw(0.051, 0.102, -0.039, -0.014 * M_PI / 180.0);
+  const auto poses = client::ReadPosesCsv(seq + "Wild_V02/poses.csv");
+  const auto frames = client::ReadFramesCsv(seq + "Wild_V02/trees.csv");
+
+  client::TrackSession session = client_->Track("venman");
+  for (int64_t id = -2; id < 0; ++id) {  // nothing seen yet
+    const v1::TrackResponse response = session.Step({id, {}, {}, {}});
+    EXPECT_EQ(response.frame_id(), id);
+    EXPECT_EQ(response.state(), v1::TrackResponse::LOST);
+    EXPECT_EQ(response.frames_lost(), id + 3);
+  }
+  int tracking = 0, correct = 0;
+  const size_t n = 300;
+  for (size_t i = 0; i < n; ++i) {
+    const v1::TrackResponse response =
+        session.Step({frames[i].frame, frames[i].trees, std::nullopt, std::nullopt});
+    ASSERT_EQ(response.frame_id(), frames[i].frame);
+    EXPECT_GT(response.result().map_version(), 0);
+    if (i == 0) {
+      EXPECT_EQ(response.state(), v1::TrackResponse::RECOVERED);
+    }
+    tracking += response.state() == v1::TrackResponse::TRACKING;
+    if (response.result().status() != v1::RelocalizeResponse::LOCALIZED) continue;
+    const algorithms::PoseError error =
+        algorithms::ComparePoses(client::FromProto(response.result().map_from_sensor()),
+                                 v01_from_v02 * poses.at(frames[i].frame));
+    EXPECT_LE(error.xy, 1.0) << "frame " << frames[i].frame;  // never wrong
+    correct += error.xy <= 0.5 && error.yaw <= 5;
+  }
+  session.Finish();
+  EXPECT_GE(correct, static_cast<int>(n) - 1);
+  EXPECT_GE(tracking, static_cast<int>(0.9 * n));
+}
+
+TEST_F(EndToEnd, ABadFrameEndsTheSessionWithItsNumberAndTheServerKeepsServing) {
+  client_->CreateMap("plot", "", "");
+  client_->UploadTrees("plot", client::ReadMapTreesCsv(kData + "/sequences/Wild_V01/map.csv"),
+                       false, {});
+  const std::vector<algorithms::DetectedTree> trees(3, algorithms::DetectedTree{});
+  auto expect_error = [&](const std::string& map, std::vector<algorithms::DetectedTree> frame,
+                          grpc::StatusCode code, const std::string& message) {
+    client::TrackSession session = client_->Track(map);
+    session.Step({1, trees, {}, {}});
+    try {
+      session.Step({2, frame, {}, {}});
+      ADD_FAILURE() << "no error for " << message;
+    } catch (const client::RpcError& error) {
+      EXPECT_EQ(error.code(), code);
+      EXPECT_NE(std::string(error.what()).find(message), std::string::npos) << error.what();
+    }
+  };
+  std::vector<algorithms::DetectedTree> nan = trees;
+  nan[1].position.x() = std::nan("");
+  expect_error("plot", nan, grpc::StatusCode::INVALID_ARGUMENT,
+               "frame 2: trees[1].position.x is NaN");
+  expect_error("plot", std::vector<algorithms::DetectedTree>(20001), grpc::StatusCode::RESOURCE_EXHAUSTED,
+               "frame 2: trees: 20001 trees exceed the limit");
+  try {
+    client_->Track("no-such-map").Step({7, trees, {}, {}});
+    ADD_FAILURE() << "no error for an unknown map";
+  } catch (const client::RpcError& error) {
+    EXPECT_EQ(error.code(), grpc::StatusCode::NOT_FOUND) << error.what();
+    EXPECT_NE(std::string(error.what()).find("frame 7: "), std::string::npos) << error.what();
+  }
+  // The server still answers.
+  client::TrackSession session = client_->Track("plot");
+  EXPECT_EQ(session.Step({3, trees, {}, {}}).state(), v1::TrackResponse::LOST);
+  session.Finish();
+}
+
 }  // namespace
 }  // namespace forestmap
