@@ -2,6 +2,9 @@
 //
 // Real sequences:  --map MAP.csv --frames trees.csv --poses poses.csv [--truth-offset ...]
 // Simulated views: --map STEMMAP.csv --simulate N [--range M]   (views drawn from the map)
+// Scans:           --map MAP.csv --scans DIR (from `forestmap simulate`: DIR/poses.csv and
+//                  DIR/scan_NNN.pcd): each scan goes through the client's trunk detection
+//                  (client/scan_trees.h) and is relocalized, as `relocalize --scan` does
 // Tracking:        --track with real frames: frames in order through one tracking session
 //                  (algorithms/tracking.h), each frame's answer scored like a relocalization
 // Generated maps:  --generate N --like STEMMAP.csv --simulate N (a forest with the real map's
@@ -20,6 +23,7 @@
 #include "algorithms/simulation.h"
 #include "algorithms/tracking.h"
 #include "client/cli_commands.h"
+#include "client/scan_trees.h"
 #include "client/tree_csv.h"
 
 namespace forestmap::client {
@@ -28,7 +32,8 @@ namespace {
 using algorithms::Pose3;
 
 struct BenchOptions {
-  std::string map_path, frames_path, poses_path, like_path;
+  std::string map_path, frames_path, poses_path, like_path, scans_dir;
+  double within = 0.3;  // m, also report the share of all frames localized this close
   std::vector<double> truth_offset;  // x, y, z (m), yaw (deg): map_from_world of the poses
   int step = 1, limit = 0;
   double prior_noise = -1, prior_radius = 10;  // m; prior_noise < 0: no prior
@@ -71,7 +76,12 @@ class Runner {
         tracker_ ? Track(query) : algorithms::Relocalize(*index_, query);
     const double ms = Ms(std::chrono::steady_clock::now() - start);
     evaluator_.Add(evaluator_.Answerable(trees, truth), truth, result, ms);
+    ++frames_;
+    within_ += result.status == algorithms::RelocalizeStatus::kLocalized &&
+               algorithms::ComparePoses(result.map_from_sensor, truth).xy <= options_.within;
   }
+
+  void AddDetectionTime(double ms) { detect_ms_.push_back(ms); }
 
   nlohmann::ordered_json Report(size_t map_trees) const {
     const algorithms::RelocSummary s = evaluator_.Summary();
@@ -94,10 +104,14 @@ class Runner {
             {"time_p95_ms", s.time_p95},
             {"time_p99_ms", s.time_p99},
             {"time_max_ms", s.time_max},
+            {"localized_within", options_.within},
+            {"localized_within_rate", frames_ ? double(within_) / frames_ : 0.0},
             {"track_local", track_counts_[0]},
             {"track_recovered", track_counts_[1]},
             {"track_lost", track_counts_[2]},
-            {"track_longest_loss_frames", longest_loss_}};
+            {"track_longest_loss_frames", longest_loss_},
+            {"detect_p50_ms", algorithms::Percentile(detect_ms_, 0.5)},
+            {"detect_p95_ms", algorithms::Percentile(detect_ms_, 0.95)}};
   }
 
  private:
@@ -113,6 +127,8 @@ class Runner {
   std::optional<algorithms::Tracker> tracker_;
   int track_counts_[3] = {0, 0, 0};  // by TrackState
   int longest_loss_ = 0;
+  int frames_ = 0, within_ = 0;
+  std::vector<double> detect_ms_;  // per scan (--scans)
   std::unique_ptr<algorithms::MapIndex> index_;
   std::mt19937 rng_;
   double build_ms_ = 0;
@@ -144,6 +160,19 @@ void RunSequence(Runner& runner, const BenchOptions& o, std::ostream& err) {
     }
     runner.Run(frame.trees, map_from_world * pose->second);
     Progress(err, k + 1, chosen.size());
+  }
+}
+
+void RunScans(Runner& runner, const BenchOptions& o, std::ostream& err) {
+  const auto poses = ReadPosesCsv(o.scans_dir + "/poses.csv");
+  size_t done = 0;
+  for (const auto& [frame, truth] : poses) {
+    char name[32];
+    std::snprintf(name, sizeof name, "/scan_%03lld.pcd", static_cast<long long>(frame));
+    const ScanTrees scan = DetectScanTrees(o.scans_dir + name);
+    runner.AddDetectionTime(scan.stats.total_us / 1000.0);
+    runner.Run(scan.trees, truth);
+    Progress(err, ++done, poses.size());
   }
 }
 
@@ -187,6 +216,8 @@ void Run(const BenchOptions& o, CliContext& context) {
   Runner runner(map, o);
   if (o.simulate > 0) {
     RunSimulated(map, runner, o, *context.err);
+  } else if (!o.scans_dir.empty()) {
+    RunScans(runner, o, *context.err);
   } else {
     RunSequence(runner, o, *context.err);
   }
@@ -234,6 +265,14 @@ void AddBenchRelocCommand(CLI::App& app, CliContext& context) {
   cmd->add_option("--like", options->like_path, "Stem map whose statistics --generate copies")
       ->check(CLI::ExistingFile);
   cmd->add_option("--seed", options->seed, "Random seed")->capture_default_str();
+  cmd->add_option("--scans", options->scans_dir,
+                  "Folder from `forestmap simulate` (poses.csv, scan_NNN.pcd): detect the trunks "
+                  "of every scan, then relocalize")
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--within", options->within,
+                  "Also report the share of all frames localized within this distance (m)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_flag("--track", options->track,
                "Track the frames in order (one tracking session) instead of relocalizing each");
   cmd->add_flag("--json", options->json, "Print one JSON object");
@@ -245,8 +284,9 @@ void AddBenchRelocCommand(CLI::App& app, CliContext& context) {
     if (o.generate == 0 && o.map_path.empty()) {
       throw CLI::ValidationError("--map", "a map is required (or --generate)");
     }
-    if (o.simulate == 0 && (o.frames_path.empty() || o.poses_path.empty())) {
-      throw CLI::ValidationError("--frames", "real frames need --frames and --poses (or use --simulate N)");
+    if (o.simulate == 0 && o.scans_dir.empty() &&
+        (o.frames_path.empty() || o.poses_path.empty())) {
+      throw CLI::ValidationError("--frames", "real frames need --frames and --poses (or use --simulate N or --scans DIR)");
     }
     context.run = [options, &context] { Run(*options, context); };
   });

@@ -92,6 +92,9 @@ nlohmann::ordered_json RelocalizeJson(const v1::RelocalizeResponse& response,
   line["rmse_m"] = response.rmse_m();
   line["confidence"] = response.confidence();
   line["server_ms"] = response.server_time_ms();
+  if (response.status() != v1::RelocalizeResponse::LOCALIZED && !response.detail().empty()) {
+    line["detail"] = response.detail();  // why not: worth showing the user
+  }
   return line;
 }
 

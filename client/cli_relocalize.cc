@@ -1,4 +1,5 @@
-// `forestmap relocalize NAME --trees FILE [--prior X,Y,YAW_DEG,RADIUS_M]` and
+// `forestmap relocalize NAME --trees FILE [--prior X,Y,YAW_DEG,RADIUS_M]`,
+// `forestmap relocalize NAME --scan SCAN [--prior ...]` (trunks detected here, on the client) and
 // `forestmap relocalize NAME --frames FILE`.
 
 #include <algorithm>
@@ -11,6 +12,7 @@
 
 #include "client/cli_commands.h"
 #include "client/cli_format.h"
+#include "client/scan_trees.h"
 #include "client/tree_csv.h"
 
 namespace forestmap::client {
@@ -22,6 +24,7 @@ struct RelocalizeOptions {
   std::string map;
   std::string trees_file;
   std::string frames_file;
+  std::string scan_file;
   std::string prior_text;
   std::optional<PriorXyYaw> prior;  // parsed from prior_text
 };
@@ -46,6 +49,21 @@ void RunSingle(const RelocalizeOptions& options, const CliContext& context) {
                        " frames; use --frames to relocalize each frame");
   }
   PrintLine(context, context.Connect().Relocalize(options.map, trees, options.prior), {});
+}
+
+// Detects the trunks of one scan here, then asks the server: what the drone's thin client does.
+void RunScan(const RelocalizeOptions& options, const CliContext& context) {
+  const ScanTrees scan = DetectScanTrees(options.scan_file);
+  char ms[32];
+  std::snprintf(ms, sizeof ms, "%.1f", scan.stats.total_us / 1000.0);
+  *context.err << "relocalize: " << options.scan_file << ": " << scan.stats.input_points
+               << " points, " << scan.trees.size() << " trees detected in " << ms << " ms"
+               << std::endl;
+  if (scan.trees.size() < 3) {
+    throw CommandError(options.scan_file + ": " + std::to_string(scan.trees.size()) +
+                       " trees detected; a relocalization needs at least 3");
+  }
+  PrintLine(context, context.Connect().Relocalize(options.map, scan.trees, options.prior), {});
 }
 
 struct FrameCounts {
@@ -125,11 +143,17 @@ void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
       "Prior pose X,Y,YAW_DEG,RADIUS_M: the sensor is within RADIUS_M of (X,Y) (map frame, m) "
       "(YAW_DEG, deg counter-clockwise from map x, is accepted but not used: only the position "
       "bounds the search)");
+  CLI::Option* scan = sub->add_option(
+      "--scan", options->scan_file,
+      "LiDAR scan in the sensor frame (.pcd .ply .las .csv .xyz): trunks are detected here and "
+      "only the tree list is sent")->check(CLI::ExistingFile);
   trees->excludes(frames);
+  scan->excludes(trees);
+  scan->excludes(frames);
   prior->excludes(frames);
-  sub->callback([options, trees, frames, prior, &context] {
-    if (trees->count() == 0 && frames->count() == 0) {
-      throw CLI::RequiredError("--trees FILE or --frames FILE");
+  sub->callback([options, trees, frames, scan, prior, &context] {
+    if (trees->count() + frames->count() + scan->count() == 0) {
+      throw CLI::RequiredError("--trees FILE, --scan SCAN or --frames FILE");
     }
     if (prior->count() > 0) {
       try {
@@ -139,7 +163,9 @@ void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
       }
     }
     context.run = [options, &context] {
-      if (options->frames_file.empty()) {
+      if (!options->scan_file.empty()) {
+        RunScan(*options, context);
+      } else if (options->frames_file.empty()) {
         RunSingle(*options, context);
       } else {
         RunFrames(*options, context);

@@ -79,7 +79,9 @@ TEST(CliFormatTest, RelocalizeJsonWithoutPoseUnlessLocalized) {
   EXPECT_EQ(RelocalizeJson(response).dump(),
             R"({"status":"ambiguous","inliers":8,"rmse_m":0.0,"confidence":0.0,"server_ms":0.0})");
   response.set_status(v1::RelocalizeResponse::NOT_FOUND);
+  response.set_detail("best pose matches 3 trees");
   EXPECT_EQ(RelocalizeJson(response)["status"], "not_found");
+  EXPECT_EQ(RelocalizeJson(response)["detail"], "best pose matches 3 trees");
 }
 
 TEST(CliFormatTest, YawIsTheHeadingOfTheSensorXAxis) {

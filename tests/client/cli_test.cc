@@ -104,7 +104,7 @@ TEST_F(CliTest, InvalidCommandLinesExitNonZeroWithAMessage) {
            {"--bogus map list", "--bogus"},
            {"map create", "NAME is required"},
            {"map show", "NAME is required"},
-           {"relocalize m", "--trees FILE or --frames FILE is required"},
+           {"relocalize m", "--trees FILE, --scan SCAN or --frames FILE is required"},
            {"relocalize m --trees a.csv --frames b.csv", "--trees excludes --frames"},
            {"relocalize m --frames b.csv --prior 1,2,3,4", "excludes"},
            {"relocalize m --trees a.csv --prior 1,2,3", "--prior: expected X,Y,YAW_DEG,RADIUS_M"},
@@ -254,6 +254,44 @@ TEST_F(CliTest, RelocalizePrintsOneJsonLine) {
   const Result no_map = Run(s + "relocalize nope --trees '" + scan.string() + "'");
   EXPECT_EQ(no_map.exit_code, 1);
   EXPECT_EQ(no_map.err, "forestmap: error: Relocalize: NOT_FOUND: no map named 'nope'\n");
+}
+
+// The thin client's path: a simulated LiDAR scan in, trunks detected here, only trees sent.
+TEST_F(CliTest, RelocalizeScanSendsTheTrunksItDetects) {
+  testing::FakeForestMapServer server;
+  const std::string s = "--server " + server.address() + " ";
+  ASSERT_EQ(Run(s + "map create m").exit_code, 0);
+  const Result simulated = Run("simulate --generate 2000 --pose 60,60,3,30 --no-body --out '" +
+                               (dir_ / "sim").string() + "'");
+  ASSERT_EQ(simulated.exit_code, 0) << simulated.err;
+
+  const Result result =
+      Run(s + "relocalize m --scan '" + (dir_ / "sim" / "scan_000.pcd").string() + "'");
+  EXPECT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_NE(result.err.find("trees detected in"), std::string::npos) << result.err;
+  EXPECT_EQ(nlohmann::json::parse(result.out)["status"], "localized");  // the fake's answer
+  // Every tree sent is one of the simulator's trunks, in the sensor frame.
+  const v1::RelocalizeRequest& sent = server.service().last_relocalize;
+  EXPECT_GE(sent.trees_size(), 5);
+  std::vector<Eigen::Vector2d> truth;
+  for (const MapTreeRow& row : ReadMapTreesCsv((dir_ / "sim" / "scan_000_truth.csv").string())) {
+    truth.push_back({row.x, row.y});
+  }
+  int near_truth = 0;
+  for (const v1::DetectedTree& tree : sent.trees()) {
+    const Eigen::Vector2d p(tree.position().x(), tree.position().y());
+    double best = 1e9;
+    for (const Eigen::Vector2d& t : truth) best = std::min(best, (t - p).norm());
+    near_truth += best < 0.3;
+  }
+  EXPECT_GE(near_truth, sent.trees_size() * 9 / 10);
+
+  const Result missing = Run(s + "relocalize m --scan /no/such/scan.pcd");
+  EXPECT_EQ(missing.exit_code, 2);
+  const Result not_a_scan =
+      Run(s + "relocalize m --scan '" + Write("bad.pcd", "not a point cloud").string() + "'");
+  EXPECT_EQ(not_a_scan.exit_code, 1);
+  EXPECT_TRUE(StartsWith(not_a_scan.err, "forestmap: error: ")) << not_a_scan.err;
 }
 
 TEST_F(CliTest, RelocalizeFramesPrintsALinePerFrameAndASummary) {
