@@ -1,13 +1,17 @@
-// `forestmap map create|list|show|delete|export|history|restore|remove-source`.
+// `forestmap map create|build|list|show|delete|export|history|restore|remove-source`.
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <map>
 #include <iomanip>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "algorithms/map_builder.h"
 #include "client/cli_commands.h"
 #include "client/cli_format.h"
 #include "client/tree_csv.h"
@@ -32,16 +36,11 @@ v1::UploadTreesResponse UploadWithProgress(ForestMapClient& client, const std::s
   });
 }
 
-void RunCreate(const CreateOptions& options, const CliContext& context) {
-  std::vector<MapTreeRow> rows;
-  // Read the file before touching the server, so that a bad file leaves nothing behind.
-  if (!options.trees_file.empty()) rows = ReadMapTreesCsv(options.trees_file);
+// Creates the map and uploads `rows` (from `source`); a failed upload deletes the new map again.
+void CreateWithTrees(const CreateOptions& options, const std::vector<MapTreeRow>& rows,
+                     const std::string& source, const CliContext& context) {
   ForestMapClient client = context.Connect();
   v1::Map map = client.CreateMap(options.name, options.description, options.crs);
-  if (!options.trees_file.empty() && rows.empty()) {
-    *context.err << "forestmap: warning: " << options.trees_file
-                 << " has no trees; the map is empty" << std::endl;
-  }
   if (!rows.empty()) {
     try {
       map = UploadWithProgress(client, options.name, rows, *context.err).map();
@@ -53,12 +52,23 @@ void RunCreate(const CreateOptions& options, const CliContext& context) {
         outcome = "deleting the new map also failed (" + std::string(delete_error.what()) +
                   "); remove it with 'forestmap map delete " + options.name + "'";
       }
-      throw CommandError("uploading " + options.trees_file + " to map '" + options.name +
+      throw CommandError("uploading " + source + " to map '" + options.name +
                          "' failed: " + upload_error.what() + "; " + outcome);
     }
   }
   *context.out << "created map '" << map.name() << "' (" << map.tree_count() << " trees, version "
                << map.version() << ")" << std::endl;
+}
+
+void RunCreate(const CreateOptions& options, const CliContext& context) {
+  std::vector<MapTreeRow> rows;
+  // Read the file before touching the server, so that a bad file leaves nothing behind.
+  if (!options.trees_file.empty()) rows = ReadMapTreesCsv(options.trees_file);
+  if (!options.trees_file.empty() && rows.empty()) {
+    *context.err << "forestmap: warning: " << options.trees_file
+                 << " has no trees; the map is empty" << std::endl;
+  }
+  CreateWithTrees(options, rows, options.trees_file, context);
 }
 
 void AddCreate(CLI::App& map_app, CliContext& context) {
@@ -74,6 +84,100 @@ void AddCreate(CLI::App& map_app, CliContext& context) {
   sub->add_option("--description", options->description, "Free text");
   sub->callback(
       [options, &context] { context.run = [options, &context] { RunCreate(*options, context); }; });
+}
+
+struct BuildOptions {
+  CreateOptions map;  // name, crs, description of the new map
+  std::string frames_file;
+  std::string odometry_file;
+  std::string poses_out;
+};
+
+// Maps an unknown forest here, on the client (algorithms/map_builder.h), then uploads the
+// confirmed trees as a new map. The first frame defines the map frame.
+void RunBuild(const BuildOptions& options, const CliContext& context) {
+  const std::vector<Frame> frames = ReadFramesCsv(options.frames_file);
+  if (frames.empty()) throw CommandError(options.frames_file + ": no frames (header only)");
+  std::map<int64_t, algorithms::Pose3> odometry;
+  if (!options.odometry_file.empty()) odometry = ReadPosesCsv(options.odometry_file);
+  try {  // fail before the (long) build, not after it
+    context.Connect().GetMap(options.map.name);
+    throw CommandError("map '" + options.map.name + "' already exists; choose another name");
+  } catch (const RpcError& error) {
+    if (error.code() != grpc::StatusCode::NOT_FOUND) throw;
+  }
+
+  algorithms::MapBuilder builder;
+  int fixes[5] = {0, 0, 0, 0, 0};  // by FrameFix
+  const algorithms::Pose3* previous = nullptr;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    algorithms::BuilderFrame frame;
+    frame.frame_id = frames[i].frame;
+    frame.trees = frames[i].trees;
+    const auto pose = odometry.find(frame.frame_id);
+    const algorithms::Pose3* current = pose == odometry.end() ? nullptr : &pose->second;
+    if (previous && current) frame.odometry = previous->inverse() * *current;
+    previous = current;
+    ++fixes[static_cast<int>(builder.AddFrame(frame).fix)];
+    if ((i + 1) % 100 == 0 || i + 1 == frames.size()) {
+      *context.err << "map build: " << i + 1 << "/" << frames.size() << " frames, "
+                   << builder.map().size() << " trees, " << builder.loop_closures()
+                   << " loop closures" << std::endl;
+    }
+  }
+  builder.Finish();
+  *context.err << "map build: " << fixes[static_cast<int>(algorithms::FrameFix::kTracked)]
+               << " frames tracked, "
+               << fixes[static_cast<int>(algorithms::FrameFix::kRelocalized)] +
+                      fixes[static_cast<int>(algorithms::FrameFix::kGlobal)]
+               << " relocalized, " << fixes[static_cast<int>(algorithms::FrameFix::kDeadReckoned)]
+               << " without a fix (not merged)" << std::endl;
+
+  if (!options.poses_out.empty()) {
+    std::ofstream out(options.poses_out);
+    out << "frame,timestamp,x,y,z,qx,qy,qz,qw\n" << std::setprecision(10);
+    const std::vector<algorithms::Pose3> poses = builder.Poses();
+    for (size_t i = 0; i < poses.size(); ++i) {
+      const Eigen::Quaterniond q(poses[i].linear());
+      const Eigen::Vector3d t = poses[i].translation();
+      out << frames[i].frame << ',' << i << ',' << t.x() << ',' << t.y() << ',' << t.z() << ','
+          << q.x() << ',' << q.y() << ',' << q.z() << ',' << q.w() << '\n';
+    }
+    if (!out) throw CommandError(options.poses_out + ": cannot write the poses");
+  }
+  std::vector<MapTreeRow> rows;
+  for (const algorithms::MapTree& tree : builder.ConfirmedTrees()) {
+    MapTreeRow row;
+    row.x = tree.position.x();
+    row.y = tree.position.y();
+    if (std::isfinite(tree.position.z())) row.z = tree.position.z();
+    if (std::isfinite(tree.dbh)) row.dbh = tree.dbh;
+    rows.push_back(row);
+  }
+  CreateWithTrees(options.map, rows, "the built map", context);
+}
+
+void AddBuild(CLI::App& map_app, CliContext& context) {
+  auto options = std::make_shared<BuildOptions>();
+  CLI::App* sub = map_app.add_subcommand(
+      "build",
+      "Map an unknown forest from a drone's frames alone (tree SLAM with loop closure, on this "
+      "machine), then create the map with the confirmed trees; the first frame defines the map "
+      "frame");
+  sub->add_option("NAME", options->map.name, "New map's name")->required();
+  sub->add_option("--frames", options->frames_file,
+                  "CSV of the frames' detected trees (frame,x,y,...; sensor frame), in order")
+      ->required()
+      ->check(CLI::ExistingFile);
+  sub->add_option("--odometry", options->odometry_file,
+                  "Poses CSV (frame,timestamp,x,y,z,qx,qy,qz,qw) in any world frame: the motion "
+                  "between consecutive frames is used as odometry")
+      ->check(CLI::ExistingFile);
+  sub->add_option("--poses-out", options->poses_out,
+                  "Write the built trajectory (map_from_sensor per frame) to this CSV");
+  sub->add_option("--description", options->map.description, "Free text");
+  sub->callback(
+      [options, &context] { context.run = [options, &context] { RunBuild(*options, context); }; });
 }
 
 void AddList(CLI::App& map_app, CliContext& context) {
@@ -260,8 +364,9 @@ void AddRemoveSource(CLI::App& map_app, CliContext& context) {
 
 void AddMapCommand(CLI::App& app, CliContext& context) {
   CLI::App* map_app = app.add_subcommand(
-      "map", "Create, list, show, delete and export maps; history, restore, remove-source");
+      "map", "Create, build, list, show, delete and export maps; history, restore, remove-source");
   AddCreate(*map_app, context);
+  AddBuild(*map_app, context);
   AddList(*map_app, context);
   AddShow(*map_app, context);
   AddDelete(*map_app, context);

@@ -294,6 +294,32 @@ TEST_F(CliTest, RelocalizeScanSendsTheTrunksItDetects) {
   EXPECT_TRUE(StartsWith(not_a_scan.err, "forestmap: error: ")) << not_a_scan.err;
 }
 
+// Mapping an unknown forest: 100 real Wild_V01 frames, no poses, become a new map.
+TEST_F(CliTest, MapBuildCreatesAMapFromFramesAlone) {
+  const std::string frames = std::string(FORESTMAP_SHARED_DATA) + "/sequences/Wild_V01/trees.csv";
+  if (!fs::exists(frames)) GTEST_SKIP() << "missing " << frames;
+  std::ifstream in(frames);
+  std::string csv, line;
+  while (std::getline(in, line) && (csv.empty() || std::stoi(line) < 100)) csv += line + "\n";
+  testing::FakeForestMapServer server;
+  const std::string s = "--server " + server.address() + " ";
+  const fs::path poses = dir_ / "built_poses.csv";
+  const Result built = Run(s + "map build forest --frames '" + Write("f.csv", csv).string() +
+                           "' --poses-out '" + poses.string() + "'");
+  ASSERT_EQ(built.exit_code, 0) << built.err;
+  EXPECT_NE(built.err.find("map build: 100/100 frames"), std::string::npos) << built.err;
+  EXPECT_TRUE(StartsWith(built.out, "created map 'forest' (")) << built.out;
+  const auto& uploaded = server.service().maps.at("forest").trees;
+  EXPECT_GT(uploaded.size(), 500u);
+  EXPECT_EQ(CountLines(ReadFile(poses)), 101);
+  // The first frame defines the map frame.
+  EXPECT_LT(ReadPosesCsv(poses.string()).at(0).translation().norm(), 1e-9);
+
+  const Result again = Run(s + "map build forest --frames '" + (dir_ / "f.csv").string() + "'");
+  EXPECT_EQ(again.exit_code, 1);
+  EXPECT_NE(again.err.find("map 'forest' already exists"), std::string::npos) << again.err;
+}
+
 TEST_F(CliTest, RelocalizeFramesPrintsALinePerFrameAndASummary) {
   testing::FakeForestMapServer server;
   const std::string s = "--server " + server.address() + " ";
