@@ -87,6 +87,7 @@ class Runner {
     const algorithms::RelocSummary s = evaluator_.Summary();
     return {{"map_trees", map_trees},
             {"index_build_ms", build_ms_},
+            {"index_triangle_side_m", index_->triangle_side()},
             {"index_bytes_per_tree", map_trees ? double(index_->MemoryBytes()) / map_trees : 0},
             {"frames", s.frames},
             {"answerable", s.answerable},
