@@ -15,7 +15,57 @@ uint64_t CellKey(const Rigid2& pose) {
          (static_cast<uint64_t>(cy & 0xFFFFFF) << 16) | static_cast<uint64_t>(cyaw & 0xFFFF);
 }
 
+constexpr uint64_t kEmpty = ~uint64_t{0};  // CellKey never makes it (yaw bits stay < 0xFFFF)
+
 }  // namespace
+
+PoseVoter::PoseVoter(const MapIndexImpl& m, const std::vector<Eigen::Vector2d>& seed_xy,
+                     const std::optional<PriorPose>& prior, const Eigen::Vector2d& prior_xy,
+                     double tolerance, int min_votes)
+    : m_(m),
+      seed_xy_(seed_xy),
+      prior_(prior),
+      prior_xy_(prior_xy),
+      tol_(tolerance),
+      min_votes_(min_votes),
+      table_(4096, Cell{kEmpty}) {}
+
+size_t PoseVoter::Probe(uint64_t key) const {
+  const size_t mask = table_.size() - 1;
+  size_t i = (key * 0x9E3779B97F4A7C15ull) >> 20 & mask;
+  while (table_[i].key != key && table_[i].key != kEmpty) i = (i + 1) & mask;
+  return i;
+}
+
+PoseVoter::Cell& PoseVoter::Slot(uint64_t key) {
+  if (2 * (used_ + 1) > table_.size()) {  // keep the load under 1/2
+    std::vector<Cell> old(2 * table_.size(), Cell{kEmpty});
+    old.swap(table_);
+    used_ = 0;
+    for (const Cell& cell : old) {
+      if (cell.key != kEmpty) Slot(cell.key) = cell;
+    }
+  }
+  Cell& cell = table_[Probe(key)];
+  if (cell.key == kEmpty) {
+    ++used_;
+    cell.key = key;
+  }
+  return cell;
+}
+
+void PoseVoter::Vote(uint64_t seeds, const Rigid2& pose, double cos_yaw, double sin_yaw) {
+  Cell& cell = Slot(CellKey(pose));
+  cell.seeds |= seeds;
+  cell.cos += static_cast<float>(cos_yaw);
+  cell.sin += static_cast<float>(sin_yaw);
+  cell.x += static_cast<float>(pose.translation.x());
+  cell.y += static_cast<float>(pose.translation.y());
+  ++cell.votes;
+  const int voters = __builtin_popcountll(cell.seeds);
+  if (voters != cell.voters && voters >= min_votes_) by_voters_[voters].push_back(cell.key);
+  cell.voters = voters;
+}
 
 void PoseVoter::Add(const Triangle& qt) {
   // Per-side tolerance: search the ball that contains the box, then check each side.
@@ -42,41 +92,29 @@ void PoseVoter::Add(const Triangle& qt) {
       const double cy = std::cos(pose.yaw), sy = std::sin(pose.yaw);
       pose.translation = {mf.cx - (cy * qf.cx - sy * qf.cy), mf.cy - (sy * qf.cx + cy * qf.cy)};
       if (prior_ && (pose.translation - prior_xy_).norm() > prior_->radius) continue;
-      votes_.push_back({CellKey(pose), mask, static_cast<float>(pose.yaw),
-                        static_cast<float>(pose.translation.x()),
-                        static_cast<float>(pose.translation.y())});
+      Vote(mask, pose, cy, sy);
     }
   }
 }
 
-std::vector<Hypothesis> PoseVoter::Best(int min_votes, size_t max) {
-  // Votes before sorted_ are already in cell order: sort the new ones and merge.
-  auto by_cell = [](const Vote& a, const Vote& b) { return a.cell < b.cell; };
-  std::sort(votes_.begin() + sorted_, votes_.end(), by_cell);
-  std::inplace_merge(votes_.begin(), votes_.begin() + sorted_, votes_.end(), by_cell);
-  sorted_ = votes_.size();
+std::vector<Hypothesis> PoseVoter::Best(size_t max) const {
   std::vector<Hypothesis> hypotheses;
-  for (size_t begin = 0, end = 0; begin < votes_.size(); begin = end) {
-    uint64_t mask = 0;
-    double c = 0, s = 0;
-    Eigen::Vector2d t = Eigen::Vector2d::Zero();
-    for (end = begin; end < votes_.size() && votes_[end].cell == votes_[begin].cell; ++end) {
-      mask |= votes_[end].seeds;
-      c += std::cos(votes_[end].yaw);
-      s += std::sin(votes_[end].yaw);
-      t += Eigen::Vector2d(votes_[end].x, votes_[end].y);
+  std::vector<uint64_t> level;
+  for (int voters = 64; voters >= min_votes_ && hypotheses.size() < max; --voters) {
+    level.clear();
+    for (uint64_t key : by_voters_[voters]) {
+      if (table_[Probe(key)].voters == voters) level.push_back(key);
     }
-    Hypothesis h;
-    h.votes = __builtin_popcountll(mask);
-    if (h.votes < min_votes) continue;
-    h.pose.yaw = std::atan2(s, c);
-    h.pose.translation = t / static_cast<double>(end - begin);
-    hypotheses.push_back(h);
+    std::sort(level.begin(), level.end());  // ties in cell order
+    for (size_t i = 0; i < level.size() && hypotheses.size() < max; ++i) {
+      const Cell& cell = table_[Probe(level[i])];
+      Hypothesis h;
+      h.votes = voters;
+      h.pose.yaw = std::atan2(cell.sin, cell.cos);
+      h.pose.translation = Eigen::Vector2d(cell.x, cell.y) / static_cast<double>(cell.votes);
+      hypotheses.push_back(h);
+    }
   }
-  const size_t keep = std::min(hypotheses.size(), max);
-  std::partial_sort(hypotheses.begin(), hypotheses.begin() + keep, hypotheses.end(),
-                    [](const Hypothesis& a, const Hypothesis& b) { return a.votes > b.votes; });
-  hypotheses.resize(keep);
   return hypotheses;
 }
 

@@ -208,21 +208,21 @@ std::vector<Hypothesis> Search(const MapIndexImpl& m, const LevelledQuery& q,
   const int strong = std::max(2 * options.min_inliers,
                               static_cast<int>(options.early_exit_fraction *
                                                InRange(q, options.ratio_range)));
-  PoseVoter voter(m, seed_xy, prior, prior_xy, options.triangle_tolerance);
+  PoseVoter voter(m, seed_xy, prior, prior_xy, options.triangle_tolerance, options.min_votes);
   for (size_t i = 0; i < triangles.size(); ++i) {
     voter.Add(triangles[i]);
     const bool batch_done = options.early_exit_batch > 0 &&
                             (i + 1) % options.early_exit_batch == 0 && i + 1 < triangles.size();
     if (!batch_done) continue;
-    for (const Hypothesis& h : voter.Best(options.min_votes, 2)) {
+    for (const Hypothesis& h : voter.Best(2)) {
       int near = 0;  // inliers within ratio_range, as counted by `strong`
       for (const Association& a : Associate(m, q, h.pose, options.inlier_distance)) {
         near += q.xy[a.query].norm() <= options.ratio_range;
       }
-      if (near >= strong) return voter.Best(options.min_votes, options.max_hypotheses);
+      if (near >= strong) return voter.Best(options.max_hypotheses);
     }
   }
-  return voter.Best(options.min_votes, options.max_hypotheses);
+  return voter.Best(options.max_hypotheses);
 }
 
 // Sensor headings that align the query's bearings with the map's as seen from `at` (kd
