@@ -42,7 +42,7 @@ struct RelocalizerOptions {
   int early_exit_batch = 8;          // query triangles between checks for a decisive pose; 0 = off
   double early_exit_fraction = 0.5;  // decisive: explains this share of trees within ratio_range
   int min_votes = 3;                 // distinct query trees voting for a pose cell to verify it
-  int max_hypotheses = 100;          // pose cells verified against the map
+  int max_hypotheses = 200;          // pose cells verified against the map
   // Refine roll/pitch from the matched trees' map heights (tilt_refinement.h). Off by default:
   // it helps steeply tilted sensors (Stein: median error 0.096 -> 0.086 m) but costs ~1 pp
   // strict recall where map heights are noisy (Venman).
