@@ -48,8 +48,7 @@ class PoseVoter {
     int votes = 0;
   };
   void Vote(uint64_t seeds, const Rigid2& pose, double cos_yaw, double sin_yaw);
-  size_t Probe(uint64_t key) const;
-  uint64_t NeighbourhoodSeeds(uint64_t key) const;  // the key's slot, or the free slot where it would go
+  size_t Probe(uint64_t key) const;  // the key's slot, or the free slot where it would go
   Cell& Slot(uint64_t key);           // inserts the key when missing
 
   const MapIndexImpl& m_;
