@@ -294,6 +294,25 @@ TEST_F(CliTest, RelocalizeScanSendsTheTrunksItDetects) {
   EXPECT_TRUE(StartsWith(not_a_scan.err, "forestmap: error: ")) << not_a_scan.err;
 }
 
+// Scan to pose, the whole thin-client path in process: simulated LiDAR scans of the real longleaf
+// stem map -> trunk detection -> relocalization, scored against the simulator's poses.
+TEST_F(CliTest, SimulatedScansOfARealStemMapRelocalize) {
+  const std::string stemmap = std::string(FORESTMAP_SHARED_DATA) + "/stemmaps/spatstat_longleaf.csv";
+  if (!fs::exists(stemmap)) GTEST_SKIP() << "missing " << stemmap;
+  const std::string dir = (dir_ / "scans").string();
+  const Result simulated = Run("simulate --map '" + stemmap +
+                               "' --random-poses 40 --scanner os1-64 --seed 7 --out '" + dir + "'");
+  ASSERT_EQ(simulated.exit_code, 0) << simulated.err;
+  const Result bench =
+      Run("bench-reloc --map '" + dir + "/map.csv' --scans '" + dir + "' --within 0.3 --json");
+  ASSERT_EQ(bench.exit_code, 0) << bench.err;
+  const auto report = nlohmann::json::parse(bench.out);
+  EXPECT_EQ(report["frames"], 40);
+  EXPECT_EQ(report["wrong"], 0);
+  // Floor at today's level (200 such scans: 77% within 0.3 m; the bar is 98%).
+  EXPECT_GE(report["localized_within_rate"].get<double>(), 0.65) << bench.out;
+}
+
 // Mapping an unknown forest: 100 real Wild_V01 frames, no poses, become a new map.
 TEST_F(CliTest, MapBuildCreatesAMapFromFramesAlone) {
   const std::string frames = std::string(FORESTMAP_SHARED_DATA) + "/sequences/Wild_V01/trees.csv";
