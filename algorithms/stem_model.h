@@ -41,8 +41,8 @@ namespace forestmap::algorithms {
 struct StemModelOptions {
   double slice_height = 0.25;         // m, thinnest slices
   double max_slice_height = 0.8;      // m, thickest slices (sparse clusters)
-  int points_per_slice = 24;          // slices of sparse clusters thicken to hold about this many
-  int min_slice_points = 6;           // points (and circle inliers) per slice fit
+  int points_per_slice = 14;          // slices of sparse clusters thicken to hold about this many
+  int min_slice_points = 4;           // points (and circle inliers) per slice fit
   int max_slice_points = 1500;        // denser slices are thinned evenly before fitting
   int max_circles_per_slice = 3;      // stems per slice of one cluster
   CircleRansacOptions circle;         // per-slice RANSAC circle fit

@@ -26,8 +26,8 @@ struct DetectCommandOptions {
   std::string format = "csv";
   bool multi_view = false;
   double beam_divergence = 0;
-  double min_height = 0.5;
-  double max_height = 3.0;
+  double min_height = algorithms::StemLayerOptions().min_height;
+  double max_height = algorithms::StemLayerOptions().max_height;
   uint32_t seed = 1;
   algorithms::StemModelOptions stem;  // defaults, for the tuning flags below
 };
