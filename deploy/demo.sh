@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Command 1 of the README: installs dependencies, builds, starts forestmapd on its embedded
 # SQLite database (./forestmap.db), uploads a demo forest map, relocalizes a simulated drone view
-# in it and prints the true and the estimated pose. Then keeps serving until Ctrl-C
+# in it and prints the true and the estimated pose; then does the same from a simulated LiDAR
+# scan (trunk detection on the client, `relocalize --scan`). Then keeps serving until Ctrl-C
 # (pass --no-serve to stop after the demo).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -44,6 +45,20 @@ if [ "$(field "$answer" status)" = '"localized"' ]; then
       'BEGIN { printf "position error:  %.3f m\n", sqrt((ex-tx)^2 + (ey-ty)^2) }'
 else
   echo "estimated pose:  none ($(field "$answer" status))"
+fi
+
+# The thin client's whole path: a simulated LiDAR scan (Ouster OS1-64, 3 m above the ground at
+# the same place), trunks detected here, only the tree list sent to the server.
+"$bin/client/forestmap" simulate --map demo-out/map.csv --scanner os1-64 \
+  --pose "$(field "$truth" x),$(field "$truth" y),3,$(field "$truth" yaw_deg)" \
+  --out demo-out/scan >/dev/null
+scan_answer=$("$bin/client/forestmap" relocalize demo --scan demo-out/scan/scan_000.pcd)
+echo
+echo "from a LiDAR scan: $scan_answer"
+if [ "$(field "$scan_answer" status)" = '"localized"' ]; then
+  awk -v ex="$(field "$scan_answer" x)" -v ey="$(field "$scan_answer" y)" \
+      -v tx="$(field "$truth" x)" -v ty="$(field "$truth" y)" \
+      'BEGIN { printf "position error:  %.3f m\n", sqrt((ex-tx)^2 + (ey-ty)^2) }'
 fi
 
 if [ $serve -eq 1 ]; then
