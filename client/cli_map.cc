@@ -98,8 +98,7 @@ struct BuildOptions {
 void RunBuild(const BuildOptions& options, const CliContext& context) {
   const std::vector<Frame> frames = ReadFramesCsv(options.frames_file);
   if (frames.empty()) throw CommandError(options.frames_file + ": no frames (header only)");
-  std::map<int64_t, algorithms::Pose3> odometry;
-  if (!options.odometry_file.empty()) odometry = ReadPosesCsv(options.odometry_file);
+  OdometryFromPoses odometry(options.odometry_file);
   try {  // fail before the (long) build, not after it
     context.Connect().GetMap(options.map.name);
     throw CommandError("map '" + options.map.name + "' already exists; choose another name");
@@ -109,15 +108,11 @@ void RunBuild(const BuildOptions& options, const CliContext& context) {
 
   algorithms::MapBuilder builder;
   int fixes[5] = {0, 0, 0, 0, 0};  // by FrameFix
-  const algorithms::Pose3* previous = nullptr;
   for (size_t i = 0; i < frames.size(); ++i) {
     algorithms::BuilderFrame frame;
     frame.frame_id = frames[i].frame;
     frame.trees = frames[i].trees;
-    const auto pose = odometry.find(frame.frame_id);
-    const algorithms::Pose3* current = pose == odometry.end() ? nullptr : &pose->second;
-    if (previous && current) frame.odometry = previous->inverse() * *current;
-    previous = current;
+    frame.odometry = odometry.Next(frame.frame_id);
     ++fixes[static_cast<int>(builder.AddFrame(frame).fix)];
     if ((i + 1) % 100 == 0 || i + 1 == frames.size()) {
       *context.err << "map build: " << i + 1 << "/" << frames.size() << " frames, "

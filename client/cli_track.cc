@@ -45,24 +45,18 @@ const char* MethodName(v1::TrackResponse::Method method) {
 void Run(const TrackOptions& options, const CliContext& context) {
   const std::vector<Frame> frames = ReadFramesCsv(options.frames_file);
   if (frames.empty()) throw CommandError(options.frames_file + ": no frames (header only)");
-  std::map<int64_t, algorithms::Pose3> odometry_poses;
-  if (!options.odometry_file.empty()) odometry_poses = ReadPosesCsv(options.odometry_file);
+  OdometryFromPoses odometry(options.odometry_file);
 
   ForestMapClient client = context.Connect();
   TrackSession session = client.Track(options.map);
   int counts[4] = {0, 0, 0, 0};  // by TrackResponse::State
   int longest_loss = 0;
   std::vector<double> server_ms;
-  const algorithms::Pose3* previous_pose = nullptr;
   for (size_t i = 0; i < frames.size(); ++i) {
     TrackFrame frame;
     frame.frame_id = frames[i].frame;
     frame.trees = frames[i].trees;
-    // Odometry: the motion between consecutive frames' poses (any common world frame).
-    const auto pose = odometry_poses.find(frame.frame_id);
-    const algorithms::Pose3* current_pose = pose == odometry_poses.end() ? nullptr : &pose->second;
-    if (previous_pose && current_pose) frame.odometry = previous_pose->inverse() * *current_pose;
-    previous_pose = current_pose;
+    frame.odometry = odometry.Next(frame.frame_id);
 
     const v1::TrackResponse response = session.Step(frame);
     ++counts[std::clamp<int>(response.state(), 0, 3)];

@@ -212,4 +212,13 @@ std::vector<algorithms::MapTree> ToMapTrees(const std::vector<MapTreeRow>& rows)
   return trees;
 }
 
+std::optional<algorithms::Pose3> OdometryFromPoses::Next(int64_t frame) {
+  const auto pose = poses_.find(frame);
+  const algorithms::Pose3* current = pose == poses_.end() ? nullptr : &pose->second;
+  std::optional<algorithms::Pose3> motion;
+  if (previous_ && current) motion = previous_->inverse() * *current;
+  previous_ = current;
+  return motion;
+}
+
 }  // namespace forestmap::client

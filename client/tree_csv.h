@@ -85,4 +85,19 @@ std::vector<Frame> ParseFramesCsv(std::string content, const std::string& name);
 std::map<int64_t, algorithms::Pose3> ReadPosesCsv(const std::string& path);
 std::map<int64_t, algorithms::Pose3> ParsePosesCsv(std::string content, const std::string& name);
 
+// Odometry from a poses file (ReadPosesCsv) in any world frame: Next(frame), called for the
+// frames in order, is the motion previous_sensor_from_sensor since the previous call's frame, or
+// nullopt for the first frame and when either frame has no pose. An empty path: no odometry.
+class OdometryFromPoses {
+ public:
+  explicit OdometryFromPoses(const std::string& poses_path)
+      : poses_(poses_path.empty() ? std::map<int64_t, algorithms::Pose3>{}
+                                  : ReadPosesCsv(poses_path)) {}
+  std::optional<algorithms::Pose3> Next(int64_t frame);
+
+ private:
+  std::map<int64_t, algorithms::Pose3> poses_;
+  const algorithms::Pose3* previous_ = nullptr;
+};
+
 }  // namespace forestmap::client
