@@ -82,7 +82,9 @@ TEST_F(CliTest, HelpExitsZeroForEveryCommand) {
   EXPECT_NE(top.out.find("--server"), std::string::npos);
   EXPECT_NE(top.out.find("relocalize"), std::string::npos);
   for (const char* command :
-       {"map", "map create", "map list", "map show", "map delete", "map export", "relocalize"}) {
+       {"map", "map create", "map build", "map list", "map show", "map delete", "map export",
+        "map history", "map restore", "map remove-source", "relocalize", "track", "observe",
+        "detect", "simulate", "bench-reloc", "bench-mapping", "bench-server", "demo-data"}) {
     SCOPED_TRACE(command);
     const Result result = Run(std::string(command) + " --help");
     EXPECT_EQ(result.exit_code, 0);
@@ -111,6 +113,9 @@ TEST_F(CliTest, InvalidCommandLinesExitNonZeroWithAMessage) {
            {"relocalize m --trees a.csv --prior 1,2,x,4", "--prior: YAW_DEG 'x' is not a number"},
            {"relocalize m --trees a.csv --prior 1,2,3,-5", "--prior: RADIUS_M must be > 0"},
            {"--server '' map list", "--server"},
+           {"track m", "--frames is required"},
+           {"map build m", "--frames is required"},
+           {"relocalize m --scan /no/such/scan.pcd", "/no/such/scan.pcd"},
        }) {
     SCOPED_TRACE(c.args);
     const Result result = Run(c.args);
