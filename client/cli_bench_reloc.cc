@@ -14,6 +14,8 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <random>
 
 #include <nlohmann/json.hpp>
@@ -43,6 +45,7 @@ struct BenchOptions {
   unsigned seed = 1;
   bool json = false;
   bool track = false;
+  std::string per_frame_path;  // CSV of every answer, for diagnosis
 };
 
 double Ms(std::chrono::steady_clock::duration d) {
@@ -54,6 +57,12 @@ class Runner {
  public:
   Runner(const std::vector<algorithms::MapTree>& map, const BenchOptions& options)
       : options_(options), evaluator_(map), rng_(options.seed) {
+    if (!options.per_frame_path.empty()) {
+      per_frame_.open(options.per_frame_path);
+      if (!per_frame_) throw CommandError("cannot write " + options.per_frame_path);
+      per_frame_ << "query,answerable,status,x,y,yaw_deg,true_x,true_y,true_yaw_deg,error_xy_m,"
+                    "error_yaw_deg,inliers,confidence,ms\n";
+    }
     const auto start = std::chrono::steady_clock::now();
     index_ = std::make_unique<algorithms::MapIndex>(map);
     build_ms_ = Ms(std::chrono::steady_clock::now() - start);
@@ -75,7 +84,9 @@ class Runner {
     const algorithms::RelocalizeResult result =
         tracker_ ? Track(query) : algorithms::Relocalize(*index_, query);
     const double ms = Ms(std::chrono::steady_clock::now() - start);
-    evaluator_.Add(evaluator_.Answerable(trees, truth), truth, result, ms);
+    const bool answerable = evaluator_.Answerable(trees, truth);
+    evaluator_.Add(answerable, truth, result, ms);
+    if (per_frame_.is_open()) WriteRow(answerable, truth, result, ms);
     ++frames_;
     within_ += result.status == algorithms::RelocalizeStatus::kLocalized &&
                algorithms::ComparePoses(result.map_from_sensor, truth).xy <= options_.within;
@@ -116,6 +127,22 @@ class Runner {
   }
 
  private:
+  void WriteRow(bool answerable, const Pose3& truth, const algorithms::RelocalizeResult& result,
+                double ms) {
+    const bool localized = result.status == algorithms::RelocalizeStatus::kLocalized;
+    const algorithms::PoseError error = algorithms::ComparePoses(result.map_from_sensor, truth);
+    const Eigen::Vector3d t = result.map_from_sensor.translation(), u = truth.translation();
+    char row[400];
+    std::snprintf(row, sizeof row, "%d,%d,%s,%.3f,%.3f,%.2f,%.3f,%.3f,%.2f,%.3f,%.3f,%d,%.3f,%.3f\n",
+                  frames_, answerable ? 1 : 0, algorithms::ToString(result.status),
+                  localized ? t.x() : NAN, localized ? t.y() : NAN,
+                  localized ? algorithms::YawOf(result.map_from_sensor.linear()) * 180 / M_PI : NAN,
+                  u.x(), u.y(), algorithms::YawOf(truth.linear()) * 180 / M_PI,
+                  localized ? error.xy : NAN, localized ? error.yaw : NAN, result.inliers,
+                  result.confidence, ms);
+    per_frame_ << row;
+  }
+
   algorithms::RelocalizeResult Track(const algorithms::RelocalizeQuery& query) {
     const algorithms::TrackingStep step = tracker_->Step(*index_, {query, std::nullopt});
     ++track_counts_[static_cast<int>(step.state)];
@@ -133,6 +160,7 @@ class Runner {
   std::unique_ptr<algorithms::MapIndex> index_;
   std::mt19937 rng_;
   double build_ms_ = 0;
+  std::ofstream per_frame_;
 };
 
 void Progress(std::ostream& err, size_t done, size_t total) {
@@ -277,6 +305,8 @@ void AddBenchRelocCommand(CLI::App& app, CliContext& context) {
   cmd->add_flag("--track", options->track,
                "Track the frames in order (one tracking session) instead of relocalizing each");
   cmd->add_flag("--json", options->json, "Print one JSON object");
+  cmd->add_option("--per-frame", options->per_frame_path,
+                  "Also write every answer with its error and time to this CSV");
   cmd->callback([options, &context] {
     const BenchOptions& o = *options;
     if (o.generate > 0 && (o.like_path.empty() || o.simulate == 0)) {
