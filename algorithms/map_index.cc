@@ -82,20 +82,6 @@ double ChooseTriangleSide(const KdTree<float, 2>& kd, const std::vector<Eigen::V
 
 }  // namespace
 
-TriangleFrame FrameOf(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
-                      const Eigen::Vector2d& c) {
-  const Eigen::Vector2d centroid = (a + b + c) / 3.0;
-  const Eigen::Vector2d ab = b - a, ac = c - a;
-  const double cross = ab.x() * ac.y() - ab.y() * ac.x();
-  // Nearly collinear triangles (height under 5% of the long side) have no reliable orientation.
-  const int turn = std::abs(cross) < 0.05 * ab.squaredNorm() ? 0 : (cross > 0 ? 1 : -1);
-  TriangleFrame frame;
-  frame.cx = static_cast<float>(centroid.x());
-  frame.cy = static_cast<float>(centroid.y());
-  frame.packed = static_cast<float>(std::atan2(ab.y(), ab.x()) + 8.0 * turn);
-  return frame;
-}
-
 void MapIndexOptions::Check() const {
   if (!(target_neighbours >= 2 && target_neighbours <= 50)) {
     throw std::invalid_argument("MapIndexOptions: target_neighbours must be in [2, 50]");
@@ -103,6 +89,9 @@ void MapIndexOptions::Check() const {
   if (!(min_triangle_side >= 0 && max_triangles_per_tree > 0 &&
         small_map_triangles_per_tree > 0 && min_index_triangles >= 0)) {
     throw std::invalid_argument("MapIndexOptions: min_triangle_side and triangle budget invalid");
+  }
+  if (!(occupancy_resolution > 0 && occupancy_radius >= occupancy_resolution)) {
+    throw std::invalid_argument("MapIndexOptions: need 0 < occupancy_resolution <= occupancy_radius");
   }
   if (threads < 0) throw std::invalid_argument("MapIndexOptions: threads must be >= 0");
 }
@@ -147,16 +136,18 @@ MapIndex::MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options)
     parts[chunk] = EnumerateTriangles(local, neighbours, m.triangle_options, begin, end);
   });
   neighbours = {};
-  std::vector<KdTree<float, 3>::Point> keys;
+  std::vector<Triangle> all;
+  size_t total = 0;
+  for (const auto& part : parts) total += part.size();
+  all.reserve(total);
   for (auto& part : parts) {
-    for (const Triangle& t : part) {
-      keys.push_back(t.sides);
-      m.triangle_frames.push_back(
-          FrameOf(local[t.vertex[0]], local[t.vertex[1]], local[t.vertex[2]]));
-    }
+    all.insert(all.end(), part.begin(), part.end());
     part = {};
   }
-  m.triangle_keys = std::make_unique<KdTree<float, 3>>(std::move(keys));
+  m.triangles = std::make_unique<TriangleTable>(all, local, m.triangle_options.max_side);
+  all = {};
+  m.occupancy = std::make_unique<OccupancyGrid>(local, options.occupancy_radius,
+                                                options.occupancy_resolution);
 }
 
 MapIndex::~MapIndex() = default;
@@ -165,13 +156,12 @@ const std::vector<MapTree>& MapIndex::trees() const { return impl_->trees; }
 bool MapIndex::has_z() const { return impl_->has_z; }
 bool MapIndex::has_dbh() const { return impl_->has_dbh; }
 double MapIndex::triangle_side() const { return impl_->triangle_options.max_side; }
-size_t MapIndex::triangle_count() const { return impl_->triangle_frames.size(); }
+size_t MapIndex::triangle_count() const { return impl_->triangles->size(); }
 size_t MapIndex::MemoryBytes() const {
   const MapIndexImpl& m = *impl_;
   return sizeof(MapIndexImpl) + m.trees.capacity() * sizeof(MapTree) +
          m.positions->MemoryBytes() +
-         m.triangle_frames.capacity() * sizeof(TriangleFrame) +
-         m.triangle_keys->MemoryBytes();
+         m.triangles->MemoryBytes() + m.occupancy->MemoryBytes();
 }
 
 }  // namespace forestmap::algorithms

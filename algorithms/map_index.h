@@ -22,6 +22,10 @@ struct MapIndexOptions {
   // Small or sparse maps: grow the side until the index holds this many triangles (sparse
   // views then still contain whole triangles; the search stays cheap on a small index).
   double min_index_triangles = 50000;
+  // The occupancy grid that rejects wrong poses quickly: cells within this radius of a tree
+  // (about the relocalizer's inlier distance), at this resolution.
+  double occupancy_radius = 0.4;      // m
+  double occupancy_resolution = 0.2;  // m
   int threads = 0;  // index build threads for large maps; 0 = hardware concurrency
   void Check() const;
 };

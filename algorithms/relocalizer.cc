@@ -7,22 +7,11 @@
 #include <unordered_map>
 
 #include "algorithms/leveling.h"
-#include "algorithms/map_index_internal.h"
-#include "algorithms/pose_voting.h"
-#include "algorithms/rigid2d.h"
+#include "algorithms/pose_search.h"
 #include "algorithms/tilt_refinement.h"
 
 namespace forestmap::algorithms {
 namespace {
-
-// The query after levelling, in the map's kd coordinates once a pose is applied.
-struct LevelledQuery {
-  Eigen::Matrix3d level_from_sensor = Eigen::Matrix3d::Identity();
-  std::vector<Eigen::Vector2d> xy;  // levelled horizontal positions (sensor at the origin)
-  std::vector<double> z;            // levelled heights relative to the sensor
-  std::vector<double> dbh;
-  std::vector<uint32_t> used;       // indices into the request's trees, nearest first
-};
 
 LevelledQuery Level(const RelocalizeQuery& query, const Eigen::Matrix3d& level_from_sensor,
                     const RelocalizerOptions& options) {
@@ -43,74 +32,6 @@ LevelledQuery Level(const RelocalizeQuery& query, const Eigen::Matrix3d& level_f
     q.used.push_back(i);
   }
   return q;
-}
-
-// Query triangles among the seeds (the nearest query trees), with the index's side limits
-// widened by the matching tolerance.
-std::vector<Triangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy,
-                                     const MapIndexImpl& m, double tolerance) {
-  TriangleOptions tri = m.triangle_options;
-  tri.max_side += tolerance;
-  tri.min_side = std::max(0.0, tri.min_side - tolerance);
-  std::vector<std::vector<uint32_t>> neighbours(seed_xy.size());
-  for (uint32_t i = 0; i < seed_xy.size(); ++i) {
-    for (uint32_t j = 0; j < seed_xy.size(); ++j) {
-      if (i != j && (seed_xy[i] - seed_xy[j]).norm() <= tri.max_side) neighbours[i].push_back(j);
-    }
-  }
-  return EnumerateTriangles(seed_xy, neighbours, tri);
-}
-
-// Inliers of a pose: each used query tree whose nearest map tree is within `gate`.
-struct Association {
-  uint32_t query = 0;  // index into LevelledQuery
-  uint32_t map = 0;    // index into the map's trees
-  double distance = 0;
-};
-
-std::vector<Association> Associate(const MapIndexImpl& m, const LevelledQuery& q,
-                                   const Rigid2& pose, double gate, size_t limit = SIZE_MAX) {
-  std::vector<Association> out;
-  const double gate2 = gate * gate;
-  for (uint32_t i = 0; i < std::min(limit, q.xy.size()); ++i) {
-    const Eigen::Vector2d p = pose(q.xy[i]);
-    auto [j, d2] = m.positions->Nearest({static_cast<float>(p.x()), static_cast<float>(p.y())});
-    if (j >= 0 && d2 <= gate2) out.push_back({i, static_cast<uint32_t>(j), std::sqrt(d2)});
-  }
-  return out;
-}
-
-// Scores a pose on the `limit` nearest query trees (all by default).
-void Score(const MapIndexImpl& m, const LevelledQuery& q, double inlier_distance, Hypothesis* h,
-           size_t limit = SIZE_MAX) {
-  const std::vector<Association> inliers = Associate(m, q, h->pose, inlier_distance, limit);
-  h->inliers = static_cast<int>(inliers.size());
-  h->score = 0;
-  double sum2 = 0;
-  for (const Association& a : inliers) {
-    const double r = a.distance / inlier_distance;
-    h->score += 1.0 - r * r;
-    sum2 += a.distance * a.distance;
-  }
-  h->rmse = inliers.empty() ? 0 : std::sqrt(sum2 / inliers.size());
-}
-
-// ICP-style refinement: re-associate with a shrinking gate and solve in x, y, yaw.
-void Refine(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
-            Hypothesis* h) {
-  for (double gate : {1.5 * options.inlier_distance, options.inlier_distance,
-                      options.inlier_distance, 0.7 * options.inlier_distance,
-                      0.7 * options.inlier_distance}) {
-    const std::vector<Association> matches = Associate(m, q, h->pose, gate);
-    if (matches.size() < 3) break;
-    Rigid2Accumulator acc;
-    for (const Association& a : matches) {
-      const double r = a.distance / gate;
-      acc.Add(q.xy[a.query], m.Xy(a.map), 1.0 - 0.5 * r * r);
-    }
-    h->pose = acc.Solve();
-  }
-  Score(m, q, options.inlier_distance, h);
 }
 
 // Inliers a random pose would get: each query tree lands within the inlier distance of some map
@@ -183,48 +104,6 @@ RelocalizeResult FinishWithTilt(const MapIndexImpl& m, const LevelledQuery& q,
   return Finish(m, q, best, options);
 }
 
-int InRange(const LevelledQuery& q, double range) {
-  return static_cast<int>(std::count_if(q.xy.begin(), q.xy.end(),
-                                        [&](const Eigen::Vector2d& p) { return p.norm() <= range; }));
-}
-
-// Votes with the query's triangles, nearest seeds first. Every `early_exit_batch` triangles the
-// best cells are verified; a pose that already explains most nearby trees ends the voting (the
-// usual case), so only hard queries pay for all their triangles.
-std::vector<Hypothesis> Search(const MapIndexImpl& m, const LevelledQuery& q,
-                               const std::optional<PriorPose>& prior,
-                               const Eigen::Vector2d& prior_xy, const RelocalizerOptions& options) {
-  const size_t seeds = std::min<size_t>({q.xy.size(), size_t{64},
-                                         static_cast<size_t>(options.max_seed_trees)});
-  const std::vector<Eigen::Vector2d> seed_xy(q.xy.begin(), q.xy.begin() + seeds);
-  std::vector<Triangle> triangles = QueryTriangles(seed_xy, m, options.triangle_tolerance);
-  auto farthest = [](const Triangle& t) { return std::max({t.vertex[0], t.vertex[1], t.vertex[2]}); };
-  std::stable_sort(triangles.begin(), triangles.end(),
-                   [&](const Triangle& a, const Triangle& b) { return farthest(a) < farthest(b); });
-  // Dense forests give hundreds of triangles among a few metres of seeds: the nearest suffice.
-  if (triangles.size() > static_cast<size_t>(options.max_query_triangles)) {
-    triangles.resize(options.max_query_triangles);
-  }
-  const int strong = std::max(2 * options.min_inliers,
-                              static_cast<int>(options.early_exit_fraction *
-                                               InRange(q, options.ratio_range)));
-  PoseVoter voter(m, seed_xy, prior, prior_xy, options.triangle_tolerance, options.min_votes);
-  for (size_t i = 0; i < triangles.size(); ++i) {
-    voter.Add(triangles[i]);
-    const bool batch_done = options.early_exit_batch > 0 &&
-                            (i + 1) % options.early_exit_batch == 0 && i + 1 < triangles.size();
-    if (!batch_done) continue;
-    for (const Hypothesis& h : voter.Best(2)) {
-      int near = 0;  // inliers within ratio_range, as counted by `strong`
-      for (const Association& a : Associate(m, q, h.pose, options.inlier_distance)) {
-        near += q.xy[a.query].norm() <= options.ratio_range;
-      }
-      if (near >= strong) return voter.Best(options.max_hypotheses);
-    }
-  }
-  return voter.Best(options.max_hypotheses);
-}
-
 // Sensor headings that align the query's bearings with the map's as seen from `at` (kd
 // coordinates): every query tree and map tree at about the same range vote for the heading that
 // puts one on the other; returns the centres of the `count` strongest separated bins.
@@ -271,13 +150,7 @@ RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q,
                         const RelocalizeQuery& query, const Hypothesis& best, double rival,
                         const RelocalizerOptions& options) {
   const int in_range = InRange(q, options.ratio_range);
-  const int inliers_in_range = [&] {
-    int n = 0;
-    for (const Association& a : Associate(m, q, best.pose, options.inlier_distance)) {
-      n += q.xy[a.query].norm() <= options.ratio_range;
-    }
-    return n;
-  }();
+  const int inliers_in_range = InliersInRange(m, q, best.pose, options);
   const double ratio = in_range > 0 ? static_cast<double>(inliers_in_range) / in_range : 0.0;
 
   RelocalizeResult result = FinishWithTilt(m, q, query, best, options);
@@ -330,13 +203,19 @@ void RelocalizerOptions::Check() const {
   require(chance_sigmas >= 0, "chance_sigmas must be >= 0");
   require(distinct_distance > 0 && distinct_yaw > 0, "distinct_distance/yaw must be > 0");
   require(max_seed_trees >= 3, "max_seed_trees must be >= 3");
-  require(max_hypotheses >= 1 && refine_hypotheses >= 1 && quick_score_trees >= 3,
-          "hypothesis counts must be >= 1 and quick_score_trees >= 3");
-  require(min_votes >= 1, "min_votes must be >= 1");
-  require(max_query_triangles >= 1, "max_query_triangles must be >= 1");
+  require(refine_score_fraction >= 0 && refine_score_fraction <= 1,
+          "refine_score_fraction must be in [0, 1]");
+  require(refine_hypotheses >= 1 && quick_score_trees >= 3,
+          "refine_hypotheses must be >= 1 and quick_score_trees >= 3");
+  require(max_query_triangles >= 1 && rival_triangles >= 0,
+          "max_query_triangles must be >= 1 and rival_triangles >= 0");
+  require(quick_check_true_rate > 0 && quick_check_true_rate < 1 &&
+              quick_check_false_accept > 0 && quick_check_false_accept < 1 &&
+              quick_check_false_reject > 0 && quick_check_false_reject < 1,
+          "quick check rates must be in (0, 1)");
   tilt.Check();
   leveling.Check();
-  require(early_exit_batch >= 0 && early_exit_fraction > 0, "early exit settings invalid");
+  require(decisive_fraction > 0 && decisive_fraction <= 1, "decisive_fraction must be in (0, 1]");
 }
 
 const char* ToString(RelocalizeStatus status) {
@@ -363,21 +242,28 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   Eigen::Vector2d prior_xy = Eigen::Vector2d::Zero();
   if (query.prior) prior_xy = query.prior->map_from_sensor.translation().head<2>() - m.origin;
 
-  std::vector<Hypothesis> hypotheses = Search(m, q, query.prior, prior_xy, options);
-  const int verified = static_cast<int>(hypotheses.size());
-  result.hypotheses = verified;
-  if (hypotheses.empty()) {
+  const PoseSearchResult search = SearchPoses(m, q, query.prior, prior_xy, options);
+  const int verified = static_cast<int>(search.hypotheses.size());
+  result.triangles = search.triangles;
+  result.poses_checked = search.matches;
+  if (search.hypotheses.empty()) {
     result.detail = "no constellation of the query's trees matches the map";
     return result;
   }
-  // Rank every hypothesis on the nearest trees; refine and fully score the best few. Only fully
-  // scored hypotheses take part in the decision below.
-  auto by_score = [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; };
-  for (Hypothesis& h : hypotheses) Score(m, q, options.inlier_distance, &h, options.quick_score_trees);
-  std::sort(hypotheses.begin(), hypotheses.end(), by_score);
-  hypotheses.resize(std::min<size_t>(hypotheses.size(), options.refine_hypotheses));
+  // Refine the best few distinct hypotheses (best first by their score on the nearest trees);
+  // only these take part in the decision below.
+  std::vector<Hypothesis> hypotheses;
+  for (const Hypothesis& h : search.hypotheses) {
+    if (h.score < options.refine_score_fraction * search.hypotheses.front().score) break;
+    if (std::all_of(hypotheses.begin(), hypotheses.end(),
+                    [&](const Hypothesis& p) { return Distinct(h.pose, p.pose, options); })) {
+      hypotheses.push_back(h);
+    }
+    if (hypotheses.size() == static_cast<size_t>(options.refine_hypotheses)) break;
+  }
   for (Hypothesis& h : hypotheses) Refine(m, q, options, &h);
-  std::sort(hypotheses.begin(), hypotheses.end(), by_score);
+  std::sort(hypotheses.begin(), hypotheses.end(),
+            [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; });
 
   const Hypothesis& best = hypotheses.front();
   double rival = 0;
@@ -386,6 +272,8 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   }
   result = Decide(m, q, query, best, rival, options);
   result.hypotheses = verified;
+  result.triangles = search.triangles;
+  result.poses_checked = search.matches;
   return result;
 }
 

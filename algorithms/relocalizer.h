@@ -4,12 +4,13 @@
 // Method (after the thesis in ../shared/papers/000_*: tree constellations, RANSAC-style pair
 // matching, ICP; made robust to misses and false stems): the query is levelled (gravity, else the
 // mean stem axis, else level); triangles of nearby query trees are looked up by their side
-// lengths in the map's triangle index (map_index.h); every match implies a sensor pose (x, y,
-// yaw) that votes into a pose cell (pose_voting.h); the best cells are verified against the whole
-// map and refined by ICP-style re-association with least squares in x, y, yaw (z from the
-// matched trees). The answer is LOCALIZED only when the best pose is far above chance and beats
-// every distinct alternative by a clear margin. A prior bounds the search to a radius around
-// its position; its heading is not used (odometry yaw drifts).
+// lengths in the map's triangle table (map_index.h); every match implies a sensor pose (x, y,
+// yaw), which a sequential test against the map's occupancy grid accepts or rejects after a few
+// lookups (pose_search.h); the survivors are scored on the nearest trees, the best distinct ones
+// refined by ICP-style re-association with least squares in x, y, yaw (z from the matched
+// trees). The answer is LOCALIZED only when the best pose is far above chance and beats every
+// distinct alternative by a clear margin. A prior bounds the search to a radius around its
+// position; its heading is not used (odometry yaw drifts).
 
 #include <memory>
 #include <optional>
@@ -36,13 +37,18 @@ struct RelocalizeQuery {
 
 struct RelocalizerOptions {
   double max_query_range = 40.0;     // m, query trees farther (horizontally) are not used
-  int max_seed_trees = 40;           // nearest query trees whose triangles seed hypotheses (<= 64)
-  int max_query_triangles = 1000;    // at most this many query triangles vote (nearest first)
+  int max_seed_trees = 40;           // nearest query trees whose triangles seed hypotheses
+  int max_query_triangles = 400;     // at most this many query triangles (nearest first)
   double triangle_tolerance = 0.20;  // m, per-side length tolerance of triangle matches
-  int early_exit_batch = 8;          // query triangles between checks for a decisive pose; 0 = off
-  double early_exit_fraction = 0.5;  // decisive: explains this share of trees within ratio_range
-  int min_votes = 3;                 // distinct query trees voting for a pose cell to verify it
-  int max_hypotheses = 200;          // pose cells verified against the map
+  // Quick check of each triangle match's pose (a sequential test on the nearest query trees):
+  // share of them a true pose puts on map trees, and the accepted error rates.
+  double quick_check_true_rate = 0.75;
+  double quick_check_false_accept = 1e-4;  // wrong poses that pass on to scoring
+  double quick_check_false_reject = 0.01;  // true poses rejected (other triangles find them)
+  // Decisive: a pose explaining this share of the quick_score_trees nearest trees ends the
+  // search after rival_triangles more query triangles.
+  double decisive_fraction = 0.5;
+  int rival_triangles = 4;
   // Refine roll/pitch from the matched trees' map heights (tilt_refinement.h). Off by default:
   // it helps steeply tilted sensors (Stein: median error 0.096 -> 0.086 m) but costs ~1 pp
   // strict recall where map heights are noisy (Venman).
@@ -50,7 +56,8 @@ struct RelocalizerOptions {
   TiltRefinementOptions tilt;
   LevelingOptions leveling;          // roll and pitch from stem axes when no gravity is given
   int quick_score_trees = 30;        // hypotheses are ranked on this many nearest query trees
-  int refine_hypotheses = 8;         // best verified cells refined by ICP
+  int refine_hypotheses = 8;         // best distinct hypotheses refined by ICP
+  double refine_score_fraction = 0.3;  // ... if they score at least this share of the best
   double inlier_distance = 0.4;      // m, a query tree within this of a map tree is an inlier
   int min_inliers = 6;               // fewer inliers -> NOT_FOUND
   double ratio_range = 20.0;         // m, query trees within this range count for the ratio
@@ -78,7 +85,9 @@ struct RelocalizeResult {
   double rmse = 0;        // m, horizontal RMS of the matches
   double confidence = 0;  // [0, 1]
   std::string detail;     // why ambiguous / not found, for humans
-  int hypotheses = 0;     // pose hypotheses verified
+  int hypotheses = 0;     // pose hypotheses that passed the quick check
+  int triangles = 0;      // query triangles looked up
+  int64_t poses_checked = 0;  // triangle matches whose pose was checked
 };
 
 // Throws std::invalid_argument for invalid options; every outcome of a valid query is a value.

@@ -1,0 +1,71 @@
+#pragma once
+// Internal to the relocalizer: the levelled query, pose hypotheses and their scoring against the
+// map, and the search that generates hypotheses from triangle matches.
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "algorithms/map_index_internal.h"
+#include "algorithms/relocalizer.h"
+#include "algorithms/rigid2d.h"
+
+namespace forestmap::algorithms {
+
+// The query after levelling, nearest trees first.
+struct LevelledQuery {
+  Eigen::Matrix3d level_from_sensor = Eigen::Matrix3d::Identity();
+  std::vector<Eigen::Vector2d> xy;  // levelled horizontal positions (sensor at the origin)
+  std::vector<double> z;            // levelled heights relative to the sensor
+  std::vector<double> dbh;
+  std::vector<uint32_t> used;       // indices into the request's trees
+};
+
+// A candidate pose of the levelled sensor in the map's kd coordinates.
+struct Hypothesis {
+  Rigid2 pose;       // kd coordinates from levelled sensor coordinates
+  int inliers = 0;
+  double score = 0;  // sum over inliers of (1 - (d / inlier_distance)^2)
+  double rmse = 0;   // m
+};
+
+// A query tree and the map tree nearest to it under a pose.
+struct Association {
+  uint32_t query = 0;  // index into LevelledQuery
+  uint32_t map = 0;    // index into the map's trees
+  double distance = 0;
+};
+
+// Each of the `limit` nearest query trees whose nearest map tree is within `gate` (m).
+std::vector<Association> Associate(const MapIndexImpl& m, const LevelledQuery& q,
+                                   const Rigid2& pose, double gate, size_t limit = SIZE_MAX);
+
+// Scores a pose on the `limit` nearest query trees (all by default).
+void Score(const MapIndexImpl& m, const LevelledQuery& q, double inlier_distance, Hypothesis* h,
+           size_t limit = SIZE_MAX);
+
+// ICP-style refinement: re-association with a shrinking gate, least squares in x, y, yaw.
+void Refine(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
+            Hypothesis* h);
+
+// Query trees within `range` (m) of the sensor, and those of them that are inliers of `pose`.
+int InRange(const LevelledQuery& q, double range);
+int InliersInRange(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
+                   const RelocalizerOptions& options);
+
+struct PoseSearchResult {
+  std::vector<Hypothesis> hypotheses;  // scored on the nearest trees, best first
+  int triangles = 0;                   // query triangles looked up
+  int64_t matches = 0;                 // triangle matches turned into poses
+};
+
+// Hypothesize and verify: every map triangle matching a query triangle (nearest first) implies
+// a sensor pose; a sequential test on the nearest query trees against the map's occupancy grid
+// rejects almost every wrong one after a handful of lookups; the survivors are scored. The
+// search ends once a pose explains most nearby trees and a few more triangles found no rival,
+// or when the query's triangles run out. With a prior, poses outside its radius are skipped.
+PoseSearchResult SearchPoses(const MapIndexImpl& m, const LevelledQuery& q,
+                             const std::optional<PriorPose>& prior,
+                             const Eigen::Vector2d& prior_xy, const RelocalizerOptions& options);
+
+}  // namespace forestmap::algorithms
