@@ -36,20 +36,16 @@ OccupancyGrid::OccupancyGrid(const std::vector<Eigen::Vector2d>& points, double 
   }
   std::sort(needed.begin(), needed.end());
   needed.erase(std::unique(needed.begin(), needed.end()), needed.end());
-  size_t capacity = 16;
-  while (capacity < 2 * needed.size()) capacity *= 2;
-  mask_ = capacity - 1;
-  keys_.assign(capacity, 0);
-  slots_.assign(capacity, -1);
-  tiles_.reserve(needed.size());
-  for (uint64_t key : needed) Insert(key);
+  tiles_.resize(needed.size());
+  Index(needed);
 
   size_t occupied = 0;
   for (const Eigen::Vector2d& p : points) {
     for_each_cell(p, [&](int64_t cx, int64_t cy) {
-      uint64_t& row = tiles_[Find(TileKey(cx >> kTileBits, cy >> kTileBits))].rows[cy & kTileMask];
+      Tile& tile = tiles_[Find(TileKey(cx >> kTileBits, cy >> kTileBits))];
+      uint64_t& row = tile.rows[cy & kTileMask];
       const uint64_t bit = uint64_t{1} << (cx & kTileMask);
-      occupied += (row & bit) == 0;
+      if ((row & bit) == 0) ++occupied, ++tile.occupied;
       row |= bit;
     });
   }
@@ -57,15 +53,37 @@ OccupancyGrid::OccupancyGrid(const std::vector<Eigen::Vector2d>& points, double 
       tiles_.empty() ? 0.0 : static_cast<double>(occupied) / (tiles_.size() * 64.0 * 64.0);
 }
 
-OccupancyGrid::Tile& OccupancyGrid::Insert(uint64_t key) {
-  size_t i = (key * 0x9E3779B97F4A7C15ull) >> 17 & mask_;
-  while (slots_[i] >= 0 && keys_[i] != key) i = (i + 1) & mask_;
-  if (slots_[i] < 0) {
-    keys_[i] = key;
-    slots_[i] = static_cast<int32_t>(tiles_.size());
-    tiles_.emplace_back();
+void OccupancyGrid::Index(const std::vector<uint64_t>& keys) {
+  if (keys.empty()) return;
+  int64_t max_tx = INT64_MIN, max_ty = INT64_MIN;
+  min_tx_ = min_ty_ = INT64_MAX;
+  for (uint64_t key : keys) {
+    const int64_t tx = static_cast<int32_t>(key >> 32), ty = static_cast<int32_t>(key & 0xFFFFFFFFu);
+    min_tx_ = std::min(min_tx_, tx), max_tx = std::max(max_tx, tx);
+    min_ty_ = std::min(min_ty_, ty), max_ty = std::max(max_ty, ty);
   }
-  return tiles_[slots_[i]];
+  // Dense when the box holds at most 64 directory entries per tile (256 bytes against a tile's
+  // 520): lookups then cost one memory access less.
+  const double box = static_cast<double>(max_tx - min_tx_ + 1) * (max_ty - min_ty_ + 1);
+  if (box <= 64.0 * keys.size()) {
+    width_ = max_tx - min_tx_ + 1;
+    height_ = max_ty - min_ty_ + 1;
+    directory_.assign(static_cast<size_t>(box), -1);
+    for (size_t i = 0; i < keys.size(); ++i) {
+      const int64_t tx = static_cast<int32_t>(keys[i] >> 32), ty = static_cast<int32_t>(keys[i] & 0xFFFFFFFFu);
+      directory_[(ty - min_ty_) * width_ + (tx - min_tx_)] = static_cast<int32_t>(i);
+    }
+    return;
+  }
+  size_t capacity = 16;
+  while (capacity < 2 * keys.size()) capacity *= 2;
+  mask_ = capacity - 1;
+  hash_.assign(capacity, HashEntry{});
+  for (size_t t = 0; t < keys.size(); ++t) {
+    size_t i = (keys[t] * 0x9E3779B97F4A7C15ull) >> 17 & mask_;
+    while (hash_[i].tile >= 0) i = (i + 1) & mask_;
+    hash_[i] = {keys[t], static_cast<int32_t>(t)};
+  }
 }
 
 }  // namespace forestmap::algorithms

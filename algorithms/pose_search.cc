@@ -28,20 +28,13 @@ std::vector<Triangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy
   return triangles;
 }
 
-// Wald's sequential probability ratio test on the nearest query trees: does a pose put them on
-// map trees at the rate of a true pose (quick_check_true_rate) or only as often as chance (the
-// occupancy grid's occupied fraction)? Wrong poses are rejected after about four lookups.
+// Wald's sequential probability ratio test on query trees: does a pose put them on map trees
+// at the rate of a true pose (quick_check_true_rate) or only as often as chance (the occupancy
+// grid's occupied fraction)? Wrong poses are rejected after about four lookups.
 class QuickCheck {
  public:
   QuickCheck(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options)
       : m_(m), q_(q) {
-    // The nearest trees, interleaved across their ranges: misses cluster (the nearest few
-    // detections of a handheld scan are often the operator or brush, absent from the map), and
-    // the test assumes independent draws.
-    const uint32_t n = static_cast<uint32_t>(std::min<size_t>(q.xy.size(), kMaxChecks));
-    for (uint32_t phase = 0; phase < kStride; ++phase) {
-      for (uint32_t i = phase; i < n; i += kStride) order_.push_back(i);
-    }
     const double p1 = options.quick_check_true_rate;
     const double p0 = std::clamp(m.occupancy->occupied_fraction(), 0.005, 0.5 * p1);
     hit_ = std::log(p1 / p0);
@@ -50,12 +43,24 @@ class QuickCheck {
     reject_ = std::log(options.quick_check_false_reject);
   }
 
-  // `skip` are the query trees that generated the pose (they fit by construction).
+  // The query trees checked for poses from triangle `t`: the nearest query trees, nearest to
+  // the triangle first (a triangle's pose is most accurate around it), without its vertices.
+  void SetTriangle(const Triangle& t) {
+    const uint32_t n = static_cast<uint32_t>(std::min<size_t>(q_.xy.size(), kMaxChecks));
+    const Eigen::Vector2d centroid = (q_.xy[t.vertex[0]] + q_.xy[t.vertex[1]] + q_.xy[t.vertex[2]]) / 3;
+    by_distance_.clear();
+    for (uint32_t i = 0; i < n; ++i) {
+      if (i != t.vertex[0] && i != t.vertex[1] && i != t.vertex[2]) {
+        by_distance_.push_back({static_cast<float>((q_.xy[i] - centroid).squaredNorm()), i});
+      }
+    }
+    std::sort(by_distance_.begin(), by_distance_.end());
+  }
+
   // The pose maps p to (c p.x - s p.y + tx, s p.x + c p.y + ty).
-  bool Passes(float c, float s, float tx, float ty, const std::array<uint32_t, 3>& skip) const {
+  bool Passes(float c, float s, float tx, float ty) const {
     double llr = 0;
-    for (uint32_t i : order_) {
-      if (i == skip[0] || i == skip[1] || i == skip[2]) continue;
+    for (const auto& [d2, i] : by_distance_) {
       const Eigen::Vector2d& p = q_.xy[i];
       llr += m_.occupancy->Near(c * p.x() - s * p.y() + tx, s * p.x() + c * p.y() + ty)
                  ? hit_
@@ -68,10 +73,9 @@ class QuickCheck {
 
  private:
   static constexpr size_t kMaxChecks = 40;
-  static constexpr uint32_t kStride = 4;
   const MapIndexImpl& m_;
   const LevelledQuery& q_;
-  std::vector<uint32_t> order_;  // query trees in the order they are checked
+  std::vector<std::pair<float, uint32_t>> by_distance_;  // the check order
   double hit_ = 0, miss_ = 0, accept_ = 0, reject_ = 0;
 };
 
@@ -158,40 +162,125 @@ int InliersInRange(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& 
   return n;
 }
 
-PoseSearchResult SearchPoses(const MapIndexImpl& m, const LevelledQuery& q,
-                             const std::optional<PriorPose>& prior,
-                             const Eigen::Vector2d& prior_xy, const RelocalizerOptions& options) {
-  PoseSearchResult result;
-  const size_t seeds = std::min<size_t>(q.xy.size(), options.max_seed_trees);
-  const std::vector<Eigen::Vector2d> seed_xy(q.xy.begin(), q.xy.begin() + seeds);
-  std::vector<Triangle> triangles = QueryTriangles(seed_xy, m, options.triangle_tolerance);
-  if (triangles.size() > static_cast<size_t>(options.max_query_triangles)) {
-    triangles.resize(options.max_query_triangles);
+double ChanceInliers(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose) {
+  double expected = 0;
+  for (const Eigen::Vector2d& xy : q.xy) {
+    const Eigen::Vector2d p = pose(xy);
+    expected += m.occupancy->OccupiedFractionAt(p.x(), p.y());
   }
-  const QuickCheck check(m, q, options);
-  const float tolerance = static_cast<float>(options.triangle_tolerance);
-  const int decisive = std::max<int>(
-      options.min_inliers,
-      std::ceil(options.decisive_fraction * std::min<size_t>(q.xy.size(), options.quick_score_trees)));
-  const int strong = std::max(2 * options.min_inliers,
-                              static_cast<int>(options.decisive_fraction *
-                                               InRange(q, options.ratio_range)));
-  double best_score = 0;
-  std::unordered_set<uint64_t> found_cells;
-  const double prior_radius2 = prior ? prior->radius * prior->radius : 0.0;
-  size_t stop = triangles.size();
-  for (size_t i = 0; i < std::min(stop, triangles.size()); ++i) {
-    const Triangle& qt = triangles[i];
+  return expected;
+}
+
+double PoissonTail(int k, double lambda) {
+  if (k <= 0) return 1.0;
+  if (!(lambda > 0)) return 0.0;
+  double log_term = -lambda + k * std::log(lambda) - std::lgamma(k + 1.0);  // P(X = k)
+  double sum = 0;
+  for (int i = k; i < k + 2000; ++i) {
+    const double term = std::exp(log_term);
+    sum += term;
+    if (i > lambda && term < 1e-16 * sum) break;
+    log_term += std::log(lambda / (i + 1));
+  }
+  return std::min(1.0, sum);
+}
+
+bool Significant(int inliers, double chance, int64_t trials, const RelocalizerOptions& options) {
+  return inliers >= chance + options.chance_sigmas * std::sqrt(chance) &&
+         static_cast<double>(std::max<int64_t>(trials, 1)) * PoissonTail(inliers, chance) <=
+             options.false_alarm;
+}
+
+namespace {
+
+// One search: the query's triangles, looked up in passes of growing tolerance.
+class Searcher {
+ public:
+  Searcher(const MapIndexImpl& m, const LevelledQuery& q, const std::optional<PriorPose>& prior,
+           const Eigen::Vector2d& prior_xy, const RelocalizerOptions& options)
+      : m_(m),
+        q_(q),
+        prior_(prior),
+        prior_xy_(prior_xy),
+        options_(options),
+        seed_xy_(q.xy.begin(), q.xy.begin() + std::min<size_t>(q.xy.size(), options.max_seed_trees)),
+        check_(m, q, options),
+        decisive_(std::max<int>(options.min_inliers,
+                                std::ceil(options.decisive_fraction *
+                                          std::min<size_t>(q.xy.size(), options.quick_score_trees)))),
+        strong_(std::max(2 * options.min_inliers,
+                         static_cast<int>(options.decisive_fraction *
+                                          InRange(q, options.ratio_range)))) {
+    triangles_ = QueryTriangles(seed_xy_, m, options.triangle_tolerance);
+    if (triangles_.size() > static_cast<size_t>(options.max_query_triangles)) {
+      triangles_.resize(options.max_query_triangles);
+    }
+  }
+
+  // Looks up at most `max_triangles` query triangles at `tolerance` (m), taking in turn the
+  // nearest and the cheapest not yet taken: any triangle of true trees finds the pose; near
+  // ones are the most reliable, cheap ones (rare shapes, the fewest map triangles in their key
+  // box) cost least. Returns whether a decisive pose was found.
+  bool Pass(float tolerance, size_t max_triangles) {
+    std::vector<std::pair<size_t, size_t>> by_cost(triangles_.size());
+    for (size_t i = 0; i < triangles_.size(); ++i) {
+      by_cost[i] = {m_.triangles->CandidateCount(triangles_[i].sides, tolerance), i};
+    }
+    std::sort(by_cost.begin(), by_cost.end());
+    std::vector<bool> taken(triangles_.size(), false);
+    size_t nearest = 0, cheapest = 0;
+    auto next = [&](size_t turn) -> size_t {
+      size_t i;
+      if (turn % 2 == 0) {
+        while (taken[nearest]) ++nearest;
+        i = nearest;
+      } else {
+        while (taken[by_cost[cheapest].second]) ++cheapest;
+        i = by_cost[cheapest].second;
+      }
+      taken[i] = true;
+      return i;
+    };
+    size_t stop = std::min(max_triangles, triangles_.size());
+    bool decided = false;
+    for (size_t turn = 0; turn < stop; ++turn) {
+      const size_t before = result_.hypotheses.size();
+      Lookup(triangles_[next(turn)], tolerance);
+      // A pose that explains most nearby trees once refined decides the search, after a few
+      // more triangles have had the chance to show a rival.
+      if (!decided && Decisive(before)) {
+        decided = true;
+        stop = std::min(triangles_.size(), turn + 1 + options_.rival_triangles);
+      }
+    }
+    return decided;
+  }
+
+  PoseSearchResult Finish() {
+    std::sort(result_.hypotheses.begin(), result_.hypotheses.end(),
+              [](const Hypothesis& x, const Hypothesis& y) { return x.score > y.score; });
+    return std::move(result_);
+  }
+
+ private:
+  // Every map triangle matching `qt` within `tolerance` implies a pose; those that pass the
+  // quick check and were not found before become hypotheses.
+  void Lookup(const Triangle& qt, float tolerance) {
+    ++result_.triangles;
     const uint32_t a = qt.vertex[0], b = qt.vertex[1], c = qt.vertex[2];
     // The canonical labels come from sorted side lengths; where two sides are within the
     // tolerance, noise may have swapped them in the map, so the swapped labelling is tried too.
-    TriangleFrame frames[3] = {FrameOf(seed_xy[a], seed_xy[b], seed_xy[c])};
+    TriangleFrame frames[3] = {FrameOf(seed_xy_[a], seed_xy_[b], seed_xy_[c])};
     int labellings = 1;
-    if (qt.sides[1] - qt.sides[0] < tolerance) frames[labellings++] = FrameOf(seed_xy[b], seed_xy[a], seed_xy[c]);
-    if (qt.sides[2] - qt.sides[1] < tolerance) frames[labellings++] = FrameOf(seed_xy[a], seed_xy[c], seed_xy[b]);
-    const size_t before = result.hypotheses.size();
-    ++result.triangles;
-    m.triangles->ForEachMatch(qt.sides, tolerance, [&](const IndexedTriangle& t) {
+    if (qt.sides[1] - qt.sides[0] < tolerance) {
+      frames[labellings++] = FrameOf(seed_xy_[b], seed_xy_[a], seed_xy_[c]);
+    }
+    if (qt.sides[2] - qt.sides[1] < tolerance) {
+      frames[labellings++] = FrameOf(seed_xy_[a], seed_xy_[c], seed_xy_[b]);
+    }
+    const double prior_radius2 = prior_ ? prior_->radius * prior_->radius : 0.0;
+    check_.SetTriangle(qt);
+    m_.triangles->ForEachMatch(qt.sides, tolerance, [&](const IndexedTriangle& t) {
       const TriangleFrame mt = t.frame();
       for (int l = 0; l < labellings; ++l) {
         const TriangleFrame& qf = frames[l];
@@ -201,34 +290,65 @@ PoseSearchResult SearchPoses(const MapIndexImpl& m, const LevelledQuery& q,
         const float c = mt.cos_heading * qf.cos_heading + mt.sin_heading * qf.sin_heading;
         const float s = mt.sin_heading * qf.cos_heading - mt.cos_heading * qf.sin_heading;
         const float tx = mt.cx - (c * qf.cx - s * qf.cy), ty = mt.cy - (s * qf.cx + c * qf.cy);
-        if (prior && (Eigen::Vector2d(tx, ty) - prior_xy).squaredNorm() > prior_radius2) continue;
-        ++result.matches;
-        if (!check.Passes(c, s, tx, ty, qt.vertex)) continue;
+        if (prior_ && (Eigen::Vector2d(tx, ty) - prior_xy_).squaredNorm() > prior_radius2) {
+          continue;
+        }
+        ++result_.matches;
+        if (!check_.Passes(c, s, tx, ty)) continue;
         Hypothesis h;
         h.pose.yaw = std::atan2(s, c);
         h.pose.translation = {tx, ty};
-        if (!found_cells.insert(PoseCell(h.pose)).second) continue;  // found already
-        result.hypotheses.push_back(h);
+        if (!found_cells_.insert(PoseCell(h.pose)).second) continue;  // found already
+        result_.hypotheses.push_back(h);
       }
     });
-    for (size_t k = before; k < result.hypotheses.size(); ++k) {
-      Hypothesis& h = result.hypotheses[k];
-      Polish(m, q, options, &h);
-      // A pose that explains most nearby trees once refined decides the search, after a few
-      // more triangles have had the chance to show a rival.
-      if (stop < triangles.size() || h.inliers < decisive || h.score <= best_score) continue;
-      best_score = h.score;
-      Hypothesis refined = h;
-      Refine(m, q, options, &refined);
-      if (InliersInRange(m, q, refined.pose, options) >= strong) {
-        stop = i + 1 + options.rival_triangles;
-      }
-
-    }
   }
-  std::sort(result.hypotheses.begin(), result.hypotheses.end(),
-            [](const Hypothesis& x, const Hypothesis& y) { return x.score > y.score; });
-  return result;
+
+  // Polishes the hypotheses from `from` on; whether one of them is decisive.
+  bool Decisive(size_t from) {
+    bool decisive = false;
+    for (size_t k = from; k < result_.hypotheses.size(); ++k) {
+      Hypothesis& h = result_.hypotheses[k];
+      Polish(m_, q_, options_, &h);
+      if (decisive || h.inliers < decisive_ || h.score <= best_score_) continue;
+      best_score_ = h.score;
+      Hypothesis refined = h;
+      Refine(m_, q_, options_, &refined);
+      decisive = InliersInRange(m_, q_, refined.pose, options_) >= strong_ &&
+                 Significant(refined.inliers, ChanceInliers(m_, q_, refined.pose),
+                             result_.matches, options_);
+    }
+    return decisive;
+  }
+
+  const MapIndexImpl& m_;
+  const LevelledQuery& q_;
+  const std::optional<PriorPose>& prior_;
+  const Eigen::Vector2d prior_xy_;
+  const RelocalizerOptions& options_;
+  const std::vector<Eigen::Vector2d> seed_xy_;
+  QuickCheck check_;
+  const int decisive_;  // inliers among the nearest trees that make a pose worth refining
+  const int strong_;    // inliers within ratio_range that decide the search
+  std::vector<Triangle> triangles_;
+  double best_score_ = 0;
+  std::unordered_set<uint64_t> found_cells_;
+  PoseSearchResult result_;
+};
+
+}  // namespace
+
+PoseSearchResult SearchPoses(const MapIndexImpl& m, const LevelledQuery& q,
+                             const std::optional<PriorPose>& prior,
+                             const Eigen::Vector2d& prior_xy, const RelocalizerOptions& options) {
+  Searcher search(m, q, prior, prior_xy, options);
+  // A first pass with a tight tolerance costs an eighth per triangle (the key box is a cube)
+  // and finds most poses; the full tolerance follows only when it did not.
+  const bool decided = options.first_pass_tolerance > 0 &&
+                       search.Pass(static_cast<float>(options.first_pass_tolerance),
+                                   options.first_pass_triangles);
+  if (!decided) search.Pass(static_cast<float>(options.triangle_tolerance), SIZE_MAX);
+  return search.Finish();
 }
 
 }  // namespace forestmap::algorithms

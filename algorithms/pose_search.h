@@ -53,6 +53,18 @@ int InRange(const LevelledQuery& q, double range);
 int InliersInRange(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
                    const RelocalizerOptions& options);
 
+// Inliers a random pose would get here: the sum over query trees of the local chance of
+// landing near a map tree (the occupied share of the occupancy grid around each).
+double ChanceInliers(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose);
+
+// P(X >= k) for X ~ Poisson(lambda).
+double PoissonTail(int k, double lambda);
+
+// Whether `inliers` beat `chance` by options.chance_sigmas Poisson standard deviations, and
+// the best of `trials` random poses would reach them with probability <= options.false_alarm
+// (the look-elsewhere effect: the search tries many poses).
+bool Significant(int inliers, double chance, int64_t trials, const RelocalizerOptions& options);
+
 struct PoseSearchResult {
   std::vector<Hypothesis> hypotheses;  // scored on the nearest trees, best first
   int triangles = 0;                   // query triangles looked up

@@ -34,22 +34,6 @@ LevelledQuery Level(const RelocalizeQuery& query, const Eigen::Matrix3d& level_f
   return q;
 }
 
-// Inliers a random pose would get: each query tree lands within the inlier distance of some map
-// tree with probability 1 - exp(-local density * pi * d^2) (Poisson), summed over query trees.
-double ChanceInliers(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
-                     double inlier_distance) {
-  constexpr double kRadius = 5.0;  // m, neighbourhood for the local density
-  std::vector<std::pair<uint32_t, float>> found;
-  double expected = 0;
-  for (const Eigen::Vector2d& xy : q.xy) {
-    const Eigen::Vector2d p = pose(xy);
-    m.positions->Radius({static_cast<float>(p.x()), static_cast<float>(p.y())}, kRadius, found);
-    const double density = found.size() / (M_PI * kRadius * kRadius);
-    expected += 1.0 - std::exp(-density * M_PI * inlier_distance * inlier_distance);
-  }
-  return expected;
-}
-
 bool Distinct(const Rigid2& a, const Rigid2& b, const RelocalizerOptions& options) {
   return (a.translation - b.translation).norm() > options.distinct_distance ||
          std::abs(WrapAngle(a.yaw - b.yaw)) > options.distinct_yaw;
@@ -144,21 +128,22 @@ std::vector<double> HeadingPeaks(const MapIndexImpl& m, const LevelledQuery& q,
   return peaks;
 }
 
-// The answer for the best hypothesis, given the score of the best distinct rival: LOCALIZED
+// The answer for the best hypothesis, given the best distinct rival (none: null): LOCALIZED
 // only when it is far above chance, explains enough of the nearby trees and beats the rival.
 RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q,
-                        const RelocalizeQuery& query, const Hypothesis& best, double rival,
+                        const RelocalizeQuery& query, const Hypothesis& best,
+                        const Hypothesis* best_rival, int64_t trials,
                         const RelocalizerOptions& options) {
+  const double rival = best_rival ? best_rival->score : 0.0;
   const int in_range = InRange(q, options.ratio_range);
   const int inliers_in_range = InliersInRange(m, q, best.pose, options);
   const double ratio = in_range > 0 ? static_cast<double>(inliers_in_range) / in_range : 0.0;
 
   RelocalizeResult result = FinishWithTilt(m, q, query, best, options);
   result.confidence = best.score > 0 ? std::clamp(1.0 - rival / best.score, 0.0, 1.0) : 0.0;
-  const double chance = ChanceInliers(m, q, best.pose, options.inlier_distance);
-  const double significant = chance + options.chance_sigmas * std::sqrt(chance);
+  const double chance = ChanceInliers(m, q, best.pose);
   char detail[200];
-  if (best.inliers < significant) {
+  if (!Significant(best.inliers, chance, trials, options)) {
     result.status = RelocalizeStatus::kNotFound;
     std::snprintf(detail, sizeof detail,
                   "best pose matches %d trees, no better than chance here (%.1f expected at "
@@ -174,12 +159,17 @@ RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q,
   } else if (rival * options.ambiguity_ratio > best.score) {
     result.status = RelocalizeStatus::kAmbiguous;
     std::snprintf(detail, sizeof detail,
-                  "two distinct poses fit almost equally well (scores %.1f and %.1f)", best.score,
-                  rival);
+                  "two distinct poses, %.1f m and %.0f deg apart, fit almost equally well (scores "
+                  "%.1f and %.1f)",
+                  (best_rival->pose.translation - best.pose.translation).norm(),
+                  std::abs(WrapAngle(best_rival->pose.yaw - best.pose.yaw)) * 180 / M_PI,
+                  best.score, rival);
   } else {
     result.status = RelocalizeStatus::kLocalized;
-    std::snprintf(detail, sizeof detail, "%d trees matched, next distinct pose scores %.1f",
-                  best.inliers, rival);
+    std::snprintf(detail, sizeof detail,
+                  "%d trees matched (%.0f%% of those within %.0f m, %.1f expected by chance), "
+                  "next distinct pose scores %.1f",
+                  best.inliers, 100 * ratio, options.ratio_range, chance, rival);
   }
   result.detail = detail;
   if (result.status != RelocalizeStatus::kLocalized) {
@@ -201,12 +191,16 @@ void RelocalizerOptions::Check() const {
   require(min_inlier_ratio >= 0 && min_inlier_ratio <= 1, "min_inlier_ratio must be in [0, 1]");
   require(ambiguity_ratio >= 1, "ambiguity_ratio must be >= 1");
   require(chance_sigmas >= 0, "chance_sigmas must be >= 0");
+  require(false_alarm > 0 && false_alarm <= 1, "false_alarm must be in (0, 1]");
   require(distinct_distance > 0 && distinct_yaw > 0, "distinct_distance/yaw must be > 0");
   require(max_seed_trees >= 3, "max_seed_trees must be >= 3");
   require(refine_score_fraction >= 0 && refine_score_fraction <= 1,
           "refine_score_fraction must be in [0, 1]");
   require(refine_hypotheses >= 1 && quick_score_trees >= 3,
           "refine_hypotheses must be >= 1 and quick_score_trees >= 3");
+  require(first_pass_tolerance >= 0 && first_pass_tolerance <= triangle_tolerance &&
+              first_pass_triangles >= 0,
+          "first pass: need 0 <= first_pass_tolerance <= triangle_tolerance, triangles >= 0");
   require(max_query_triangles >= 1 && rival_triangles >= 0,
           "max_query_triangles must be >= 1 and rival_triangles >= 0");
   require(quick_check_true_rate > 0 && quick_check_true_rate < 1 &&
@@ -266,11 +260,11 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
             [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; });
 
   const Hypothesis& best = hypotheses.front();
-  double rival = 0;
+  const Hypothesis* rival = nullptr;
   for (const Hypothesis& h : hypotheses) {
-    if (Distinct(h.pose, best.pose, options)) rival = std::max(rival, h.score);
+    if (Distinct(h.pose, best.pose, options) && (!rival || h.score > rival->score)) rival = &h;
   }
-  result = Decide(m, q, query, best, rival, options);
+  result = Decide(m, q, query, best, rival, search.matches, options);
   result.hypotheses = verified;
   result.triangles = search.triangles;
   result.poses_checked = search.matches;
@@ -316,10 +310,12 @@ RelocalizeResult RefineNear(const MapIndex& index, const RelocalizeQuery& query,
   }
   auto by_score = [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; };
   std::sort(seeds.begin(), seeds.end(), by_score);
+  const int64_t seeds_tried = static_cast<int64_t>(seeds.size());
   seeds.resize(std::min<size_t>(seeds.size(), 3));
   for (Hypothesis& h : seeds) Refine(m, q, options, &h);
   std::sort(seeds.begin(), seeds.end(), by_score);
-  RelocalizeResult result = Decide(m, q, query, seeds.front(), /*rival=*/0.0, options);
+  RelocalizeResult result = Decide(m, q, query, seeds.front(), /*best_rival=*/nullptr,
+                                   seeds_tried, options);
   result.hypotheses = static_cast<int>(seeds.size());
   return result;
 }

@@ -40,6 +40,10 @@ struct RelocalizerOptions {
   int max_seed_trees = 40;           // nearest query trees whose triangles seed hypotheses
   int max_query_triangles = 400;     // at most this many query triangles (nearest first)
   double triangle_tolerance = 0.20;  // m, per-side length tolerance of triangle matches
+  // A first pass over this many triangles with a tighter tolerance (0 = none): an eighth of
+  // the matches per triangle, and enough for most queries.
+  double first_pass_tolerance = 0.10;  // m
+  int first_pass_triangles = 400;
   // Quick check of each triangle match's pose (a sequential test on the nearest query trees):
   // share of them a true pose puts on map trees, and the accepted error rates.
   double quick_check_true_rate = 0.75;
@@ -47,7 +51,7 @@ struct RelocalizerOptions {
   double quick_check_false_reject = 0.01;  // true poses rejected (other triangles find them)
   // Decisive: a pose explaining this share of the quick_score_trees nearest trees ends the
   // search after rival_triangles more query triangles.
-  double decisive_fraction = 0.5;
+  double decisive_fraction = 0.6;
   int rival_triangles = 4;
   // Refine roll/pitch from the matched trees' map heights (tilt_refinement.h). Off by default:
   // it helps steeply tilted sensors (Stein: median error 0.096 -> 0.086 m) but costs ~1 pp
@@ -62,7 +66,13 @@ struct RelocalizerOptions {
   int min_inliers = 6;               // fewer inliers -> NOT_FOUND
   double ratio_range = 20.0;         // m, query trees within this range count for the ratio
   double min_inlier_ratio = 0.2;     // inliers / query trees within ratio_range; less -> NOT_FOUND
-  double chance_sigmas = 5.0;        // inliers must exceed chance by this many Poisson sigmas
+  // Inliers must exceed chance by this many Poisson sigmas. Above 5: refinement lifts the best
+  // of many wrong poses over the Poisson expectation (Wild_V02 frames in the Stein map reach
+  // 5.3 sigma, true answers on the real sequences 6.6 and more).
+  double chance_sigmas = 6.0;
+  // ... and the best of all the poses tried must reach them by chance with at most this
+  // probability (Poisson tail times the number of poses: what decides in sparse maps).
+  double false_alarm = 0.01;
   double ambiguity_ratio = 1.5;      // best score must be >= this x the best distinct pose
   double distinct_distance = 2.0;    // m, poses farther apart than this are distinct
   double distinct_yaw = 0.17;        // rad (~10 deg), or whose yaws differ more than this

@@ -75,7 +75,7 @@ class TriangleTable {
   }
 
  private:
-  static constexpr float kCell = 0.25f;  // m, key-space cell edge
+  static constexpr int kCells = 64;  // key-space cells per dimension
   // Calls fn(first, last) for each contiguous run of triangles in the key cells that overlap
   // the box of half-width `tolerance` around `sides`.
   template <typename Fn>
@@ -94,12 +94,13 @@ class TriangleTable {
       }
     }
   }
-  int Cell(float side) const { return static_cast<int>(std::floor(side / kCell)); }
+  int Cell(float side) const { return static_cast<int>(std::floor(side * inverse_cell_)); }
   size_t Index(int a, int b, int c) const {
     return (static_cast<size_t>(a) * cells_ + b) * cells_ + c;
   }
 
-  int cells_ = 1;                          // cells per key dimension
+  int cells_ = kCells;
+  float inverse_cell_ = 1;                 // 1 / cell edge (m)
   std::vector<uint32_t> start_;            // cells_^3 + 1 offsets into triangles_
   std::vector<IndexedTriangle> triangles_;  // ordered by key cell
 };
