@@ -22,6 +22,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "algorithms/kdtree.h"
 #include "algorithms/reloc_evaluation.h"
 #include "algorithms/relocalizer.h"
 #include "algorithms/simulation.h"
@@ -39,6 +40,7 @@ struct BenchOptions {
   std::string map_path, frames_path, poses_path, like_path, scans_dir;
   double within = 0.3;  // m, also report the share of all frames localized this close
   std::vector<double> truth_offset;  // x, y, z (m), yaw (deg): map_from_world of the poses
+  std::string truth_map_path;        // the frames' own session map, for local truth alignment
   int step = 1, limit = 0;
   double prior_noise = -1, prior_radius = 10;  // m; prior_noise < 0: no prior
   int simulate = 0;
@@ -104,6 +106,7 @@ class Runner {
   }
 
   void AddDetectionTime(double ms) { detect_ms_.push_back(ms); }
+  const std::vector<algorithms::MapTree>& map() const { return index_->trees(); }
 
   nlohmann::ordered_json Report(size_t map_trees) const {
     const algorithms::RelocSummary s = evaluator_.Summary();
@@ -175,6 +178,46 @@ class Runner {
   std::ofstream per_frame_;
 };
 
+// Two sessions' ground truths of one forest agree only up to a drift of ~0.1-0.2 m that varies
+// along the route (see ../shared/data/README.md). The offset at a place: the median
+// displacement from the frames' own session map (moved by map_from_world) to the map
+// relocalized against, over the tree pairs within kRadius of it. Uses the two maps only.
+class LocalMapOffset {
+ public:
+  LocalMapOffset(const std::vector<algorithms::MapTree>& map,
+                 const std::vector<algorithms::MapTree>& session_map, const Pose3& map_from_world) {
+    std::vector<algorithms::KdTree<double, 2>::Point> xy;
+    for (const auto& t : map) xy.push_back({t.position.x(), t.position.y()});
+    map_xy_ = std::make_unique<algorithms::KdTree<double, 2>>(std::move(xy));
+    std::vector<algorithms::KdTree<double, 2>::Point> session_xy;
+    for (const auto& t : session_map) {
+      const Eigen::Vector3d p = map_from_world * t.position;
+      session_.push_back(p.head<2>());
+      session_xy.push_back({p.x(), p.y()});
+    }
+    session_xy_ = std::make_unique<algorithms::KdTree<double, 2>>(std::move(session_xy));
+  }
+
+  Eigen::Vector2d At(const Eigen::Vector3d& position) const {
+    constexpr double kRadius = 20.0, kPairDistance = 0.5;  // m
+    std::vector<std::pair<uint32_t, double>> found;
+    session_xy_->Radius({position.x(), position.y()}, kRadius, found);
+    std::vector<double> dx, dy;
+    for (const auto& [i, d2] : found) {
+      const auto [j, e2] = map_xy_->Nearest({session_[i].x(), session_[i].y()});
+      if (j < 0 || e2 > kPairDistance * kPairDistance) continue;
+      dx.push_back(map_xy_->point(j)[0] - session_[i].x());
+      dy.push_back(map_xy_->point(j)[1] - session_[i].y());
+    }
+    if (dx.size() < 5) return Eigen::Vector2d::Zero();
+    return {algorithms::Percentile(dx, 0.5), algorithms::Percentile(dy, 0.5)};
+  }
+
+ private:
+  std::unique_ptr<algorithms::KdTree<double, 2>> map_xy_, session_xy_;
+  std::vector<Eigen::Vector2d> session_;
+};
+
 void Progress(std::ostream& err, size_t done, size_t total) {
   if (done % 200 == 0 || done == total) err << "bench-reloc: " << done << "/" << total << "\r";
   if (done == total) err << "\n";
@@ -188,6 +231,11 @@ void RunSequence(Runner& runner, const BenchOptions& o, std::ostream& err) {
     map_from_world = algorithms::PoseFromXyzYaw(o.truth_offset[0], o.truth_offset[1],
                                                 o.truth_offset[2], o.truth_offset[3] * M_PI / 180);
   }
+  std::optional<LocalMapOffset> local_offset;
+  if (!o.truth_map_path.empty()) {
+    local_offset.emplace(runner.map(), ToMapTrees(ReadMapTreesCsv(o.truth_map_path)),
+                         map_from_world);
+  }
   std::vector<size_t> chosen;
   for (size_t i = 0; i < frames.size(); i += o.step) {
     if (o.limit > 0 && chosen.size() >= static_cast<size_t>(o.limit)) break;
@@ -199,7 +247,9 @@ void RunSequence(Runner& runner, const BenchOptions& o, std::ostream& err) {
     if (pose == poses.end()) {
       throw CommandError(o.poses_path + ": no pose for frame " + std::to_string(frame.frame));
     }
-    runner.Run(frame.trees, map_from_world * pose->second);
+    Pose3 truth = map_from_world * pose->second;
+    if (local_offset) truth.translation().head<2>() += local_offset->At(truth.translation());
+    runner.Run(frame.trees, truth);
     Progress(err, k + 1, chosen.size());
   }
 }
@@ -287,6 +337,11 @@ void AddBenchRelocCommand(CLI::App& app, CliContext& context) {
                   "X,Y,Z,YAW_DEG: map_from_world applied to the poses (session offset)")
       ->delimiter(',')
       ->expected(4);
+  cmd->add_option("--truth-map", options->truth_map_path,
+                  "The frames' own session map: align the truth locally to --map (median offset "
+                  "of the two maps' trees within 20 m), for sessions whose ground truths drift "
+                  "apart")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--step", options->step, "Use every N-th frame")->check(CLI::PositiveNumber);
   cmd->add_option("--limit", options->limit, "At most N frames (0 = all)")->check(CLI::NonNegativeNumber);
   cmd->add_option("--prior-noise", options->prior_noise,
