@@ -27,7 +27,9 @@ TriangleTable::TriangleTable(const std::vector<Triangle>& triangles,
   if (!(max_side > 0 && max_side < 60)) {
     throw std::invalid_argument("TriangleTable: max_side must be in (0, 60) m");
   }
-  inverse_cell_ = static_cast<float>((kCells - 1) / max_side);
+  // About one triangle a cell (sorted keys fill a sixth of the cube), at most 64^3 cells.
+  cells_ = std::clamp(static_cast<int>(std::cbrt(6.0 * triangles.size())), 8, 64);
+  inverse_cell_ = static_cast<float>((cells_ - 1) / max_side);
   const size_t cells = static_cast<size_t>(cells_) * cells_ * cells_;
   auto cell_of = [&](const Triangle& t) {
     return Index(std::min(Cell(t.sides[0]), cells_ - 1), std::min(Cell(t.sides[1]), cells_ - 1),

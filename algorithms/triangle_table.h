@@ -75,7 +75,6 @@ class TriangleTable {
   }
 
  private:
-  static constexpr int kCells = 64;  // key-space cells per dimension
   // Calls fn(first, last) for each contiguous run of triangles in the key cells that overlap
   // the box of half-width `tolerance` around `sides`.
   template <typename Fn>
@@ -99,7 +98,7 @@ class TriangleTable {
     return (static_cast<size_t>(a) * cells_ + b) * cells_ + c;
   }
 
-  int cells_ = kCells;
+  int cells_ = 1;                          // key-space cells per dimension
   float inverse_cell_ = 1;                 // 1 / cell edge (m)
   std::vector<uint32_t> start_;            // cells_^3 + 1 offsets into triangles_
   std::vector<IndexedTriangle> triangles_;  // ordered by key cell
