@@ -74,10 +74,10 @@ double ChooseTriangleSide(const KdTree<float, 2>& kd, const std::vector<Eigen::V
     const double per_tree = std::max(0.1, TrianglesPerTree(kd, local, tri));
     double target = per_tree > budget ? budget : (per_tree < 0.8 * wanted ? wanted : per_tree);
     if (target == per_tree) break;
-    tri.max_side = std::min(15.0, tri.max_side * std::pow(target / per_tree, 0.25));
+    tri.max_side = std::min(options.max_triangle_side, tri.max_side * std::pow(target / per_tree, 0.25));
   }
   // Keep room above the shortest side allowed (maps in odd units can be very dense).
-  return std::clamp(tri.max_side, tri.min_side + 0.5, 15.0);
+  return std::clamp(tri.max_side, tri.min_side + 0.5, options.max_triangle_side);
 }
 
 }  // namespace
@@ -85,6 +85,9 @@ double ChooseTriangleSide(const KdTree<float, 2>& kd, const std::vector<Eigen::V
 void MapIndexOptions::Check() const {
   if (!(target_neighbours >= 2 && target_neighbours <= 50)) {
     throw std::invalid_argument("MapIndexOptions: target_neighbours must be in [2, 50]");
+  }
+  if (!(max_triangle_side > min_triangle_side + 0.5 && max_triangle_side < 60)) {
+    throw std::invalid_argument("MapIndexOptions: max_triangle_side must be in (min + 0.5, 60) m");
   }
   if (!(min_triangle_side >= 0 && max_triangles_per_tree > 0 &&
         small_map_triangles_per_tree > 0 && min_index_triangles >= 0)) {

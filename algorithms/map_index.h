@@ -15,13 +15,15 @@ struct MapIndexOptions {
   // A drone sees fewer trees than a dense map holds (occlusion, misses): its triangles need at
   // least this side length to exist at all. Bounded by the triangle budget below.
   double min_triangle_side = 3.5;   // m
-  // Index size bound (~28 bytes a triangle): tight for huge maps, generous for small ones.
-  double max_triangles_per_tree = 12.0;        // maps of more than large_map_trees trees
-  double small_map_triangles_per_tree = 40.0;  // smaller maps
+  // Index size bound (20 bytes a triangle): tight for huge maps, generous for small ones.
+  double max_triangles_per_tree = 12.0;          // maps of more than large_map_trees trees
+  double small_map_triangles_per_tree = 1000.0;  // smaller maps
   size_t large_map_trees = 200000;
-  // Small or sparse maps: grow the side until the index holds this many triangles (sparse
-  // views then still contain whole triangles; the search stays cheap on a small index).
-  double min_index_triangles = 50000;
+  // Small or sparse maps: grow the side until the index holds this many triangles (3 MB), so
+  // that the few trees a sensor sees in a sparse forest, tens of metres apart, still form
+  // indexed triangles; the search stays cheap on a small index.
+  double min_index_triangles = 150000;
+  double max_triangle_side = 30.0;  // m
   // The occupancy grid that rejects wrong poses quickly: cells within this radius of a tree
   // (about the relocalizer's inlier distance), at this resolution.
   double occupancy_radius = 0.4;      // m

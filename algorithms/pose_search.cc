@@ -148,18 +148,15 @@ void Refine(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOpti
   Score(m, q, options.inlier_distance, h);
 }
 
-int InRange(const LevelledQuery& q, double range) {
-  return static_cast<int>(std::count_if(q.xy.begin(), q.xy.end(),
-                                        [&](const Eigen::Vector2d& p) { return p.norm() <= range; }));
+int RatioTrees(const LevelledQuery& q, const RelocalizerOptions& options) {
+  const int in_range = static_cast<int>(std::count_if(
+      q.xy.begin(), q.xy.end(), [&](const Eigen::Vector2d& p) { return p.norm() <= options.ratio_range; }));
+  return std::max(in_range, std::min<int>(q.xy.size(), options.min_ratio_trees));
 }
 
-int InliersInRange(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
-                   const RelocalizerOptions& options) {
-  int n = 0;
-  for (const Association& a : Associate(m, q, pose, options.inlier_distance)) {
-    n += q.xy[a.query].norm() <= options.ratio_range;
-  }
-  return n;
+int InliersAmongNearest(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
+                        int count, const RelocalizerOptions& options) {
+  return static_cast<int>(Associate(m, q, pose, options.inlier_distance, count).size());
 }
 
 double ChanceInliers(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose) {
@@ -210,7 +207,7 @@ class Searcher {
                                           std::min<size_t>(q.xy.size(), options.quick_score_trees)))),
         strong_(std::max(2 * options.min_inliers,
                          static_cast<int>(options.decisive_fraction *
-                                          InRange(q, options.ratio_range)))) {
+                                          RatioTrees(q, options)))) {
     triangles_ = QueryTriangles(seed_xy_, m, options.triangle_tolerance);
     if (triangles_.size() > static_cast<size_t>(options.max_query_triangles)) {
       triangles_.resize(options.max_query_triangles);
@@ -314,7 +311,8 @@ class Searcher {
       best_score_ = h.score;
       Hypothesis refined = h;
       Refine(m_, q_, options_, &refined);
-      decisive = InliersInRange(m_, q_, refined.pose, options_) >= strong_ &&
+      decisive = InliersAmongNearest(m_, q_, refined.pose, RatioTrees(q_, options_), options_) >=
+                     strong_ &&
                  Significant(refined.inliers, ChanceInliers(m_, q_, refined.pose),
                              result_.matches, options_);
     }

@@ -48,10 +48,13 @@ void Score(const MapIndexImpl& m, const LevelledQuery& q, double inlier_distance
 void Refine(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
             Hypothesis* h);
 
-// Query trees within `range` (m) of the sensor, and those of them that are inliers of `pose`.
-int InRange(const LevelledQuery& q, double range);
-int InliersInRange(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
-                   const RelocalizerOptions& options);
+// The nearest query trees an answer must explain a share of: those within
+// options.ratio_range, at least the nearest options.min_ratio_trees (a drone high above a
+// sparse forest sees its trees far away).
+int RatioTrees(const LevelledQuery& q, const RelocalizerOptions& options);
+// Inliers of `pose` among the `count` nearest query trees.
+int InliersAmongNearest(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
+                        int count, const RelocalizerOptions& options);
 
 // Inliers a random pose would get here: the sum over query trees of the local chance of
 // landing near a map tree (the occupied share of the occupancy grid around each).

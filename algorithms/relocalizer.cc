@@ -135,9 +135,10 @@ RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q,
                         const Hypothesis* best_rival, int64_t trials,
                         const RelocalizerOptions& options) {
   const double rival = best_rival ? best_rival->score : 0.0;
-  const int in_range = InRange(q, options.ratio_range);
-  const int inliers_in_range = InliersInRange(m, q, best.pose, options);
-  const double ratio = in_range > 0 ? static_cast<double>(inliers_in_range) / in_range : 0.0;
+  const int nearest = RatioTrees(q, options);
+  const double ratio =
+      nearest > 0 ? static_cast<double>(InliersAmongNearest(m, q, best.pose, nearest, options)) / nearest
+                  : 0.0;
 
   RelocalizeResult result = FinishWithTilt(m, q, query, best, options);
   result.confidence = best.score > 0 ? std::clamp(1.0 - rival / best.score, 0.0, 1.0) : 0.0;
@@ -152,9 +153,9 @@ RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q,
   } else if (best.inliers < options.min_inliers || ratio < options.min_inlier_ratio) {
     result.status = RelocalizeStatus::kNotFound;
     std::snprintf(detail, sizeof detail,
-                  "best pose explains only %d trees (%.0f%% of those within %.0f m); need %d "
+                  "best pose explains only %d trees (%.0f%% of the nearest %d trees); need %d "
                   "and %.0f%%",
-                  best.inliers, 100 * ratio, options.ratio_range, options.min_inliers,
+                  best.inliers, 100 * ratio, nearest, options.min_inliers,
                   100 * options.min_inlier_ratio);
   } else if (rival * options.ambiguity_ratio > best.score) {
     result.status = RelocalizeStatus::kAmbiguous;
@@ -167,9 +168,9 @@ RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q,
   } else {
     result.status = RelocalizeStatus::kLocalized;
     std::snprintf(detail, sizeof detail,
-                  "%d trees matched (%.0f%% of those within %.0f m, %.1f expected by chance), "
+                  "%d trees matched (%.0f%% of the nearest %d trees, %.1f expected by chance), "
                   "next distinct pose scores %.1f",
-                  best.inliers, 100 * ratio, options.ratio_range, chance, rival);
+                  best.inliers, 100 * ratio, nearest, chance, rival);
   }
   result.detail = detail;
   if (result.status != RelocalizeStatus::kLocalized) {
@@ -189,6 +190,7 @@ void RelocalizerOptions::Check() const {
   require(triangle_tolerance > 0, "triangle_tolerance must be > 0");
   require(min_inliers >= 3, "min_inliers must be >= 3");
   require(min_inlier_ratio >= 0 && min_inlier_ratio <= 1, "min_inlier_ratio must be in [0, 1]");
+  require(min_ratio_trees >= 1, "min_ratio_trees must be >= 1");
   require(ambiguity_ratio >= 1, "ambiguity_ratio must be >= 1");
   require(chance_sigmas >= 0, "chance_sigmas must be >= 0");
   require(false_alarm > 0 && false_alarm <= 1, "false_alarm must be in (0, 1]");

@@ -38,12 +38,12 @@ struct RelocalizeQuery {
 struct RelocalizerOptions {
   double max_query_range = 40.0;     // m, query trees farther (horizontally) are not used
   int max_seed_trees = 40;           // nearest query trees whose triangles seed hypotheses
-  int max_query_triangles = 400;     // at most this many query triangles (nearest first)
+  int max_query_triangles = 200;     // at most this many query triangles (nearest first)
   double triangle_tolerance = 0.20;  // m, per-side length tolerance of triangle matches
   // A first pass over this many triangles with a tighter tolerance (0 = none): an eighth of
   // the matches per triangle, and enough for most queries.
   double first_pass_tolerance = 0.10;  // m
-  int first_pass_triangles = 400;
+  int first_pass_triangles = 200;
   // Quick check of each triangle match's pose (a sequential test on the nearest query trees):
   // share of them a true pose puts on map trees, and the accepted error rates.
   double quick_check_true_rate = 0.75;
@@ -66,6 +66,7 @@ struct RelocalizerOptions {
   int min_inliers = 6;               // fewer inliers -> NOT_FOUND
   double ratio_range = 20.0;         // m, query trees within this range count for the ratio
   double min_inlier_ratio = 0.2;     // inliers / query trees within ratio_range; less -> NOT_FOUND
+  int min_ratio_trees = 10;          // ... counting at least this many nearest query trees
   // Inliers must exceed chance by this many Poisson sigmas. Above 5: refinement lifts the best
   // of many wrong poses over the Poisson expectation (Wild_V02 frames in the Stein map reach
   // 5.3 sigma, true answers on the real sequences 6.6 and more).
