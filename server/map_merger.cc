@@ -14,7 +14,7 @@ namespace {
 
 // Trees loaded around a frame reach this far beyond the merge's own reach (m), so that a tree
 // moving a little between frames of one request is still found.
-constexpr double kBoxMargin = 10.0;
+constexpr double kBoxMargin = 1.0;
 
 struct WorkingTree {
   algorithms::TreeEstimate estimate;
