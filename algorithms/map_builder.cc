@@ -189,7 +189,10 @@ class MapBuilder::Impl {
     }
     const std::vector<double> heights =
         SmoothHeights(apparent, options_.height_step_sigma, options_.height_outlier_scale);
-    for (size_t i = 0; i < frames_.size(); ++i) frames_[i].height_offset = apparent[i] - heights[i];
+    // The first frame defines the map frame: its sensor stays at height 0.
+    for (size_t i = 0; i < frames_.size(); ++i) {
+      frames_[i].height_offset = apparent[i] - (heights[i] - heights[0] + apparent[0]);
+    }
     Remerge();
   }
 
