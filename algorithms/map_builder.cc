@@ -59,6 +59,9 @@ void MapBuilderOptions::Check() const {
   require(loop_search_every >= 1, "loop_search_every (must be >= 1)");
   require(loop_cooldown >= 0, "loop_cooldown (must be >= 0)");
   require(final_adjustment_rounds >= 0, "final_adjustment_rounds (must be >= 0)");
+  require(adjustment_max_range > 0, "adjustment_max_range (must be > 0 m)");
+  require(height_sigma > 0 && height_step_sigma > 0 && height_outlier_scale > 0,
+          "height_sigma, height_step_sigma, height_outlier_scale (must be > 0 m)");
   adjustment.Check();
 }
 
@@ -71,7 +74,8 @@ struct StoredFrame {
   std::vector<Eigen::Vector3d> query;       // levelled positions within icp_range
   std::vector<double> query_weights;
   std::vector<int> query_index;             // into level_trees
-  Pose4 pose;                               // map_from_level
+  Pose4 pose;                  // map_from_level; z is the apparent height (where the stems put it)
+  double height_offset = 0;    // m, apparent minus sensor height (this frame's stems' height bias)
   bool merged = false;
 };
 
@@ -157,23 +161,38 @@ class MapBuilder::Impl {
   // adjusted poses (associations follow the better poses).
   void Adjust() {
     std::unordered_map<int64_t, int> tree_index;
-    std::vector<Eigen::Vector2d> trees;
+    std::vector<Eigen::Vector3d> trees;
     std::vector<TreeAdjustmentObservation> observations;
+    const double weight_z = 1.0 / (options_.height_sigma * options_.height_sigma);
     for (const TreeObservation& row : map_->observations()) {
+      const int frame = static_cast<int>(row.frame_id);
+      const Eigen::Vector3d& level = frames_[frame].level_trees[row.detection_index].position;
+      if (level.head<2>().norm() > options_.adjustment_max_range) continue;
       const auto [it, inserted] = tree_index.try_emplace(row.tree_id, trees.size());
-      if (inserted) trees.push_back(row.position.head<2>());
+      if (inserted) trees.push_back(row.position);
       TreeAdjustmentObservation o;
-      o.frame = static_cast<int>(row.frame_id);
+      o.frame = frame;
       o.tree = it->second;
-      o.level_xy = frames_[o.frame].level_trees[row.detection_index].position.head<2>();
-      o.weight = row.weight_xy;
+      o.level_position = level;
+      o.weight_xy = row.weight_xy;
+      o.weight_z = std::isfinite(row.position.z()) ? weight_z : 0.0;
       observations.push_back(o);
     }
     std::vector<Pose4> poses;
     for (const StoredFrame& frame : frames_) poses.push_back(frame.pose);
     const TreeAdjustmentResult adjusted =
-        AdjustTrees(std::move(poses), std::move(trees), observations, options_.adjustment);
-    for (size_t i = 0; i < frames_.size(); ++i) frames_[i].pose = adjusted.poses[i];
+        AdjustTrees(std::move(poses), std::move(trees), observations, {}, options_.adjustment);
+    std::vector<double> apparent;
+    for (size_t i = 0; i < frames_.size(); ++i) {
+      frames_[i].pose = adjusted.poses[i];
+      apparent.push_back(adjusted.poses[i].translation.z());
+    }
+    const std::vector<double> heights =
+        SmoothHeights(apparent, options_.height_step_sigma, options_.height_outlier_scale);
+    // The first frame defines the map frame: its sensor stays at height 0.
+    for (size_t i = 0; i < frames_.size(); ++i) {
+      frames_[i].height_offset = apparent[i] - (heights[i] - heights[0] + apparent[0]);
+    }
     Remerge();
   }
 
@@ -200,7 +219,9 @@ class MapBuilder::Impl {
   static Pose3 MapFromSensor(const StoredFrame& frame) {
     Pose3 level = Pose3::Identity();
     level.linear() = frame.level_from_sensor;
-    return ToPose3(frame.pose) * level;
+    Pose4 sensor = frame.pose;
+    sensor.translation.z() -= frame.height_offset;
+    return ToPose3(sensor) * level;
   }
 
   StoredFrame Prepare(const BuilderFrame& input) const {

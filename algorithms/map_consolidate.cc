@@ -7,6 +7,7 @@
 // current estimates and the estimates recomputed (a few k-means style sweeps).
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <numeric>
 #include <stdexcept>
@@ -50,14 +51,108 @@ class Consolidator {
       }
       owner_[r] = it->second;
     }
-    original_owner_ = owner_;
+    for (const TreeObservation& row : rows_) original_ids_.push_back(row.tree_id);
+    Recompute();
+  }
+
+  // Forgets the current association: the rows are merged afresh, frame by frame in canonical
+  // order (survey priors first, each its own tree), as MergeFrame would merge them into an empty
+  // map. Each new tree takes the id most of its rows had (ties: the smaller), if still free;
+  // else a new id from `next_free_id`.
+  void Restart(int64_t next_free_id) {
+    std::vector<TreeEstimate> clusters;
+    std::vector<int> cluster_of(rows_.size(), -1);
+    std::unordered_map<int64_t, std::vector<int>> grid;  // 1 m cells -> clusters
+    auto cell = [](const Eigen::Vector3d& p) {
+      return (static_cast<int64_t>(std::floor(p.x())) << 32) ^
+             static_cast<int64_t>(static_cast<uint32_t>(std::floor(p.y())));
+    };
+    auto add = [&](int cluster, size_t r) {
+      const int64_t before = cell(clusters[cluster].position);
+      AddObservation(clusters[cluster], rows_[r], options_);
+      cluster_of[r] = cluster;
+      const int64_t after = cell(clusters[cluster].position);
+      if (before == after && clusters[cluster].observations > 1) return;
+      if (clusters[cluster].observations > 1) std::erase(grid[before], cluster);
+      grid[after].push_back(cluster);
+    };
+    for (size_t r = 0; r < rows_.size(); ++r) {
+      if (!rows_[r].prior) continue;
+      clusters.emplace_back();
+      add(static_cast<int>(clusters.size()) - 1, r);
+    }
+    const int reach = static_cast<int>(std::ceil(options_.gate_distance));
+    std::vector<TreeEstimate> nearby;
+    std::vector<int> nearby_index;
+    std::vector<TreeObservation> frame_rows;
+    std::vector<size_t> frame_index;
+    for (size_t begin = 0; begin < rows_.size();) {
+      size_t end = begin + 1;
+      while (end < rows_.size() && SameFrame(rows_[end], rows_[begin])) ++end;
+      frame_rows.clear();
+      frame_index.clear();
+      nearby.clear();
+      nearby_index.clear();
+      std::vector<int> seen;
+      for (size_t r = begin; r < end; ++r) {
+        if (rows_[r].prior) continue;
+        frame_rows.push_back(rows_[r]);
+        frame_index.push_back(r);
+        const Eigen::Vector3d& p = rows_[r].position;
+        for (int dx = -reach; dx <= reach; ++dx) {
+          for (int dy = -reach; dy <= reach; ++dy) {
+            const auto it = grid.find(cell(p + Eigen::Vector3d(dx, dy, 0)));
+            if (it != grid.end()) seen.insert(seen.end(), it->second.begin(), it->second.end());
+          }
+        }
+      }
+      std::sort(seen.begin(), seen.end());
+      seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
+      for (int c : seen) {
+        nearby.push_back(clusters[c]);
+        nearby.back().id = c;  // ties broken by creation order
+        nearby_index.push_back(c);
+      }
+      const internal::Association association =
+          internal::AssociateGreedy(nearby, frame_rows, options_);
+      for (size_t k = 0; k < frame_rows.size(); ++k) {
+        const size_t r = frame_index[k];
+        if (association.tree[k] >= 0) {
+          add(nearby_index[association.tree[k]], r);
+        } else {
+          clusters.emplace_back();
+          add(static_cast<int>(clusters.size()) - 1, r);
+        }
+      }
+      begin = end;
+    }
+    // Ids: the most common previous id of each cluster's rows, in creation order.
+    std::vector<std::map<int64_t, int>> votes(clusters.size());
+    for (size_t r = 0; r < rows_.size(); ++r) ++votes[cluster_of[r]][original_ids_[r]];
+    std::unordered_map<int64_t, bool> taken;
+    std::vector<int64_t> cluster_id(clusters.size(), 0);
+    for (size_t c = 0; c < clusters.size(); ++c) {
+      int best = 0;
+      for (const auto& [id, n] : votes[c]) {
+        if (n > best && !taken[id]) cluster_id[c] = id, best = n;
+      }
+      if (best == 0) cluster_id[c] = next_free_id++;
+      taken[cluster_id[c]] = true;
+    }
+    for (size_t c = 0; c < clusters.size(); ++c) ids_.push_back(cluster_id[c]);
+    std::sort(ids_.begin(), ids_.end());
+    ids_.erase(std::unique(ids_.begin(), ids_.end()), ids_.end());
+    index_of_.clear();
+    for (size_t i = 0; i < ids_.size(); ++i) index_of_[ids_[i]] = static_cast<int>(i);
+    for (size_t r = 0; r < rows_.size(); ++r) owner_[r] = index_of_.at(cluster_id[cluster_of[r]]);
     Recompute();
   }
 
   void Run(ConsolidateResult& result) {
+    // Duplicates are looked for last, so the trees returned have been checked as they are.
     for (int sweep = 0; sweep < std::max(1, options_.consolidate_iterations); ++sweep) {
-      const int merged = MergeDuplicates();
       const int moved = Reassociate();
+      const int merged = MergeDuplicates();
       result.merged += merged;
       if (merged == 0 && moved == 0) break;
     }
@@ -69,8 +164,8 @@ class Consolidator {
       }
     }
     for (size_t r = 0; r < rows_.size(); ++r) {
-      if (owner_[r] != original_owner_[r]) ++result.reassigned;
       rows_[r].tree_id = ids_[owner_[r]];
+      if (rows_[r].tree_id != original_ids_[r]) ++result.reassigned;
     }
     result.observations = std::move(rows_);
   }
@@ -113,7 +208,17 @@ class Consolidator {
         if (j > i) pairs.emplace_back(d2, live_index[i], live_index[j]);
       }
     }
-    std::sort(pairs.begin(), pairs.end());
+    // Closest pairs first; equal distances in the canonical order of the trees' first rows (not
+    // by id: ids depend on the order in which rows arrived).
+    std::vector<size_t> first_row(ids_.size(), rows_.size());
+    for (size_t r = rows_.size(); r-- > 0;) first_row[owner_[r]] = r;
+    std::sort(pairs.begin(), pairs.end(), [&first_row](const auto& p, const auto& q) {
+      const auto key = [&first_row](const std::tuple<double, int, int>& t) {
+        const size_t a = first_row[std::get<1>(t)], b = first_row[std::get<2>(t)];
+        return std::make_tuple(std::get<0>(t), std::min(a, b), std::max(a, b));
+      };
+      return key(p) < key(q);
+    });
     const std::vector<std::vector<int>> frames = FramesOfTrees();
     std::vector<int> root(ids_.size());
     std::iota(root.begin(), root.end(), 0);
@@ -132,7 +237,10 @@ class Consolidator {
       std::set_intersection(frames[a].begin(), frames[a].end(), frames[b].begin(),
                             frames[b].end(), std::back_inserter(common));
       const double smaller = static_cast<double>(std::min(frames[a].size(), frames[b].size()));
-      if (!overlap && common.size() > options_.max_shared_frames * smaller) continue;
+      const bool side_by_side =
+          static_cast<int>(common.size()) >= options_.min_shared_frames &&
+          common.size() > options_.max_shared_frames * smaller;
+      if (!overlap && side_by_side) continue;
       root[b] = a;  // ids_ is sorted: the smaller id survives
       root[a] = -1 - a;
       ++merged;
@@ -175,7 +283,6 @@ class Consolidator {
         const int assigned = association.tree[k];
         if (assigned < 0) continue;  // keeps its tree: no estimate explains it better
         const int owner = live_index[assigned];
-        if (association.dbh_outlier[k]) rows_[frame_index[k]].weight_dbh = 0;
         if (owner_[frame_index[k]] != owner) {
           owner_[frame_index[k]] = owner;
           ++moved;
@@ -192,7 +299,7 @@ class Consolidator {
   std::vector<int64_t> ids_;  // sorted
   std::unordered_map<int64_t, int> index_of_;
   std::vector<int> owner_;  // per row, index into ids_
-  std::vector<int> original_owner_;
+  std::vector<int64_t> original_ids_;  // per row, its tree before
   std::vector<TreeEstimate> estimates_;
 };
 
@@ -204,6 +311,17 @@ ConsolidateResult ConsolidateTrees(std::span<const TreeEstimate> trees,
   options.Check();
   ConsolidateResult result;
   Consolidator consolidator(trees, observations, options);
+  consolidator.Run(result);
+  return result;
+}
+
+ConsolidateResult RebuildTrees(std::span<const TreeEstimate> trees,
+                               std::span<const TreeObservation> observations,
+                               int64_t next_free_id, const MergeOptions& options) {
+  options.Check();
+  ConsolidateResult result;
+  Consolidator consolidator(trees, observations, options);
+  consolidator.Restart(next_free_id);
   consolidator.Run(result);
   return result;
 }

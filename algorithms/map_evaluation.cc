@@ -81,7 +81,7 @@ TreeMapComparison CompareTreeMaps(const std::vector<MapTree>& built,
 }
 
 TrajectoryError CompareTrajectories(const std::vector<Pose3>& estimate,
-                                    const std::vector<Pose3>& truth, bool planar) {
+                                    const std::vector<Pose3>& truth, Alignment alignment) {
   if (estimate.size() != truth.size()) {
     throw std::invalid_argument("CompareTrajectories: " + std::to_string(estimate.size()) +
                                 " estimated poses for " + std::to_string(truth.size()) +
@@ -95,27 +95,33 @@ TrajectoryError CompareTrajectories(const std::vector<Pose3>& estimate,
     src.col(i) = estimate[i].translation();
     dst.col(i) = truth[i].translation();
   }
+  const bool planar = alignment != Alignment::kRigid;
   if (estimate.size() >= 3 && !planar) {
     out.truth_from_estimate.matrix() = Eigen::umeyama(src, dst, false);
   } else if (estimate.size() >= 3) {
     // 2-D Procrustes: yaw from the cross-covariance of the centred xy sets.
     const Eigen::Vector3d src_mean = src.rowwise().mean(), dst_mean = dst.rowwise().mean();
-    double sxx = 0, sxy = 0;
+    double sxx = 0, sxy = 0, spread = 0;
     for (Eigen::Index i = 0; i < src.cols(); ++i) {
       const Eigen::Vector2d a = (src.col(i) - src_mean).head<2>();
       const Eigen::Vector2d b = (dst.col(i) - dst_mean).head<2>();
       sxx += a.dot(b);
       sxy += a.x() * b.y() - a.y() * b.x();
+      spread += a.squaredNorm();
     }
     const double yaw = std::atan2(sxy, sxx);
-    const Eigen::Vector2d t =
-        dst_mean.head<2>() - Eigen::Rotation2Dd(yaw).toRotationMatrix() * src_mean.head<2>();
+    if (alignment == Alignment::kPlanarSimilarity && spread > 0) {
+      out.scale = std::hypot(sxx, sxy) / spread;  // Umeyama's scale in 2-D
+    }
+    const Eigen::Vector2d t = dst_mean.head<2>() - out.scale *
+                                                       Eigen::Rotation2Dd(yaw).toRotationMatrix() *
+                                                       src_mean.head<2>();
     out.truth_from_estimate = PoseFromXyzYaw(t.x(), t.y(), dst_mean.z() - src_mean.z(), yaw);
   }
   std::vector<double> errors(estimate.size());
   double sum2 = 0;
   for (size_t i = 0; i < estimate.size(); ++i) {
-    const Eigen::Vector3d d = out.truth_from_estimate * src.col(i) - dst.col(i);
+    const Eigen::Vector3d d = out.ToTruth(src.col(i)) - dst.col(i);
     errors[i] = planar ? d.head<2>().norm() : d.norm();
     sum2 += errors[i] * errors[i];
     out.ate_max = std::max(out.ate_max, errors[i]);

@@ -32,20 +32,33 @@ TreeMapComparison CompareTreeMaps(const std::vector<MapTree>& built,
                                   const std::vector<MapTree>& reference,
                                   const TreeMapComparisonOptions& options = {});
 
+enum class Alignment {
+  kRigid,             // 3-D rotation and translation (Umeyama 1991)
+  kPlanar,            // x, y, yaw and the mean height offset; horizontal errors only
+  kPlanarSimilarity,  // kPlanar with a horizontal scale: the truth's scale and the sensor's
+                      // can differ (Wild_V01/V02 ground truth is 0.12% larger than the stems'
+                      // geometry), and a map built from the sensor alone cannot know it
+};
+
 struct TrajectoryError {
-  Pose3 truth_from_estimate = Pose3::Identity();  // rigid alignment (least squares, Umeyama)
+  // truth = truth_from_estimate * (scale x, scale y, z) of an estimated point (ToTruth).
+  Pose3 truth_from_estimate = Pose3::Identity();
+  double scale = 1;      // horizontal, kPlanarSimilarity only
+  Eigen::Vector3d ToTruth(const Eigen::Vector3d& p) const {
+    return truth_from_estimate * Eigen::Vector3d(scale * p.x(), scale * p.y(), p.z());
+  }
   double ate_rmse = 0;   // m, RMS position error after the alignment (3-D, or 2-D if planar)
   double ate_max = 0;    // m
   double ate_p50 = 0;    // m
   int poses = 0;
 };
 
-// Rigid (no scale) least-squares alignment of estimated to true positions (Umeyama 1991) and the
-// absolute trajectory error. `estimate` and `truth` are paired by index; fewer than 3 pairs give
-// the identity alignment. `planar`: align x, y and yaw (plus the mean height offset) and measure
-// the horizontal error only, for tree-based mapping whose heights are weakly observed.
-// Throws std::invalid_argument for different sizes.
+// Least-squares alignment of estimated to true positions and the absolute trajectory error.
+// `estimate` and `truth` are paired by index; fewer than 3 pairs give the identity alignment.
+// Planar alignments measure the horizontal error only. Throws std::invalid_argument for
+// different sizes.
 TrajectoryError CompareTrajectories(const std::vector<Pose3>& estimate,
-                                    const std::vector<Pose3>& truth, bool planar = false);
+                                    const std::vector<Pose3>& truth,
+                                    Alignment alignment = Alignment::kRigid);
 
 }  // namespace forestmap::algorithms

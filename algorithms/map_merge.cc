@@ -77,6 +77,7 @@ void MergeOptions::Check() const {
   require(survey_sigma_dbh > 0, "survey_sigma_dbh (must be > 0 m)");
   require(duplicate_distance >= 0, "duplicate_distance (must be >= 0 m)");
   require(max_shared_frames >= 0 && max_shared_frames <= 1, "max_shared_frames (in [0, 1])");
+  require(min_shared_frames >= 1, "min_shared_frames (must be >= 1)");
   require(consolidate_iterations >= 0, "consolidate_iterations (must be >= 0)");
 }
 
@@ -152,8 +153,7 @@ Association AssociateGreedy(std::span<const TreeEstimate> trees,
                             std::span<const TreeObservation> observations,
                             const MergeOptions& options) {
   if (trees.empty() || observations.empty()) {
-    return {std::vector<int>(observations.size(), -1),
-            std::vector<char>(observations.size(), 0)};
+    return {std::vector<int>(observations.size(), -1)};
   }
   return AssociateGreedy(trees, *BuildTreeIndex(trees), observations, options);
 }
@@ -164,8 +164,7 @@ Association AssociateGreedy(std::span<const TreeEstimate> trees,
 Association AssociateGreedy(std::span<const TreeEstimate> trees, const KdTree<double, 2>& kd,
                             std::span<const TreeObservation> observations,
                             const MergeOptions& options) {
-  Association out{std::vector<int>(observations.size(), -1),
-                  std::vector<char>(observations.size(), 0)};
+  Association out{std::vector<int>(observations.size(), -1)};
   if (trees.empty() || observations.empty()) return out;
   // (DBH disagrees, cost, tree id, observation index, tree index).
   std::vector<std::tuple<bool, double, int64_t, int, int>> pairs;
@@ -189,10 +188,9 @@ Association AssociateGreedy(std::span<const TreeEstimate> trees, const KdTree<do
   }
   std::sort(pairs.begin(), pairs.end());
   std::vector<char> tree_used(trees.size(), 0);
-  for (const auto& [dbh_outlier, cost, id, o, t] : pairs) {
+  for (const auto& [dbh_disagrees, cost, id, o, t] : pairs) {
     if (out.tree[o] >= 0 || tree_used[t]) continue;
     out.tree[o] = t;
-    out.dbh_outlier[o] = dbh_outlier;
     tree_used[t] = 1;
   }
   return out;
@@ -322,7 +320,6 @@ MergeResult MergeFrame(std::span<const TreeEstimate> nearby_map_trees,
     }
     const TreeStatus before = tree->status;
     row.tree_id = tree->id;
-    if (association.dbh_outlier[o]) row.weight_dbh = 0;  // kept for the record, not averaged
     AddObservation(*tree, row, options);
     if (before == TreeStatus::kCandidate && tree->status == TreeStatus::kConfirmed) {
       result.promoted_ids.push_back(tree->id);

@@ -22,13 +22,14 @@ PairCost AssociationCost(const TreeEstimate& tree, const TreeObservation& observ
                          const MergeOptions& options);
 
 struct Association {
-  std::vector<int> tree;           // per observation: tree index, or -1
-  std::vector<char> dbh_outlier;   // per observation: associated despite its DBH
+  std::vector<int> tree;  // per observation: tree index, or -1
 };
 
 // One-to-one greedy association of one frame's observations with trees, cheapest pair first
 // (ties by tree id). DBH-compatible pairs first; then observations within
-// dbh_outlier_distance of a still free tree join it as DBH outliers.
+// dbh_outlier_distance of a still free tree join it despite their DBH (and their DBH is
+// averaged with its weight: a stored row never changes, or the map would depend on the order
+// in which rows arrived).
 Association AssociateGreedy(std::span<const TreeEstimate> trees,
                                  std::span<const TreeObservation> observations,
                                  const MergeOptions& options);

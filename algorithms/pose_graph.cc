@@ -32,18 +32,9 @@ void PoseGraphOptions::Check() const {
   if (!(huber > 0)) throw std::invalid_argument("PoseGraphOptions.huber must be > 0");
 }
 
-namespace {
-
-// Residual (prediction - measurement) of one edge, whitened, and its Jacobians w.r.t. the two
-// nodes (4 x 4 each, also whitened).
-struct Linearized {
-  Eigen::Vector4d residual;
-  Eigen::Matrix4d jacobian_from, jacobian_to;
-};
-
-Linearized Linearize(const Pose4& a, const Pose4& b, const PoseGraphEdge& edge) {
+LinearizedEdge LinearizeEdge(const Pose4& a, const Pose4& b, const PoseGraphEdge& edge) {
   const Pose4 predicted = Between(a, b);
-  Linearized out;
+  LinearizedEdge out;
   out.residual.head<3>() = predicted.translation - edge.measurement.translation;
   out.residual(3) = WrapAngle(predicted.yaw - edge.measurement.yaw);
   const double c = std::cos(a.yaw), s = std::sin(a.yaw);
@@ -59,6 +50,8 @@ Linearized Linearize(const Pose4& a, const Pose4& b, const PoseGraphEdge& edge) 
   return out;
 }
 
+namespace {
+
 double HuberWeight(double norm, double threshold) {
   return norm <= threshold ? 1.0 : threshold / norm;
 }
@@ -67,7 +60,7 @@ double Cost(const std::vector<Pose4>& poses, const std::vector<PoseGraphEdge>& e
             double huber) {
   double cost = 0;
   for (const PoseGraphEdge& edge : edges) {
-    const double r = Linearize(poses[edge.from], poses[edge.to], edge).residual.norm();
+    const double r = LinearizeEdge(poses[edge.from], poses[edge.to], edge).residual.norm();
     cost += edge.robust && r > huber ? huber * (2 * r - huber) : r * r;
   }
   return cost;
@@ -98,7 +91,7 @@ PoseGraphResult OptimizePoseGraph(std::vector<Pose4> initial,
     std::vector<Eigen::Triplet<double>> triplets;
     Eigen::VectorXd gradient = Eigen::VectorXd::Zero(4 * n);
     for (const PoseGraphEdge& edge : edges) {
-      const Linearized lin = Linearize(result.poses[edge.from], result.poses[edge.to], edge);
+      const LinearizedEdge lin = LinearizeEdge(result.poses[edge.from], result.poses[edge.to], edge);
       const double w = edge.robust ? HuberWeight(lin.residual.norm(), options.huber) : 1.0;
       const int index[2] = {4 * edge.from, 4 * edge.to};
       const Eigen::Matrix4d* jac[2] = {&lin.jacobian_from, &lin.jacobian_to};

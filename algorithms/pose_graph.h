@@ -40,6 +40,14 @@ struct PoseGraphResult {
   double initial_cost = 0, final_cost = 0;  // sum of squared (weighted) residuals
 };
 
+// One edge linearised at (a, b): whitened residual (Between(a, b) - measurement, per axis
+// x, y, z, yaw over its sigma) and its Jacobians w.r.t. the two nodes (x, y, z, yaw), whitened.
+struct LinearizedEdge {
+  Eigen::Vector4d residual;
+  Eigen::Matrix4d jacobian_from, jacobian_to;
+};
+LinearizedEdge LinearizeEdge(const Pose4& a, const Pose4& b, const PoseGraphEdge& edge);
+
 // Optimises all nodes but `fixed_node`. Throws std::invalid_argument for an edge naming a node
 // out of range, a non-positive sigma or invalid options.
 PoseGraphResult OptimizePoseGraph(std::vector<Pose4> initial,

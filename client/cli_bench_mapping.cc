@@ -5,14 +5,18 @@
 //   confirmed trees with the reference map (algorithms/map_evaluation.h).
 // Mapping:       --frames F --poses P [--eval-frames F2 --eval-poses P2 --truth-offset ...]
 //   builds the map from the detections alone (algorithms/map_builder.h; poses only score it):
-//   the trajectory's ATE after a rigid alignment to P, then the built map moved into P's world
-//   frame with that alignment and the frames of F2 (poses P2, moved by --truth-offset)
-//   relocalized against it, scored like bench-reloc.
+//   the trajectory's ATE after a planar rigid and a planar similarity alignment to P, then the
+//   built map moved into P's world frame with the similarity (--rigid: the rigid) alignment and
+//   the frames of F2 (poses P2, moved by --truth-offset) relocalized against it, scored like
+//   bench-reloc. The scale is there because the ground truth of Wild_V01/V02 is 0.12% larger
+//   than the geometry of the detected stems (a map built from them cannot know that).
 // --out writes the built (or merged) confirmed trees as a map CSV (map frame; with --align-out
-// in the world frame of P).
+// in the world frame of P). --trajectory-out writes every frame's estimated pose (aligned to P),
+// its true pose and how it was fixed, for diagnosis.
 
 #include <chrono>
 #include <cmath>
+#include <fstream>
 
 #include <nlohmann/json.hpp>
 
@@ -31,10 +35,12 @@ using algorithms::Pose3;
 
 struct BenchMappingOptions {
   std::string frames_path, poses_path, map_path, eval_frames_path, eval_poses_path, out_path;
+  std::string trajectory_path;
   std::vector<double> truth_offset;  // x, y, z (m), yaw (deg): map_from_world of eval poses
   bool use_poses = false;
   bool align_out = false;
   bool no_loops = false;
+  bool rigid = false;
   int step = 1, limit = 0, eval_step = 1;
   bool json = false;
 };
@@ -159,25 +165,29 @@ nlohmann::ordered_json BuildMap(const BenchMappingOptions& o, std::ostream& err)
   options.loop_closure = !o.no_loops;
   algorithms::MapBuilder builder(options);
   int fixes[5] = {0, 0, 0, 0, 0};
+  std::vector<algorithms::FrameFix> how;
   const auto start = std::chrono::steady_clock::now();
   for (size_t i = 0; i < sequence.frames.size(); ++i) {
     algorithms::BuilderFrame frame;
     frame.frame_id = sequence.frames[i].frame;
     frame.trees = sequence.frames[i].trees;
-    ++fixes[static_cast<int>(builder.AddFrame(frame).fix)];
+    how.push_back(builder.AddFrame(frame).fix);
+    ++fixes[static_cast<int>(how.back())];
     Progress(err, i + 1, sequence.frames.size(), "build");
   }
   builder.Finish();
   const double build_s = Seconds(start);
   const std::vector<Pose3> poses = builder.Poses();
+  using algorithms::Alignment;
   const algorithms::TrajectoryError planar =
-      algorithms::CompareTrajectories(poses, sequence.truth, /*planar=*/true);
+      algorithms::CompareTrajectories(poses, sequence.truth, Alignment::kPlanar);
+  const algorithms::TrajectoryError similar =
+      algorithms::CompareTrajectories(poses, sequence.truth, Alignment::kPlanarSimilarity);
   const algorithms::TrajectoryError full = algorithms::CompareTrajectories(poses, sequence.truth);
-  // The built map in the truth's world frame, by the planar alignment of the trajectory.
+  // The built map in the truth's world frame, by the chosen alignment of the trajectory.
+  const algorithms::TrajectoryError& alignment = o.rigid ? planar : similar;
   std::vector<algorithms::MapTree> aligned = builder.ConfirmedTrees();
-  for (algorithms::MapTree& tree : aligned) {
-    tree.position = planar.truth_from_estimate * tree.position;
-  }
+  for (algorithms::MapTree& tree : aligned) tree.position = alignment.ToTruth(tree.position);
   nlohmann::ordered_json report = {
       {"mode", "build"},
       {"frames", sequence.frames.size()},
@@ -190,7 +200,11 @@ nlohmann::ordered_json BuildMap(const BenchMappingOptions& o, std::ostream& err)
       {"ate_xy_rmse_m", planar.ate_rmse},
       {"ate_xy_p50_m", planar.ate_p50},
       {"ate_xy_max_m", planar.ate_max},
+      {"ate_xy_similarity_rmse_m", similar.ate_rmse},
+      {"ate_xy_similarity_max_m", similar.ate_max},
+      {"truth_scale", similar.scale},
       {"ate_3d_rmse_m", full.ate_rmse},
+      {"eval_alignment", o.rigid ? "planar" : "planar_similarity"},
       {"build_s", build_s}};
   if (!o.map_path.empty()) {
     const auto reference = ToMapTrees(ReadMapTreesCsv(o.map_path));
@@ -198,6 +212,21 @@ nlohmann::ordered_json BuildMap(const BenchMappingOptions& o, std::ostream& err)
   }
   if (!o.eval_frames_path.empty()) Relocalize(o, aligned, report, err);
   if (!o.out_path.empty()) WriteTrees(o.out_path, o.align_out ? aligned : builder.ConfirmedTrees());
+  if (!o.trajectory_path.empty()) {
+    std::ofstream out(o.trajectory_path);
+    out << "frame,fix,x,y,z,yaw,true_x,true_y,true_z,true_yaw,error_xy,error_z\n";
+    for (size_t i = 0; i < poses.size(); ++i) {
+      const Pose3 estimate = alignment.truth_from_estimate * poses[i];
+      const Eigen::Vector3d e = alignment.ToTruth(poses[i].translation());
+      const Eigen::Vector3d t = sequence.truth[i].translation();
+      const auto yaw = [](const Pose3& p) { return std::atan2(p(1, 0), p(0, 0)); };
+      out << sequence.frames[i].frame << "," << algorithms::ToString(how[i]) << "," << e.x() << ","
+          << e.y() << "," << e.z() << "," << yaw(estimate) << "," << t.x() << "," << t.y() << ","
+          << t.z() << "," << yaw(sequence.truth[i]) << "," << (e - t).head<2>().norm() << ","
+          << e.z() - t.z() << "\n";
+    }
+    if (!out) throw CommandError(o.trajectory_path + ": cannot write");
+  }
   return report;
 }
 
@@ -235,7 +264,12 @@ void AddBenchMappingCommand(CLI::App& app, CliContext& context) {
   cmd->add_option("--eval-step", options->eval_step, "Relocalize every N-th evaluation frame")
       ->check(CLI::PositiveNumber);
   cmd->add_flag("--no-loops", options->no_loops, "Build without loop closure");
+  cmd->add_flag("--rigid", options->rigid,
+                "Move the built map into the truth's frame without a scale (default: with the "
+                "trajectory's horizontal scale, as the truth's scale may differ from the sensor's)");
   cmd->add_option("--out", options->out_path, "Write the confirmed trees to this map CSV");
+  cmd->add_option("--trajectory-out", options->trajectory_path,
+                  "Write each frame's estimated (aligned) and true pose to this CSV");
   cmd->add_flag("--align-out", options->align_out,
                 "Write the built map in the world frame of --poses (after the alignment)");
   cmd->add_flag("--json", options->json, "Print one JSON object");

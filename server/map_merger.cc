@@ -94,14 +94,15 @@ RowKey KeyOf(const std::string& source, int64_t frame, int32_t detection, double
   return {source, frame, detection, x, y};
 }
 
-// Re-associates every row of the region (stored, new and unsaved survey priors) and merges
-// duplicate trees (algorithms::ConsolidateTrees), then turns the outcome into changes: moved
+// Re-associates every row of the region (stored, new and unsaved survey priors) afresh, in
+// canonical order, and merges duplicate trees (algorithms::RebuildTrees), then turns the outcome
+// into changes: moved
 // rows are closed and re-inserted under their new tree, trees that gained, lost or changed rows
 // are put, trees left empty are removed. Makes the map depend on the set of observations in the
 // region rather than on the order in which requests arrived.
 storage::MapChanges Consolidate(Loaded& loaded,
                                 const std::vector<algorithms::TreeObservation>& fresh,
-                                const algorithms::MergeOptions& options) {
+                                int64_t next_free_id, const algorithms::MergeOptions& options) {
   std::vector<algorithms::TreeEstimate> trees;
   for (const auto& [id, tree] : loaded.working) trees.push_back(tree.estimate);
   std::vector<algorithms::TreeObservation> rows;
@@ -115,7 +116,8 @@ storage::MapChanges Consolidate(Loaded& loaded,
     if (tree.unsaved_prior) rows.push_back(*tree.unsaved_prior);
   }
   rows.insert(rows.end(), fresh.begin(), fresh.end());
-  const algorithms::ConsolidateResult result = algorithms::ConsolidateTrees(trees, rows, options);
+  const algorithms::ConsolidateResult result =
+      algorithms::RebuildTrees(trees, rows, next_free_id, options);
 
   storage::MapChanges changes;
   std::set<int64_t> changed;
@@ -198,7 +200,7 @@ FramesMerge MergeFrames(storage::MergeReader& reader,
     merge.counts.push_back(counts);
   }
   if (consolidate) {
-    merge.changes = Consolidate(loaded, rows, options);
+    merge.changes = Consolidate(loaded, rows, next_id, options);
     return merge;
   }
   for (auto& [id, tree] : working) {

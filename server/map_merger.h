@@ -28,9 +28,10 @@ struct FramesMerge {
 };
 
 // Merges `frames` (map_from_sensor set) in order into the trees around them. With
-// `consolidate`, the rows of every tree around the frames are then re-associated and duplicate
-// trees merged (algorithms::ConsolidateTrees), so that the map depends on which observations a
-// region holds rather than on the order in which concurrent requests arrived.
+// `consolidate`, the rows of every tree around the frames are then re-associated afresh in
+// canonical order and duplicate trees merged (algorithms::RebuildTrees), so that the map depends
+// on which observations a region holds rather than on the order in which concurrent requests
+// arrived.
 FramesMerge MergeFrames(storage::MergeReader& reader,
                         const std::vector<algorithms::FrameObservations>& frames,
                         const algorithms::MergeOptions& options, bool consolidate);

@@ -107,11 +107,11 @@ TEST(MapBuilder, SimulatedLoopHasSmallTrajectoryErrorAndNoDuplicateTrees) {
   }
   builder.Finish();
   EXPECT_EQ(fixed, static_cast<int>(run.frames.size()));
-  const TrajectoryError ate = CompareTrajectories(builder.Poses(), run.truth, /*planar=*/true);
+  const TrajectoryError ate = CompareTrajectories(builder.Poses(), run.truth, Alignment::kPlanar);
   EXPECT_LT(ate.ate_rmse, 0.3);
   EXPECT_LT(ate.ate_max, 0.8);
   std::vector<MapTree> aligned = builder.ConfirmedTrees();
-  for (MapTree& tree : aligned) tree.position = ate.truth_from_estimate * tree.position;
+  for (MapTree& tree : aligned) tree.position = ate.ToTruth(tree.position);
   const TreeMapComparison c = CompareTreeMaps(aligned, run.forest, {0.3, 0.3});
   EXPECT_GT(c.found, static_cast<int>(run.forest.size() / 2));
   EXPECT_LT(c.distance_p50, 0.1);
@@ -134,7 +134,7 @@ TEST(MapBuilder, RealWildV01StretchWithoutPoses) {
     builder.AddFrame(frame);
     truth.push_back(poses.at(frames[i].frame));
   }
-  const TrajectoryError ate = CompareTrajectories(builder.Poses(), truth, /*planar=*/true);
+  const TrajectoryError ate = CompareTrajectories(builder.Poses(), truth, Alignment::kPlanar);
   EXPECT_LT(ate.ate_rmse, 0.3);  // 600 m of handheld traversal
   EXPECT_GT(builder.map().ConfirmedTrees().size(), 2000u);
 }

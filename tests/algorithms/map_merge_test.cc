@@ -84,11 +84,14 @@ TEST(MapMerge, DbhDecidesBetweenNeighboursAndRejectsADistinctStem) {
   // The same detection without a DBH joins the tree: position alone is within the gate.
   result = MergeFrame(lone, FrameAt({0, -6}, {Detection(0.35, 0, kUnknown)}));
   EXPECT_EQ(result.assignment[0], 1);
-  // A wild DBH fit right on the stem is an outlier of that tree: joined, DBH not averaged.
+  // A wild DBH fit right on the stem joins that tree despite its DBH, which is averaged with its
+  // weight (a stored row is never rewritten: the map must not depend on the order of rows).
   result = MergeFrame(lone, FrameAt({0, -6}, {Detection(0.05, 0, 0.60)}));
   ASSERT_EQ(result.assignment[0], 1);
   ASSERT_EQ(result.updated_trees.size(), 1u);
-  EXPECT_NEAR(result.updated_trees[0].dbh, 0.10, kExact);
+  const double w_tree = lone[0].dbh_stats.weight, w_row = result.observations[0].weight_dbh;
+  EXPECT_NEAR(result.updated_trees[0].dbh, (w_tree * 0.10 + w_row * 0.60) / (w_tree + w_row),
+              kExact);
   EXPECT_EQ(result.updated_trees[0].observations, 5);
 }
 
