@@ -94,37 +94,44 @@ void Polish(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOpti
             Hypothesis* h) {
   const double gate = 1.5 * options.inlier_distance;
   const std::vector<Association> matches =
-      Associate(m, q, h->pose, gate, options.quick_score_trees);
+      Associate(m, q, h->pose, options, gate, options.quick_score_trees);
   if (matches.size() >= 3) {
     Rigid2Accumulator acc;
     for (const Association& a : matches) acc.Add(q.xy[a.query], m.Xy(a.map));
     h->pose = acc.Solve();
   }
-  Score(m, q, options.inlier_distance, h, options.quick_score_trees);
+  Score(m, q, options, h, options.inlier_distance, options.quick_score_trees);
 }
 
 }  // namespace
 
 std::vector<Association> Associate(const MapIndexImpl& m, const LevelledQuery& q,
-                                   const Rigid2& pose, double gate, size_t limit) {
+                                   const Rigid2& pose, const RelocalizerOptions& options,
+                                   double gate, size_t limit) {
   std::vector<Association> out;
   const double gate2 = gate * gate;
   for (uint32_t i = 0; i < std::min(limit, q.xy.size()); ++i) {
     const Eigen::Vector2d p = pose(q.xy[i]);
     auto [j, d2] = m.positions->Nearest({static_cast<float>(p.x()), static_cast<float>(p.y())});
-    if (j >= 0 && d2 <= gate2) out.push_back({i, static_cast<uint32_t>(j), std::sqrt(d2)});
+    if (j < 0 || d2 > gate2) continue;
+    const double query_dbh = q.dbh[i], map_dbh = m.trees[j].dbh;
+    if (options.dbh_ratio_gate > 0 && query_dbh > 0 && map_dbh > 0 &&
+        std::max(query_dbh, map_dbh) > options.dbh_ratio_gate * std::min(query_dbh, map_dbh)) {
+      continue;  // not the same stem
+    }
+    out.push_back({i, static_cast<uint32_t>(j), std::sqrt(d2)});
   }
   return out;
 }
 
-void Score(const MapIndexImpl& m, const LevelledQuery& q, double inlier_distance, Hypothesis* h,
-           size_t limit) {
-  const std::vector<Association> inliers = Associate(m, q, h->pose, inlier_distance, limit);
+void Score(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
+           Hypothesis* h, double gate, size_t limit) {
+  const std::vector<Association> inliers = Associate(m, q, h->pose, options, gate, limit);
   h->inliers = static_cast<int>(inliers.size());
   h->score = 0;
   double sum2 = 0;
   for (const Association& a : inliers) {
-    const double r = a.distance / inlier_distance;
+    const double r = a.distance / gate;
     h->score += 1.0 - r * r;
     sum2 += a.distance * a.distance;
   }
@@ -136,7 +143,7 @@ void Refine(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOpti
   for (double gate : {1.5 * options.inlier_distance, options.inlier_distance,
                       options.inlier_distance, 0.7 * options.inlier_distance,
                       0.7 * options.inlier_distance}) {
-    const std::vector<Association> matches = Associate(m, q, h->pose, gate);
+    const std::vector<Association> matches = Associate(m, q, h->pose, options, gate);
     if (matches.size() < 3) break;
     Rigid2Accumulator acc;
     for (const Association& a : matches) {
@@ -145,7 +152,7 @@ void Refine(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOpti
     }
     h->pose = acc.Solve();
   }
-  Score(m, q, options.inlier_distance, h);
+  Score(m, q, options, h, options.inlier_distance);
 }
 
 int RatioTrees(const LevelledQuery& q, const RelocalizerOptions& options) {
@@ -156,7 +163,7 @@ int RatioTrees(const LevelledQuery& q, const RelocalizerOptions& options) {
 
 int InliersAmongNearest(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
                         int count, const RelocalizerOptions& options) {
-  return static_cast<int>(Associate(m, q, pose, options.inlier_distance, count).size());
+  return static_cast<int>(Associate(m, q, pose, options, options.inlier_distance, count).size());
 }
 
 double ChanceInliers(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose) {

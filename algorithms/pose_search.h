@@ -36,13 +36,15 @@ struct Association {
   double distance = 0;
 };
 
-// Each of the `limit` nearest query trees whose nearest map tree is within `gate` (m).
+// Each of the `limit` nearest query trees whose nearest map tree is within `gate` (m), unless
+// both DBH are known and differ by more than options.dbh_ratio_gate.
 std::vector<Association> Associate(const MapIndexImpl& m, const LevelledQuery& q,
-                                   const Rigid2& pose, double gate, size_t limit = SIZE_MAX);
+                                   const Rigid2& pose, const RelocalizerOptions& options,
+                                   double gate, size_t limit = SIZE_MAX);
 
-// Scores a pose on the `limit` nearest query trees (all by default).
-void Score(const MapIndexImpl& m, const LevelledQuery& q, double inlier_distance, Hypothesis* h,
-           size_t limit = SIZE_MAX);
+// Scores a pose on the `limit` nearest query trees (all by default), gate `gate` (m).
+void Score(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
+           Hypothesis* h, double gate, size_t limit = SIZE_MAX);
 
 // ICP-style refinement: re-association with a shrinking gate, least squares in x, y, yaw.
 void Refine(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,

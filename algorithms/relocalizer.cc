@@ -44,7 +44,7 @@ RelocalizeResult Finish(const MapIndexImpl& m, const LevelledQuery& q, const Hyp
                         const RelocalizerOptions& options) {
   RelocalizeResult result;
   std::vector<double> dz;
-  for (const Association& a : Associate(m, q, best.pose, options.inlier_distance)) {
+  for (const Association& a : Associate(m, q, best.pose, options, options.inlier_distance)) {
     result.matches.push_back({static_cast<int>(q.used[a.query]), m.trees[a.map].id, a.distance});
     const double map_z = m.trees[a.map].position.z();
     if (IsKnown(map_z)) dz.push_back(map_z - q.z[a.query]);
@@ -69,7 +69,7 @@ RelocalizeResult FinishWithTilt(const MapIndexImpl& m, const LevelledQuery& q,
                                 const RelocalizerOptions& options) {
   std::vector<Eigen::Vector3d> levelled;
   std::vector<double> map_z;
-  for (const Association& a : Associate(m, q, best.pose, options.inlier_distance)) {
+  for (const Association& a : Associate(m, q, best.pose, options, options.inlier_distance)) {
     const double z = m.trees[a.map].position.z();
     if (!IsKnown(z)) continue;
     levelled.push_back({q.xy[a.query].x(), q.xy[a.query].y(), q.z[a.query]});
@@ -191,6 +191,7 @@ void RelocalizerOptions::Check() const {
   require(min_inliers >= 3, "min_inliers must be >= 3");
   require(min_inlier_ratio >= 0 && min_inlier_ratio <= 1, "min_inlier_ratio must be in [0, 1]");
   require(min_ratio_trees >= 1, "min_ratio_trees must be >= 1");
+  require(dbh_ratio_gate == 0 || dbh_ratio_gate >= 1, "dbh_ratio_gate must be 0 (off) or >= 1");
   require(ambiguity_ratio >= 1, "ambiguity_ratio must be >= 1");
   require(chance_sigmas >= 0, "chance_sigmas must be >= 0");
   require(false_alarm > 0 && false_alarm <= 1, "false_alarm must be in (0, 1]");
@@ -305,7 +306,7 @@ RelocalizeResult RefineNear(const MapIndex& index, const RelocalizeQuery& query,
         Hypothesis h;
         h.pose.yaw = yaw;
         h.pose.translation = guess_xy + shift * Eigen::Vector2d(dx, dy);
-        Score(m, q, 1.5 * options.inlier_distance, &h, options.quick_score_trees);
+        Score(m, q, options, &h, 1.5 * options.inlier_distance, options.quick_score_trees);
         seeds.push_back(h);
       }
     }
