@@ -43,6 +43,7 @@ struct BenchOptions {
   std::string truth_map_path;        // the frames' own session map, for local truth alignment
   int step = 1, limit = 0;
   double prior_noise = -1, prior_radius = 10;  // m; prior_noise < 0: no prior
+  double imu_noise = -1;  // deg; >= 0: queries carry gravity, the truth's tilted by this RMS
   int simulate = 0;
   double range = 15;
   int64_t generate = 0;
@@ -91,6 +92,7 @@ class Runner {
       prior.radius = options_.prior_radius;
       query.prior = prior;
     }
+    if (options_.imu_noise >= 0) query.gravity = NoisyGravity(truth);
     const double cpu_start = ThreadCpuMs();
     const auto start = std::chrono::steady_clock::now();
     const algorithms::RelocalizeResult result =
@@ -141,6 +143,16 @@ class Runner {
   }
 
  private:
+  // Gravity (down) in the sensor frame as an IMU reports it: the truth, tilted about a random
+  // horizontal axis by a Gaussian angle of imu_noise RMS.
+  Eigen::Vector3d NoisyGravity(const Pose3& map_from_sensor) {
+    std::normal_distribution<double> angle(0, options_.imu_noise * M_PI / 180);
+    std::uniform_real_distribution<double> direction(-M_PI, M_PI);
+    const double a = direction(rng_);
+    const Eigen::AngleAxisd tilt(angle(rng_), Eigen::Vector3d(std::cos(a), std::sin(a), 0));
+    return map_from_sensor.linear().transpose() * (tilt * Eigen::Vector3d(0, 0, -1));
+  }
+
   void WriteRow(bool answerable, const Pose3& truth, const algorithms::RelocalizeResult& result,
                 double ms, double cpu_ms) {
     const bool localized = result.status == algorithms::RelocalizeStatus::kLocalized;
@@ -350,6 +362,9 @@ void AddBenchRelocCommand(CLI::App& app, CliContext& context) {
   cmd->add_option("--prior-radius", options->prior_radius, "Search radius of the prior (m)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  cmd->add_option("--imu-noise", options->imu_noise,
+                  "Queries carry gravity as an IMU gives it: the true one tilted by this RMS (deg)")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--simulate", options->simulate, "Relocalize N simulated views of the map")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--range", options->range, "Simulated sensor range (m)")

@@ -27,6 +27,8 @@ struct RelocalizeOptions {
   std::string scan_file;
   std::string prior_text;
   std::optional<PriorXyYaw> prior;  // parsed from prior_text
+  std::vector<double> gravity_values;
+  std::optional<Eigen::Vector3d> gravity;  // down, sensor frame (the drone's IMU)
 };
 
 void PrintLine(const CliContext& context, const v1::RelocalizeResponse& response,
@@ -48,7 +50,8 @@ void RunSingle(const RelocalizeOptions& options, const CliContext& context) {
     throw CommandError(options.trees_file + " holds the trees of " + std::to_string(frames.size()) +
                        " frames; use --frames to relocalize each frame");
   }
-  PrintLine(context, context.Connect().Relocalize(options.map, trees, options.prior), {});
+  PrintLine(context,
+            context.Connect().Relocalize(options.map, trees, options.prior, options.gravity), {});
 }
 
 // Detects the trunks of one scan here, then asks the server: what the drone's thin client does.
@@ -63,7 +66,9 @@ void RunScan(const RelocalizeOptions& options, const CliContext& context) {
     throw CommandError(options.scan_file + ": " + std::to_string(scan.trees.size()) +
                        " trees detected; a relocalization needs at least 3");
   }
-  PrintLine(context, context.Connect().Relocalize(options.map, scan.trees, options.prior), {});
+  PrintLine(context, context.Connect().Relocalize(options.map, scan.trees, options.prior,
+                                                  options.gravity),
+            {});
 }
 
 struct FrameCounts {
@@ -147,11 +152,18 @@ void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
       "--scan", options->scan_file,
       "LiDAR scan in the sensor frame (.pcd .ply .las .csv .xyz): trunks are detected here and "
       "only the tree list is sent")->check(CLI::ExistingFile);
+  CLI::Option* gravity =
+      sub->add_option("--gravity", options->gravity_values,
+                      "GX,GY,GZ: direction of gravity (down) in the sensor frame, e.g. from the "
+                      "drone's IMU; without it roll and pitch come from the stems' axes")
+          ->delimiter(',')
+          ->expected(3);
+  gravity->excludes(frames);
   trees->excludes(frames);
   scan->excludes(trees);
   scan->excludes(frames);
   prior->excludes(frames);
-  sub->callback([options, trees, frames, scan, prior, &context] {
+  sub->callback([options, trees, frames, scan, prior, gravity, &context] {
     if (trees->count() + frames->count() + scan->count() == 0) {
       throw CLI::RequiredError("--trees FILE, --scan SCAN or --frames FILE");
     }
@@ -161,6 +173,14 @@ void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
       } catch (const std::invalid_argument& error) {
         throw CLI::ValidationError("--prior", error.what());
       }
+    }
+    if (gravity->count() > 0) {
+      const Eigen::Vector3d g(options->gravity_values[0], options->gravity_values[1],
+                              options->gravity_values[2]);
+      if (!g.allFinite() || g.norm() < 1e-6) {
+        throw CLI::ValidationError("--gravity", "needs a finite, non-zero vector GX,GY,GZ");
+      }
+      options->gravity = g.normalized();
     }
     context.run = [options, &context] {
       if (!options->scan_file.empty()) {
