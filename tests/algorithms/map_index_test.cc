@@ -1,0 +1,119 @@
+// The relocalizer's index structures against brute force: the triangle table's key lookup, the
+// occupancy grid's "is a tree within r?", and the Poisson tail behind the significance test.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <set>
+
+#include "algorithms/occupancy_grid.h"
+#include "algorithms/pose_search.h"
+#include "algorithms/triangle_table.h"
+
+namespace forestmap::algorithms {
+namespace {
+
+std::vector<Eigen::Vector2d> RandomPoints(int n, double extent, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-extent, extent);
+  std::vector<Eigen::Vector2d> points(n);
+  for (auto& p : points) p = {u(rng), u(rng)};
+  return points;
+}
+
+TEST(TriangleTable, FindsExactlyTheTrianglesWithinTheToleranceOfEachSide) {
+  const std::vector<Eigen::Vector2d> points = RandomPoints(400, 30.0, 1);
+  TriangleOptions options;
+  options.max_side = 6.0;
+  std::vector<std::vector<uint32_t>> neighbours(points.size());
+  for (uint32_t i = 0; i < points.size(); ++i) {
+    for (uint32_t j = 0; j < points.size(); ++j) {
+      if (i != j && (points[i] - points[j]).norm() <= options.max_side) neighbours[i].push_back(j);
+    }
+  }
+  const std::vector<Triangle> triangles = EnumerateTriangles(points, neighbours, options);
+  ASSERT_GT(triangles.size(), 1000u);
+  const TriangleTable table(triangles, points, options.max_side);
+  EXPECT_EQ(table.size(), triangles.size());
+
+  std::mt19937 rng(2);
+  std::uniform_int_distribution<size_t> pick(0, triangles.size() - 1);
+  for (float tolerance : {0.05f, 0.1f, 0.2f, 0.5f}) {
+    for (int trial = 0; trial < 50; ++trial) {
+      std::array<float, 3> query = triangles[pick(rng)].sides;
+      query[2] += 0.03f;  // not exactly a stored key
+      // Sides are stored in millimetres: keys within 1 mm of the boundary may go either way.
+      std::multiset<std::array<float, 2>> inside, within_boundary, found;
+      for (const Triangle& t : triangles) {
+        float worst = 0;
+        for (int d = 0; d < 3; ++d) worst = std::max(worst, std::abs(t.sides[d] - query[d]));
+        const TriangleFrame f = FrameOf(points[t.vertex[0]], points[t.vertex[1]], points[t.vertex[2]]);
+        if (worst <= tolerance - 1e-3f) inside.insert({f.cx, f.cy});
+        if (worst <= tolerance + 1e-3f) within_boundary.insert({f.cx, f.cy});
+      }
+      table.ForEachMatch(query, tolerance,
+                         [&](const IndexedTriangle& t) { found.insert({t.cx, t.cy}); });
+      for (const auto& c : inside) EXPECT_TRUE(found.count(c)) << "tolerance " << tolerance;
+      for (const auto& c : found) EXPECT_TRUE(within_boundary.count(c)) << "tolerance " << tolerance;
+      EXPECT_GE(table.CandidateCount(query, tolerance), found.size());
+    }
+  }
+}
+
+TEST(TriangleTable, FrameKeepsCentroidHeadingAndOrientation) {
+  const std::vector<Eigen::Vector2d> points = {{0, 0}, {4, 0}, {1, 2}};
+  const TriangleFrame f = FrameOf(points[0], points[1], points[2]);
+  EXPECT_NEAR(f.cx, 5.0 / 3, 1e-6);
+  EXPECT_NEAR(f.cy, 2.0 / 3, 1e-6);
+  EXPECT_NEAR(f.cos_heading, 1.0, 1e-6);
+  EXPECT_NEAR(f.sin_heading, 0.0, 1e-6);
+  EXPECT_EQ(f.turn, 1);  // counter-clockwise
+  EXPECT_EQ(FrameOf(points[0], points[2], points[1]).turn, -1);
+  EXPECT_EQ(FrameOf({0, 0}, {4, 0}, {2, 0.01}).turn, 0);  // nearly collinear
+}
+
+TEST(OccupancyGrid, AgreesWithBruteForceAwayFromTheBoundary) {
+  // Two clusters 5 km apart: the tiles are found through the sparse hash, not a directory.
+  std::vector<Eigen::Vector2d> points = RandomPoints(300, 20.0, 3);
+  for (const Eigen::Vector2d& p : RandomPoints(300, 20.0, 4)) points.push_back(p + Eigen::Vector2d(5000, -3000));
+  constexpr double kRadius = 0.4, kResolution = 0.2;
+  const double fuzz = kResolution * std::sqrt(0.5);  // half a cell diagonal
+  for (const auto& cloud : {std::vector<Eigen::Vector2d>(points.begin(), points.begin() + 300), points}) {
+    const OccupancyGrid grid(cloud, kRadius, kResolution);
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(-22.0, 22.0);
+    int checked = 0, near = 0;
+    for (int trial = 0; trial < 20000; ++trial) {
+      const Eigen::Vector2d q = cloud[trial % cloud.size()] + Eigen::Vector2d(u(rng), u(rng)) / 20;
+      double nearest = INFINITY;
+      for (const Eigen::Vector2d& p : cloud) nearest = std::min(nearest, (p - q).norm());
+      if (std::abs(nearest - kRadius) < fuzz) continue;
+      ++checked;
+      near += nearest < kRadius;
+      EXPECT_EQ(grid.Near(q.x(), q.y()), nearest < kRadius) << q.transpose();
+    }
+    EXPECT_GT(checked, 10000);
+    EXPECT_GT(near, 1000);
+    EXPECT_FALSE(grid.Near(1e6, 1e6));
+    // 300 points in 40 x 40 m: about 1 - exp(-density pi r^2) of the area is near a tree.
+    EXPECT_GT(grid.occupied_fraction(), 0.0);
+    EXPECT_LT(grid.occupied_fraction(), 0.2);
+  }
+}
+
+TEST(PoissonTail, MatchesDirectSums) {
+  for (double lambda : {0.05, 0.7, 3.0, 20.0}) {
+    double cdf = 0, term = std::exp(-lambda);
+    for (int k = 0; k < 60; ++k) {
+      EXPECT_NEAR(PoissonTail(k, lambda), 1.0 - cdf, 1e-9 + 1e-6 * (1.0 - cdf)) << k << " " << lambda;
+      cdf += term;
+      term *= lambda / (k + 1);
+    }
+  }
+  EXPECT_EQ(PoissonTail(0, 3.0), 1.0);
+  EXPECT_EQ(PoissonTail(5, 0.0), 0.0);
+  EXPECT_NEAR(PoissonTail(7, 0.7), 8.9e-6, 0.2e-6);  // the sparse wrong-forest case
+}
+
+}  // namespace
+}  // namespace forestmap::algorithms
