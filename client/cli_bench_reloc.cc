@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdio>
 #include <ctime>
+#include <unistd.h>
 #include <fstream>
 #include <iomanip>
 #include <random>
@@ -57,6 +58,14 @@ double Ms(std::chrono::steady_clock::duration d) {
   return std::chrono::duration<double, std::milli>(d).count();
 }
 
+// Resident set size of this process (bytes; Linux /proc/self/statm), 0 when unknown.
+size_t ResidentBytes() {
+  std::ifstream statm("/proc/self/statm");
+  size_t pages = 0, resident = 0;
+  if (!(statm >> pages >> resident)) return 0;
+  return resident * static_cast<size_t>(sysconf(_SC_PAGESIZE));
+}
+
 // CPU time of the calling thread (ms): per-query cost even while other work shares the cores.
 double ThreadCpuMs() {
   timespec t{};
@@ -75,9 +84,11 @@ class Runner {
       per_frame_ << "query,answerable,status,x,y,yaw_deg,true_x,true_y,true_yaw_deg,error_xy_m,"
                     "error_yaw_deg,inliers,confidence,ms,cpu_ms,hypotheses,triangles,poses_checked,detail\n";
     }
+    const size_t resident_before = ResidentBytes();
     const auto start = std::chrono::steady_clock::now();
     index_ = std::make_unique<algorithms::MapIndex>(map);
     build_ms_ = Ms(std::chrono::steady_clock::now() - start);
+    index_resident_ = static_cast<double>(ResidentBytes()) - resident_before;
     if (options.track) tracker_.emplace();
   }
 
@@ -116,6 +127,7 @@ class Runner {
             {"index_build_ms", build_ms_},
             {"index_triangle_side_m", index_->triangle_side()},
             {"index_bytes_per_tree", map_trees ? double(index_->MemoryBytes()) / map_trees : 0},
+            {"index_resident_bytes_per_tree", map_trees ? index_resident_ / map_trees : 0},
             {"frames", s.frames},
             {"answerable", s.answerable},
             {"localized", s.localized},
@@ -187,6 +199,7 @@ class Runner {
   std::unique_ptr<algorithms::MapIndex> index_;
   std::mt19937 rng_;
   double build_ms_ = 0;
+  double index_resident_ = 0;  // growth of the resident set while the index was built (bytes)
   std::ofstream per_frame_;
 };
 

@@ -17,10 +17,10 @@ row() {  # row NAME bench-reloc-arguments...
   "$F" bench-reloc "$@" --json 2>/dev/null | python3 -c '
 import json, sys
 r = json.load(sys.stdin)
-print("| %s | %d | %d | %.2f%% | %.2f%% | %d (%d loc., %d amb., %d n.f.) | %.3f m | %.2f / %.2f ms | %.1f s, %.0f B/tree |" % (
+print("| %s | %d | %d | %.2f%% | %.2f%% | %d (%d loc., %d amb., %d n.f.) | %.3f m | %.2f / %.2f ms | %.1f s, %.0f B/tree resident |" % (
     sys.argv[1], r["frames"], r["answerable"], 100 * r["recall"], 100 * r["strict_recall"],
     r["wrong"], r["localized"], r["ambiguous"], r["not_found"], r["error_xy_p50_m"],
-    r["time_p50_ms"], r["time_p95_ms"], r["index_build_ms"] / 1000, r["index_bytes_per_tree"]))
+    r["time_p50_ms"], r["time_p95_ms"], r["index_build_ms"] / 1000, r["index_resident_bytes_per_tree"]))
 ' "$name"
 }
 
