@@ -58,14 +58,23 @@ struct StemModelOptions {
   double min_arc_coverage = 0.08;        // [0, 1], median over slices (3 of 36 sectors)
   double min_dbh = 0.05;                 // m
   double max_dbh = 1.2;                  // m
-  double min_score = 0.12;        // [0, 1], weaker stems (mostly shrub and crown arcs) dropped
-  double breast_height = 1.3;     // m along the stem above the ground point
-  int cylinder_fit_points = 200;  // sparser stems: DBH from one cylinder fit
-  bool sensor_at_origin = true;   // single viewpoint at (0,0,0): a partial arc must face it
-  double beam_divergence = 0;     // rad, full angle; 0 disables the compensation
+  double min_score = 0.12;       // [0, 1], weaker stems (mostly shrub and crown arcs) dropped
+  double breast_height = 1.3;    // m along the stem above the ground point
+  int min_cylinder_points = 10;  // a stem seen in fewer than min_slices slices needs as many
+                                 // points on one cylinder (spanning min_axis_span)
+  bool sensor_at_origin = true;  // single viewpoint at (0,0,0): a partial arc must face it
+  double beam_divergence = 0;    // rad, full angle; 0 disables the compensation
   double divergence_bias_factor = 0.1;  // share of the footprint added to the fitted diameter
                                         // (0.1: calibrated on simulated Ouster scans)
-  uint32_t seed = 1;                    // RANSAC
+  // Silhouette prior (sensor_at_origin): the lateral extent of a stem's points seen from the
+  // origin is its width, plus the beam footprint's edge returns (silhouette_bias_factor * range *
+  // beam_divergence; 0.33 calibrated on simulated Ouster scans), give or take one angular_step;
+  // it holds the cylinder fit of short, flat arcs to that width (cylinder_fit.h, RadiusPrior).
+  bool silhouette_prior = true;
+  double angular_step = 3.07e-3;  // rad, horizontal beam spacing (2 pi / 2048)
+  double silhouette_bias_factor = 0.33;
+  uint32_t seed = 1;           // RANSAC
+  bool keep_rejected = false;  // diagnostics: fill StemModelResult::rejected
   void Check() const;
 };
 
@@ -74,14 +83,16 @@ struct DetectedTrunk {
   DetectedTree tree;  // position: tree-ground intersection (or lowest stem point); axis up
   Eigen::Vector3d breast_height_point = Eigen::Vector3d::Zero();  // axis point where dbh applies
   bool ground_known = false;
-  double ground_z = kUnknown;  // m, ground height under the stem
-  double dbh_height = 0;       // m along the axis from `position` where dbh was evaluated
-  double raw_dbh = kUnknown;   // m, before the beam-divergence compensation
-  int points_used = 0;         // circle inliers over all slices
-  int slices = 0;              // consistent slices
-  double residual = 0;         // m, rms of the circle inliers
-  double arc_coverage = 0;     // [0, 1], median slice coverage
-  double range = 0;            // m, horizontal distance of the breast-height point from 0
+  double ground_z = kUnknown;   // m, ground height under the stem
+  double dbh_height = 0;        // m along the axis from `position` where dbh was evaluated
+  double raw_dbh = kUnknown;    // m, before the beam-divergence compensation
+  int points_used = 0;          // circle inliers over all slices
+  int slices = 0;               // consistent slices
+  double residual = 0;          // m, rms of the circle inliers
+  double arc_coverage = 0;      // [0, 1], median slice coverage
+  double range = 0;             // m, horizontal distance of the breast-height point from 0
+  double silhouette_width = 0;  // m, lateral extent of the inliers seen from the origin
+  double radius_sd = 0;         // m, standard error of the cylinder fit's radius
 };
 
 // Diameter at a height along the stem from (height, diameter, weight) samples.
@@ -109,8 +120,18 @@ struct StemModelStats {
   size_t duplicates = 0;  // stems found twice, dropped
 };
 
+enum class StemRejection { kNone, kSlices, kTilt, kResidual, kCoverage, kDbh, kScore };
+
+// A linked stem that failed a check (StemModelOptions::keep_rejected), for diagnosis.
+struct RejectedStem {
+  DetectedTrunk trunk;  // as far as it was built (kSlices: only the chain's first circle)
+  StemRejection reason = StemRejection::kNone;
+  int chain_slices = 0;  // slice circles linked
+};
+
 struct StemModelResult {
-  std::vector<DetectedTrunk> trunks;  // best score first
+  std::vector<DetectedTrunk> trunks;   // best score first
+  std::vector<RejectedStem> rejected;  // only with keep_rejected
   StemModelStats stats;
 };
 
