@@ -12,6 +12,7 @@ namespace {
 
 // Hundreds of points fix a cylinder as well as thousands: a fit takes at most this many.
 constexpr size_t kMaxFitPoints = 200;
+constexpr double kDefaultAngularStep = 2 * M_PI / 2048;  // rad, when the scan's is unknown
 
 // An even subset of `points` of size `count`, the same whatever their order (a hash of each
 // point's millimetre coordinates decides), so that a stem's fit does not depend on the cloud's
@@ -62,12 +63,46 @@ double SilhouetteWidth(std::span<const Eigen::Vector3d> points, const Cylinder& 
 // bound (the sensor saw at least this much of the stem), a loose upper one (occlusion).
 RadiusPrior SilhouettePrior(double silhouette, double range, const StemModelOptions& options) {
   RadiusPrior prior;
-  const double step = range * options.angular_step;
+  const double step =
+      range * (options.angular_step > 0 ? options.angular_step : kDefaultAngularStep);
   prior.radius =
       0.5 * (silhouette - options.silhouette_bias_factor * range * options.beam_divergence);
   prior.sd_below = 0.005 + 0.25 * step;
   prior.sd_above = 0.02 + 0.5 * step + 0.5 * std::max(prior.radius, 0.0);
   return prior;
+}
+
+// Share of the beams across the stem's silhouette that returned from it: per beam ring (points
+// of one elevation angle seen from the origin, within 1 mrad), the points over the columns
+// spanned (azimuth extent / angular_step + 1). A solid stem returns nearly every beam that
+// crosses it; a crown or a shrub lets most of them through to something else.
+double BeamFill(std::span<const Eigen::Vector3d> points, const Cylinder& cylinder,
+                double angular_step) {
+  const Eigen::Vector2d toward = cylinder.point.head<2>().normalized();
+  std::vector<Eigen::Vector2d> rays;  // elevation, azimuth relative to the stem
+  for (const Eigen::Vector3d& p : points) {
+    const Eigen::Vector2d xy = p.head<2>();
+    // Tangents of elevation and of azimuth from the stem's direction (the stem subtends a small
+    // angle, where the tangent is the angle; no atan2 per point).
+    const double along = toward.dot(xy);
+    rays.emplace_back(p.z() / xy.norm(), (toward.x() * xy.y() - toward.y() * xy.x()) / along);
+  }
+  std::sort(rays.begin(), rays.end(),
+            [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return a.x() < b.x(); });
+  double returned = 0, crossed = 0;
+  for (size_t begin = 0; begin < rays.size();) {
+    size_t end = begin + 1;
+    double lo = rays[begin].y(), hi = lo;
+    while (end < rays.size() && rays[end].x() - rays[end - 1].x() < 1e-3) {
+      lo = std::min(lo, rays[end].y());
+      hi = std::max(hi, rays[end].y());
+      ++end;
+    }
+    returned += static_cast<double>(end - begin);
+    crossed += std::round((hi - lo) / angular_step) + 1;
+    begin = end;
+  }
+  return crossed > 0 ? std::min(1.0, returned / crossed) : 0;
 }
 
 }  // namespace
@@ -116,6 +151,9 @@ GatheredStem GatherStem(std::span<const Eigen::Vector3d> cluster, const Cylinder
     stem.z_hi = std::max(stem.z_hi, p.z());
   }
   stem.coverage = ArcCoverage(projected, Eigen::Vector2d::Zero());
+  if (options.sensor_at_origin && options.angular_step > 0) {
+    stem.beam_fill = BeamFill(stem.points, cylinder, options.angular_step);
+  }
   return stem;
 }
 

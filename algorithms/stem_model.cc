@@ -230,6 +230,7 @@ Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>
   const TaperFit taper = FitTaper(samples, dbh_height);
   trunk.silhouette_width = gathered.silhouette;
   trunk.radius_sd = gathered.fit.radius_sd;
+  trunk.beam_fill = gathered.beam_fill;
   trunk.breast_height_point = position + dbh_height * a;
   trunk.range = trunk.breast_height_point.head<2>().norm();
   trunk.raw_dbh = taper.diameter;
@@ -250,6 +251,9 @@ Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>
   if (trunk.residual > options.max_residual) return Reject::kResidual;
   if (trunk.arc_coverage < options.min_arc_coverage) return Reject::kCoverage;
   if (!(dbh >= options.min_dbh && dbh <= options.max_dbh)) return Reject::kDbh;
+  const double span = fitted ? gathered.z_hi - gathered.z_lo : s_hi - s_lo + options.slice_height;
+  if (ground_known && span < options.min_elongation * dbh) return Reject::kShape;
+  if (trunk.beam_fill < options.min_beam_fill) return Reject::kShape;
   if (trunk.tree.score < options.min_score) return Reject::kScore;
   return Reject::kNone;
 }
@@ -273,6 +277,9 @@ void Count(Reject reject, StemModelStats& stats) {
       break;
     case Reject::kScore:
       ++stats.rejected_score;
+      break;
+    case Reject::kShape:
+      ++stats.rejected_shape;
       break;
     case Reject::kNone:
       break;
@@ -354,13 +361,13 @@ StemModelResult FitStems(std::span<const Eigen::Vector3f> points, std::span<cons
     std::stable_sort(chains.begin(), chains.end(),
                      [](const auto& a, const auto& b) { return a.size() > b.size(); });
     const size_t first_trunk = result.trunks.size();
-    for (const std::vector<int>& chain : chains) {
+    auto try_chain = [&](const std::vector<int>& chain) {
       ++result.stats.chains;
       if (static_cast<int>(chain.size()) < options.min_slices &&
           OnFoundStem(scratch.circles[chain.front()],
                       std::span(result.trunks).subspan(first_trunk))) {
         ++result.stats.duplicates;
-        continue;
+        return;
       }
       DetectedTrunk trunk;
       const Reject reject =
@@ -378,6 +385,15 @@ StemModelResult FitStems(std::span<const Eigen::Vector3f> points, std::span<cons
         }
         result.rejected.push_back({trunk, reject, static_cast<int>(chain.size())});
       }
+    };
+    for (const std::vector<int>& chain : chains) try_chain(chain);
+    // In a single view, a small cluster without a stem (no slice held enough points for a
+    // circle: a far, thin stem) gets one more seed, a circle through all its points. (Merged
+    // clouds have no far stems of a few returns per ring; their small clusters are clutter.)
+    if (options.sensor_at_origin && result.trunks.size() == first_trunk &&
+        static_cast<int>(cluster.size()) <= options.max_seed_cluster_points &&
+        internal::ClusterSeed(scratch.cluster, options, rng, scratch.circles)) {
+      try_chain({static_cast<int>(scratch.circles.size()) - 1});
     }
   }
   SuppressDuplicates(result.trunks, result.stats);

@@ -56,14 +56,22 @@ struct StemModelOptions {
   double min_consistent_fraction = 0.6;  // of the linked slices
   double max_residual = 0.025;           // m, stem rms of the circle inliers
   double min_arc_coverage = 0.08;        // [0, 1], median over slices (3 of 36 sectors)
-  double min_dbh = 0.05;                 // m
-  double max_dbh = 1.2;                  // m
-  double min_score = 0.12;       // [0, 1], weaker stems (mostly shrub and crown arcs) dropped
-  double breast_height = 1.3;    // m along the stem above the ground point
-  int min_cylinder_points = 10;  // a stem seen in fewer than min_slices slices needs as many
-                                 // points on one cylinder (spanning min_axis_span)
-  bool sensor_at_origin = true;  // single viewpoint at (0,0,0): a partial arc must face it
-  double beam_divergence = 0;    // rad, full angle; 0 disables the compensation
+  double min_elongation = 1.5;  // visible stem height (m) per m of DBH at least: crowns and shrubs
+                                // reaching into the stem layer are wide and short
+  double min_beam_fill = 0.6;   // [0, 1], share of the beams across a stem that must return from
+                                // it (a single viewpoint with a known angular_step): a stem is
+                                // solid, a crown or a shrub lets most beams through
+  double min_dbh = 0.05;        // m
+  double max_dbh = 1.2;         // m
+  double min_score = 0.12;      // [0, 1], weaker stems (mostly shrub and crown arcs) dropped
+  double breast_height = 1.3;   // m along the stem above the ground point
+  int min_cylinder_points = 10;
+  int max_seed_cluster_points =
+      300;  // a smaller cluster without any stem gets a seed circle
+            // through all its points  // a stem seen in fewer than min_slices slices needs as many
+            // points on one cylinder (spanning min_axis_span)
+  bool sensor_at_origin = true;         // single viewpoint at (0,0,0): a partial arc must face it
+  double beam_divergence = 0;           // rad, full angle; 0 disables the compensation
   double divergence_bias_factor = 0.1;  // share of the footprint added to the fitted diameter
                                         // (0.1: calibrated on simulated Ouster scans)
   // Silhouette prior (sensor_at_origin): the lateral extent of a stem's points seen from the
@@ -71,7 +79,8 @@ struct StemModelOptions {
   // beam_divergence; 0.33 calibrated on simulated Ouster scans), give or take one angular_step;
   // it holds the cylinder fit of short, flat arcs to that width (cylinder_fit.h, RadiusPrior).
   bool silhouette_prior = true;
-  double angular_step = 3.07e-3;  // rad, horizontal beam spacing (2 pi / 2048)
+  double angular_step = 0;  // rad, horizontal beam spacing; 0: unknown (DetectTrunks takes 2 pi /
+                            // columns of an organised cloud; the prior then assumes 2 pi / 2048)
   double silhouette_bias_factor = 0.33;
   uint32_t seed = 1;           // RANSAC
   bool keep_rejected = false;  // diagnostics: fill StemModelResult::rejected
@@ -93,6 +102,7 @@ struct DetectedTrunk {
   double range = 0;             // m, horizontal distance of the breast-height point from 0
   double silhouette_width = 0;  // m, lateral extent of the inliers seen from the origin
   double radius_sd = 0;         // m, standard error of the cylinder fit's radius
+  double beam_fill = 1;         // [0, 1], share of the beams across the stem that hit it
 };
 
 // Diameter at a height along the stem from (height, diameter, weight) samples.
@@ -117,10 +127,11 @@ struct StemModelStats {
   size_t rejected_coverage = 0;
   size_t rejected_dbh = 0;
   size_t rejected_score = 0;
-  size_t duplicates = 0;  // stems found twice, dropped
+  size_t rejected_shape = 0;  // not stem-like: short (min_elongation) or porous (min_beam_fill)
+  size_t duplicates = 0;      // stems found twice, dropped
 };
 
-enum class StemRejection { kNone, kSlices, kTilt, kResidual, kCoverage, kDbh, kScore };
+enum class StemRejection { kNone, kSlices, kTilt, kResidual, kCoverage, kDbh, kScore, kShape };
 
 // A linked stem that failed a check (StemModelOptions::keep_rejected), for diagnosis.
 struct RejectedStem {

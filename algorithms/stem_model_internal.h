@@ -43,6 +43,11 @@ void FitSlice(std::span<const Eigen::Vector3f> points, const std::vector<uint32_
               int slice, const StemModelOptions& options, std::mt19937& rng, SliceScratch& scratch,
               StemModelStats& stats);
 
+// A circle through the x, y of all the cluster's points (RANSAC), appended to `circles` as one
+// more slice circle; false when none fits.
+bool ClusterSeed(std::span<const Eigen::Vector3d> cluster, const StemModelOptions& options,
+                 std::mt19937& rng, std::vector<SliceCircle>& circles);
+
 // Links slice circles (in slice order) into chains of one stem each (indices into circles).
 std::vector<std::vector<int>> LinkCircles(const std::vector<SliceCircle>& circles,
                                           const StemModelOptions& options);
@@ -69,6 +74,7 @@ struct GatheredStem {
   std::vector<Eigen::Vector3d> points;  // within the fit's inlier band
   double coverage = 0;                  // arc coverage around the axis
   double silhouette = 0;                // m, see SilhouetteWidth
+  double beam_fill = 1;                 // [0, 1], see BeamFill (1 when unknown)
   double z_lo = 0, z_hi = 0;            // m, height range of the points
 };
 

@@ -93,6 +93,26 @@ void FitSlice(std::span<const Eigen::Vector3f> points, const std::vector<uint32_
   }
 }
 
+bool ClusterSeed(std::span<const Eigen::Vector3d> cluster, const StemModelOptions& options,
+                 std::mt19937& rng, std::vector<SliceCircle>& circles) {
+  std::vector<Eigen::Vector2d> xy;
+  SliceCircle seed;
+  seed.min_z = std::numeric_limits<double>::max();
+  for (const Eigen::Vector3d& p : cluster) {
+    xy.push_back(p.head<2>());
+    seed.z += p.z() / static_cast<double>(cluster.size());
+    seed.min_z = std::min(seed.min_z, p.z());
+  }
+  const CircleFitResult fit = FitCircleRobust(xy, options.circle, rng);
+  if (!fit.success) return false;
+  seed.circle = fit.circle;
+  seed.inliers = fit.inliers;
+  seed.rms = fit.rms;
+  seed.coverage = fit.arc_coverage;
+  circles.push_back(seed);
+  return true;
+}
+
 // Links slice circles (in slice order) into chains of one stem each.
 std::vector<std::vector<int>> LinkCircles(const std::vector<SliceCircle>& circles,
                                           const StemModelOptions& options) {
