@@ -65,8 +65,10 @@ RadiusPrior SilhouettePrior(double silhouette, double range, const StemModelOpti
   RadiusPrior prior;
   const double step =
       range * (options.angular_step > 0 ? options.angular_step : kDefaultAngularStep);
+  // The points span the columns that hit the stem: one column less than its width, on average;
+  // the beam footprint's edge returns widen that again (silhouette_bias_factor).
   prior.radius =
-      0.5 * (silhouette - options.silhouette_bias_factor * range * options.beam_divergence);
+      0.5 * (silhouette + step - options.silhouette_bias_factor * range * options.beam_divergence);
   prior.sd_below = 0.005 + 0.25 * step;
   prior.sd_above = 0.02 + 0.5 * step + 0.5 * std::max(prior.radius, 0.0);
   return prior;

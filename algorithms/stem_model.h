@@ -75,13 +75,14 @@ struct StemModelOptions {
   double divergence_bias_factor = 0.1;  // share of the footprint added to the fitted diameter
                                         // (0.1: calibrated on simulated Ouster scans)
   // Silhouette prior (sensor_at_origin): the lateral extent of a stem's points seen from the
-  // origin is its width, plus the beam footprint's edge returns (silhouette_bias_factor * range *
-  // beam_divergence; 0.33 calibrated on simulated Ouster scans), give or take one angular_step;
-  // it holds the cylinder fit of short, flat arcs to that width (cylinder_fit.h, RadiusPrior).
+  // origin is its width less one angular_step (the columns that hit it span one column less),
+  // plus the beam footprint's edge returns (silhouette_bias_factor * range * beam_divergence;
+  // 1.33 calibrated on simulated Ouster scans); it holds the cylinder fit of short, flat arcs to
+  // that width (cylinder_fit.h, RadiusPrior).
   bool silhouette_prior = true;
   double angular_step = 0;  // rad, horizontal beam spacing; 0: unknown (DetectTrunks takes 2 pi /
                             // columns of an organised cloud; the prior then assumes 2 pi / 2048)
-  double silhouette_bias_factor = 0.33;
+  double silhouette_bias_factor = 1.33;
   uint32_t seed = 1;           // RANSAC
   bool keep_rejected = false;  // diagnostics: fill StemModelResult::rejected
   void Check() const;

@@ -86,13 +86,16 @@ Tally Score(const ScanSimulationResult& scan, const std::vector<DetectedTrunk>& 
         std::cout << "hit  tree " << k << " range " << truth.range << " dbh " << truth.dbh
                   << " det " << trunks[d].tree.dbh << " raw " << trunks[d].raw_dbh << " dz "
                   << trunks[d].tree.position.z() - truth.position.z() << " dxy "
-                  << (trunks[d].tree.position - truth.position).head<2>().norm() << " slices "
-                  << trunks[d].slices << " ground " << trunks[d].ground_known << " points "
-                  << trunks[d].points_used << " coverage " << trunks[d].arc_coverage << " rms "
-                  << trunks[d].residual << " score " << trunks[d].tree.score << " breast "
-                  << truth.breast_points << " silhouette " << trunks[d].silhouette_width
-                  << " radius_sd " << trunks[d].radius_sd << " fill " << trunks[d].beam_fill
-                  << "\n";
+                  << (trunks[d].tree.position - truth.position).head<2>().norm() << " radial "
+                  << (trunks[d].tree.position - truth.position)
+                         .head<2>()
+                         .dot(truth.position.head<2>().normalized())
+                  << " slices " << trunks[d].slices << " ground " << trunks[d].ground_known
+                  << " points " << trunks[d].points_used << " coverage " << trunks[d].arc_coverage
+                  << " rms " << trunks[d].residual << " score " << trunks[d].tree.score
+                  << " breast " << truth.breast_points << " silhouette "
+                  << trunks[d].silhouette_width << " radius_sd " << trunks[d].radius_sd << " fill "
+                  << trunks[d].beam_fill << "\n";
       }
       ++tally.found;
       ++tally.matched;
