@@ -7,24 +7,34 @@
 //    count is what splits clusters that DBSCAN merged (the thesis's weakness).
 // 2. Circles of successive slices are linked into stems when their centres agree (allowing for
 //    the stem's tilt), like the stem sections of the backpack paper (Holmgren et al. sec. 2.4).
-// 3. The stem axis is the weighted principal direction of the slice centres (a cylinder axis);
-//    slices whose centre or radius disagrees with the stem are dropped (slice consistency).
-// 4. Position: where the axis meets the ground model (thesis ch. 5.3), or, without ground, the
-//    axis point at the lowest stem point seen.
+// 3. Each chain seeds one cylinder (cylinder_fit.h, thesis ch. 3.2): the chain's axis (the
+//    weighted principal direction of its consistent slice centres) and median radius, or for a
+//    chain of too few consistent slices (and, in a single view, for a small cluster without any
+//    stem: a circle through all its points) a vertical axis through its circle. The stem's points
+//    are gathered from the whole cluster around the seed and a robust 5-parameter cylinder is
+//    fitted through them (stem_cylinder.cc): far stems give two to four returns per beam ring,
+//    too few for a circle per slice but plenty together. In a single view the stem's silhouette
+//    (its width seen from the sensor, less a column, plus the footprint's edge returns) is a
+//    prior on the radius, so that short flat arcs do not run away to huge circles.
+// 4. Position: where the cylinder's axis (or the slice axis, when no cylinder fits) meets the
+//    ground model (thesis ch. 5.3), or, without ground, the axis point at the lowest stem point.
 // 5. DBH: a weighted, outlier-resistant fit of diameter against distance along the stem, the
 //    cubic of Holmgren et al. eq. 1, d(h) = p1 h^3 + p2 h^2 + p3 h + p4, lowered to a smaller
-//    degree when the slices span too little of the stem to carry a cubic, evaluated at
-//    breast_height (1.3 m) along the stem; without ground at the middle of the slices seen.
-//    Sparse stems (far ones: a few points per slice) get the diameter of one cylinder fit to
-//    the inliers of all their slices instead (a circle fit after projection along the axis).
+//    degree when the samples span too little of the stem to carry a cubic, evaluated at
+//    breast_height (1.3 m) along the stem; without ground at the middle of the stem seen. The
+//    samples are twice the mean distance of the cylinder's points from its axis per slice (a
+//    radius given the axis is well determined where a circle per slice is not), or the slice
+//    circles when no cylinder fits.
 // 6. Beam-divergence compensation (the mixed-pixel edge effect): a beam of full divergence angle
 //    `beam_divergence` has a footprint of range * beam_divergence; at the silhouette edges of a
 //    stem a beam whose centre already misses the stem still returns from it, so the edge points
 //    sit up to half a footprint outside the true outline and the arc fit grows. The model:
 //    dbh = dbh_fit - divergence_bias_factor * range * beam_divergence. Off when the divergence is
 //    0 (the default: a simulator without divergence, or a cloud merged from many ranges).
-// 7. Rejection of non-stems: too few consistent slices, tilt, fit residual, arc coverage, DBH
-//    range (max_dbh: shrubs and crowns give big circles), score below min_score.
+// 7. Rejection of non-stems: too few consistent slices (or too few cylinder points), tilt, fit
+//    residual, arc coverage, DBH range, shape (seen over less height than min_elongation DBH, or,
+//    in a single view with a known angular_step, a beam fill under min_beam_fill: a crown or a
+//    shrub lets most beams through, a stem does not), score below min_score.
 //    Score in [0, 1] = residual term * coverage term * slice term (see ScoreStem in the .cc).
 
 #include <Eigen/Core>
