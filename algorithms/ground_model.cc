@@ -198,9 +198,12 @@ float CentreHeight(const SampleSums& sums, const Grid& grid, int ix, int iy, int
       Eigen::Matrix3d ata;
       ata << n, sx, sy, sx, sxx, sxy, sy, sxy, syy;
       const Eigen::Vector3d atb(s[3], sxz, syz);
-      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(ata);
-      if (eig.eigenvalues()(0) > 1e-6 * eig.eigenvalues()(2)) {
-        const Eigen::Vector3d plane = ata.ldlt().solve(atb);
+      // The samples span a plane unless they are (nearly) collinear: the centred 2x2 scatter
+      // of their x, y must not be singular (closed form; an eigen solver per pillar is costly).
+      const double vxx = sxx - sx * sx / n, vxy = sxy - sx * sy / n, vyy = syy - sy * sy / n;
+      const double trace = vxx + vyy;
+      if (vxx * vyy - vxy * vxy > 1e-6 * trace * trace) {
+        const Eigen::Vector3d plane = ata.inverse() * atb;  // 3x3: closed-form inverse
         if (plane.tail<2>().norm() < 2.0) return static_cast<float>(plane(0));
       }
     }
@@ -236,6 +239,14 @@ double GroundModel::Height(double x, double y) const {
   const double fx = (x - min_x_) / cell_ - 0.5, fy = (y - min_y_) / cell_ - 0.5;
   const int ix = static_cast<int>(std::floor(fx)), iy = static_cast<int>(std::floor(fy));
   const double tx = fx - ix, ty = fy - iy;
+  // Inside the grid with all four corners known (most points): plain bilinear interpolation.
+  if (ix >= 0 && iy >= 0 && ix + 1 < nx_ && iy + 1 < ny_) {
+    const float* row = heights_.data() + static_cast<size_t>(iy) * nx_ + ix;
+    const float h00 = row[0], h10 = row[1], h01 = row[nx_], h11 = row[nx_ + 1];
+    if (!std::isnan(h00 + h10 + h01 + h11)) {
+      return (1 - ty) * ((1 - tx) * h00 + tx * h10) + ty * ((1 - tx) * h01 + tx * h11);
+    }
+  }
   double sum = 0, weight = 0;
   for (int dy = 0; dy <= 1; ++dy) {
     for (int dx = 0; dx <= 1; ++dx) {

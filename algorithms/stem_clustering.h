@@ -33,7 +33,7 @@ std::vector<uint32_t> ExtractStemLayer(std::span<const float> heights, bool grou
 struct StemClusterOptions {
   double eps = 0.15;            // m, DBSCAN radius in the horizontal plane
   int min_points = 5;           // points within eps of a core point (itself included)
-  int min_cluster_points = 12;  // smaller clusters are noise
+  int min_cluster_points = 10;  // smaller clusters are noise
   double cell_fraction = 0.5;   // grid cell side = eps * cell_fraction
   void Check() const;
 };

@@ -8,196 +8,15 @@
 #include <stdexcept>
 #include <string>
 
+#include "algorithms/stem_model_internal.h"
+
 namespace forestmap::algorithms {
 namespace {
 
-struct SliceCircle {
-  Circle circle;
-  double z = 0;      // m, mean z of the inliers
-  double min_z = 0;  // m, lowest inlier
-  int slice = 0;
-  int inliers = 0;
-  double rms = 0;
-  double coverage = 0;
-  uint32_t begin = 0, end = 0;  // its inliers in Scratch::inliers
-};
-
-// Scratch buffers reused over the clusters of one call.
-struct Scratch {
-  std::vector<std::vector<uint32_t>> slices;
-  std::vector<Eigen::Vector2d> xy;
-  std::vector<float> z;
-  std::vector<SliceCircle> circles;
-  std::vector<Eigen::Vector3d> inliers;  // of every circle of the current cluster
-};
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return kUnknown;
-  const size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + mid, v.end());
-  return v[mid];
-}
-
-// Extracts up to max_circles_per_slice circles from one slice, each removing its inliers.
-void FitSlice(std::span<const Eigen::Vector3f> points, const std::vector<uint32_t>& members,
-              int slice, const StemModelOptions& options, std::mt19937& rng, Scratch& scratch,
-              StemModelStats& stats) {
-  const size_t stride =
-      members.size() > static_cast<size_t>(options.max_slice_points)
-          ? (members.size() + options.max_slice_points - 1) / options.max_slice_points
-          : 1;
-  scratch.xy.clear();
-  scratch.z.clear();
-  for (size_t k = 0; k < members.size(); k += stride) {
-    const Eigen::Vector3f& p = points[members[k]];
-    scratch.xy.emplace_back(p.x(), p.y());
-    scratch.z.push_back(p.z());
-  }
-  const size_t first_circle = scratch.circles.size();
-  for (int c = 0; c < options.max_circles_per_slice; ++c) {
-    if (scratch.xy.size() < static_cast<size_t>(options.min_slice_points)) return;
-    ++stats.slices_fitted;
-    const CircleFitResult fit = FitCircleRobust(scratch.xy, options.circle, rng);
-    if (!fit.success || fit.inliers < options.min_slice_points) return;
-    SliceCircle sc;
-    sc.circle = fit.circle;
-    sc.slice = slice;
-    sc.inliers = fit.inliers;
-    sc.rms = fit.rms;
-    sc.coverage = fit.arc_coverage;
-    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-    double z_sum = 0;
-    sc.min_z = std::numeric_limits<double>::max();
-    size_t kept = 0;
-    // Removes the ring's noise tail too (twice the band), or its leftovers make small circles.
-    const double tail = 2.0 * fit.band;
-    sc.begin = static_cast<uint32_t>(scratch.inliers.size());
-    for (size_t i = 0; i < scratch.xy.size(); ++i) {
-      if (fit.inlier_mask[i]) {
-        scratch.inliers.emplace_back(scratch.xy[i].x(), scratch.xy[i].y(), scratch.z[i]);
-        mean += scratch.xy[i];
-        z_sum += scratch.z[i];
-        sc.min_z = std::min<double>(sc.min_z, scratch.z[i]);
-      } else if (std::abs((scratch.xy[i] - sc.circle.center).norm() - sc.circle.radius) >= tail) {
-        scratch.xy[kept] = scratch.xy[i];
-        scratch.z[kept] = scratch.z[i];
-        ++kept;
-      }
-    }
-    sc.end = static_cast<uint32_t>(scratch.inliers.size());
-    scratch.xy.resize(kept);
-    scratch.z.resize(kept);
-    mean /= fit.inliers;
-    sc.z = z_sum / fit.inliers;
-    // A partial arc seen from the origin must bulge towards it: its centre lies farther away
-    // than its points. An arc curving away is the inside of something (a shrub), not a stem.
-    // And the sensor cannot stand inside a stem: that is a ring of ground returns around it.
-    const bool facing = !options.sensor_at_origin ||
-                        ((fit.arc_coverage >= 0.5 ||
-                          sc.circle.center.norm() >= mean.norm() - 0.5 * sc.circle.radius) &&
-                         sc.circle.center.norm() > sc.circle.radius + 0.1);
-    // Stems may touch but not overlap: a circle overlapping one of this slice is a leftover.
-    bool overlaps = false;
-    for (size_t k = first_circle; k < scratch.circles.size(); ++k) {
-      const Circle& other = scratch.circles[k].circle;
-      overlaps |=
-          (other.center - sc.circle.center).norm() < 0.8 * (other.radius + sc.circle.radius);
-    }
-    if (facing && !overlaps && sc.coverage >= options.min_slice_coverage) {
-      scratch.circles.push_back(sc);
-      ++stats.circles;
-    }
-  }
-}
-
-// Links slice circles (in slice order) into chains of one stem each.
-std::vector<std::vector<int>> LinkCircles(const std::vector<SliceCircle>& circles,
-                                          const StemModelOptions& options) {
-  std::vector<std::vector<int>> chains;
-  const double tan_tilt = std::tan(options.max_tilt);
-  for (int i = 0; i < static_cast<int>(circles.size()); ++i) {
-    const SliceCircle& c = circles[i];
-    int best = -1;
-    double best_dist = std::numeric_limits<double>::max();
-    for (int k = 0; k < static_cast<int>(chains.size()); ++k) {
-      const SliceCircle& last = circles[chains[k].back()];
-      if (last.slice >= c.slice || c.slice - last.slice > 3) continue;
-      const double ratio = c.circle.radius / last.circle.radius;
-      if (ratio < 0.5 || ratio > 2.0) continue;
-      const double dist = (c.circle.center - last.circle.center).norm();
-      const double tolerance =
-          options.link_distance + 0.25 * last.circle.radius + tan_tilt * std::abs(c.z - last.z);
-      if (dist <= tolerance && dist < best_dist) {
-        best = k;
-        best_dist = dist;
-      }
-    }
-    if (best >= 0) {
-      chains[best].push_back(i);
-    } else {
-      chains.push_back({i});
-    }
-  }
-  return chains;
-}
-
-struct Axis {
-  Eigen::Vector3d point = Eigen::Vector3d::Zero();
-  Eigen::Vector3d direction = Eigen::Vector3d::UnitZ();
-};
-
-// Weighted principal direction of the slice centres, signed up; vertical for short spans.
-Axis FitAxis(const std::vector<SliceCircle>& circles, const std::vector<int>& members,
-             double min_span) {
-  Axis axis;
-  double weight_sum = 0, z_min = std::numeric_limits<double>::max(), z_max = -z_min;
-  for (int i : members) {
-    const SliceCircle& c = circles[i];
-    axis.point += c.inliers * Eigen::Vector3d(c.circle.center.x(), c.circle.center.y(), c.z);
-    weight_sum += c.inliers;
-    z_min = std::min(z_min, c.z);
-    z_max = std::max(z_max, c.z);
-  }
-  axis.point /= weight_sum;
-  if (z_max - z_min < min_span || members.size() < 2) return axis;
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (int i : members) {
-    const SliceCircle& c = circles[i];
-    const Eigen::Vector3d d =
-        Eigen::Vector3d(c.circle.center.x(), c.circle.center.y(), c.z) - axis.point;
-    cov.noalias() += c.inliers * d * d.transpose();
-  }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-  axis.direction = eig.eigenvectors().col(2).normalized();
-  if (axis.direction.z() < 0) axis.direction = -axis.direction;
-  return axis;
-}
-
-// Horizontal offset of a slice centre from the axis at the slice's height.
-double AxisOffset(const Axis& axis, const SliceCircle& c) {
-  const double t = (c.z - axis.point.z()) / axis.direction.z();
-  const Eigen::Vector3d on_axis = axis.point + t * axis.direction;
-  return (c.circle.center - on_axis.head<2>()).norm();
-}
-
-// Keeps the slices that agree with the stem's axis and median radius.
-std::vector<int> ConsistentSlices(const std::vector<SliceCircle>& circles,
-                                  const std::vector<int>& chain, const Axis& axis,
-                                  const StemModelOptions& options) {
-  std::vector<double> radii;
-  for (int i : chain) radii.push_back(circles[i].circle.radius);
-  const double median_radius = Median(radii);
-  std::vector<int> kept;
-  for (int i : chain) {
-    const SliceCircle& c = circles[i];
-    const bool radius_ok =
-        std::abs(c.circle.radius - median_radius) <= options.max_radius_deviation * median_radius;
-    const bool centre_ok =
-        AxisOffset(axis, c) <= options.max_centre_offset + 0.25 * c.circle.radius;
-    if (radius_ok && centre_ok) kept.push_back(i);
-  }
-  return kept;
-}
+using internal::Axis;
+using internal::GatheredStem;
+using internal::Median;
+using internal::SliceCircle;
 
 // Score in [0, 1]: residual term 1 / (1 + (rms / 1.5 cm)^2), coverage term min(1, coverage /
 // 0.35) (a single view sees at most ~half a stem), slice term n / (n + 2).
@@ -289,100 +108,129 @@ TaperFit FitTaper(std::span<const TaperSample> samples, double height) {
 
 namespace {
 
-enum class Reject { kNone, kSlices, kTilt, kResidual, kCoverage, kDbh, kScore };
+using Reject = StemRejection;
 
-// Axis, ground point, taper DBH and checks for one chain of slice circles.
-// One circle through the inliers of all consistent slices, projected along the axis: a cylinder
-// fit. Far stems give a few points per slice, too few for a circle each but plenty together.
-double CylinderDiameter(const std::vector<SliceCircle>& circles, const std::vector<int>& kept,
-                        const std::vector<Eigen::Vector3d>& inliers, const Axis& axis,
-                        double band) {
-  const Eigen::Vector3d& a = axis.direction;
-  const Eigen::Vector3d u = a.unitOrthogonal(), v = a.cross(u);
-  std::vector<Eigen::Vector2d> projected;
-  std::vector<double> radii;
-  for (int i : kept) {
-    radii.push_back(circles[i].circle.radius);
-    for (uint32_t k = circles[i].begin; k < circles[i].end; ++k) {
-      const Eigen::Vector3d d = inliers[k] - axis.point;
-      projected.emplace_back(d.dot(u), d.dot(v));
+// The chain's axis from its slice centres and the slices consistent with it. `sparse`: too few
+// consistent slices for a stem; the first circle only seeds a cylinder then (vertical axis).
+struct ChainAxis {
+  Axis axis;
+  std::vector<int> kept;
+  bool sparse = false;
+};
+
+ChainAxis AxisOfChain(const std::vector<SliceCircle>& circles, const std::vector<int>& chain,
+                      const StemModelOptions& options) {
+  ChainAxis c{internal::FitAxis(circles, chain, options.min_axis_span), chain, false};
+  if (static_cast<int>(chain.size()) >= options.min_slices) {
+    c.kept = internal::ConsistentSlices(circles, chain, c.axis, options);
+    if (c.kept.size() < chain.size() && !c.kept.empty()) {
+      c.axis = internal::FitAxis(circles, c.kept, options.min_axis_span);
+      c.kept = internal::ConsistentSlices(circles, chain, c.axis, options);
     }
   }
-  Circle circle{Eigen::Vector2d::Zero(), Median(radii)};
-  std::vector<Eigen::Vector2d> near;
-  for (int pass = 0; pass < 2; ++pass) {
-    near.clear();
-    for (const Eigen::Vector2d& p : projected) {
-      if (std::abs((p - circle.center).norm() - circle.radius) < band) near.push_back(p);
-    }
-    if (near.size() < 5) return kUnknown;
-    circle = RefineCircleGeometric(near, circle, 15).circle;
-  }
-  return 2.0 * circle.radius;
+  c.sparse = static_cast<int>(c.kept.size()) < options.min_slices ||
+             c.kept.size() < options.min_consistent_fraction * chain.size();
+  if (c.kept.empty()) c.kept.push_back(chain.front());
+  return c;
 }
 
-Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>& chain,
-                 const std::vector<Eigen::Vector3d>& inliers, const GroundModel& ground,
-                 const StemModelOptions& options, DetectedTrunk& trunk) {
-  if (static_cast<int>(chain.size()) < options.min_slices) return Reject::kSlices;
-  Axis axis = FitAxis(circles, chain, options.min_axis_span);
-  std::vector<int> kept = ConsistentSlices(circles, chain, axis, options);
-  if (kept.size() < chain.size() && kept.size() >= 1) {
-    axis = FitAxis(circles, kept, options.min_axis_span);
-    kept = ConsistentSlices(circles, chain, axis, options);
-  }
-  if (static_cast<int>(kept.size()) < options.min_slices ||
-      kept.size() < options.min_consistent_fraction * chain.size()) {
-    return Reject::kSlices;
-  }
-  if (std::acos(std::clamp(axis.direction.z(), -1.0, 1.0)) > options.max_tilt) {
-    return Reject::kTilt;
-  }
+// Tree-ground intersection: fixed-point iteration of "axis z == ground z under it"; without
+// ground under the stem, the axis point at `lowest_z` (ground_known false).
+Eigen::Vector3d GroundPoint(const Axis& axis, const GroundModel& ground, double lowest_z,
+                            bool* ground_known) {
   const Eigen::Vector3d& a = axis.direction;
-  // Tree-ground intersection: fixed-point iteration of "axis z == ground z under it".
-  bool ground_known = ground.known();
+  *ground_known = ground.known();
   double t = 0;
-  if (ground_known) {
-    for (int it = 0; it < 6 && ground_known; ++it) {
-      const Eigen::Vector3d p = axis.point + t * a;
-      const double g = ground.Height(p.x(), p.y());
-      ground_known = IsKnown(g);
-      t = (g - axis.point.z()) / a.z();
-    }
+  for (int it = 0; it < 6 && *ground_known; ++it) {
+    const Eigen::Vector3d p = axis.point + t * a;
+    const double g = ground.Height(p.x(), p.y());
+    *ground_known = IsKnown(g);
+    t = (g - axis.point.z()) / a.z();
   }
-  if (!ground_known) {
-    double lowest = std::numeric_limits<double>::max();
-    for (int i : kept) lowest = std::min(lowest, circles[i].min_z);
-    t = (lowest - axis.point.z()) / a.z();
-  }
-  const Eigen::Vector3d position = axis.point + t * a;
+  if (!*ground_known) t = (lowest_z - axis.point.z()) / a.z();
+  return axis.point + t * a;
+}
 
+// Diameter samples of the chain's consistent slices (when no cylinder could be fitted).
+std::vector<TaperSample> SliceProfile(const std::vector<SliceCircle>& circles,
+                                      const std::vector<int>& kept, const Eigen::Vector3d& position,
+                                      const Eigen::Vector3d& a) {
   std::vector<TaperSample> samples;
-  std::vector<double> coverages;
-  double sum2 = 0;
-  int points = 0;
-  double s_lo = std::numeric_limits<double>::max(), s_hi = -s_lo;
   for (int i : kept) {
     const SliceCircle& c = circles[i];
-    const Eigen::Vector3d centre(c.circle.center.x(), c.circle.center.y(), c.z);
-    const double s = (centre - position).dot(a);
-    s_lo = std::min(s_lo, s);
-    s_hi = std::max(s_hi, s);
+    const double s =
+        (Eigen::Vector3d(c.circle.center.x(), c.circle.center.y(), c.z) - position).dot(a);
     // Horizontal slices of a tilted stem are ellipses whose minor axis is the true diameter.
     // A circle fitted to part of that ellipse lies between the axes: take their geometric mean.
     samples.push_back(
         {s, 2.0 * c.circle.radius * std::sqrt(a.z()), c.inliers * std::max(c.coverage, 0.05)});
+  }
+  return samples;
+}
+
+// Axis, ground point, DBH and checks for one chain of slice circles. The cylinder through the
+// stem's points of the whole cluster gives the axis and the diameters when it fits; a chain of
+// too few consistent slices is a stem only through such a cylinder.
+Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>& chain,
+                 std::span<const Eigen::Vector3d> cluster, const GroundModel& ground,
+                 const StemModelOptions& options, DetectedTrunk& trunk) {
+  ChainAxis chain_axis = AxisOfChain(circles, chain, options);
+  const bool sparse = chain_axis.sparse;
+  const std::vector<int>& kept = chain_axis.kept;
+  Axis& axis = chain_axis.axis;
+  std::vector<double> radii;
+  for (int i : kept) radii.push_back(circles[i].circle.radius);
+  const double seed_radius = Median(radii);
+  const GatheredStem gathered =
+      internal::GatherStem(cluster, Cylinder{axis.point, axis.direction, seed_radius},
+                           0.05 + 0.5 * seed_radius, sparse ? 0.12 : 0.03, sparse ? 2 : 1, options);
+  const bool fitted = gathered.fit.success;
+  if (sparse &&
+      (!fitted || static_cast<int>(gathered.points.size()) < options.min_cylinder_points ||
+       gathered.z_hi - gathered.z_lo < options.min_axis_span)) {
+    return Reject::kSlices;
+  }
+  if (fitted) axis = Axis{gathered.fit.cylinder.point, gathered.fit.cylinder.direction};
+  if (std::acos(std::clamp(axis.direction.z(), -1.0, 1.0)) > options.max_tilt) {
+    return Reject::kTilt;
+  }
+  const Eigen::Vector3d& a = axis.direction;
+  double lowest = std::numeric_limits<double>::max();
+  for (int i : kept) lowest = std::min(lowest, circles[i].min_z);
+  if (fitted) lowest = std::min(lowest, gathered.z_lo);
+  bool ground_known = false;
+  const Eigen::Vector3d position = GroundPoint(axis, ground, lowest, &ground_known);
+
+  // Fit quality: of the slice circles, or of the cylinder for a sparse stem.
+  std::vector<double> coverages;
+  double sum2 = 0, s_lo = std::numeric_limits<double>::max(), s_hi = -s_lo;
+  int points = 0;
+  for (int i : kept) {
+    const SliceCircle& c = circles[i];
+    const double s =
+        (Eigen::Vector3d(c.circle.center.x(), c.circle.center.y(), c.z) - position).dot(a);
+    s_lo = std::min(s_lo, s);
+    s_hi = std::max(s_hi, s);
     coverages.push_back(c.coverage);
     sum2 += c.rms * c.rms * c.inliers;
     points += c.inliers;
   }
-  const double dbh_height = ground_known ? options.breast_height : 0.5 * (s_lo + s_hi);
-  TaperFit taper = FitTaper(samples, dbh_height);
-  if (points < options.cylinder_fit_points) {
-    const double band = options.circle.max_band_factor * options.circle.inlier_distance;
-    const double cylinder = CylinderDiameter(circles, kept, inliers, axis, band);
-    if (IsKnown(cylinder)) taper.diameter = cylinder;
+  if (sparse) {
+    const Eigen::Vector3d& c = gathered.fit.cylinder.point;
+    s_lo = (Eigen::Vector3d(c.x(), c.y(), gathered.z_lo) - position).dot(a);
+    s_hi = (Eigen::Vector3d(c.x(), c.y(), gathered.z_hi) - position).dot(a);
+    coverages.assign(1, gathered.coverage);
+    sum2 = gathered.fit.rms * gathered.fit.rms * gathered.points.size();
+    points = static_cast<int>(gathered.points.size());
   }
+  const double dbh_height = ground_known ? options.breast_height : 0.5 * (s_lo + s_hi);
+  const std::vector<TaperSample> samples =
+      fitted ? internal::RadialProfile(gathered, position, a, options.slice_height)
+             : SliceProfile(circles, kept, position, a);
+  const TaperFit taper = FitTaper(samples, dbh_height);
+  trunk.silhouette_width = gathered.silhouette;
+  trunk.radius_sd = gathered.fit.radius_sd;
+  trunk.beam_fill = gathered.beam_fill;
   trunk.breast_height_point = position + dbh_height * a;
   trunk.range = trunk.breast_height_point.head<2>().norm();
   trunk.raw_dbh = taper.diameter;
@@ -391,7 +239,8 @@ Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>
   trunk.residual = std::sqrt(sum2 / std::max(points, 1));
   trunk.arc_coverage = Median(coverages);
   trunk.points_used = points;
-  trunk.slices = static_cast<int>(kept.size());
+  trunk.slices = sparse ? 1 + static_cast<int>((s_hi - s_lo) / options.slice_height)
+                        : static_cast<int>(kept.size());
   trunk.ground_known = ground_known;
   trunk.ground_z = ground_known ? position.z() : kUnknown;
   trunk.dbh_height = dbh_height;
@@ -402,6 +251,9 @@ Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>
   if (trunk.residual > options.max_residual) return Reject::kResidual;
   if (trunk.arc_coverage < options.min_arc_coverage) return Reject::kCoverage;
   if (!(dbh >= options.min_dbh && dbh <= options.max_dbh)) return Reject::kDbh;
+  const double span = fitted ? gathered.z_hi - gathered.z_lo : s_hi - s_lo + options.slice_height;
+  if (ground_known && span < options.min_elongation * dbh) return Reject::kShape;
+  if (trunk.beam_fill < options.min_beam_fill) return Reject::kShape;
   if (trunk.tree.score < options.min_score) return Reject::kScore;
   return Reject::kNone;
 }
@@ -426,9 +278,23 @@ void Count(Reject reject, StemModelStats& stats) {
     case Reject::kScore:
       ++stats.rejected_score;
       break;
+    case Reject::kShape:
+      ++stats.rejected_shape;
+      break;
     case Reject::kNone:
       break;
   }
+}
+
+// True when the circle's centre lies within one of the stems (10 cm beyond its surface).
+bool OnFoundStem(const SliceCircle& c, std::span<const DetectedTrunk> trunks) {
+  for (const DetectedTrunk& t : trunks) {
+    const Eigen::Vector3d& a = t.tree.axis;
+    const Eigen::Vector3d on_axis =
+        t.breast_height_point + (c.z - t.breast_height_point.z()) / a.z() * a;
+    if ((c.circle.center - on_axis.head<2>()).norm() < 0.5 * t.tree.dbh + 0.1) return true;
+  }
+  return false;
 }
 
 // Drops stems whose breast-height point lies inside a better stem (one stem found twice).
@@ -466,7 +332,7 @@ StemModelResult FitStems(std::span<const Eigen::Vector3f> points, std::span<cons
   options.Check();
   StemModelResult result;
   std::mt19937 rng(options.seed);
-  Scratch scratch;
+  internal::SliceScratch scratch;
   for (const std::vector<uint32_t>& cluster : clusters) {
     float h_min = std::numeric_limits<float>::max(), h_max = std::numeric_limits<float>::lowest();
     for (uint32_t i : cluster) {
@@ -485,17 +351,49 @@ StemModelResult FitStems(std::span<const Eigen::Vector3f> points, std::span<cons
       scratch.slices[s].push_back(i);
     }
     scratch.circles.clear();
-    scratch.inliers.clear();
+    scratch.cluster.clear();
+    for (uint32_t i : cluster) scratch.cluster.push_back(points[i].cast<double>());
     for (int s = 0; s < n_slices; ++s) {
-      FitSlice(points, scratch.slices[s], s, options, rng, scratch, result.stats);
+      internal::FitSlice(points, scratch.slices[s], s, options, rng, scratch, result.stats);
     }
-    for (const std::vector<int>& chain : LinkCircles(scratch.circles, options)) {
+    // Longest chains first; a lone circle on a stem already found is no second stem.
+    std::vector<std::vector<int>> chains = internal::LinkCircles(scratch.circles, options);
+    std::stable_sort(chains.begin(), chains.end(),
+                     [](const auto& a, const auto& b) { return a.size() > b.size(); });
+    const size_t first_trunk = result.trunks.size();
+    auto try_chain = [&](const std::vector<int>& chain) {
       ++result.stats.chains;
+      if (static_cast<int>(chain.size()) < options.min_slices &&
+          OnFoundStem(scratch.circles[chain.front()],
+                      std::span(result.trunks).subspan(first_trunk))) {
+        ++result.stats.duplicates;
+        return;
+      }
       DetectedTrunk trunk;
       const Reject reject =
-          BuildStem(scratch.circles, chain, scratch.inliers, ground, options, trunk);
+          BuildStem(scratch.circles, chain, scratch.cluster, ground, options, trunk);
       Count(reject, result.stats);
-      if (reject == Reject::kNone) result.trunks.push_back(trunk);
+      if (reject == Reject::kNone) {
+        result.trunks.push_back(trunk);
+      } else if (options.keep_rejected) {
+        if (reject == Reject::kSlices || reject == Reject::kTilt) {
+          const SliceCircle& c = scratch.circles[chain.front()];
+          trunk.breast_height_point =
+              Eigen::Vector3d(c.circle.center.x(), c.circle.center.y(), c.z);
+          trunk.tree.position = trunk.breast_height_point;
+          trunk.tree.dbh = 2 * c.circle.radius;
+        }
+        result.rejected.push_back({trunk, reject, static_cast<int>(chain.size())});
+      }
+    };
+    for (const std::vector<int>& chain : chains) try_chain(chain);
+    // In a single view, a small cluster without a stem (no slice held enough points for a
+    // circle: a far, thin stem) gets one more seed, a circle through all its points. (Merged
+    // clouds have no far stems of a few returns per ring; their small clusters are clutter.)
+    if (options.sensor_at_origin && result.trunks.size() == first_trunk &&
+        static_cast<int>(cluster.size()) <= options.max_seed_cluster_points &&
+        internal::ClusterSeed(scratch.cluster, options, rng, scratch.circles)) {
+      try_chain({static_cast<int>(scratch.circles.size()) - 1});
     }
   }
   SuppressDuplicates(result.trunks, result.stats);

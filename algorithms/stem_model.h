@@ -7,24 +7,34 @@
 //    count is what splits clusters that DBSCAN merged (the thesis's weakness).
 // 2. Circles of successive slices are linked into stems when their centres agree (allowing for
 //    the stem's tilt), like the stem sections of the backpack paper (Holmgren et al. sec. 2.4).
-// 3. The stem axis is the weighted principal direction of the slice centres (a cylinder axis);
-//    slices whose centre or radius disagrees with the stem are dropped (slice consistency).
-// 4. Position: where the axis meets the ground model (thesis ch. 5.3), or, without ground, the
-//    axis point at the lowest stem point seen.
+// 3. Each chain seeds one cylinder (cylinder_fit.h, thesis ch. 3.2): the chain's axis (the
+//    weighted principal direction of its consistent slice centres) and median radius, or for a
+//    chain of too few consistent slices (and, in a single view, for a small cluster without any
+//    stem: a circle through all its points) a vertical axis through its circle. The stem's points
+//    are gathered from the whole cluster around the seed and a robust 5-parameter cylinder is
+//    fitted through them (stem_cylinder.cc): far stems give two to four returns per beam ring,
+//    too few for a circle per slice but plenty together. In a single view the stem's silhouette
+//    (its width seen from the sensor, less a column, plus the footprint's edge returns) is a
+//    prior on the radius, so that short flat arcs do not run away to huge circles.
+// 4. Position: where the cylinder's axis (or the slice axis, when no cylinder fits) meets the
+//    ground model (thesis ch. 5.3), or, without ground, the axis point at the lowest stem point.
 // 5. DBH: a weighted, outlier-resistant fit of diameter against distance along the stem, the
 //    cubic of Holmgren et al. eq. 1, d(h) = p1 h^3 + p2 h^2 + p3 h + p4, lowered to a smaller
-//    degree when the slices span too little of the stem to carry a cubic, evaluated at
-//    breast_height (1.3 m) along the stem; without ground at the middle of the slices seen.
-//    Sparse stems (far ones: a few points per slice) get the diameter of one cylinder fit to
-//    the inliers of all their slices instead (a circle fit after projection along the axis).
+//    degree when the samples span too little of the stem to carry a cubic, evaluated at
+//    breast_height (1.3 m) along the stem; without ground at the middle of the stem seen. The
+//    samples are twice the mean distance of the cylinder's points from its axis per slice (a
+//    radius given the axis is well determined where a circle per slice is not), or the slice
+//    circles when no cylinder fits.
 // 6. Beam-divergence compensation (the mixed-pixel edge effect): a beam of full divergence angle
 //    `beam_divergence` has a footprint of range * beam_divergence; at the silhouette edges of a
 //    stem a beam whose centre already misses the stem still returns from it, so the edge points
 //    sit up to half a footprint outside the true outline and the arc fit grows. The model:
 //    dbh = dbh_fit - divergence_bias_factor * range * beam_divergence. Off when the divergence is
 //    0 (the default: a simulator without divergence, or a cloud merged from many ranges).
-// 7. Rejection of non-stems: too few consistent slices, tilt, fit residual, arc coverage, DBH
-//    range (max_dbh: shrubs and crowns give big circles), score below min_score.
+// 7. Rejection of non-stems: too few consistent slices (or too few cylinder points), tilt, fit
+//    residual, arc coverage, DBH range, shape (seen over less height than min_elongation DBH, or,
+//    in a single view with a known angular_step, a beam fill under min_beam_fill: a crown or a
+//    shrub lets most beams through, a stem does not), score below min_score.
 //    Score in [0, 1] = residual term * coverage term * slice term (see ScoreStem in the .cc).
 
 #include <Eigen/Core>
@@ -56,16 +66,35 @@ struct StemModelOptions {
   double min_consistent_fraction = 0.6;  // of the linked slices
   double max_residual = 0.025;           // m, stem rms of the circle inliers
   double min_arc_coverage = 0.08;        // [0, 1], median over slices (3 of 36 sectors)
-  double min_dbh = 0.05;                 // m
-  double max_dbh = 1.2;                  // m
-  double min_score = 0.12;        // [0, 1], weaker stems (mostly shrub and crown arcs) dropped
-  double breast_height = 1.3;     // m along the stem above the ground point
-  int cylinder_fit_points = 200;  // sparser stems: DBH from one cylinder fit
-  bool sensor_at_origin = true;   // single viewpoint at (0,0,0): a partial arc must face it
-  double beam_divergence = 0;     // rad, full angle; 0 disables the compensation
+  double min_elongation = 1.5;  // visible stem height (m) per m of DBH at least: crowns and shrubs
+                                // reaching into the stem layer are wide and short
+  double min_beam_fill = 0.6;   // [0, 1], share of the beams across a stem that must return from
+                                // it (a single viewpoint with a known angular_step): a stem is
+                                // solid, a crown or a shrub lets most beams through
+  double min_dbh = 0.05;        // m
+  double max_dbh = 1.2;         // m
+  double min_score = 0.12;      // [0, 1], weaker stems (mostly shrub and crown arcs) dropped
+  double breast_height = 1.3;   // m along the stem above the ground point
+  int min_cylinder_points = 10;
+  int max_seed_cluster_points =
+      300;  // a smaller cluster without any stem gets a seed circle
+            // through all its points  // a stem seen in fewer than min_slices slices needs as many
+            // points on one cylinder (spanning min_axis_span)
+  bool sensor_at_origin = true;         // single viewpoint at (0,0,0): a partial arc must face it
+  double beam_divergence = 0;           // rad, full angle; 0 disables the compensation
   double divergence_bias_factor = 0.1;  // share of the footprint added to the fitted diameter
                                         // (0.1: calibrated on simulated Ouster scans)
-  uint32_t seed = 1;                    // RANSAC
+  // Silhouette prior (sensor_at_origin): the lateral extent of a stem's points seen from the
+  // origin is its width less one angular_step (the columns that hit it span one column less),
+  // plus the beam footprint's edge returns (silhouette_bias_factor * range * beam_divergence;
+  // 1.33 calibrated on simulated Ouster scans); it holds the cylinder fit of short, flat arcs to
+  // that width (cylinder_fit.h, RadiusPrior).
+  bool silhouette_prior = true;
+  double angular_step = 0;  // rad, horizontal beam spacing; 0: unknown (DetectTrunks takes 2 pi /
+                            // columns of an organised cloud; the prior then assumes 2 pi / 2048)
+  double silhouette_bias_factor = 1.33;
+  uint32_t seed = 1;           // RANSAC
+  bool keep_rejected = false;  // diagnostics: fill StemModelResult::rejected
   void Check() const;
 };
 
@@ -74,14 +103,17 @@ struct DetectedTrunk {
   DetectedTree tree;  // position: tree-ground intersection (or lowest stem point); axis up
   Eigen::Vector3d breast_height_point = Eigen::Vector3d::Zero();  // axis point where dbh applies
   bool ground_known = false;
-  double ground_z = kUnknown;  // m, ground height under the stem
-  double dbh_height = 0;       // m along the axis from `position` where dbh was evaluated
-  double raw_dbh = kUnknown;   // m, before the beam-divergence compensation
-  int points_used = 0;         // circle inliers over all slices
-  int slices = 0;              // consistent slices
-  double residual = 0;         // m, rms of the circle inliers
-  double arc_coverage = 0;     // [0, 1], median slice coverage
-  double range = 0;            // m, horizontal distance of the breast-height point from 0
+  double ground_z = kUnknown;   // m, ground height under the stem
+  double dbh_height = 0;        // m along the axis from `position` where dbh was evaluated
+  double raw_dbh = kUnknown;    // m, before the beam-divergence compensation
+  int points_used = 0;          // circle inliers over all slices
+  int slices = 0;               // consistent slices
+  double residual = 0;          // m, rms of the circle inliers
+  double arc_coverage = 0;      // [0, 1], median slice coverage
+  double range = 0;             // m, horizontal distance of the breast-height point from 0
+  double silhouette_width = 0;  // m, lateral extent of the inliers seen from the origin
+  double radius_sd = 0;         // m, standard error of the cylinder fit's radius
+  double beam_fill = 1;         // [0, 1], share of the beams across the stem that hit it
 };
 
 // Diameter at a height along the stem from (height, diameter, weight) samples.
@@ -106,11 +138,22 @@ struct StemModelStats {
   size_t rejected_coverage = 0;
   size_t rejected_dbh = 0;
   size_t rejected_score = 0;
-  size_t duplicates = 0;  // stems found twice, dropped
+  size_t rejected_shape = 0;  // not stem-like: short (min_elongation) or porous (min_beam_fill)
+  size_t duplicates = 0;      // stems found twice, dropped
+};
+
+enum class StemRejection { kNone, kSlices, kTilt, kResidual, kCoverage, kDbh, kScore, kShape };
+
+// A linked stem that failed a check (StemModelOptions::keep_rejected), for diagnosis.
+struct RejectedStem {
+  DetectedTrunk trunk;  // as far as it was built (kSlices: only the chain's first circle)
+  StemRejection reason = StemRejection::kNone;
+  int chain_slices = 0;  // slice circles linked
 };
 
 struct StemModelResult {
-  std::vector<DetectedTrunk> trunks;  // best score first
+  std::vector<DetectedTrunk> trunks;   // best score first
+  std::vector<RejectedStem> rejected;  // only with keep_rejected
   StemModelStats stats;
 };
 

@@ -1,6 +1,7 @@
 #include "algorithms/trunk_detection.h"
 
 #include <chrono>
+#include <cmath>
 
 namespace forestmap::algorithms {
 namespace {
@@ -52,8 +53,12 @@ TrunkDetectionResult DetectTrunks(const PointCloud& cloud, const TrunkDetectionO
   stats.clusters = clusters.clusters.size();
   stats.cluster_us = MicrosSince(t);
 
+  StemModelOptions stem_options = options.stem;
+  if (stem_options.angular_step <= 0 && cloud.IsOrganised()) {
+    stem_options.angular_step = 2 * M_PI / cloud.width;  // columns of one revolution
+  }
   StemModelResult stems =
-      FitStems(filtered.points, ground.height, clusters.clusters, ground.model, options.stem);
+      FitStems(filtered.points, ground.height, clusters.clusters, ground.model, stem_options);
   result.trees = std::move(stems.trunks);
   result.stem_stats = stems.stats;
   stats.circles = stems.stats.circles;

@@ -5,7 +5,8 @@
 //   FilterScan      scan_filter.h     valid returns, drone body and origin duplicates removed
 //   SegmentGround   ground_model.h    pillar ground + height model (heights above ground)
 //   ExtractStemLayer, ClusterStems    stem_clustering.h   0.5-3 m layer, 2-D DBSCAN
-//   FitStems        stem_model.h      per-slice RANSAC circles, axis, taper DBH, ground point
+//   FitStems        stem_model.h      per-slice RANSAC circles, one cylinder per stem, taper
+//                                     DBH, ground point, rejection of crowns and shrubs
 // Positions follow the contract (notes/contracts.md): the tree-ground intersection, or without
 // any ground in the cloud the axis point at the lowest stem point (ground_known false).
 

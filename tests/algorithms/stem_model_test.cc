@@ -131,7 +131,8 @@ TEST(StemModelTest, BeamDivergenceCompensationShrinksFarStems) {
   ASSERT_EQ(result.trunks.size(), 1u);
   // 0.5 * 10 m * 3 mrad = 15 mm less.
   EXPECT_NEAR(result.trunks[0].tree.dbh, plain - 0.015, 1e-3);
-  EXPECT_NEAR(result.trunks[0].raw_dbh, plain, 1e-9);
+  // The fit itself is the same (the silhouette prior of a single viewpoint agrees with the arc).
+  EXPECT_NEAR(result.trunks[0].raw_dbh, plain, 1e-4);
 }
 
 TEST(StemModelTest, ClutterIsNoStem) {

@@ -18,6 +18,7 @@ struct SyntheticStem {
   double dbh = 0.3;     // m, at 1.3 m above ground
   double taper = 0.01;  // m of diameter lost per m of height
   double height = 8;    // m above ground
+  double porosity = 0;  // [0, 1), share of the beams that pass through (a crown-like volume)
 };
 
 struct SyntheticScene {
@@ -92,6 +93,10 @@ inline PointCloud CastScan(const SyntheticScene& scene, const SyntheticScanner& 
         }
       }
       for (const SyntheticStem& stem : scene.stems) {
+        if (stem.porosity > 0 &&
+            std::uniform_real_distribution<double>(0, 1)(rng) < stem.porosity) {
+          continue;
+        }
         const std::optional<double> t = HitStem(scene, stem, d);
         if (t && *t < best) best = *t;
       }

@@ -74,6 +74,53 @@ TEST(TrunkDetectionTest, TiltedSensorAndDroneReturns) {
   EXPECT_EQ(result.stats.self_returns, 1000u);
 }
 
+// Far, thin stems from a drone 8 m up: two to four returns per beam ring, too few for a circle
+// per slice; one cylinder through all of a stem's points finds each.
+TEST(TrunkDetectionTest, FarThinStemsFromAFewReturnsPerRing) {
+  testing::SyntheticScene scene;
+  scene.ground_z = -8;
+  for (int i = 0; i < 8; ++i) {
+    const double a = 0.78 * i, r = 15.0 + 0.6 * i;
+    scene.stems.push_back({r * std::cos(a), r * std::sin(a), 0.12 + 0.02 * (i % 3), 0.01, 12});
+  }
+  testing::SyntheticScanner scanner;
+  scanner.noise_sd = 0.015;
+  const PointCloud cloud = testing::CastScan(scene, scanner, 4);
+  const TrunkDetectionResult result = DetectTrunks(cloud, TrunkDetectionOptions{});
+  EXPECT_EQ(result.trees.size(), scene.stems.size());
+  double abs_dbh_error = 0;
+  for (const testing::SyntheticStem& stem : scene.stems) {
+    const DetectedTrunk* match = nullptr;
+    for (const DetectedTrunk& t : result.trees) {
+      if ((t.tree.position.head<2>() - Eigen::Vector2d(stem.x, stem.y)).norm() < 0.3) match = &t;
+    }
+    ASSERT_NE(match, nullptr) << "stem at " << stem.x << ", " << stem.y;
+    EXPECT_LT(match->points_used, 60) << "a sparse stem";
+    EXPECT_NEAR((match->tree.position.head<2>() - Eigen::Vector2d(stem.x, stem.y)).norm(), 0,
+                2 * kPositionTolerance);
+    // Such a stem spans two or three columns: its width is known to about one column.
+    const double column = match->range * 2 * M_PI / scanner.columns;
+    EXPECT_NEAR(match->tree.dbh, stem.dbh, 1.5 * column);
+    abs_dbh_error += std::abs(match->tree.dbh - stem.dbh) / scene.stems.size();
+  }
+  EXPECT_LT(abs_dbh_error, 2 * kDbhTolerance);
+}
+
+// A crown-like volume reaching into the stem layer: as wide as a big stem, but most beams pass
+// through it. The solid stems of the stand are found, the porous volume is not.
+TEST(TrunkDetectionTest, PorousVolumesAreNoStems) {
+  testing::SyntheticScene scene = Stand(0.0);
+  scene.stems.push_back({-6.0, 3.0, 0.6, 0.0, 3.0, 0.6});
+  const PointCloud cloud = testing::CastScan(scene, testing::SyntheticScanner{}, 5);
+  const TrunkDetectionResult result = DetectTrunks(cloud, TrunkDetectionOptions{});
+  EXPECT_EQ(result.trees.size(), scene.stems.size() - 1);
+  for (const DetectedTrunk& t : result.trees) {
+    EXPECT_GT((t.tree.position.head<2>() - Eigen::Vector2d(-6.0, 3.0)).norm(), 0.5);
+    EXPECT_GT(t.beam_fill, 0.8);
+  }
+  EXPECT_GE(result.stem_stats.rejected_shape, 1u);
+}
+
 TEST(TrunkDetectionTest, StatsAndEmptyInput) {
   const testing::SyntheticScene scene = Stand(0.0);
   const PointCloud cloud = testing::CastScan(scene, testing::SyntheticScanner{}, 3);

@@ -44,6 +44,7 @@ void BM_DetectTrunks(benchmark::State& state, const std::string& scanner_name) {
   state.counters["trees"] = static_cast<double>(trees);
   state.counters["layer_pts"] = static_cast<double>(stats.stem_layer_points);
   state.counters["clusters"] = static_cast<double>(stats.clusters);
+  state.counters["chains"] = static_cast<double>(stats.candidates);
   state.counters["ground_ms"] = stats.ground_us / 1000.0;
   state.counters["cluster_ms"] = stats.cluster_us / 1000.0;
   state.counters["fit_ms"] = stats.fit_us / 1000.0;

@@ -1,0 +1,58 @@
+#pragma once
+// One straight cylinder (a stem section) fitted to 3-D points, metres.
+//
+// Per-slice circles need a few points per slice; a far stem gives two to four returns per beam
+// ring, too few for a circle per slice but plenty for one cylinder through all of them (thesis
+// ch. 3.2: cylinder fits to the stem points). The model has five parameters: the axis point at a
+// fixed reference height (x0, y0), the axis slopes (sx, sy) (direction (sx, sy, 1), normalised)
+// and the radius r. A point's residual is its perpendicular distance to the axis minus r.
+// Levenberg-Marquardt with analytic derivatives inside iteratively reweighted least squares, with
+// sigma = max(huber_scale, 1.4826 MAD of the residuals): Huber weights (1.5 sigma) in the first
+// round, from a rough seed, then Tukey's biweight (4.685 sigma), so that a branch, a shrub or a
+// neighbouring stem beside the stem does not pull it. An optional prior on the
+// radius (RadiusPrior) keeps short, flat arcs from running away to huge radii.
+
+#include <Eigen/Core>
+#include <span>
+
+namespace forestmap::algorithms {
+
+struct Cylinder {
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();       // m, on the axis
+  Eigen::Vector3d direction = Eigen::Vector3d::UnitZ();  // unit, z > 0
+  double radius = 0;                                     // m
+};
+
+struct CylinderFitOptions {
+  int max_iterations = 10;     // LM iterations per reweighting round
+  int reweighting_rounds = 3;  // IRLS rounds
+  bool huber_first = true;     // Huber weights in the first round (false: Tukey from the start,
+                               // for a seed that is already close)
+  double huber_scale = 0.015;  // m, the least residual sigma (range noise, bark)
+  double max_slope = 0.6;      // axis tilt |(sx, sy)| at most (0.6: 31 deg); steeper = no fit
+  void Check() const;
+};
+
+struct CylinderFitResult {
+  bool success = false;  // converged to a finite cylinder with 0 < r, within max_slope
+  Cylinder cylinder;
+  double rms = 0;        // m, rms of the residuals of the inliers
+  int inliers = 0;       // points within 2.5 sigma of the surface
+  double radius_sd = 0;  // m, standard error of the radius (the fit's covariance)
+};
+
+// A soft, asymmetric prior on the radius: one pseudo-observation of `radius` with standard
+// deviation sd_below for smaller radii and sd_above for larger ones (m). Off when radius <= 0.
+// (A single viewpoint sees at most the stem's width, but less of it when it is occluded.)
+struct RadiusPrior {
+  double radius = 0;
+  double sd_below = 0.01;
+  double sd_above = 0.01;
+};
+
+// `initial` seeds the fit (point, direction with z > 0, radius > 0). Needs >= 6 points.
+CylinderFitResult FitCylinder(std::span<const Eigen::Vector3d> points, const Cylinder& initial,
+                              const CylinderFitOptions& options = {},
+                              const RadiusPrior& prior = {});
+
+}  // namespace forestmap::algorithms
