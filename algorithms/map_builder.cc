@@ -63,6 +63,7 @@ void MapBuilderOptions::Check() const {
   require(height_sigma > 0 && height_step_sigma > 0 && height_outlier_scale > 0,
           "height_sigma, height_step_sigma, height_outlier_scale (must be > 0 m)");
   adjustment.Check();
+  search_index.Check();
 }
 
 namespace {
@@ -324,7 +325,7 @@ class MapBuilder::Impl {
       }
       return MakeLocalMap(as_estimates);
     }();
-    const MapIndex index(std::move(trees));
+    const MapIndex index(std::move(trees), options_.search_index);
     RelocalizeQuery query;
     query.trees = frame.level_trees;
     query.gravity = Eigen::Vector3d(0, 0, -1);  // already levelled
