@@ -60,6 +60,7 @@ void MapBuilderOptions::Check() const {
   require(loop_cooldown >= 0, "loop_cooldown (must be >= 0)");
   require(final_adjustment_rounds >= 0, "final_adjustment_rounds (must be >= 0)");
   require(adjustment_max_range > 0, "adjustment_max_range (must be > 0 m)");
+  require(final_max_range > 0, "final_max_range (must be > 0 m)");
   require(height_sigma > 0 && height_step_sigma > 0 && height_outlier_scale > 0,
           "height_sigma, height_step_sigma, height_outlier_scale (must be > 0 m)");
   adjustment.Check();
@@ -155,6 +156,10 @@ class MapBuilder::Impl {
 
   void Finish() {
     for (int round = 0; round < options_.final_adjustment_rounds; ++round) Adjust();
+    if (options_.final_max_range < options_.merge.max_range) {
+      options_.merge.max_range = options_.final_max_range;
+      Remerge();
+    }
     if (options_.final_consolidate) map_->Consolidate();
   }
 
