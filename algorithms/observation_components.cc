@@ -24,14 +24,17 @@ int ObservationLinker::Add(const Eigen::Vector2d& xy) {
       const auto cell = cells_.find(Key(cx + dx, cy + dy));
       if (cell == cells_.end()) continue;
       for (const int other : cell->second) {
-        if ((xy_[other] - xy).squaredNorm() > reach2) continue;
-        const int a = Root(index), b = Root(other);
-        if (a != b) parent_[std::max(a, b)] = std::min(a, b);
+        if ((xy_[other] - xy).squaredNorm() <= reach2) Link(index, other);
       }
     }
   }
   cells_[Key(cx, cy)].push_back(index);
   return index;
+}
+
+void ObservationLinker::Link(int a, int b) {
+  a = Root(a), b = Root(b);
+  if (a != b) parent_[std::max(a, b)] = std::min(a, b);  // a root is its component's first point
 }
 
 int ObservationLinker::Root(int index) {

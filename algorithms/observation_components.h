@@ -29,6 +29,9 @@ class ObservationLinker {
   // distance (<=, the same test for every pair). Returns its index (0, 1, ...).
   int Add(const Eigen::Vector2d& xy);
 
+  // Links two points whatever their distance (a caller's own reason to keep them together).
+  void Link(int a, int b);
+
   // The component of point `index`: equal for two points exactly when they are linked. The
   // value may change when later points join components.
   int Root(int index);
