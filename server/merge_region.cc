@@ -180,7 +180,7 @@ class RegionLoader {
   std::vector<algorithms::TreeObservation> priors_;
   std::unordered_set<int64_t> row_ids_;
   std::set<ObservationCell> loaded_cells_;
-  std::unordered_map<int64_t, int64_t> rows_of_tree_;  // loaded rows per tree
+  std::unordered_map<int64_t, int64_t> rows_of_tree_;     // loaded rows per tree
   std::unordered_map<int64_t, int> first_point_of_tree_;  // rows of a tree are linked to it
   std::unordered_set<int64_t> rows_complete_;             // trees whose rows are all loaded
   std::map<int64_t, storage::TreeRecord> trees_;          // records of trees seen so far
