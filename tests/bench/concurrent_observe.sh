@@ -3,10 +3,10 @@
 # uploaded by one `forestmap observe`, then the four quarters by four `forestmap observe` at the
 # same time into a second map; wall times of both, and how many confirmed trees of the two maps
 # differ (no tree of the other map within 1 cm).
-#   tests/bench/concurrent_observe.sh [PORT]
+#   tests/bench/concurrent_observe.sh [PORT]   (data: $FORESTMAP_SHARED_DATA, default ../shared/data)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-F=build/client/forestmap D=../shared/data/sequences/Wild_V01
+F=build/client/forestmap D=${FORESTMAP_SHARED_DATA:-../shared/data}/sequences/Wild_V01
 port=${1:-50097}
 work=$(mktemp -d)
 build/server/forestmapd --db "$work/maps.db" --listen 127.0.0.1:$port >"$work/server.log" 2>&1 &
@@ -51,6 +51,6 @@ s, c = confirmed(sys.argv[1]), confirmed(sys.argv[2])
 start, mid, end = (float(v) for v in sys.argv[3:6])
 print("sequential: %d confirmed, %.1f s; concurrent (4 clients): %d confirmed, %.1f s, %s failed"
       % (len(s), mid - start, len(c), end - mid, sys.argv[6]))
-print("confirmed trees without a twin within 1 cm: sequential %d, concurrent %d"
-      % (unmatched(s, c), unmatched(c, s)))
+print("confirmed trees without a twin within 1 cm: sequential %d, concurrent %d; "
+      "all positions bit-identical: %s" % (unmatched(s, c), unmatched(c, s), sorted(s) == sorted(c)))
 PY
