@@ -192,12 +192,13 @@ ConsolidateResult ConsolidateTrees(std::span<const TreeEstimate> trees,
                                    const MergeOptions& options = {});
 
 // The map as a pure function of the SET of observation rows: each connected component of the
-// rows (algorithms/observation_components.h) is merged afresh on its own, frame by frame in canonical order
-// (source, frame, detection) as into an empty map (survey priors keep their trees), then
-// consolidated (ConsolidateTrees). The current association of the rows is forgotten; so is the
-// order in which they arrived (concurrent uploads) and how they were batched. Rows elsewhere
-// never change a component's trees, which is what lets a server rebuild only the components
-// that new rows touch and still hold exactly the map one rebuild of all rows gives.
+// rows (algorithms/observation_components.h) is merged afresh on its own, frame by frame in
+// canonical order (source, frame, detection) as into an empty map (survey priors keep their
+// trees), then consolidated (ConsolidateTrees). The current association of the rows is
+// forgotten; so is the order in which they arrived (concurrent uploads) and how they were
+// batched: the same rows give the same trees to the last bit, only the ids may differ. Rows
+// elsewhere never change a component's trees, which is what lets a server rebuild only the
+// components that new rows touch and still hold exactly the map one rebuild of all rows gives.
 // A new tree takes the previous id most of its rows had, when still free (components in the
 // order of their first canonical row), else a new id counting up from `next_free_id`.
 // `trees` must hold every tree that the observations refer to; given trees that keep no row are

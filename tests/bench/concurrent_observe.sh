@@ -3,7 +3,8 @@
 # uploaded by one `forestmap observe`, then the four quarters by four `forestmap observe` at the
 # same time into a second map; wall times of both, and how many confirmed trees of the two maps
 # differ (no tree of the other map within 1 cm).
-#   tests/bench/concurrent_observe.sh [PORT]   (data: $FORESTMAP_SHARED_DATA, default ../shared/data)
+#   tests/bench/concurrent_observe.sh [PORT]
+# Data: $FORESTMAP_SHARED_DATA (default ../shared/data).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 F=build/client/forestmap D=${FORESTMAP_SHARED_DATA:-../shared/data}/sequences/Wild_V01
@@ -44,7 +45,8 @@ def unmatched(a, b):
     n = 0
     for x, y in a:
         cx, cy = math.floor(x / 0.01), math.floor(y / 0.01)
-        near = [p for dx in (-1, 0, 1) for dy in (-1, 0, 1) for p in cells.get((cx + dx, cy + dy), [])]
+        near = [p for dx in (-1, 0, 1) for dy in (-1, 0, 1)
+                for p in cells.get((cx + dx, cy + dy), [])]
         n += not any(math.hypot(x - p[0], y - p[1]) <= 0.01 for p in near)
     return n
 s, c = confirmed(sys.argv[1]), confirmed(sys.argv[2])
@@ -52,5 +54,6 @@ start, mid, end = (float(v) for v in sys.argv[3:6])
 print("sequential: %d confirmed, %.1f s; concurrent (4 clients): %d confirmed, %.1f s, %s failed"
       % (len(s), mid - start, len(c), end - mid, sys.argv[6]))
 print("confirmed trees without a twin within 1 cm: sequential %d, concurrent %d; "
-      "all positions bit-identical: %s" % (unmatched(s, c), unmatched(c, s), sorted(s) == sorted(c)))
+      "all positions bit-identical: %s"
+      % (unmatched(s, c), unmatched(c, s), sorted(s) == sorted(c)))
 PY
