@@ -27,9 +27,11 @@
 namespace forestmap::algorithms {
 namespace {
 
+// Frame number first: when the uploads of several drones number their frames along one
+// sequence, the order (and so the map) does not depend on how the sources are named or split.
 bool CanonicalLess(const TreeObservation& a, const TreeObservation& b) {
-  return std::tie(a.source, a.frame_id, a.detection_index, a.tree_id) <
-         std::tie(b.source, b.frame_id, b.detection_index, b.tree_id);
+  return std::tie(a.frame_id, a.source, a.detection_index, a.tree_id) <
+         std::tie(b.frame_id, b.source, b.detection_index, b.tree_id);
 }
 
 bool SameFrame(const TreeObservation& a, const TreeObservation& b) {

@@ -193,7 +193,7 @@ ConsolidateResult ConsolidateTrees(std::span<const TreeEstimate> trees,
 
 // The map as a pure function of the SET of observation rows: each connected component of the
 // rows (algorithms/observation_components.h) is merged afresh on its own, frame by frame in
-// canonical order (source, frame, detection) as into an empty map (survey priors keep their
+// canonical order (frame, source, detection) as into an empty map (survey priors keep their
 // trees), then consolidated (ConsolidateTrees). The current association of the rows is
 // forgotten; so is the order in which they arrived (concurrent uploads) and how they were
 // batched: the same rows give the same trees to the last bit, only the ids may differ. Rows

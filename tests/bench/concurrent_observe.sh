@@ -24,7 +24,9 @@ pids=()
 for q in 0 1 2 3; do
   # Frame ids are 0..1450: the quarters of the concurrent test (frames.size() * q / 4).
   from=$((1451 * q / 4)) to=$((1451 * (q + 1) / 4 - 1))
-  "${C[@]}" observe concurrent --frames $D/trees.csv --poses $D/poses.csv --source q$((q + 1)) \
+  # Sources named against the frame order (drone-d has the first quarter).
+  source=(drone-d drone-c drone-b drone-a)
+  "${C[@]}" observe concurrent --frames $D/trees.csv --poses $D/poses.csv --source ${source[q]} \
     --from-frame $from --to-frame $to >/dev/null 2>&1 &
   pids+=($!)
 done

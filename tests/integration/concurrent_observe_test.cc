@@ -111,7 +111,8 @@ TEST(ConcurrentObserve, FourDronesBuildTheMapOneSequentialUploadBuilds) {
     for (int q = 0; q < kDrones; ++q) {
       drones.emplace_back([&, q] {
         client::ForestMapClient drone(runner.address());
-        const char* source[kDrones] = {"q1", "q2", "q3", "q4"};
+        // Named against the frame order: the map must not depend on how sources are named.
+        const char* source[kDrones] = {"drone-d", "drone-c", "drone-b", "drone-a"};
         failures += Upload(drone, "concurrent", source[q], frames,
                            frames.size() * q / kDrones, frames.size() * (q + 1) / kDrones);
       });
