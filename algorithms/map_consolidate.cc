@@ -1,54 +1,69 @@
-// ConsolidateTrees: order-robust re-association and duplicate merging (see map_merge.h).
+// ConsolidateTrees and RebuildTrees: order-free re-association and duplicate merging (see
+// map_merge.h).
 //
 // Incremental merging is greedy: the first frame to see a tree decides where its candidate
-// starts, and two uploads that see a new tree at the same time create two candidates. This pass
-// makes the final map depend on the observations only: rows are put in a canonical order,
-// duplicate trees are merged, then every frame's rows are re-associated one-to-one with the
-// current estimates and the estimates recomputed (a few k-means style sweeps).
+// starts, and two uploads that see a new tree at the same time create two candidates.
+// RebuildTrees makes the map depend on the set of observations only: the rows are split into
+// connected components, and each component is merged afresh in canonical row order, then its
+// duplicate trees are merged and every frame's rows re-associated one-to-one with the current
+// estimates (a few k-means style sweeps, as ConsolidateTrees does for the current association).
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <map>
 #include <numeric>
 #include <stdexcept>
 #include <string>
 #include <tuple>
 #include <unordered_map>
+#include <unordered_set>
+#include <utility>
 
 #include "algorithms/map_merge.h"
 #include "algorithms/map_merge_internal.h"
+#include "algorithms/observation_components.h"
 
 namespace forestmap::algorithms {
 namespace {
 
+// Frame number first: when the uploads of several drones number their frames along one
+// sequence, the order (and so the map) does not depend on how the sources are named or split.
 bool CanonicalLess(const TreeObservation& a, const TreeObservation& b) {
-  return std::tie(a.source, a.frame_id, a.detection_index, a.tree_id) <
-         std::tie(b.source, b.frame_id, b.detection_index, b.tree_id);
+  return std::tie(a.frame_id, a.source, a.detection_index, a.tree_id) <
+         std::tie(b.frame_id, b.source, b.detection_index, b.tree_id);
 }
 
 bool SameFrame(const TreeObservation& a, const TreeObservation& b) {
   return a.frame_id == b.frame_id && a.source == b.source;
 }
 
+[[noreturn]] void ThrowUnknownTree(const TreeObservation& row) {
+  throw std::invalid_argument(
+      "ConsolidateTrees: observation of frame " + std::to_string(row.frame_id) + " of '" +
+      row.source + "' refers to tree " + std::to_string(row.tree_id) + ", which is not given");
+}
+
+// Tree ids handed out by one RebuildTrees call (shared by its components).
+struct IdPool {
+  int64_t next_free_id = 1;
+  std::unordered_set<int64_t> taken;
+};
+
 class Consolidator {
  public:
-  Consolidator(std::span<const TreeEstimate> trees, std::span<const TreeObservation> observations,
+  // `rows` in any order; `tree_ids` must hold every tree id the rows refer to.
+  Consolidator(std::vector<TreeObservation> rows, std::vector<int64_t> tree_ids,
                const MergeOptions& options)
-      : options_(options), rows_(observations.begin(), observations.end()) {
+      : options_(options), rows_(std::move(rows)), ids_(std::move(tree_ids)) {
     std::stable_sort(rows_.begin(), rows_.end(), CanonicalLess);
-    for (const TreeEstimate& tree : trees) ids_.push_back(tree.id);
     std::sort(ids_.begin(), ids_.end());
     ids_.erase(std::unique(ids_.begin(), ids_.end()), ids_.end());
     for (size_t i = 0; i < ids_.size(); ++i) index_of_[ids_[i]] = static_cast<int>(i);
     owner_.resize(rows_.size());
     for (size_t r = 0; r < rows_.size(); ++r) {
       const auto it = index_of_.find(rows_[r].tree_id);
-      if (it == index_of_.end()) {
-        throw std::invalid_argument("ConsolidateTrees: observation of frame " +
-                                    std::to_string(rows_[r].frame_id) + " of '" +
-                                    rows_[r].source + "' refers to tree " +
-                                    std::to_string(rows_[r].tree_id) + ", which is not given");
-      }
+      if (it == index_of_.end()) ThrowUnknownTree(rows_[r]);
       owner_[r] = it->second;
     }
     for (const TreeObservation& row : rows_) original_ids_.push_back(row.tree_id);
@@ -57,9 +72,9 @@ class Consolidator {
 
   // Forgets the current association: the rows are merged afresh, frame by frame in canonical
   // order (survey priors first, each its own tree), as MergeFrame would merge them into an empty
-  // map. Each new tree takes the id most of its rows had (ties: the smaller), if still free;
-  // else a new id from `next_free_id`.
-  void Restart(int64_t next_free_id) {
+  // map. Each new tree takes the id most of its rows had (ties: the smaller), if still free in
+  // `pool`; else a new id from the pool.
+  void Restart(IdPool& pool) {
     std::vector<TreeEstimate> clusters;
     std::vector<int> cluster_of(rows_.size(), -1);
     std::unordered_map<int64_t, std::vector<int>> grid;  // 1 m cells -> clusters
@@ -129,15 +144,17 @@ class Consolidator {
     // Ids: the most common previous id of each cluster's rows, in creation order.
     std::vector<std::map<int64_t, int>> votes(clusters.size());
     for (size_t r = 0; r < rows_.size(); ++r) ++votes[cluster_of[r]][original_ids_[r]];
-    std::unordered_map<int64_t, bool> taken;
     std::vector<int64_t> cluster_id(clusters.size(), 0);
     for (size_t c = 0; c < clusters.size(); ++c) {
       int best = 0;
       for (const auto& [id, n] : votes[c]) {
-        if (n > best && !taken[id]) cluster_id[c] = id, best = n;
+        if (n > best && pool.taken.count(id) == 0) cluster_id[c] = id, best = n;
       }
-      if (best == 0) cluster_id[c] = next_free_id++;
-      taken[cluster_id[c]] = true;
+      if (best == 0) {
+        while (pool.taken.count(pool.next_free_id) != 0) ++pool.next_free_id;
+        cluster_id[c] = pool.next_free_id++;
+      }
+      pool.taken.insert(cluster_id[c]);
     }
     for (size_t c = 0; c < clusters.size(); ++c) ids_.push_back(cluster_id[c]);
     std::sort(ids_.begin(), ids_.end());
@@ -148,7 +165,9 @@ class Consolidator {
     Recompute();
   }
 
-  void Run(ConsolidateResult& result) {
+  // Appends the surviving trees and the rows (with their trees) to `result`; with
+  // `report_removed`, also the trees left without rows.
+  void Run(ConsolidateResult& result, bool report_removed = true) {
     // Duplicates are looked for last, so the trees returned have been checked as they are.
     for (int sweep = 0; sweep < std::max(1, options_.consolidate_iterations); ++sweep) {
       const int moved = Reassociate();
@@ -159,7 +178,7 @@ class Consolidator {
     for (size_t t = 0; t < ids_.size(); ++t) {
       if (estimates_[t].observations > 0) {
         result.trees.push_back(estimates_[t]);
-      } else {
+      } else if (report_removed) {
         result.removed_ids.push_back(ids_[t]);
       }
     }
@@ -167,7 +186,9 @@ class Consolidator {
       rows_[r].tree_id = ids_[owner_[r]];
       if (rows_[r].tree_id != original_ids_[r]) ++result.reassigned;
     }
-    result.observations = std::move(rows_);
+    result.observations.insert(result.observations.end(), std::make_move_iterator(rows_.begin()),
+                               std::make_move_iterator(rows_.end()));
+    rows_.clear();
   }
 
  private:
@@ -254,11 +275,16 @@ class Consolidator {
   }
 
   int Reassociate() {
+    // Equal costs are broken by the trees' first canonical rows, not by their ids (which depend
+    // on the order in which rows arrived).
+    std::vector<size_t> first_row(ids_.size(), rows_.size());
+    for (size_t r = rows_.size(); r-- > 0;) first_row[owner_[r]] = r;
     std::vector<TreeEstimate> live;
     std::vector<int> live_index;
     for (size_t t = 0; t < ids_.size(); ++t) {
       if (estimates_[t].observations == 0) continue;
       live.push_back(estimates_[t]);
+      live.back().id = static_cast<int64_t>(first_row[t]);
       live_index.push_back(static_cast<int>(t));
     }
     if (live.empty()) return 0;
@@ -303,6 +329,12 @@ class Consolidator {
   std::vector<TreeEstimate> estimates_;
 };
 
+std::vector<int64_t> IdsOf(std::span<const TreeEstimate> trees) {
+  std::vector<int64_t> ids;
+  for (const TreeEstimate& tree : trees) ids.push_back(tree.id);
+  return ids;
+}
+
 }  // namespace
 
 ConsolidateResult ConsolidateTrees(std::span<const TreeEstimate> trees,
@@ -310,7 +342,7 @@ ConsolidateResult ConsolidateTrees(std::span<const TreeEstimate> trees,
                                    const MergeOptions& options) {
   options.Check();
   ConsolidateResult result;
-  Consolidator consolidator(trees, observations, options);
+  Consolidator consolidator({observations.begin(), observations.end()}, IdsOf(trees), options);
   consolidator.Run(result);
   return result;
 }
@@ -319,10 +351,37 @@ ConsolidateResult RebuildTrees(std::span<const TreeEstimate> trees,
                                std::span<const TreeObservation> observations,
                                int64_t next_free_id, const MergeOptions& options) {
   options.Check();
+  const std::vector<int64_t> given = IdsOf(trees);
+  const std::unordered_set<int64_t> known(given.begin(), given.end());
+  std::vector<TreeObservation> rows(observations.begin(), observations.end());
+  for (const TreeObservation& row : rows) {
+    if (known.count(row.tree_id) == 0) ThrowUnknownTree(row);
+  }
+  std::stable_sort(rows.begin(), rows.end(), CanonicalLess);
+  // Components numbered by their first canonical row: a canonical order of components too.
+  const std::vector<int> component = ObservationComponents(rows, options);
+  const int count = rows.empty() ? 0 : *std::max_element(component.begin(), component.end()) + 1;
+  std::vector<std::vector<TreeObservation>> parts(count);
+  for (size_t r = 0; r < rows.size(); ++r) parts[component[r]].push_back(std::move(rows[r]));
   ConsolidateResult result;
-  Consolidator consolidator(trees, observations, options);
-  consolidator.Restart(next_free_id);
-  consolidator.Run(result);
+  IdPool pool{next_free_id, {}};
+  for (std::vector<TreeObservation>& part : parts) {
+    std::vector<int64_t> ids;
+    for (const TreeObservation& row : part) ids.push_back(row.tree_id);
+    Consolidator consolidator(std::move(part), std::move(ids), options);
+    consolidator.Restart(pool);
+    consolidator.Run(result, /*report_removed=*/false);
+  }
+  std::unordered_set<int64_t> kept;
+  for (const TreeEstimate& tree : result.trees) kept.insert(tree.id);
+  for (const int64_t id : given) {
+    if (kept.count(id) == 0) result.removed_ids.push_back(id);
+  }
+  std::sort(result.removed_ids.begin(), result.removed_ids.end());
+  result.removed_ids.erase(std::unique(result.removed_ids.begin(), result.removed_ids.end()),
+                           result.removed_ids.end());
+  std::sort(result.trees.begin(), result.trees.end(),
+            [](const TreeEstimate& a, const TreeEstimate& b) { return a.id < b.id; });
   return result;
 }
 

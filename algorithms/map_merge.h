@@ -11,8 +11,9 @@
 // 1979 pairwise update), so removing one source is "recompute from the rest"
 // (EstimateFromObservations). New trees start as candidates and are confirmed once seen from
 // `promotion_views` distinct sensor positions; surveyed trees are confirmed prior observations.
-// ConsolidateTrees re-associates a region's observations and merges duplicate trees, so the
-// result does not depend on the order in which frames (or parallel uploads) arrived.
+// RebuildTrees re-merges each connected component of the observations in canonical order and
+// consolidates it (ConsolidateTrees: re-association and duplicate merging), so the map is a
+// pure function of the set of observations, whatever the order or batching of the uploads.
 //
 // Frames and units as in algorithms/geometry.h. Thread-safety: free functions, no state.
 
@@ -183,17 +184,25 @@ struct ConsolidateResult {
 
 // Re-associates the observations of a region with its trees (k-means style, one-to-one per
 // frame, canonical row order) and merges duplicate trees (closer than duplicate_distance, and
-// overlapping or rarely seen in one frame together; the smaller id survives). The result depends on the SET of rows and trees,
-// not on their order. `trees` must hold every tree that the observations refer to.
+// overlapping or rarely seen in one frame together; the smaller id survives). The result depends
+// on the SET of rows and trees, not on their order. `trees` must hold every tree that the
+// observations refer to.
 ConsolidateResult ConsolidateTrees(std::span<const TreeEstimate> trees,
                                    std::span<const TreeObservation> observations,
                                    const MergeOptions& options = {});
 
-// ConsolidateTrees without the current association: the rows are first merged afresh, frame by
-// frame in canonical order (source, frame, detection) as into an empty map (survey priors keep
-// their trees), then consolidated. So the result depends on the set of rows only, not on the
-// order in which they arrived (concurrent uploads). A new tree takes the previous id most of its
-// rows had, when still free, else a new id counting up from `next_free_id`.
+// The map as a pure function of the SET of observation rows: each connected component of the
+// rows (algorithms/observation_components.h) is merged afresh on its own, frame by frame in
+// canonical order (frame, source, detection) as into an empty map (survey priors keep their
+// trees), then consolidated (ConsolidateTrees). The current association of the rows is
+// forgotten; so is the order in which they arrived (concurrent uploads) and how they were
+// batched: the same rows give the same trees to the last bit, only the ids may differ. Rows
+// elsewhere never change a component's trees, which is what lets a server rebuild only the
+// components that new rows touch and still hold exactly the map one rebuild of all rows gives.
+// A new tree takes the previous id most of its rows had, when still free (components in the
+// order of their first canonical row), else a new id counting up from `next_free_id`.
+// `trees` must hold every tree that the observations refer to; given trees that keep no row are
+// in removed_ids.
 ConsolidateResult RebuildTrees(std::span<const TreeEstimate> trees,
                                std::span<const TreeObservation> observations,
                                int64_t next_free_id, const MergeOptions& options = {});

@@ -26,7 +26,7 @@ void MergedMap::Put(const TreeEstimate& tree) {
   next_id_ = std::max(next_id_, tree.id + 1);
 }
 
-void MergedMap::Rebuild(std::vector<TreeEstimate> trees) {
+void MergedMap::ReplaceTrees(const std::vector<TreeEstimate>& trees) {
   trees_.clear();
   cell_of_.clear();
   cells_.clear();
@@ -81,7 +81,14 @@ MergeResult MergedMap::Merge(const FrameObservations& frame) {
 ConsolidateResult MergedMap::Consolidate() {
   ConsolidateResult result = ConsolidateTrees(Trees(), observations_, options_);
   observations_ = result.observations;
-  Rebuild(result.trees);
+  ReplaceTrees(result.trees);
+  return result;
+}
+
+ConsolidateResult MergedMap::Rebuild() {
+  ConsolidateResult result = RebuildTrees(Trees(), observations_, next_id_, options_);
+  observations_ = result.observations;
+  ReplaceTrees(result.trees);
   return result;
 }
 

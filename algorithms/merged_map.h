@@ -24,6 +24,10 @@ class MergedMap {
   // Re-associates all observations and merges duplicates (ConsolidateTrees over the map).
   ConsolidateResult Consolidate();
 
+  // Rebuilds every tree from the set of observations (RebuildTrees): the map a server holds
+  // after any uploads of the same frames, in any order or batches.
+  ConsolidateResult Rebuild();
+
   // Removes every observation of `source` and recomputes the affected trees.
   void RemoveSource(const std::string& source);
 
@@ -41,7 +45,7 @@ class MergedMap {
   using CellKey = int64_t;
   CellKey KeyOf(const Eigen::Vector2d& xy) const;
   void Put(const TreeEstimate& tree);  // inserts or updates, keeping the grid current
-  void Rebuild(std::vector<TreeEstimate> trees);
+  void ReplaceTrees(const std::vector<TreeEstimate>& trees);
 
   MergeOptions options_;
   double cell_size_ = 10.0;  // m

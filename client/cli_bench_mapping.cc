@@ -1,8 +1,10 @@
 // forestmap bench-mapping: building tree maps from frame sequences, in process, against truth.
 //
 // Survey merge:  --frames F --poses P --use-poses --map map.csv
-//   merges every frame with its ground-truth pose (algorithms/map_merge.h) and compares the
-//   confirmed trees with the reference map (algorithms/map_evaluation.h).
+//   merges every frame with its ground-truth pose (algorithms/map_merge.h), rebuilds the map
+//   from the set of observations as forestmapd holds it (algorithms::RebuildTrees: any order
+//   or batching of the uploads gives this map) and compares the confirmed trees with the
+//   reference map (algorithms/map_evaluation.h).
 // Mapping:       --frames F --poses P [--eval-frames F2 --eval-poses P2 --truth-offset ...]
 //   builds the map from the detections alone (algorithms/map_builder.h; poses only score it):
 //   the trajectory's ATE after a planar rigid and a planar similarity alignment to P, then the
@@ -114,7 +116,7 @@ nlohmann::ordered_json SurveyMerge(const BenchMappingOptions& o, std::ostream& e
     Progress(err, i + 1, sequence.frames.size(), "merge");
   }
   const double merge_s = Seconds(start);
-  const algorithms::ConsolidateResult consolidated = map.Consolidate();
+  const algorithms::ConsolidateResult consolidated = map.Rebuild();
   nlohmann::ordered_json report = {{"mode", "survey_merge"},
                                    {"frames", sequence.frames.size()},
                                    {"observations", map.observations().size()},

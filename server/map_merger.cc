@@ -7,13 +7,14 @@
 #include <utility>
 
 #include "server/convert.h"
+#include "server/merge_region.h"
 #include "server/status.h"
 
 namespace forestmap::server {
 namespace {
 
-// Trees loaded around a frame reach this far beyond the merge's own reach (m), so that a tree
-// moving a little between frames of one request is still found.
+// The trees a frame is merged with incrementally (for its counts) reach this far beyond the
+// merge's own reach (m), so that a tree moving a little between frames of one request is found.
 constexpr double kBoxMargin = 1.0;
 
 struct WorkingTree {
@@ -48,41 +49,39 @@ std::map<int64_t, std::vector<algorithms::TreeObservation>> ByTree(
 
 struct Loaded {
   std::map<int64_t, WorkingTree> working;
-  std::vector<storage::ObservationRecord> rows;  // current rows of those trees
+  std::vector<storage::ObservationRecord> rows;  // current rows of the region (not dropped)
 };
 
-// The current trees around every frame, with their estimates rebuilt from their rows.
+// The trees of the region that `seeds` join (LoadMergeRegion), with their estimates rebuilt from
+// their rows; rows whose id is in `dropped` are left out (a source being removed).
 Loaded LoadTrees(storage::MergeReader& reader,
-                 const std::vector<algorithms::FrameObservations>& frames,
-                 const algorithms::MergeOptions& options) {
-  std::map<int64_t, storage::TreeRecord> records;
-  for (const algorithms::FrameObservations& frame : frames) {
-    for (storage::TreeRecord& tree : reader.TreesInBox(FrameBox(frame, options))) {
-      const int64_t id = *tree.id;
-      records.emplace(id, std::move(tree));
-    }
-  }
-  std::vector<int64_t> ids;
-  ids.reserve(records.size());
-  for (const auto& [id, record] : records) ids.push_back(id);
+                 const std::vector<algorithms::TreeObservation>& seeds,
+                 const algorithms::MergeOptions& options, const std::set<int64_t>& dropped = {}) {
+  MergeRegion region = LoadMergeRegion(reader, seeds, options);
   Loaded loaded;
-  loaded.rows = reader.ObservationsOfTrees(ids);
-  auto observations = ByTree(loaded.rows);
-
-  std::map<int64_t, WorkingTree>& working = loaded.working;
-  for (auto& [id, record] : records) {
+  for (storage::ObservationRecord& row : region.rows) {
+    if (dropped.count(row.id) == 0) loaded.rows.push_back(std::move(row));
+  }
+  const auto observations = ByTree(loaded.rows);
+  std::map<int64_t, algorithms::TreeObservation> priors;
+  for (algorithms::TreeObservation& prior : region.unsaved_priors) {
+    priors.emplace(prior.tree_id, std::move(prior));
+  }
+  for (auto& [id, record] : region.trees) {
     WorkingTree tree;
     tree.attributes = std::move(record.attributes);
     const auto rows = observations.find(id);
+    const auto prior_of = priors.find(id);
     if (rows != observations.end()) {
       tree.estimate = algorithms::EstimateFromObservations(id, rows->second, options);
+    } else if (prior_of == priors.end()) {
+      tree.estimate.id = id;  // every row dropped: the rebuild removes the tree
     } else {
-      algorithms::TreeObservation prior = algorithms::SurveyObservation(ToMapTree(record), options);
-      prior.tree_id = id;
+      const algorithms::TreeObservation& prior = prior_of->second;
       tree.estimate = algorithms::EstimateFromObservations(id, {&prior, 1}, options);
       tree.unsaved_prior = prior;
     }
-    working.emplace(id, std::move(tree));
+    loaded.working.emplace(id, std::move(tree));
   }
   return loaded;
 }
@@ -94,15 +93,16 @@ RowKey KeyOf(const std::string& source, int64_t frame, int32_t detection, double
   return {source, frame, detection, x, y};
 }
 
-// Re-associates every row of the region (stored, new and unsaved survey priors) afresh, in
-// canonical order, and merges duplicate trees (algorithms::RebuildTrees), then turns the outcome
-// into changes: moved
-// rows are closed and re-inserted under their new tree, trees that gained, lost or changed rows
-// are put, trees left empty are removed. Makes the map depend on the set of observations in the
-// region rather than on the order in which requests arrived.
+// Rebuilds the region (its stored rows, the new rows and unsaved survey priors: whole connected
+// components of the map's rows) afresh with algorithms::RebuildTrees, then turns the outcome into
+// changes: moved rows are closed and re-inserted under their new tree, trees that gained, lost
+// or changed rows (or are in `lost`: their dropped rows are closed by the caller) are put, trees
+// left empty are removed. The region's trees are then what one rebuild of all the map's rows
+// gives them, whatever the order in which requests arrived.
 storage::MapChanges Consolidate(Loaded& loaded,
                                 const std::vector<algorithms::TreeObservation>& fresh,
-                                int64_t next_free_id, const algorithms::MergeOptions& options) {
+                                const std::set<int64_t>& lost, int64_t next_free_id,
+                                const algorithms::MergeOptions& options) {
   std::vector<algorithms::TreeEstimate> trees;
   for (const auto& [id, tree] : loaded.working) trees.push_back(tree.estimate);
   std::vector<algorithms::TreeObservation> rows;
@@ -120,7 +120,7 @@ storage::MapChanges Consolidate(Loaded& loaded,
       algorithms::RebuildTrees(trees, rows, next_free_id, options);
 
   storage::MapChanges changes;
-  std::set<int64_t> changed;
+  std::set<int64_t> changed = lost;
   std::vector<const algorithms::TreeObservation*> priors;
   for (const algorithms::TreeObservation& row : result.observations) {
     auto it = stored.find(
@@ -163,7 +163,12 @@ storage::MapChanges Consolidate(Loaded& loaded,
 FramesMerge MergeFrames(storage::MergeReader& reader,
                         const std::vector<algorithms::FrameObservations>& frames,
                         const algorithms::MergeOptions& options, bool consolidate) {
-  Loaded loaded = LoadTrees(reader, frames, options);
+  std::vector<algorithms::TreeObservation> seeds;
+  for (const algorithms::FrameObservations& frame : frames) {
+    const std::vector<algorithms::TreeObservation> rows = algorithms::ObserveFrame(frame, options);
+    seeds.insert(seeds.end(), rows.begin(), rows.end());
+  }
+  Loaded loaded = LoadTrees(reader, seeds, options);
   std::map<int64_t, WorkingTree>& working = loaded.working;
   int64_t next_id = reader.NextFreeTreeId();
   FramesMerge merge;
@@ -200,7 +205,7 @@ FramesMerge MergeFrames(storage::MergeReader& reader,
     merge.counts.push_back(counts);
   }
   if (consolidate) {
-    merge.changes = Consolidate(loaded, rows, next_id, options);
+    merge.changes = Consolidate(loaded, rows, {}, next_id, options);
     return merge;
   }
   for (auto& [id, tree] : working) {
@@ -225,31 +230,21 @@ SourceRemoval RemoveSourceChanges(storage::MergeReader& reader, const std::strin
         "map \"" + reader.map().name + "\" has no observations of source \"" + source + "\"");
   }
   std::set<int64_t> removed_ids;
-  std::set<int64_t> affected;
+  std::set<int64_t> lost;
+  std::vector<algorithms::TreeObservation> seeds;
   for (const storage::ObservationRecord& row : removed) {
     removed_ids.insert(row.id);
-    affected.insert(row.tree_id);
+    lost.insert(row.tree_id);
+    seeds.push_back(ToTreeObservation(row));
   }
-  const std::vector<int64_t> tree_ids(affected.begin(), affected.end());
-  std::vector<storage::ObservationRecord> remaining;
-  for (storage::ObservationRecord& row : reader.ObservationsOfTrees(tree_ids)) {
-    if (removed_ids.count(row.id) == 0) remaining.push_back(std::move(row));
-  }
-  const auto rows = ByTree(remaining);
+  // The components the source's rows were in, rebuilt from the rows that remain.
+  Loaded loaded = LoadTrees(reader, seeds, options, removed_ids);
   SourceRemoval removal;
-  for (const storage::TreeRecord& record : reader.TreesById(tree_ids)) {
-    const auto kept = rows.find(*record.id);
-    if (kept == rows.end()) {
-      removal.changes.removed_trees.push_back(*record.id);
-      ++removal.trees_removed;
-      continue;
-    }
-    const algorithms::TreeEstimate estimate =
-        algorithms::EstimateFromObservations(*record.id, kept->second, options);
-    removal.changes.put_trees.push_back(ToTreeRecord(estimate, record.attributes));
-    ++removal.trees_updated;
-  }
-  removal.changes.removed_observations.assign(removed_ids.begin(), removed_ids.end());
+  removal.changes = Consolidate(loaded, {}, lost, reader.NextFreeTreeId(), options);
+  removal.changes.removed_observations.insert(removal.changes.removed_observations.end(),
+                                              removed_ids.begin(), removed_ids.end());
+  removal.trees_updated = static_cast<int64_t>(removal.changes.put_trees.size());
+  removal.trees_removed = static_cast<int64_t>(removal.changes.removed_trees.size());
   return removal;
 }
 

@@ -1,10 +1,11 @@
 #pragma once
 // The merge steps of Observe and RemoveSource: pure functions of what a storage::MergeReader
 // shows (the map's current version, read inside the store's write transaction) that return the
-// storage::MapChanges to commit as the next version. Tree state is rebuilt from the stored
-// observation rows (algorithms::EstimateFromObservations: a tree is a pure function of its
-// observations), so nothing but rows and derived fields is persisted. A surveyed tree without
-// rows gets its survey prior (algorithms::SurveyObservation) as its first row when first touched.
+// storage::MapChanges to commit as the next version. The map's trees are a pure function of the
+// set of its observation rows, component by component (algorithms::RebuildTrees); a change
+// rebuilds the components it touches (server/merge_region.h), so nothing but rows and derived
+// fields is persisted. A surveyed tree without rows gets its survey prior
+// (algorithms::SurveyObservation) as its first row when first touched.
 
 #include <cstdint>
 #include <string>
@@ -27,11 +28,12 @@ struct FramesMerge {
   storage::MapChanges changes;
 };
 
-// Merges `frames` (map_from_sensor set) in order into the trees around them. With
-// `consolidate`, the rows of every tree around the frames are then re-associated afresh in
-// canonical order and duplicate trees merged (algorithms::RebuildTrees), so that the map depends
-// on which observations a region holds rather than on the order in which concurrent requests
-// arrived.
+// Merges `frames` (map_from_sensor set) in order into the trees of the region their detections
+// join (server/merge_region.h), for the per-frame counts. With `consolidate`, the region, whole
+// connected components of the map's rows, is then rebuilt from its rows and the new ones
+// (algorithms::RebuildTrees), so that the map is a pure function of the set of observations it
+// received: concurrent requests, in any order and batches, give the map one sequential upload
+// gives. Without, the incremental merge is kept (order-dependent).
 FramesMerge MergeFrames(storage::MergeReader& reader,
                         const std::vector<algorithms::FrameObservations>& frames,
                         const algorithms::MergeOptions& options, bool consolidate);
@@ -42,9 +44,10 @@ struct SourceRemoval {
   int64_t trees_removed = 0;
 };
 
-// Drops every current observation of `source` and recomputes the trees they belonged to from
-// their remaining rows; trees left without rows are removed. Throws ServiceError NOT_FOUND when
-// the source has no observation in the map.
+// Drops every current observation of `source` and rebuilds the connected components they were
+// in from the remaining rows (as MergeFrames does), so the map stays the pure function of the
+// set of observations it holds; trees left without rows are removed. Throws ServiceError
+// NOT_FOUND when the source has no observation in the map.
 SourceRemoval RemoveSourceChanges(storage::MergeReader& reader, const std::string& source,
                                   const algorithms::MergeOptions& options);
 

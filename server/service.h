@@ -66,8 +66,10 @@ struct ServiceOptions {
   algorithms::TrackingOptions tracking;
   ObserveLimits observe;            // frames / trees per Observe request
   algorithms::MergeOptions merge;   // how Observe merges frames into a shared map
-  // Observe re-associates the region around its frames after merging them (ConsolidateTrees):
-  // concurrent drones then give the map a sequential upload gives.
+  // Observe rebuilds the connected components of observations its frames join after merging
+  // them (algorithms::RebuildTrees, server/merge_region.h): the map is then a function of the
+  // set of observations, and concurrent drones give the map a sequential upload gives. False
+  // keeps the incremental, order-dependent merge.
   bool consolidate = true;
   void Check() const;  // throws std::invalid_argument
 };

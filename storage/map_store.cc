@@ -1,8 +1,15 @@
 #include "storage/map_store.h"
 
+#include <cmath>
 #include <string>
 
 namespace forestmap::storage {
+
+// The schema's migration to version 3 computes the same floor in SQL (sqlite_schema.cc).
+ObservationCell CellOf(double x, double y) {
+  return {static_cast<int64_t>(std::floor(x / kObservationCellSize)),
+          static_cast<int64_t>(std::floor(y / kObservationCellSize))};
+}
 
 std::string ValidateMapName(const std::string& name) {
   constexpr size_t kMaxLength = 128;

@@ -101,6 +101,16 @@ struct VersionRecord {
   int64_t restored_from = 0;  // kRestore only
 };
 
+// Current observation rows are indexed by square cells of the map frame: cell (i, j) holds the
+// rows with floor(x / kObservationCellSize) == i and floor(y / kObservationCellSize) == j. The
+// size is part of the stored data (schema version 3): changing it needs a migration.
+inline constexpr double kObservationCellSize = 4.0;  // m
+struct ObservationCell {
+  int64_t x = 0, y = 0;  // cell indices
+  auto operator<=>(const ObservationCell&) const = default;
+};
+ObservationCell CellOf(double x, double y);  // x, y in m
+
 // Everything one merge changes, computed from what MergeReader showed.
 struct MapChanges {
   // New trees (an id not current in the map) and new states of current trees (same id). Ids are
@@ -128,6 +138,9 @@ class MergeReader {
   virtual std::vector<TreeRecord> TreesById(std::span<const int64_t> ids) = 0;
   // Current observation rows of these trees, by id of the row.
   virtual std::vector<ObservationRecord> ObservationsOfTrees(std::span<const int64_t> ids) = 0;
+  // Current observation rows lying in these cells (see ObservationCell), by id of the row.
+  virtual std::vector<ObservationRecord> ObservationsInCells(
+      std::span<const ObservationCell> cells) = 0;
   // Current observation rows of one source, by id of the row.
   virtual std::vector<ObservationRecord> ObservationsOfSource(const std::string& source) = 0;
   // Above every tree id the map ever had (in any version): ids for new trees start here.

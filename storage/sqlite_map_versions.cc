@@ -127,6 +127,25 @@ class SqliteMergeReader final : public MergeReader {
     return rows;
   }
 
+  std::vector<ObservationRecord> ObservationsInCells(
+      std::span<const ObservationCell> cells) override {
+    Statement select(db_, "SELECT " FORESTMAP_OBSERVATION_COLUMNS
+                          " FROM observations AS o INDEXED BY observations_in_cell WHERE "
+                          "o.map_id = ?1 AND o.cell_x = ?2 AND o.cell_y = ?3 AND "
+                          "o.valid_to = " FORESTMAP_CURRENT);
+    select.BindInt64(1, map_.id);
+    std::vector<ObservationRecord> rows;
+    for (const ObservationCell& cell : std::set<ObservationCell>(cells.begin(), cells.end())) {
+      select.BindInt64(2, cell.x);
+      select.BindInt64(3, cell.y);
+      while (select.Step()) rows.push_back(internal::ReadObservationRow(select));
+      select.Reset();
+    }
+    std::sort(rows.begin(), rows.end(),
+              [](const ObservationRecord& a, const ObservationRecord& b) { return a.id < b.id; });
+    return rows;
+  }
+
   std::vector<ObservationRecord> ObservationsOfSource(const std::string& source) override {
     Statement select(db_, "SELECT " FORESTMAP_OBSERVATION_COLUMNS
                           " FROM observations AS o WHERE "

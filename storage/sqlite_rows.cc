@@ -264,8 +264,9 @@ void InsertObservations(Database& db, int64_t map_id,
   Statement insert(db,
                    "INSERT INTO observations (map_id, tree_id, valid_from, valid_to, source, "
                    "frame_id, detection_index, x, y, z, dbh, weight_xy, weight_dbh, sensor_x, "
-                   "sensor_y, sensor_z, prior) VALUES (?1, ?2, ?3, " FORESTMAP_CURRENT
-                   ", ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)");
+                   "sensor_y, sensor_z, prior, cell_x, cell_y) VALUES (?1, ?2, ?3, "
+                   FORESTMAP_CURRENT ", ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, "
+                   "?17, ?18)");
   insert.BindInt64(1, map_id);
   insert.BindInt64(3, valid_from);
   for (const ObservationRecord& o : observations) {
@@ -283,6 +284,9 @@ void InsertObservations(Database& db, int64_t map_id,
     insert.BindDouble(14, o.sensor_y);
     insert.BindDouble(15, o.sensor_z);
     insert.BindInt64(16, o.prior ? 1 : 0);
+    const ObservationCell cell = CellOf(o.x, o.y);
+    insert.BindInt64(17, cell.x);
+    insert.BindInt64(18, cell.y);
     insert.Run();
   }
 }

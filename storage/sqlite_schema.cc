@@ -130,10 +130,24 @@ INSERT INTO map_versions
 PRAGMA user_version = 2;
 )sql";
 
+// Version 3: current observation rows are found by cell (storage::ObservationCell, 4 m squares),
+// so that a merge can load the rows around its frames, and the rows linked to those, without
+// going through their trees. The cell is floor(coordinate / 4) (CAST truncates toward zero).
+constexpr const char* kStep3 = R"sql(
+ALTER TABLE observations ADD COLUMN cell_x INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE observations ADD COLUMN cell_y INTEGER NOT NULL DEFAULT 0;
+UPDATE observations SET
+  cell_x = CAST(x / 4.0 AS INTEGER) - (x / 4.0 < CAST(x / 4.0 AS INTEGER)),
+  cell_y = CAST(y / 4.0 AS INTEGER) - (y / 4.0 < CAST(y / 4.0 AS INTEGER));
+CREATE INDEX observations_in_cell ON observations (map_id, cell_x, cell_y)
+  WHERE valid_to = 9223372036854775807;
+PRAGMA user_version = 3;
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3};
   return steps;
 }
 

@@ -6,11 +6,15 @@
 #include <algorithm>
 #include <filesystem>
 #include <map>
+#include <random>
+#include <span>
+#include <tuple>
 
 #include "algorithms/kdtree.h"
 #include "algorithms/map_evaluation.h"
 #include "algorithms/map_merge.h"
 #include "algorithms/merged_map.h"
+#include "algorithms/observation_components.h"
 #include "algorithms/simulation.h"
 #include "client/tree_csv.h"
 
@@ -201,6 +205,29 @@ TEST(MapMerge, EstimateFromObservationsEqualsIncrementalMerge) {
   }
 }
 
+// The rows of `frames` as ObserveFrame makes them, all of one placeholder tree (id 0): a
+// rebuild forgets the association anyway.
+std::vector<TreeObservation> RowsOf(const std::vector<FrameObservations>& frames) {
+  std::vector<TreeObservation> rows;
+  for (const FrameObservations& frame : frames) {
+    const std::vector<TreeObservation> more = ObserveFrame(frame);
+    rows.insert(rows.end(), more.begin(), more.end());
+  }
+  return rows;
+}
+
+// What a rebuild decides, without the id labels: every tree's state, sorted.
+using TreeState = std::tuple<double, double, double, int, int, TreeStatus>;
+std::vector<TreeState> States(const std::vector<TreeEstimate>& trees) {
+  std::vector<TreeState> states;
+  for (const TreeEstimate& t : trees) {
+    states.emplace_back(t.position.x(), t.position.y(), IsKnown(t.dbh) ? t.dbh : -1, t.observations,
+                        t.distinct_views, t.status);
+  }
+  std::sort(states.begin(), states.end());
+  return states;
+}
+
 // The concurrency bar in miniature: four "drones" upload quarters of the frames interleaved
 // (as parallel uploads arrive), against one sequential upload; after consolidation both give the
 // same confirmed trees within 1 cm.
@@ -228,6 +255,38 @@ TEST(MapMerge, InterleavedQuartersGiveTheSameConfirmedTreesAsSequential) {
   const TreeMapComparison truth = CompareTreeMaps(a, forest, {0.2, 0.3});
   EXPECT_EQ(truth.duplicates, 0);
   EXPECT_LT(truth.distance_p50, 0.05);
+  // Rebuilt from their observations (what the server holds), the two maps are one.
+  sequential.Rebuild();
+  parallel.Rebuild();
+  EXPECT_EQ(States(parallel.Trees()), States(sequential.Trees()));
+}
+
+// The map is a pure function of the set of observations: the same rows in any order, or each
+// connected component rebuilt on its own, give the same trees to the last bit.
+TEST(MapMerge, RebuildIsAPureFunctionOfTheSetOfObservations) {
+  const std::vector<TreeObservation> rows = RowsOf(SimulatedFrames(TestForest(), 4, 21));
+  TreeEstimate placeholder;
+  const std::span<const TreeEstimate> trees(&placeholder, 1);
+  const ConsolidateResult whole = RebuildTrees(trees, rows, 1);
+  ASSERT_GT(whole.trees.size(), 100u);
+  EXPECT_EQ(whole.observations.size(), rows.size());
+
+  std::vector<TreeObservation> shuffled = rows;
+  std::mt19937 rng(3);
+  std::shuffle(shuffled.begin(), shuffled.end(), rng);
+  EXPECT_EQ(States(RebuildTrees(trees, shuffled, 1).trees), States(whole.trees));
+
+  const std::vector<int> component = ObservationComponents(rows);
+  const int count = *std::max_element(component.begin(), component.end()) + 1;
+  ASSERT_GT(count, 100);
+  std::vector<std::vector<TreeObservation>> parts(count);
+  for (size_t r = 0; r < rows.size(); ++r) parts[component[r]].push_back(rows[r]);
+  std::vector<TreeEstimate> by_part;
+  for (const std::vector<TreeObservation>& part : parts) {
+    const ConsolidateResult one = RebuildTrees(trees, part, 1);
+    by_part.insert(by_part.end(), one.trees.begin(), one.trees.end());
+  }
+  EXPECT_EQ(States(by_part), States(whole.trees));
 }
 
 std::filesystem::path Sequence(const std::string& name) {
@@ -287,6 +346,7 @@ TEST(MapMerge, InvalidOptionsAndInputsAreRejected) {
   const TreeObservation orphan = SurveyObservation(MapTree{99, Eigen::Vector3d(1, 1, 0), 0.2});
   const TreeObservation rows[] = {orphan};
   EXPECT_THROW(ConsolidateTrees({}, rows), std::invalid_argument);
+  EXPECT_THROW(RebuildTrees({}, rows, 1), std::invalid_argument);
 }
 
 }  // namespace

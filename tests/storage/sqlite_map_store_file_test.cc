@@ -82,19 +82,20 @@ TEST_F(SqliteMapStoreFileTest, ReopeningKeepsDataAndSchemaVersion) {
 }
 
 TEST_F(SqliteMapStoreFileTest, RefusesADatabaseFromANewerVersion) {
+  const std::string newer = std::to_string(SqliteMapStore::kSchemaVersion + 1);
   {
     sqlite::Database db(path_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, 1000);
-    db.Execute("CREATE TABLE future (x); PRAGMA user_version = 3");
+    db.Execute(("CREATE TABLE future (x); PRAGMA user_version = " + newer).c_str());
   }
   try {
     SqliteMapStore store(path_);
-    ADD_FAILURE() << "a database with schema version 3 was accepted";
+    ADD_FAILURE() << "a database with schema version " << newer << " was accepted";
   } catch (const StorageError& e) {
     const std::string message = e.what();
-    EXPECT_NE(message.find("schema version 3"), std::string::npos) << message;
+    EXPECT_NE(message.find("schema version " + newer), std::string::npos) << message;
     EXPECT_NE(message.find(path_), std::string::npos) << message;
   }
-  EXPECT_EQ(Query("PRAGMA user_version"), 3);  // untouched
+  EXPECT_EQ(Query("PRAGMA user_version"), SqliteMapStore::kSchemaVersion + 1);  // untouched
 }
 
 TEST_F(SqliteMapStoreFileTest, BadFilesGiveErrorsNamingThePath) {
