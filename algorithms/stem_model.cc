@@ -48,9 +48,11 @@ void StemModelOptions::Check() const {
   require(min_score >= 0 && min_score <= 1, "min_score must be in [0, 1]");
   require(breast_height > 0, "breast_height must be > 0");
   require(edge_bias_factor >= 0, "edge_bias_factor must be >= 0");
-  require(
-      min_edge_rings >= 0 && min_visible_columns >= 0 && max_off_centre >= 0 && max_radius_sd > 0,
-      "min_edge_rings, min_visible_columns, max_off_centre must be >= 0, max_radius_sd > 0");
+  require(taper_prior >= 0 && taper_prior < 0.1, "taper_prior must be in [0, 0.1) m/m");
+  require(min_edge_rings >= 0 && min_edge_columns >= 0 && min_visible_columns >= 0 &&
+              max_off_centre >= 0 && max_radius_sd > 0,
+          "min_edge_rings, min_edge_columns, min_visible_columns, max_off_centre must be >= 0, "
+          "max_radius_sd > 0");
   require(beam_divergence >= 0 && divergence_bias_factor >= 0,
           "beam_divergence and divergence_bias_factor must be >= 0");
 }
@@ -172,6 +174,15 @@ std::vector<TaperSample> SliceProfile(const std::vector<SliceCircle>& circles,
   return samples;
 }
 
+// Whether the organised scan measures the stem's DBH (StemModelOptions::min_edge_rings ff.).
+bool DbhMeasured(const GatheredStem& stem, const StemModelOptions& options) {
+  if (stem.radius_sd > options.max_radius_sd) return false;
+  if (stem.silhouette_rings >= std::max(1, options.min_edge_rings)) {
+    return stem.off_centre <= options.max_off_centre && stem.columns >= options.min_edge_columns;
+  }
+  return stem.columns >= options.min_visible_columns;
+}
+
 // Axis, ground point, DBH and checks for one chain of slice circles. The cylinder through the
 // stem's points of the whole cluster gives the axis and the diameters when it fits; a chain of
 // too few consistent slices is a stem only through such a cylinder.
@@ -242,11 +253,7 @@ Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>
   // With the organised scan the silhouette is measured (stem_silhouette.cc) where it is one stem's
   // whole outline; else the DBH is left unknown (see min_edge_rings).
   const bool with_grid = fitted && !beams.empty();
-  trunk.dbh_measured =
-      !with_grid || (gathered.radius_sd <= options.max_radius_sd &&
-                     (gathered.silhouette_rings >= std::max(1, options.min_edge_rings)
-                          ? gathered.off_centre <= options.max_off_centre
-                          : gathered.columns >= options.min_visible_columns));
+  trunk.dbh_measured = !with_grid || DbhMeasured(gathered, options);
   trunk.radius_sd = fitted ? gathered.radius_sd : kUnknown;
   trunk.cylinder_dbh = fitted ? 2 * gathered.fit.cylinder.radius : kUnknown;
   trunk.beam_fill = gathered.beam_fill;
@@ -254,15 +261,15 @@ Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>
   trunk.range = trunk.breast_height_point.head<2>().norm();
   // With the silhouette's tangent rays in the fit (a ScanGrid), the cylinder's radius is the
   // stem's, less the footprint's edge returns (edge_bias_factor), better than the points' mean
-  // distance from the axis (the edge returns push the points out); it holds at the height of the
-  // points, and the taper of the profile carries it to dbh_height.
+  // distance from the axis (the edge returns push the points out). It holds at the points' mean
+  // height, which a drone above sees high on the layer; taper_prior carries it to dbh_height.
   double diameter = taper.diameter;
   if (with_grid) {
     double s_mean = 0;
     for (const Eigen::Vector3d& p : gathered.points) s_mean += (p - position).dot(a);
     s_mean /= static_cast<double>(std::max<size_t>(1, gathered.points.size()));
-    diameter =
-        2 * gathered.fit.cylinder.radius + taper.diameter - FitTaper(samples, s_mean).diameter;
+    diameter = 2 * gathered.fit.cylinder.radius + options.taper_prior * (s_mean - dbh_height);
+    trunk.cylinder_height = s_mean;
   }
   trunk.raw_dbh = diameter;
   const double footprint =

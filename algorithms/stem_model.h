@@ -108,14 +108,21 @@ struct StemModelOptions {
   // With a ScanGrid the silhouette is measured per beam ring between true edges (stem_silhouette
   // .cc): n columns at the axis's distance D span 2 D sin(n step / 2), less edge_bias_factor * D *
   // beam_divergence for the footprint's edge returns past the outline (in theory 0.5: an edge
-  // beam returns while the stem covers its footprint's edge; 0.42 measured on simulated Ouster
-  // scans, the mean width between true edges against the true DBH over 3,200 stems).
-  double edge_bias_factor = 0.42;
+  // beam returns with the share of its footprint on the stem, scan_simulation.h; 0.6 calibrated
+  // on simulated Ouster scans, 3,400 stems at 2-20 m with taper_prior: no bias left with range;
+  // the points pushed out at the edges pull the fit a little wider still).
+  double edge_bias_factor = 0.6;
+  // m of diameter lost per m of stem, the lower stem's typical taper (about 1 cm per m; the
+  // simulator draws 0.6-1.4 cm/m): with a ScanGrid it carries the cylinder's diameter from the
+  // points' mean height to breast_height (a stem seen over a metre or two, from a few columns,
+  // does not show its own taper; the profile's does not hold it).
+  double taper_prior = 0.01;
   // A stem hidden at both silhouette edges in every ring is a strip of unknown width, and a strip
   // of a few columns fits a thin stem as well as a wide one: with a ScanGrid the DBH is reported
   // (DetectedTree::dbh) only for stems with at least min_edge_rings rings whose both edges are
-  // true, or whose rings span at least min_visible_columns columns (median); else it is unknown
-  // (kUnknown; DetectedTrunk::raw_dbh keeps the guess).
+  // true and that span at least min_edge_columns columns (median over the rings; one column is
+  // a width known to +-100%), or whose rings span at least min_visible_columns columns; else it
+  // is unknown (kUnknown; DetectedTrunk::raw_dbh keeps the guess).
   // A stem seen whole is nearest to the sensor in the middle of its silhouette; where most rings
   // (of 5 columns or more) are nearest off the middle by over a column plus 30% of the half width,
   // the silhouette spans more than one stem (two touching trunks): share > max_off_centre, DBH
@@ -123,6 +130,7 @@ struct StemModelOptions {
   // And the fit must know the radius: the standard error of the cylinder fit's radius (points and
   // tangent rays) at most max_radius_sd (m; 1.25 cm: the DBH within 2.5 cm at one sigma).
   int min_edge_rings = 1;
+  double min_edge_columns = 2;
   double min_visible_columns = 4;
   double max_off_centre = 0.3;
   double max_radius_sd = 0.0125;
@@ -157,6 +165,7 @@ struct DetectedTrunk {
   bool dbh_measured = true;     // false: tree.dbh is unknown (see min_edge_rings); raw_dbh holds
                                 // the guess
   double cylinder_dbh = kUnknown;  // m, twice the fitted cylinder's radius (over the heights seen)
+  double cylinder_height = 0;      // m along the axis from `position`: the cylinder points' mean
   double radius_sd = 0;            // m, standard error of the cylinder fit's radius (points and
                                    // tangent rays; the prior left out)
   double beam_fill = 1;            // [0, 1], share of the beams across the stem that hit it

@@ -111,8 +111,9 @@ Tally Score(const ScanSimulationResult& scan, const std::vector<DetectedTrunk>& 
                   << trunks[d].silhouette_rings << " occluded_rings " << trunks[d].occluded_rings
                   << " true_edges " << trunks[d].true_edges << " columns "
                   << trunks[d].visible_columns << " off_centre " << trunks[d].off_centre
-                  << " cylinder_dbh " << trunks[d].cylinder_dbh << " radius_sd "
-                  << trunks[d].radius_sd << " fill " << trunks[d].beam_fill << "\n";
+                  << " cylinder_dbh " << trunks[d].cylinder_dbh << " cylinder_height "
+                  << trunks[d].cylinder_height << " radius_sd " << trunks[d].radius_sd << " fill "
+                  << trunks[d].beam_fill << "\n";
       }
       ++tally.found;
       ++tally.matched;
@@ -315,12 +316,14 @@ TEST(TrunkDetectionSimTest, RecallPrecisionAndAccuracyOverDronePoses) {
   for (const auto& [name, tally] : evaluation.by_scanner) {
     std::cout << "  " << name << ": " << tally << std::endl;
   }
-  // Regression floors at what the detector reaches today (these 20 poses: recall 0.969,
-  // precision 0.975, horizontal position rmse 3.3 cm, DBH rmse 1.51 cm of the 88.5% of the found
-  // trunks that carry a DBH; 120 poses: recall 0.965, precision 0.980, horizontal 4.4 cm, DBH
-  // 1.46 cm of the 86.3% with a DBH). The detector leaves the DBH unknown where the scan does not
-  // measure it (stems hidden at both silhouette edges, seen in a few columns; silhouettes of two
-  // touching stems; fits that do not know the radius): the RMSE holds only with that share.
+  // Regression floors at what the detector reaches today (these 20 poses: recall 0.966,
+  // precision 0.976, horizontal position rmse 3.3 cm, DBH rmse 1.43 cm of the 88.4% of the found
+  // trunks that carry a DBH; 120 poses: recall 0.965, precision 0.979, horizontal 4.5 cm, DBH
+  // 1.30 cm of the 86.0% with a DBH; poses 120-239, not used to choose the thresholds: DBH 1.51 cm
+  // of 87.4%). The detector leaves the DBH unknown where the scan does not measure it (stems
+  // hidden at both silhouette edges, seen in a few columns; silhouettes of two touching stems;
+  // fits that do not know the radius): the RMSE holds only with that share. Most of what remains
+  // is stems that touch or overlap in the stem maps (surface gap < 10 cm): seen as one.
   // The bars are recall 0.95, precision 0.97, position rmse 5 cm and DBH rmse 1.5 cm:
   // the 3-D position rmse is NOT met (the tree-ground z of OS1 scans from high up).
   const Tally& t = evaluation.all;
@@ -328,7 +331,7 @@ TEST(TrunkDetectionSimTest, RecallPrecisionAndAccuracyOverDronePoses) {
   EXPECT_GE(t.recall(), 0.955);
   EXPECT_GE(t.precision(), 0.965);
   EXPECT_LE(t.horizontal_rmse(), 0.045);
-  EXPECT_LE(t.dbh_rmse(), 0.0165);
+  EXPECT_LE(t.dbh_rmse(), 0.0155);
   EXPECT_GE(t.dbh_share(), 0.85);
 }
 
