@@ -38,7 +38,10 @@ TrunkDetectionResult DetectTrunks(const PointCloud& cloud, const TrunkDetectionO
   stats.self_returns = filtered.self_returns + filtered.origin_duplicates;
   stats.filter_us = MicrosSince(t);
 
-  const GroundSegmentation ground = SegmentGround(filtered.points, options.ground);
+  GroundOptions ground_options = options.ground;
+  ground_options.sensor_at_origin =
+      ground_options.sensor_at_origin || options.stem.sensor_at_origin;
+  const GroundSegmentation ground = SegmentGround(filtered.points, ground_options);
   result.ground_known = ground.ground_known;
   stats.ground_points = ground.ground_points;
   stats.ground_cells = ground.ground_cells;

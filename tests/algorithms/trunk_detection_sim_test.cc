@@ -316,20 +316,23 @@ TEST(TrunkDetectionSimTest, RecallPrecisionAndAccuracyOverDronePoses) {
   for (const auto& [name, tally] : evaluation.by_scanner) {
     std::cout << "  " << name << ": " << tally << std::endl;
   }
-  // Regression floors at what the detector reaches today (these 20 poses: recall 0.966,
-  // precision 0.976, horizontal position rmse 3.3 cm, DBH rmse 1.43 cm of the 88.4% of the found
-  // trunks that carry a DBH; 120 poses: recall 0.965, precision 0.979, horizontal 4.5 cm, DBH
-  // 1.30 cm of the 86.0% with a DBH; poses 120-239, not used to choose the thresholds: DBH 1.51 cm
-  // of 87.4%). The detector leaves the DBH unknown where the scan does not measure it (stems
-  // hidden at both silhouette edges, seen in a few columns; silhouettes of two touching stems;
-  // fits that do not know the radius): the RMSE holds only with that share. Most of what remains
-  // is stems that touch or overlap in the stem maps (surface gap < 10 cm): seen as one.
+  // Regression floors at what the detector reaches today (these 20 poses: recall 0.964,
+  // precision 0.984, position rmse 12 cm (horizontal 3.2 cm), DBH rmse 1.42 cm of the 88.4% of
+  // the found trunks that carry a DBH; 120 poses: recall 0.962, precision 0.982, position 24 cm
+  // (horizontal 4.0 cm), DBH 1.27 cm of the 86.0% with a DBH). The detector leaves the DBH
+  // unknown where the scan does not measure it (stems hidden at both silhouette edges, seen in a
+  // few columns; silhouettes of two touching stems; fits that do not know the radius): the RMSE
+  // holds only with that share. Most of what remains is stems that touch or overlap in the stem
+  // maps (surface gap < 10 cm): seen as one.
   // The bars are recall 0.95, precision 0.97, position rmse 5 cm and DBH rmse 1.5 cm:
-  // the 3-D position rmse is NOT met (the tree-ground z of OS1 scans from high up).
+  // the 3-D position rmse is NOT met: an OS1 (+-22.5 deg) high up sees no ground near it, and the
+  // ground under a near stem is a plane through the ground seen 20-40 m away (or, where shrub
+  // tops pass for ground, wrong by metres).
   const Tally& t = evaluation.all;
   ASSERT_GT(t.targets, 50);
   EXPECT_GE(t.recall(), 0.955);
   EXPECT_GE(t.precision(), 0.965);
+  EXPECT_LE(t.position_rmse(), 0.15);
   EXPECT_LE(t.horizontal_rmse(), 0.045);
   EXPECT_LE(t.dbh_rmse(), 0.0155);
   EXPECT_GE(t.dbh_share(), 0.85);
