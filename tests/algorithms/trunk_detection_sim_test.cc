@@ -158,7 +158,9 @@ void Diagnose(const ScanSimulationResult& scan, TrunkDetectionOptions options,
               const std::vector<DetectedTrunk>& trunks, int pose) {
   options.stem.keep_rejected = true;
   const ScanFilterResult filtered = FilterScan(scan.cloud, options.filter);
-  const GroundSegmentation ground = SegmentGround(filtered.points, options.ground);
+  GroundOptions ground_options = options.ground;  // as DetectTrunks sets it
+  ground_options.sensor_at_origin = options.stem.sensor_at_origin;
+  const GroundSegmentation ground = SegmentGround(filtered.points, ground_options);
   const std::vector<uint32_t> layer =
       ExtractStemLayer(ground.height, ground.ground_known, options.layer);
   const StemClusters clusters = ClusterStems(filtered.points, layer, options.cluster);
