@@ -143,9 +143,11 @@ int RejectHighSamples(std::vector<Sample>& samples, const std::vector<Eigen::Vec
 int RejectSamplesAboveFreeBeams(std::vector<Sample>& samples,
                                 std::span<const Eigen::Vector3f> points, const Grid& grid) {
   const double cell = grid.cell;
-  constexpr int kBins = 720;          // azimuth, 0.5 deg
-  constexpr int kMaxBands = 256;      // distance bands
-  constexpr double kTolerance = 0.1;  // m, a sample this far below a beam still counts as ground
+  constexpr int kBins = 720;      // azimuth, 0.5 deg
+  constexpr int kMaxBands = 256;  // distance bands
+  // m: a sample higher than this above a beam that passed over it is no ground. Not negative:
+  // ground grazed by a beam sloping down with it lies on that beam, within the range noise.
+  constexpr double kMargin = 0.0;
   // The farthest corner of the grid bounds every point's distance.
   double max_d = 0;
   for (double x : {grid.min_x, grid.min_x + grid.nx * cell}) {
@@ -185,7 +187,7 @@ int RejectSamplesAboveFreeBeams(std::vector<Sample>& samples,
     const int k = static_cast<int>((d + cell) / band) + 1;
     if (k < bands) {
       const float t = lowest[static_cast<size_t>(bin_of(s.p.x(), s.p.y())) * bands + k];
-      if (s.p.z() > d * t - kTolerance) s.valid = false;
+      if (s.p.z() > d * t + kMargin) s.valid = false;
     }
     kept += s.valid;
   }

@@ -319,9 +319,9 @@ TEST(TrunkDetectionSimTest, RecallPrecisionAndAccuracyOverDronePoses) {
     std::cout << "  " << name << ": " << tally << std::endl;
   }
   // Regression floors at what the detector reaches today (these 20 poses: recall 0.964,
-  // precision 0.984, position rmse 12 cm (horizontal 3.2 cm), DBH rmse 1.42 cm of the 88.4% of
-  // the found trunks that carry a DBH; 120 poses: recall 0.962, precision 0.982, position 24 cm
-  // (horizontal 4.0 cm), DBH 1.27 cm of the 86.0% with a DBH). The detector leaves the DBH
+  // precision 0.979, position rmse 12 cm (horizontal 3.3 cm), DBH rmse 1.43 cm of the 88.4% of
+  // the found trunks that carry a DBH; 120 poses: recall 0.963, precision 0.984, position 29 cm
+  // (horizontal 4.2 cm), DBH 1.32 cm of the 86.1% with a DBH). The detector leaves the DBH
   // unknown where the scan does not measure it (stems hidden at both silhouette edges, seen in a
   // few columns; silhouettes of two touching stems; fits that do not know the radius): the RMSE
   // holds only with that share. Most of what remains is stems that touch or overlap in the stem
