@@ -39,10 +39,35 @@ double Residual(const Eigen::Vector3d& p, const AxisFrame& f, Params* jacobian) 
   return d - f.radius;
 }
 
-// Weighted cost sum w_i e_i^2 plus the radius prior's term, and (if jtj) the normal equations.
+// Distance of the ray (through the origin) from the axis, minus r, and (if `jacobian`) its
+// derivatives: with m = (sx, sy, 1) and the common normal n = m x d of the two lines, the distance
+// is |g| / |n|, g = origin . n.
+double TangentResidual(const TangentRay& ray, const Params& q, double z_ref, Params* jacobian) {
+  const Eigen::Vector3d& d = ray.direction;
+  const Eigen::Vector3d origin(q(0), q(1), z_ref);
+  const Eigen::Vector3d n = Eigen::Vector3d(q(2), q(3), 1.0).cross(d);
+  const double norm = std::max(n.norm(), 1e-12);
+  const double g = origin.dot(n);
+  if (jacobian) {
+    const double sign = g < 0 ? -1.0 : 1.0;
+    const Eigen::Vector3d dn_dsx(0, -d.z(), d.y()), dn_dsy(d.z(), 0, -d.x());  // e_x, e_y x d
+    auto slope = [&](const Eigen::Vector3d& dn) {
+      return sign * origin.dot(dn) / norm - std::abs(g) * n.dot(dn) / (norm * norm * norm);
+    };
+    *jacobian << sign * n.x() / norm, sign * n.y() / norm, slope(dn_dsx), slope(dn_dsy), -1.0;
+  }
+  return std::abs(g) / norm - q(4);
+}
+
+// Tangent rays add w_k e_k^2 with w_k = tangent_weights[k] (noise / sd_k)^2.
+struct Tangents {
+  std::span<const TangentRay> rays;
+  std::vector<double> weights;  // robust weights, one per ray
+};
+
 double Cost(std::span<const Eigen::Vector3d> points, const std::vector<double>& weights,
-            const Params& q, double z_ref, const RadiusPrior& prior, double noise,
-            Eigen::Matrix<double, 5, 5>* jtj = nullptr, Params* jte = nullptr) {
+            const Params& q, double z_ref, const RadiusPrior& prior, const Tangents& tangents,
+            double noise, Eigen::Matrix<double, 5, 5>* jtj = nullptr, Params* jte = nullptr) {
   if (jtj) jtj->setZero(), jte->setZero();
   double cost = 0;
   Params j;
@@ -53,6 +78,16 @@ double Cost(std::span<const Eigen::Vector3d> points, const std::vector<double>& 
     if (jtj) {
       jtj->noalias() += weights[i] * j * j.transpose();
       *jte += weights[i] * e * j;
+    }
+  }
+  for (size_t k = 0; k < tangents.rays.size(); ++k) {
+    const double e = TangentResidual(tangents.rays[k], q, z_ref, jtj ? &j : nullptr);
+    const double w =
+        tangents.weights[k] * (noise / tangents.rays[k].sd) * (noise / tangents.rays[k].sd);
+    cost += w * e * e;
+    if (jtj) {
+      jtj->noalias() += w * j * j.transpose();
+      *jte += w * e * j;
     }
   }
   if (prior.radius > 0) {
@@ -72,11 +107,11 @@ double Cost(std::span<const Eigen::Vector3d> points, const std::vector<double>& 
 // Levenberg-Marquardt on the weighted squared residuals, from q. Each candidate's normal
 // equations come with its cost (one pass over the points per step), ready for the next step.
 Params Minimise(std::span<const Eigen::Vector3d> points, const std::vector<double>& weights,
-                Params q, double z_ref, const RadiusPrior& prior, double noise,
-                int max_iterations) {
+                Params q, double z_ref, const RadiusPrior& prior, const Tangents& tangents,
+                double noise, int max_iterations) {
   Eigen::Matrix<double, 5, 5> jtj, next_jtj;
   Params jte, next_jte;
-  double cost = Cost(points, weights, q, z_ref, prior, noise, &jtj, &jte);
+  double cost = Cost(points, weights, q, z_ref, prior, tangents, noise, &jtj, &jte);
   double lambda = 1e-3;
   for (int it = 0, tries = 0; it < max_iterations && tries < 8;) {
     Eigen::Matrix<double, 5, 5> damped = jtj;
@@ -84,9 +119,9 @@ Params Minimise(std::span<const Eigen::Vector3d> points, const std::vector<doubl
     damped.diagonal().array() += 1e-12;
     const Params step = damped.ldlt().solve(-jte);
     const Params next = q + step;
-    const double next_cost =
-        next(4) > 0 ? Cost(points, weights, next, z_ref, prior, noise, &next_jtj, &next_jte)
-                    : std::numeric_limits<double>::max();
+    const double next_cost = next(4) > 0 ? Cost(points, weights, next, z_ref, prior, tangents,
+                                                noise, &next_jtj, &next_jte)
+                                         : std::numeric_limits<double>::max();
     if (next_cost < cost) {
       const double gain = cost - next_cost;
       q = next;
@@ -117,7 +152,8 @@ void CylinderFitOptions::Check() const {
 }
 
 CylinderFitResult FitCylinder(std::span<const Eigen::Vector3d> points, const Cylinder& initial,
-                              const CylinderFitOptions& options, const RadiusPrior& prior) {
+                              const CylinderFitOptions& options, const RadiusPrior& prior,
+                              std::span<const TangentRay> tangent_rays) {
   options.Check();
   CylinderFitResult result;
   if (points.size() < 6 || !(initial.radius > 0) || !(initial.direction.z() > 0)) return result;
@@ -127,10 +163,22 @@ CylinderFitResult FitCylinder(std::span<const Eigen::Vector3d> points, const Cyl
       initial.direction.y() / initial.direction.z(), initial.radius;
   std::vector<double> weights(points.size(), 1.0), residuals(points.size());
   double sigma = options.huber_scale;
+  Tangents tangents{tangent_rays, std::vector<double>(tangent_rays.size(), 1.0)};
   for (int round = 0; round <= options.reweighting_rounds; ++round) {
     const AxisFrame frame(q, z_ref);
     for (size_t i = 0; i < points.size(); ++i) {
       residuals[i] = std::abs(Residual(points[i], frame, nullptr));
+    }
+    // Tangent rays: the same Huber-then-Tukey weights, in units of their own sd.
+    for (size_t k = 0; k < tangent_rays.size() && round < options.reweighting_rounds; ++k) {
+      const double x =
+          std::abs(TangentResidual(tangent_rays[k], q, z_ref, nullptr)) / tangent_rays[k].sd;
+      if (round == 0 && options.huber_first) {
+        tangents.weights[k] = x <= 1.5 ? 1.0 : 1.5 / x;
+      } else {
+        const double t = x / 4.685;
+        tangents.weights[k] = t < 1 ? (1 - t * t) * (1 - t * t) : 0.0;
+      }
     }
     std::vector<double> sorted = residuals;
     std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
@@ -146,7 +194,7 @@ CylinderFitResult FitCylinder(std::span<const Eigen::Vector3d> points, const Cyl
         weights[i] = x < 1 ? (1 - x * x) * (1 - x * x) : 0.0;
       }
     }
-    q = Minimise(points, weights, q, z_ref, prior, sigma, options.max_iterations);
+    q = Minimise(points, weights, q, z_ref, prior, tangents, sigma, options.max_iterations);
   }
   if (!q.allFinite() || !(q(4) > 0) || Eigen::Vector2d(q(2), q(3)).norm() > options.max_slope) {
     return result;
@@ -158,11 +206,13 @@ CylinderFitResult FitCylinder(std::span<const Eigen::Vector3d> points, const Cyl
     ++result.inliers;
   }
   result.rms = result.inliers ? std::sqrt(sum2 / result.inliers) : 0;
-  // Covariance sigma^2 (J^T W J)^-1 at the solution (prior included), sigma^2 from the weighted
-  // residuals.
+  // Covariance sigma^2 (J^T W J)^-1 at the solution, sigma^2 from the weighted residuals; of the
+  // measurements alone (points and tangent rays), without the radius prior: how well the data
+  // show the radius. (A short flat arc held up by the prior has a radius the data do not know.)
   Eigen::Matrix<double, 5, 5> jtj;
   Params jte;
-  const double weighted2 = Cost(points, weights, q, z_ref, prior, sigma, &jtj, &jte);
+  const double weighted2 =
+      Cost(points, weights, q, z_ref, RadiusPrior{}, tangents, sigma, &jtj, &jte);
   double weight_sum = 0;
   for (double w : weights) weight_sum += w;
   const double sigma2 = weighted2 / std::max(1.0, weight_sum - 5.0);

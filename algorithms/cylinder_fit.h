@@ -10,7 +10,9 @@
 // sigma = max(huber_scale, 1.4826 MAD of the residuals): Huber weights (1.5 sigma) in the first
 // round, from a rough seed, then Tukey's biweight (4.685 sigma), so that a branch, a shrub or a
 // neighbouring stem beside the stem does not pull it. An optional prior on the
-// radius (RadiusPrior) keeps short, flat arcs from running away to huge radii.
+// radius (RadiusPrior) keeps short, flat arcs from running away to huge radii, and optional
+// tangent rays (TangentRay: the silhouette edges a sensor at the origin saw) measure the radius
+// where the arc cannot: a far stem's arc bulges less than the range noise, its width does not.
 
 #include <Eigen/Core>
 #include <span>
@@ -38,7 +40,8 @@ struct CylinderFitResult {
   Cylinder cylinder;
   double rms = 0;        // m, rms of the residuals of the inliers
   int inliers = 0;       // points within 2.5 sigma of the surface
-  double radius_sd = 0;  // m, standard error of the radius (the fit's covariance)
+  double radius_sd = 0;  // m, standard error of the radius from the fit's covariance of the
+                         // points and tangent rays (the RadiusPrior left out)
 };
 
 // A soft, asymmetric prior on the radius: one pseudo-observation of `radius` with standard
@@ -50,9 +53,18 @@ struct RadiusPrior {
   double sd_above = 0.01;
 };
 
+// A silhouette edge seen from a sensor at the origin: a ray that grazes the stem (between the last
+// beam that hit it and the next, which passed it), so its distance from the axis is the radius.
+// One pseudo-observation "distance(axis, ray) - r = 0" with standard deviation sd (m), weighted
+// like the points (Huber, then Tukey) so that an edge widened by a branch does not pull.
+struct TangentRay {
+  Eigen::Vector3d direction = Eigen::Vector3d::UnitX();  // unit, from the origin
+  double sd = 0.01;                                      // m
+};
+
 // `initial` seeds the fit (point, direction with z > 0, radius > 0). Needs >= 6 points.
 CylinderFitResult FitCylinder(std::span<const Eigen::Vector3d> points, const Cylinder& initial,
-                              const CylinderFitOptions& options = {},
-                              const RadiusPrior& prior = {});
+                              const CylinderFitOptions& options = {}, const RadiusPrior& prior = {},
+                              std::span<const TangentRay> tangents = {});
 
 }  // namespace forestmap::algorithms

@@ -137,6 +137,83 @@ int RejectHighSamples(std::vector<Sample>& samples, const std::vector<Eigen::Vec
   return kept;
 }
 
+// Drops the samples that lie above a beam from the origin which passed over them to a farther
+// return (sensor_at_origin): the ground there is below that beam, unseen. Per azimuth bin and
+// per distance band, the lowest elevation (its tangent) of the returns beyond each distance.
+int RejectSamplesAboveFreeBeams(std::vector<Sample>& samples,
+                                std::span<const Eigen::Vector3f> points, const Grid& grid) {
+  const double cell = grid.cell;
+  constexpr int kBins = 720;      // azimuth, 0.5 deg
+  constexpr int kMaxBands = 256;  // distance bands
+  // m: a sample higher than this above a beam that passed over it is no ground. Not negative:
+  // ground grazed by a beam sloping down with it lies on that beam, within the range noise.
+  constexpr double kMargin = 0.0;
+  // The farthest corner of the grid bounds every point's distance.
+  double max_d = 0;
+  for (double x : {grid.min_x, grid.min_x + grid.nx * cell}) {
+    for (double y : {grid.min_y, grid.min_y + grid.ny * cell}) {
+      max_d = std::max(max_d, std::hypot(x, y));
+    }
+  }
+  const double band = std::max(cell, max_d / (kMaxBands - 1));
+  const int bands = static_cast<int>(max_d / band) + 2;
+  // lowest[bin * bands + k]: min tan(elevation) of the returns at distance band k, then of all
+  // returns beyond band k (a suffix minimum).
+  std::vector<float> lowest(static_cast<size_t>(kBins) * bands,
+                            std::numeric_limits<float>::infinity());
+  // Azimuth bins by the "diamond angle" in [0, 4) (monotonic in the azimuth, no atan2 per
+  // point; bins 0.4-0.7 deg wide).
+  auto bin_of = [](double x, double y) {
+    const double l1 = std::abs(x) + std::abs(y);
+    const double a = y >= 0 ? (x >= 0 ? y / l1 : 1 - x / l1) : (x < 0 ? 2 - y / l1 : 3 + x / l1);
+    return std::clamp(static_cast<int>(a * (kBins / 4)), 0, kBins - 1);
+  };
+  for (const Eigen::Vector3f& p : points) {
+    const float d = p.head<2>().norm();
+    if (d < 1e-3f) continue;
+    float& t =
+        lowest[static_cast<size_t>(bin_of(p.x(), p.y())) * bands + static_cast<int>(d / band)];
+    t = std::min(t, p.z() / d);
+  }
+  for (int b = 0; b < kBins; ++b) {
+    float* row = lowest.data() + static_cast<size_t>(b) * bands;
+    for (int k = bands - 2; k >= 0; --k) row[k] = std::min(row[k], row[k + 1]);
+  }
+  int kept = 0;
+  for (Sample& s : samples) {
+    if (!s.valid) continue;
+    const double d = s.p.head<2>().norm();
+    // Beams that reached beyond the sample's pillar (one pillar and one band further on).
+    const int k = static_cast<int>((d + cell) / band) + 1;
+    if (k < bands) {
+      const float t = lowest[static_cast<size_t>(bin_of(s.p.x(), s.p.y())) * bands + k];
+      if (s.p.z() > d * t + kMargin) s.valid = false;
+    }
+    kept += s.valid;
+  }
+  return kept;
+}
+
+// The least-squares plane z = a + b x + c y through all ground samples; false when they do not
+// span one.
+bool GlobalPlane(const std::vector<Sample>& samples, Eigen::Vector3d* plane) {
+  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+  int n = 0;
+  for (const Sample& s : samples) {
+    if (!s.valid) continue;
+    const Eigen::Vector3d row(1, s.p.x(), s.p.y());
+    ata += row * row.transpose();
+    atb += s.p.z() * row;
+    ++n;
+  }
+  if (n < 3) return false;
+  Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
+  if (ldlt.info() != Eigen::Success || ldlt.rcond() < 1e-9) return false;
+  *plane = ldlt.solve(atb);
+  return plane->allFinite();
+}
+
 // Sums of the ground samples over pillar rectangles in O(1) (summed-area tables), for the
 // window searches of CentreHeight. Coordinates relative to the grid corner keep them exact.
 class SampleSums {
@@ -301,6 +378,9 @@ GroundSegmentation SegmentGround(std::span<const Eigen::Vector3f> points,
     if (points[i].z() < lowest[cell_of[i]].z()) lowest[cell_of[i]] = points[i];
   }
   result.ground_cells = RejectHighSamples(samples, lowest, grid, options);
+  if (options.sensor_at_origin) {
+    result.ground_cells = RejectSamplesAboveFreeBeams(samples, points, grid);
+  }
   result.ground_known = result.ground_cells >= options.min_ground_cells;
 
   if (!result.ground_known) {
@@ -315,6 +395,8 @@ GroundSegmentation SegmentGround(std::span<const Eigen::Vector3f> points,
   // reaches one pillar out).
   std::vector<float> heights(cells, kNaNf);
   const SampleSums sums(samples, grid);
+  Eigen::Vector3d plane;
+  const bool with_plane = options.sensor_at_origin && GlobalPlane(samples, &plane);
   for (int iy = 0; iy < grid.ny; ++iy) {
     for (int ix = 0; ix < grid.nx; ++ix) {
       bool needed = false;
@@ -328,8 +410,12 @@ GroundSegmentation SegmentGround(std::span<const Eigen::Vector3f> points,
         }
       }
       if (needed) {
-        heights[static_cast<size_t>(iy) * grid.nx + ix] =
-            CentreHeight(sums, grid, ix, iy, options.fill_radius);
+        float& h = heights[static_cast<size_t>(iy) * grid.nx + ix];
+        h = CentreHeight(sums, grid, ix, iy, options.fill_radius);
+        if (std::isnan(h) && with_plane) {
+          const Eigen::Vector2d c = grid.Centre(ix, iy);
+          h = static_cast<float>(plane(0) + plane(1) * c.x() + plane(2) * c.y());
+        }
       }
     }
   }

@@ -14,7 +14,10 @@
 // interpolation of the pillar centres' heights.
 //
 // With too few ground pillars (a cloud of trunk slices) the ground is unknown: heights are then
-// relative to the lowest point of the cloud and `known()` is false.
+// relative to the lowest point of the cloud and `known()` is false. For one scan from a sensor at
+// the origin (sensor_at_origin), samples that lie above a beam that passed over them are dropped
+// (free space: the ground is below that beam), and the height model falls back to one plane
+// through all the ground seen where no ground is within fill_radius.
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -38,6 +41,13 @@ struct GroundOptions {
   int fill_radius = 10;               // pillars, search window for pillars without ground samples
   double label_height = 0.15;         // m, points lower than this above the model are "ground"
   size_t max_grid_cells = 4'000'000;  // larger extents use proportionally larger pillars
+  // One scan from a sensor at the origin (DetectTrunks sets it with StemModelOptions::
+  // sensor_at_origin): a beam that passed over a pillar to a farther return tells that the ground
+  // there lies below it. A drone's narrow field of view sees no ground near it (an OS1 at 10 m
+  // sees ground from 24 m on); there the lowest things seen (shrub tops, the lowest stem ring)
+  // lie above its lowest beams and are no ground: such samples are dropped, and pillars without
+  // ground within fill_radius take it from a plane through all the ground seen.
+  bool sensor_at_origin = false;
   void Check() const;
 };
 

@@ -74,6 +74,18 @@ RadiusPrior SilhouettePrior(double silhouette, double range, const StemModelOpti
   return prior;
 }
 
+// The organised scan's visible width (EdgeSilhouetteOf: `lower`) bounds the diameter from below,
+// hidden edges or not: this prior only holds the radius up (a strip of a wide stem would fit a
+// thin one). The true edges enter the fit as tangent rays.
+RadiusPrior EdgePrior(double lower, double range, int columns) {
+  RadiusPrior prior;
+  const double step = range * 2 * M_PI / columns;
+  prior.radius = 0.5 * lower;
+  prior.sd_below = 0.005 + 0.25 * step;
+  prior.sd_above = 1.0;
+  return prior;
+}
+
 // Share of the beams across the stem's silhouette that returned from it: per beam ring (points
 // of one elevation angle seen from the origin, within 1 mrad), the points over the columns
 // spanned (azimuth extent / angular_step + 1). A solid stem returns nearly every beam that
@@ -109,25 +121,47 @@ double BeamFill(std::span<const Eigen::Vector3d> points, const Cylinder& cylinde
 
 }  // namespace
 
-GatheredStem GatherStem(std::span<const Eigen::Vector3d> cluster, const Cylinder& seed,
-                        double reach, double lean, int fits, const StemModelOptions& options) {
+GatheredStem GatherStem(std::span<const Eigen::Vector3d> cluster, std::span<const uint32_t> beams,
+                        const ScanGrid& grid, const Cylinder& seed, double reach, double lean,
+                        int fits, const StemModelOptions& options) {
   GatheredStem stem;
   Cylinder cylinder = seed;
+  const bool with_grid = !grid.empty() && beams.size() == cluster.size();
   auto gather = [&] {
     stem.points.clear();
-    for (const Eigen::Vector3d& p : cluster) {
+    stem.beams.clear();
+    for (size_t i = 0; i < cluster.size(); ++i) {
+      const Eigen::Vector3d& p = cluster[i];
       const double d = (p - cylinder.point).cross(cylinder.direction).norm();
       if (std::abs(d - cylinder.radius) < reach + lean * std::abs(p.z() - cylinder.point.z())) {
         stem.points.push_back(p);
+        if (with_grid) stem.beams.push_back(beams[i]);
       }
     }
   };
+  std::vector<TangentRay> tangents;
   for (int fit = 0; fit < fits; ++fit) {
     gather();
-    stem.silhouette = SilhouetteWidth(stem.points, cylinder);
     RadiusPrior prior;
-    if (options.sensor_at_origin && options.silhouette_prior && stem.silhouette > 0) {
-      prior = SilhouettePrior(stem.silhouette, cylinder.point.head<2>().norm(), options);
+    tangents.clear();
+    const double range = cylinder.point.head<2>().norm();
+    if (with_grid) {
+      EdgeSilhouette edges = EdgeSilhouetteOf(stem.points, stem.beams, cylinder, grid, options);
+      stem.silhouette = edges.full_rings > 0 ? edges.width : edges.lower;
+      stem.silhouette_rings = edges.full_rings;
+      stem.occluded_rings = edges.occluded_rings;
+      stem.true_edges = edges.true_edges;
+      stem.columns = edges.columns;
+      stem.off_centre = edges.off_centre;
+      if (options.sensor_at_origin && options.silhouette_prior) {
+        tangents = std::move(edges.tangents);
+        if (edges.lower > 0) prior = EdgePrior(edges.lower, range, grid.columns);
+      }
+    } else {
+      stem.silhouette = SilhouetteWidth(stem.points, cylinder);
+      if (options.sensor_at_origin && options.silhouette_prior && stem.silhouette > 0) {
+        prior = SilhouettePrior(stem.silhouette, range, options);
+      }
     }
     std::span<const Eigen::Vector3d> fit_points(stem.points);
     std::vector<Eigen::Vector3d> subset;
@@ -135,8 +169,9 @@ GatheredStem GatherStem(std::span<const Eigen::Vector3d> cluster, const Cylinder
       subset = EvenSubset(stem.points, kMaxFitPoints);
       fit_points = subset;
     }
-    stem.fit = FitCylinder(fit_points, cylinder, {}, prior);
+    stem.fit = FitCylinder(fit_points, cylinder, {}, prior, tangents);
     if (!stem.fit.success) return stem;
+    stem.radius_sd = stem.fit.radius_sd;
     cylinder = stem.fit.cylinder;
     reach = std::max(0.02, 2.5 * stem.fit.rms);
     lean = 0;

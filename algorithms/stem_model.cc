@@ -47,63 +47,14 @@ void StemModelOptions::Check() const {
   require(min_dbh >= 0 && max_dbh > min_dbh, "need 0 <= min_dbh < max_dbh");
   require(min_score >= 0 && min_score <= 1, "min_score must be in [0, 1]");
   require(breast_height > 0, "breast_height must be > 0");
+  require(edge_bias_factor >= 0, "edge_bias_factor must be >= 0");
+  require(taper_prior >= 0 && taper_prior < 0.1, "taper_prior must be in [0, 0.1) m/m");
+  require(min_edge_rings >= 0 && min_edge_columns >= 0 && min_visible_columns >= 0 &&
+              max_off_centre >= 0 && max_radius_sd > 0,
+          "min_edge_rings, min_edge_columns, min_visible_columns, max_off_centre must be >= 0, "
+          "max_radius_sd > 0");
   require(beam_divergence >= 0 && divergence_bias_factor >= 0,
           "beam_divergence and divergence_bias_factor must be >= 0");
-}
-
-TaperFit FitTaper(std::span<const TaperSample> samples, double height) {
-  TaperFit fit;
-  if (samples.empty()) return fit;
-  double lo = std::numeric_limits<double>::max(), hi = -lo, d_lo = lo, d_hi = -lo;
-  for (const TaperSample& s : samples) {
-    lo = std::min(lo, s.height);
-    hi = std::max(hi, s.height);
-    d_lo = std::min(d_lo, s.diameter);
-    d_hi = std::max(d_hi, s.diameter);
-  }
-  const double span = hi - lo;
-  const int n = static_cast<int>(samples.size());
-  int degree = n >= 6 && span >= 1.2   ? 3
-               : n >= 5 && span >= 1.0 ? 2
-               : n >= 3 && span >= 0.5 ? 1
-                                       : 0;
-  // A polynomial only interpolates: far outside the slices seen keep it linear or constant.
-  const double outside = std::max(lo - height, height - hi);
-  if (outside > 0.3) degree = std::min(degree, 1);
-  if (outside > 1.0) degree = 0;
-  fit.degree = degree;
-  // Weighted least squares in a centred, scaled height; Huber IRLS against outlier slices.
-  const double centre = 0.5 * (lo + hi), scale = std::max(0.5 * span, 0.1);
-  std::vector<double> robust(n, 1.0);
-  Eigen::VectorXd coeffs = Eigen::VectorXd::Zero(degree + 1);
-  for (int iteration = 0; iteration < 4; ++iteration) {
-    Eigen::MatrixXd ata = Eigen::MatrixXd::Zero(degree + 1, degree + 1);
-    Eigen::VectorXd atb = Eigen::VectorXd::Zero(degree + 1);
-    for (int i = 0; i < n; ++i) {
-      Eigen::VectorXd row(degree + 1);
-      const double u = (samples[i].height - centre) / scale;
-      double power = 1;
-      for (int k = 0; k <= degree; ++k, power *= u) row(k) = power;
-      const double w = samples[i].weight * robust[i];
-      ata.noalias() += w * row * row.transpose();
-      atb += w * samples[i].diameter * row;
-    }
-    ata.diagonal().array() += 1e-9;
-    coeffs = ata.ldlt().solve(atb);
-    for (int i = 0; i < n; ++i) {
-      const double u = (samples[i].height - centre) / scale;
-      double value = 0, power = 1;
-      for (int k = 0; k <= degree; ++k, power *= u) value += coeffs(k) * power;
-      const double r = std::abs(samples[i].diameter - value);
-      constexpr double kHuber = 0.01;  // m
-      robust[i] = r <= kHuber ? 1.0 : kHuber / r;
-    }
-  }
-  const double u = (height - centre) / scale;
-  double value = 0, power = 1;
-  for (int k = 0; k <= degree; ++k, power *= u) value += coeffs(k) * power;
-  fit.diameter = std::clamp(value, d_lo, d_hi);
-  return fit;
 }
 
 namespace {
@@ -168,12 +119,22 @@ std::vector<TaperSample> SliceProfile(const std::vector<SliceCircle>& circles,
   return samples;
 }
 
+// Whether the organised scan measures the stem's DBH (StemModelOptions::min_edge_rings ff.).
+bool DbhMeasured(const GatheredStem& stem, const StemModelOptions& options) {
+  if (stem.radius_sd > options.max_radius_sd) return false;
+  if (stem.silhouette_rings >= std::max(1, options.min_edge_rings)) {
+    return stem.off_centre <= options.max_off_centre && stem.columns >= options.min_edge_columns;
+  }
+  return stem.columns >= options.min_visible_columns;
+}
+
 // Axis, ground point, DBH and checks for one chain of slice circles. The cylinder through the
 // stem's points of the whole cluster gives the axis and the diameters when it fits; a chain of
 // too few consistent slices is a stem only through such a cylinder.
 Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>& chain,
-                 std::span<const Eigen::Vector3d> cluster, const GroundModel& ground,
-                 const StemModelOptions& options, DetectedTrunk& trunk) {
+                 std::span<const Eigen::Vector3d> cluster, std::span<const uint32_t> beams,
+                 const ScanGrid& grid, const GroundModel& ground, const StemModelOptions& options,
+                 DetectedTrunk& trunk) {
   ChainAxis chain_axis = AxisOfChain(circles, chain, options);
   const bool sparse = chain_axis.sparse;
   const std::vector<int>& kept = chain_axis.kept;
@@ -182,7 +143,7 @@ Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>
   for (int i : kept) radii.push_back(circles[i].circle.radius);
   const double seed_radius = Median(radii);
   const GatheredStem gathered =
-      internal::GatherStem(cluster, Cylinder{axis.point, axis.direction, seed_radius},
+      internal::GatherStem(cluster, beams, grid, Cylinder{axis.point, axis.direction, seed_radius},
                            0.05 + 0.5 * seed_radius, sparse ? 0.12 : 0.03, sparse ? 2 : 1, options);
   const bool fitted = gathered.fit.success;
   if (sparse &&
@@ -229,13 +190,36 @@ Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>
              : SliceProfile(circles, kept, position, a);
   const TaperFit taper = FitTaper(samples, dbh_height);
   trunk.silhouette_width = gathered.silhouette;
-  trunk.radius_sd = gathered.fit.radius_sd;
+  trunk.silhouette_rings = gathered.silhouette_rings;
+  trunk.occluded_rings = gathered.occluded_rings;
+  trunk.true_edges = gathered.true_edges;
+  trunk.visible_columns = gathered.columns;
+  trunk.off_centre = gathered.off_centre;
+  // With the organised scan the silhouette is measured (stem_silhouette.cc) where it is one stem's
+  // whole outline; else the DBH is left unknown (see min_edge_rings).
+  const bool with_grid = fitted && !beams.empty();
+  trunk.dbh_measured = !with_grid || DbhMeasured(gathered, options);
+  trunk.radius_sd = fitted ? gathered.radius_sd : kUnknown;
+  trunk.cylinder_dbh = fitted ? 2 * gathered.fit.cylinder.radius : kUnknown;
   trunk.beam_fill = gathered.beam_fill;
   trunk.breast_height_point = position + dbh_height * a;
   trunk.range = trunk.breast_height_point.head<2>().norm();
-  trunk.raw_dbh = taper.diameter;
-  const double footprint = options.sensor_at_origin ? trunk.range * options.beam_divergence : 0;
-  const double dbh = taper.diameter - options.divergence_bias_factor * footprint;
+  // With the silhouette's tangent rays in the fit (a ScanGrid), the cylinder's radius is the
+  // stem's, less the footprint's edge returns (edge_bias_factor), better than the points' mean
+  // distance from the axis (the edge returns push the points out). It holds at the points' mean
+  // height, which a drone above sees high on the layer; taper_prior carries it to dbh_height.
+  double diameter = taper.diameter;
+  if (with_grid) {
+    double s_mean = 0;
+    for (const Eigen::Vector3d& p : gathered.points) s_mean += (p - position).dot(a);
+    s_mean /= static_cast<double>(std::max<size_t>(1, gathered.points.size()));
+    diameter = 2 * gathered.fit.cylinder.radius + options.taper_prior * (s_mean - dbh_height);
+    trunk.cylinder_height = s_mean;
+  }
+  trunk.raw_dbh = diameter;
+  const double footprint =
+      options.sensor_at_origin && !with_grid ? trunk.range * options.beam_divergence : 0;
+  const double dbh = diameter - options.divergence_bias_factor * footprint;
   trunk.residual = std::sqrt(sum2 / std::max(points, 1));
   trunk.arc_coverage = Median(coverages);
   trunk.points_used = points;
@@ -328,8 +312,12 @@ void SuppressDuplicates(std::vector<DetectedTrunk>& trunks, StemModelStats& stat
 
 StemModelResult FitStems(std::span<const Eigen::Vector3f> points, std::span<const float> heights,
                          const std::vector<std::vector<uint32_t>>& clusters,
-                         const GroundModel& ground, const StemModelOptions& options) {
+                         const GroundModel& ground, const StemModelOptions& options,
+                         const ScanGrid& grid) {
   options.Check();
+  if (!grid.empty() && grid.beam.size() != points.size()) {
+    throw std::invalid_argument("FitStems: grid.beam must hold one beam per point");
+  }
   StemModelResult result;
   std::mt19937 rng(options.seed);
   internal::SliceScratch scratch;
@@ -353,6 +341,10 @@ StemModelResult FitStems(std::span<const Eigen::Vector3f> points, std::span<cons
     scratch.circles.clear();
     scratch.cluster.clear();
     for (uint32_t i : cluster) scratch.cluster.push_back(points[i].cast<double>());
+    scratch.cluster_beams.clear();
+    if (!grid.empty()) {
+      for (uint32_t i : cluster) scratch.cluster_beams.push_back(grid.beam[i]);
+    }
     for (int s = 0; s < n_slices; ++s) {
       internal::FitSlice(points, scratch.slices[s], s, options, rng, scratch, result.stats);
     }
@@ -370,8 +362,8 @@ StemModelResult FitStems(std::span<const Eigen::Vector3f> points, std::span<cons
         return;
       }
       DetectedTrunk trunk;
-      const Reject reject =
-          BuildStem(scratch.circles, chain, scratch.cluster, ground, options, trunk);
+      const Reject reject = BuildStem(scratch.circles, chain, scratch.cluster,
+                                      scratch.cluster_beams, grid, ground, options, trunk);
       Count(reject, result.stats);
       if (reject == Reject::kNone) {
         result.trunks.push_back(trunk);
@@ -397,6 +389,9 @@ StemModelResult FitStems(std::span<const Eigen::Vector3f> points, std::span<cons
     }
   }
   SuppressDuplicates(result.trunks, result.stats);
+  for (DetectedTrunk& trunk : result.trunks) {
+    if (!trunk.dbh_measured) trunk.tree.dbh = kUnknown;
+  }
   return result;
 }
 

@@ -6,11 +6,15 @@
 //   SegmentGround   ground_model.h    pillar ground + height model (heights above ground)
 //   ExtractStemLayer, ClusterStems    stem_clustering.h   0.5-3 m layer, 2-D DBSCAN
 //   FitStems        stem_model.h      per-slice RANSAC circles, one cylinder per stem, taper
-//                                     DBH, ground point, rejection of crowns and shrubs
+//                                     DBH, ground point, rejection of crowns and shrubs; for an
+//                                     organised cloud with the scan grid (MakeScanGrid), whose
+//                                     silhouette edges tell occluded stems from whole ones (DBH
+//                                     unknown where the scan does not measure it)
 // Positions follow the contract (notes/contracts.md): the tree-ground intersection, or without
 // any ground in the cloud the axis point at the lowest stem point (ground_known false).
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "algorithms/ground_model.h"
@@ -59,6 +63,11 @@ struct TrunkDetectionResult {
 
 // Throws std::invalid_argument for invalid options; never for the scan's content.
 TrunkDetectionResult DetectTrunks(const PointCloud& cloud, const TrunkDetectionOptions& options);
+
+// The organised scan behind FilterScan's points (stem_model.h): every beam's return and each kept
+// point's beam (source_index). A view of `cloud` and `source_index`, which must outlive it; empty
+// for an unorganised cloud.
+ScanGrid MakeScanGrid(const PointCloud& cloud, std::span<const uint32_t> source_index);
 
 // The DetectedTree part of each trunk (for the relocalizer and the CSV writer).
 std::vector<DetectedTree> ToDetectedTrees(const std::vector<DetectedTrunk>& trunks);

@@ -1,5 +1,6 @@
 // Cylinder fits against exact, leaning cylinders: a partial view, clutter beside the stem, few
-// points, and the radius prior that keeps a short flat arc from running away.
+// points, the radius prior that keeps a short flat arc from running away, and the silhouette's
+// tangent rays that fix its radius.
 #include "algorithms/cylinder_fit.h"
 
 #include <gtest/gtest.h>
@@ -95,6 +96,55 @@ TEST(CylinderFitTest, RadiusPriorHoldsShortFlatArcs) {
   std::cout << "radius rmse: free " << free_rmse << " m, with prior " << held_rmse << " m\n";
   EXPECT_LT(held_rmse, 0.015);
   EXPECT_LT(held_rmse, 0.5 * free_rmse);
+}
+
+// The two rays from the origin grazing a vertical cylinder at elevation `elevation` (rad).
+std::vector<TangentRay> GrazingRays(const Cylinder& c, double elevation, double sd) {
+  const double distance = c.point.head<2>().norm();
+  const double centre = std::atan2(c.point.y(), c.point.x());
+  const double half = std::asin(c.radius / distance);
+  std::vector<TangentRay> rays;
+  for (double azimuth : {centre - half, centre + half}) {
+    TangentRay ray;
+    ray.direction = Eigen::Vector3d(std::cos(elevation) * std::cos(azimuth),
+                                    std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+    ray.sd = sd;
+    rays.push_back(ray);
+  }
+  return rays;
+}
+
+TEST(CylinderFitTest, TangentRaysFixTheRadiusOfShortFlatArcs) {
+  // The far stem of RadiusPriorHoldsShortFlatArcs seen by six beam rings, each giving the two
+  // silhouette edges within 1 cm; one ring's edge is 8 cm off (a branch beside the stem) and the
+  // robust weights ignore it.
+  std::mt19937 rng(4);
+  std::normal_distribution<double> jitter(0, 0.01 / 18.0);  // rad, 1 cm at 18 m
+  const Cylinder truth{{0, 18.0, -8.0}, Eigen::Vector3d::UnitZ(), 0.06};
+  const Cylinder seed{{0, 18.02, -8.0}, Eigen::Vector3d::UnitZ(), 0.08};
+  double held2 = 0, offset2 = 0;
+  constexpr int kTrials = 40;
+  for (int trial = 0; trial < kTrials; ++trial) {
+    const auto points = Surface(truth, 0.35, -9.5, -7.0, 14, 0.015, rng);
+    std::vector<TangentRay> rays;
+    for (int ring = 0; ring < 6; ++ring) {
+      for (TangentRay ray : GrazingRays(truth, -0.4 - 0.02 * ring, 0.01)) {
+        const double turn = jitter(rng) + (ring == 2 && rays.size() % 2 ? 0.08 / 18.0 : 0.0);
+        ray.direction = Eigen::AngleAxisd(turn, Eigen::Vector3d::UnitZ()) * ray.direction;
+        rays.push_back(ray);
+      }
+    }
+    const CylinderFitResult fit = FitCylinder(points, seed, {}, {}, rays);
+    ASSERT_TRUE(fit.success);
+    held2 += std::pow(fit.cylinder.radius - truth.radius, 2);
+    offset2 += std::pow(AxisOffsetAt(fit.cylinder, truth, -8.0), 2);
+  }
+  const double radius_rmse = std::sqrt(held2 / kTrials);
+  const double axis_rmse = std::sqrt(offset2 / kTrials);
+  std::cout << "with tangent rays: radius rmse " << radius_rmse << " m, axis rmse " << axis_rmse
+            << " m\n";
+  EXPECT_LT(radius_rmse, 0.005);
+  EXPECT_LT(axis_rmse, 0.015);
 }
 
 TEST(CylinderFitTest, TooFewPointsOrBadSeedsFailCleanly) {

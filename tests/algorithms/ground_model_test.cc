@@ -56,6 +56,30 @@ TEST(GroundModelTest, FlatGroundHeights) { ExpectTrueHeights(Stand(0.0)); }
 
 TEST(GroundModelTest, SlopedGroundHeights) { ExpectTrueHeights(Stand(std::tan(20 * M_PI / 180))); }
 
+// A drone 10 m up with a +-22.5 deg field of view sees ground only from 24 m on; nearer, the
+// lowest thing seen can be a shrub top (here a flat plate 4 m above the ground, 15 m away). The
+// beams below it that reached the far ground say the ground there lies lower: with
+// sensor_at_origin the plate is no ground and the height under it comes from the ground seen.
+TEST(GroundModelTest, FreeBeamsUnderAShrubTopSayItIsNoGround) {
+  SyntheticScene scene;
+  scene.ground_z = -10;
+  SyntheticScanner scanner;
+  scanner.min_elevation = -22.5 * M_PI / 180;
+  scanner.max_elevation = 22.5 * M_PI / 180;
+  std::vector<Eigen::Vector3f> points = Valid(CastScan(scene, scanner, 7));
+  for (int i = 0; i < 20; ++i) {
+    for (int j = 0; j < 20; ++j) points.emplace_back(15.0f + 0.1f * i, 0.1f * j - 1.0f, -6.0f);
+  }
+  GroundOptions options;
+  const GroundSegmentation plain = SegmentGround(points, options);
+  options.sensor_at_origin = true;
+  const GroundSegmentation single_view = SegmentGround(points, options);
+  ASSERT_TRUE(plain.ground_known && single_view.ground_known);
+  EXPECT_GT(plain.model.Height(16, 0), -7.0) << "without the free beams the plate is ground";
+  EXPECT_NEAR(single_view.model.Height(16, 0), -10, 0.1);
+  EXPECT_NEAR(single_view.model.Height(30, 5), -10, 0.05);  // the ground seen stays
+}
+
 TEST(GroundModelTest, TrunkSlicesWithoutGroundLeaveTheGroundUnknown) {
   std::vector<Eigen::Vector3f> points;
   for (int k = 0; k < 13; ++k) {

@@ -1,6 +1,7 @@
 // Trunk detection against the scan simulator's exact truth, over drone poses in real stem maps
 // (../shared/data/stemmaps): recall of visible trunks (DBH >= 10 cm, within 20 m), precision,
-// position and DBH RMSE. 20 poses by default; the full evaluation runs with
+// position and DBH RMSE (with the share of found trunks that carry a DBH: the detector leaves it
+// unknown where the scan does not measure it). 20 poses by default; the full evaluation runs with
 //   FORESTMAP_DETECT_POSES=120 ./trunk_detection_sim_test
 // and prints the summary (also per scanner).
 #include <gtest/gtest.h>
@@ -33,17 +34,20 @@ struct Tally {
   int targets = 0, found = 0, detections = 0, true_detections = 0;
   double position2 = 0, horizontal2 = 0, dbh2 = 0, dbh_bias = 0;
   int matched = 0;
+  int with_dbh = 0;  // matched detections that carry a DBH (the detector may leave it unknown)
   double recall() const { return targets ? static_cast<double>(found) / targets : 1; }
   double precision() const {
     return detections ? static_cast<double>(true_detections) / detections : 1;
   }
   double position_rmse() const { return matched ? std::sqrt(position2 / matched) : 0; }
   double horizontal_rmse() const { return matched ? std::sqrt(horizontal2 / matched) : 0; }
-  double dbh_rmse() const { return matched ? std::sqrt(dbh2 / matched) : 0; }
+  double dbh_rmse() const { return with_dbh ? std::sqrt(dbh2 / with_dbh) : 0; }
+  double dbh_share() const { return matched ? static_cast<double>(with_dbh) / matched : 0; }
   void Add(const Tally& o) {
     targets += o.targets, found += o.found, detections += o.detections;
     true_detections += o.true_detections, position2 += o.position2;
     horizontal2 += o.horizontal2, dbh2 += o.dbh2, dbh_bias += o.dbh_bias, matched += o.matched;
+    with_dbh += o.with_dbh;
   }
 };
 
@@ -51,8 +55,8 @@ std::ostream& operator<<(std::ostream& out, const Tally& t) {
   return out << "recall " << t.recall() << " (" << t.found << "/" << t.targets << "), precision "
              << t.precision() << " (" << t.true_detections << "/" << t.detections
              << "), position rmse " << t.position_rmse() << " m (horizontal " << t.horizontal_rmse()
-             << "), dbh rmse " << t.dbh_rmse() << " m, dbh bias "
-             << (t.matched ? t.dbh_bias / t.matched : 0) << " m";
+             << "), dbh rmse " << t.dbh_rmse() << " m of the " << t.dbh_share() << " with a dbh ("
+             << t.with_dbh << "), dbh bias " << (t.with_dbh ? t.dbh_bias / t.with_dbh : 0) << " m";
 }
 
 // Scores one scan: detections within kMaxRange against every scene tree (precision) and the
@@ -83,6 +87,15 @@ Tally Score(const ScanSimulationResult& scan, const std::vector<DetectedTrunk>& 
       if (owner[d] != static_cast<int>(k)) continue;
       found = true;
       if (std::getenv("FORESTMAP_DETECT_VERBOSE")) {
+        // Surface gap (m) at breast height to the nearest other stem: touching stems merge.
+        double gap = 1e9;
+        const Eigen::Vector3d breast = truth.position + kBreastHeight * truth.axis;
+        for (const SimulatedTreeTruth& other : scan.trees) {
+          if (other.index == truth.index) continue;
+          const Eigen::Vector3d b = other.position + kBreastHeight * other.axis;
+          gap = std::min(gap, (b - breast).head<2>().norm() - 0.5 * (other.dbh + truth.dbh));
+        }
+        std::cout << "gap " << gap << " ";
         std::cout << "hit  tree " << k << " range " << truth.range << " dbh " << truth.dbh
                   << " det " << trunks[d].tree.dbh << " raw " << trunks[d].raw_dbh << " dz "
                   << trunks[d].tree.position.z() - truth.position.z() << " dxy "
@@ -94,7 +107,12 @@ Tally Score(const ScanSimulationResult& scan, const std::vector<DetectedTrunk>& 
                   << " points " << trunks[d].points_used << " coverage " << trunks[d].arc_coverage
                   << " rms " << trunks[d].residual << " score " << trunks[d].tree.score
                   << " breast " << truth.breast_points << " silhouette "
-                  << trunks[d].silhouette_width << " radius_sd " << trunks[d].radius_sd << " fill "
+                  << trunks[d].silhouette_width << " silhouette_rings "
+                  << trunks[d].silhouette_rings << " occluded_rings " << trunks[d].occluded_rings
+                  << " true_edges " << trunks[d].true_edges << " columns "
+                  << trunks[d].visible_columns << " off_centre " << trunks[d].off_centre
+                  << " cylinder_dbh " << trunks[d].cylinder_dbh << " cylinder_height "
+                  << trunks[d].cylinder_height << " radius_sd " << trunks[d].radius_sd << " fill "
                   << trunks[d].beam_fill << "\n";
       }
       ++tally.found;
@@ -102,9 +120,12 @@ Tally Score(const ScanSimulationResult& scan, const std::vector<DetectedTrunk>& 
       const Eigen::Vector3d error = trunks[d].tree.position - truth.position;
       tally.position2 += error.squaredNorm();
       tally.horizontal2 += error.head<2>().squaredNorm();
-      const double dbh_error = trunks[d].tree.dbh - truth.dbh;
-      tally.dbh2 += dbh_error * dbh_error;
-      tally.dbh_bias += dbh_error;
+      if (IsKnown(trunks[d].tree.dbh)) {
+        const double dbh_error = trunks[d].tree.dbh - truth.dbh;
+        tally.dbh2 += dbh_error * dbh_error;
+        tally.dbh_bias += dbh_error;
+        ++tally.with_dbh;
+      }
     }
     if (!found && std::getenv("FORESTMAP_DETECT_VERBOSE")) {
       std::cout << "miss tree " << k << " range " << truth.range << " dbh " << truth.dbh
@@ -137,12 +158,15 @@ void Diagnose(const ScanSimulationResult& scan, TrunkDetectionOptions options,
               const std::vector<DetectedTrunk>& trunks, int pose) {
   options.stem.keep_rejected = true;
   const ScanFilterResult filtered = FilterScan(scan.cloud, options.filter);
-  const GroundSegmentation ground = SegmentGround(filtered.points, options.ground);
+  GroundOptions ground_options = options.ground;  // as DetectTrunks sets it
+  ground_options.sensor_at_origin = options.stem.sensor_at_origin;
+  const GroundSegmentation ground = SegmentGround(filtered.points, ground_options);
   const std::vector<uint32_t> layer =
       ExtractStemLayer(ground.height, ground.ground_known, options.layer);
   const StemClusters clusters = ClusterStems(filtered.points, layer, options.cluster);
   const StemModelResult stems =
-      FitStems(filtered.points, ground.height, clusters.clusters, ground.model, options.stem);
+      FitStems(filtered.points, ground.height, clusters.clusters, ground.model, options.stem,
+               MakeScanGrid(scan.cloud, filtered.source_index));
   std::vector<int> cluster_of(filtered.points.size(), -1);
   for (size_t c = 0; c < clusters.clusters.size(); ++c) {
     for (uint32_t i : clusters.clusters[c]) cluster_of[i] = static_cast<int>(c);
@@ -212,11 +236,11 @@ void Diagnose(const ScanSimulationResult& scan, TrunkDetectionOptions options,
       const double d = (t.tree.position.head<2>() - scan.trees[k].position.head<2>()).norm();
       if (d < best) best = d, owner = static_cast<int>(k);
     }
-    if (owner >= 0 && std::abs(t.tree.dbh - scan.trees[owner].dbh) < 0.2) continue;
+    if (owner >= 0 && !(std::abs(t.tree.dbh - scan.trees[owner].dbh) >= 0.2)) continue;
     std::map<int, int> labels;
     for (uint32_t i : layer) {
       const Eigen::Vector2d xy = filtered.points[i].head<2>().cast<double>();
-      if ((xy - t.breast_height_point.head<2>()).norm() < 0.5 * t.tree.dbh + 0.05) {
+      if ((xy - t.breast_height_point.head<2>()).norm() < 0.5 * t.raw_dbh + 0.05) {
         ++labels[label_of(i) >= 0 ? (label_of(i) == owner ? 0 : 1) : label_of(i)];
       }
     }
@@ -268,6 +292,9 @@ Evaluation Evaluate(int poses, const TrunkDetectionOptions& options) {
         DronePose(scene, x, y, height(rng), 2 * M_PI * u(rng), tilt(rng), tilt(rng));
     const ScanSimulationResult scan = SimulateScan(scene, pose3, scanner, ScanNoiseOptions{}, pose);
     const TrunkDetectionResult result = DetectTrunks(scan.cloud, options);
+    if (std::getenv("FORESTMAP_DETECT_VERBOSE")) {
+      std::cout << "pose " << pose << " scanner " << scanner_name << " map " << name << "\n";
+    }
     const Tally tally = Score(scan, result.trees);
     if (std::getenv("FORESTMAP_DETECT_DIAGNOSE")) Diagnose(scan, options, result.trees, pose);
     evaluation.all.Add(tally);
@@ -291,17 +318,27 @@ TEST(TrunkDetectionSimTest, RecallPrecisionAndAccuracyOverDronePoses) {
   for (const auto& [name, tally] : evaluation.by_scanner) {
     std::cout << "  " << name << ": " << tally << std::endl;
   }
-  // Regression floors at what the detector reaches today (these 20 poses: recall 0.967,
-  // precision 0.976, horizontal position rmse 4.2 cm, DBH rmse 4.7 cm; 120 poses: recall 0.965,
-  // precision 0.973, horizontal 4.7 cm, DBH 4.8 cm).
+  // Regression floors at what the detector reaches today (these 20 poses: recall 0.964,
+  // precision 0.979, position rmse 12 cm (horizontal 3.3 cm), DBH rmse 1.43 cm of the 88.4% of
+  // the found trunks that carry a DBH; 120 poses: recall 0.963, precision 0.984, position 29 cm
+  // (horizontal 4.2 cm), DBH 1.32 cm of the 86.1% with a DBH; poses 120-239, not used to choose
+  // the thresholds: DBH 1.50 cm of 87.6%). The detector leaves the DBH unknown where the scan
+  // does not measure it (stems hidden at both silhouette edges, seen in a few columns;
+  // silhouettes of two touching stems; fits that do not know the radius): the RMSE holds only
+  // with that share. Most of what remains is stems that touch or overlap in the stem maps
+  // (surface gap < 10 cm): seen as one.
   // The bars are recall 0.95, precision 0.97, position rmse 5 cm and DBH rmse 1.5 cm:
-  // DBH is NOT met (partly occluded and far, sparse stems).
+  // the 3-D position rmse is NOT met: an OS1 (+-22.5 deg) high up sees no ground near it, and the
+  // ground under a near stem is a plane through the ground seen 20-40 m away (or, where shrub
+  // tops pass for ground, wrong by metres).
   const Tally& t = evaluation.all;
   ASSERT_GT(t.targets, 50);
   EXPECT_GE(t.recall(), 0.955);
   EXPECT_GE(t.precision(), 0.965);
+  EXPECT_LE(t.position_rmse(), 0.15);
   EXPECT_LE(t.horizontal_rmse(), 0.045);
-  EXPECT_LE(t.dbh_rmse(), 0.05);
+  EXPECT_LE(t.dbh_rmse(), 0.0155);
+  EXPECT_GE(t.dbh_share(), 0.85);
 }
 
 }  // namespace

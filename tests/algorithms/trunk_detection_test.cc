@@ -1,5 +1,5 @@
 // The whole pipeline on ray-cast synthetic scans with exact truth: flat and sloped ground,
-// drone returns at the origin, a tilted sensor, and stage statistics.
+// drone returns at the origin, a tilted sensor, occluded stems, and stage statistics.
 #include "algorithms/trunk_detection.h"
 
 #include <gtest/gtest.h>
@@ -119,6 +119,39 @@ TEST(TrunkDetectionTest, PorousVolumesAreNoStems) {
     EXPECT_GT(t.beam_fill, 0.8);
   }
   EXPECT_GE(result.stem_stats.rejected_shape, 1u);
+}
+
+// A stem seen whole next to one half hidden behind a nearer stem (the far stem's left side is
+// behind the near one's right edge, some 3 columns of it visible). The organised scan tells the
+// true silhouette edges from the hidden one: the whole stem's width is measured, the strip's is
+// not, and its DBH is reported unknown instead of a strip's width.
+TEST(TrunkDetectionTest, OccludedEdgesLeaveTheDbhUnknown) {
+  testing::SyntheticScene scene;
+  scene.ground_z = -3;
+  scene.stems.push_back({6.0, -2.0, 0.30, 0.01, 12});  // seen whole
+  scene.stems.push_back({6.0, 2.0, 0.30, 0.01, 12});   // the occluder, also seen whole
+  // Right edge at 20.3 deg azimuth, 0.5 deg beyond the occluder's right edge (19.8 deg).
+  scene.stems.push_back({12.12, 4.27, 0.40, 0.01, 12});
+  const PointCloud cloud = testing::CastScan(scene, testing::SyntheticScanner{}, 6);
+  const TrunkDetectionResult result = DetectTrunks(cloud, TrunkDetectionOptions{});
+  auto find = [&](const testing::SyntheticStem& stem) -> const DetectedTrunk* {
+    for (const DetectedTrunk& t : result.trees) {
+      if ((t.tree.position.head<2>() - Eigen::Vector2d(stem.x, stem.y)).norm() < 0.5) return &t;
+    }
+    return nullptr;
+  };
+  for (int i : {0, 1}) {
+    const DetectedTrunk* whole = find(scene.stems[i]);
+    ASSERT_NE(whole, nullptr);
+    EXPECT_GT(whole->silhouette_rings, 5);
+    EXPECT_EQ(whole->occluded_rings, 0);
+    EXPECT_NEAR(whole->tree.dbh, scene.stems[i].dbh, 0.01);
+  }
+  const DetectedTrunk* strip = find(scene.stems[2]);
+  ASSERT_NE(strip, nullptr);
+  EXPECT_EQ(strip->silhouette_rings, 0);
+  EXPECT_GT(strip->occluded_rings, 5);
+  EXPECT_FALSE(IsKnown(strip->tree.dbh)) << "a guess of " << strip->raw_dbh;
 }
 
 TEST(TrunkDetectionTest, StatsAndEmptyInput) {
