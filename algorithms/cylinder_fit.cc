@@ -59,6 +59,14 @@ double TangentResidual(const TangentRay& ray, const Params& q, double z_ref, Par
   return std::abs(g) / norm - q(4);
 }
 
+// IRLS weight of a residual of x standard deviations: Huber (1.5) from a rough seed, else
+// Tukey's biweight (4.685), which ignores far outliers entirely.
+double RobustWeight(double x, bool huber) {
+  if (huber) return x <= 1.5 ? 1.0 : 1.5 / x;
+  const double t = x / 4.685;
+  return t < 1 ? (1 - t * t) * (1 - t * t) : 0.0;
+}
+
 // Tangent rays add w_k e_k^2 with w_k = tangent_weights[k] (noise / sd_k)^2.
 struct Tangents {
   std::span<const TangentRay> rays;
@@ -169,30 +177,18 @@ CylinderFitResult FitCylinder(std::span<const Eigen::Vector3d> points, const Cyl
     for (size_t i = 0; i < points.size(); ++i) {
       residuals[i] = std::abs(Residual(points[i], frame, nullptr));
     }
-    // Tangent rays: the same Huber-then-Tukey weights, in units of their own sd.
-    for (size_t k = 0; k < tangent_rays.size() && round < options.reweighting_rounds; ++k) {
-      const double x =
-          std::abs(TangentResidual(tangent_rays[k], q, z_ref, nullptr)) / tangent_rays[k].sd;
-      if (round == 0 && options.huber_first) {
-        tangents.weights[k] = x <= 1.5 ? 1.0 : 1.5 / x;
-      } else {
-        const double t = x / 4.685;
-        tangents.weights[k] = t < 1 ? (1 - t * t) * (1 - t * t) : 0.0;
-      }
-    }
     std::vector<double> sorted = residuals;
     std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
     sigma = std::max(options.huber_scale, 1.4826 * sorted[sorted.size() / 2]);
     if (round == options.reweighting_rounds) break;
-    // Huber first (from a rough seed), then Tukey's biweight, which ignores far points entirely.
+    const bool huber = round == 0 && options.huber_first;
     for (size_t i = 0; i < points.size(); ++i) {
-      const double r = residuals[i];
-      if (round == 0 && options.huber_first) {
-        weights[i] = r <= 1.5 * sigma ? 1.0 : 1.5 * sigma / r;
-      } else {
-        const double x = r / (4.685 * sigma);
-        weights[i] = x < 1 ? (1 - x * x) * (1 - x * x) : 0.0;
-      }
+      weights[i] = RobustWeight(residuals[i] / sigma, huber);
+    }
+    // Tangent rays: the same weights, in units of their own sd.
+    for (size_t k = 0; k < tangent_rays.size(); ++k) {
+      const double e = TangentResidual(tangent_rays[k], q, z_ref, nullptr);
+      tangents.weights[k] = RobustWeight(std::abs(e) / tangent_rays[k].sd, huber);
     }
     q = Minimise(points, weights, q, z_ref, prior, tangents, sigma, options.max_iterations);
   }

@@ -146,15 +146,11 @@ GatheredStem GatherStem(std::span<const Eigen::Vector3d> cluster, std::span<cons
     tangents.clear();
     const double range = cylinder.point.head<2>().norm();
     if (with_grid) {
-      EdgeSilhouette edges = EdgeSilhouetteOf(stem.points, stem.beams, cylinder, grid, options);
+      stem.edges = EdgeSilhouetteOf(stem.points, stem.beams, cylinder, grid, options);
+      const EdgeSilhouette& edges = stem.edges;
       stem.silhouette = edges.full_rings > 0 ? edges.width : edges.lower;
-      stem.silhouette_rings = edges.full_rings;
-      stem.occluded_rings = edges.occluded_rings;
-      stem.true_edges = edges.true_edges;
-      stem.columns = edges.columns;
-      stem.off_centre = edges.off_centre;
       if (options.sensor_at_origin && options.silhouette_prior) {
-        tangents = std::move(edges.tangents);
+        tangents = edges.tangents;
         if (edges.lower > 0) prior = EdgePrior(edges.lower, range, grid.columns);
       }
     } else {
@@ -171,7 +167,6 @@ GatheredStem GatherStem(std::span<const Eigen::Vector3d> cluster, std::span<cons
     }
     stem.fit = FitCylinder(fit_points, cylinder, {}, prior, tangents);
     if (!stem.fit.success) return stem;
-    stem.radius_sd = stem.fit.radius_sd;
     cylinder = stem.fit.cylinder;
     reach = std::max(0.02, 2.5 * stem.fit.rms);
     lean = 0;

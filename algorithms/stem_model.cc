@@ -121,11 +121,12 @@ std::vector<TaperSample> SliceProfile(const std::vector<SliceCircle>& circles,
 
 // Whether the organised scan measures the stem's DBH (StemModelOptions::min_edge_rings ff.).
 bool DbhMeasured(const GatheredStem& stem, const StemModelOptions& options) {
-  if (stem.radius_sd > options.max_radius_sd) return false;
-  if (stem.silhouette_rings >= std::max(1, options.min_edge_rings)) {
-    return stem.off_centre <= options.max_off_centre && stem.columns >= options.min_edge_columns;
+  if (stem.fit.radius_sd > options.max_radius_sd) return false;
+  const internal::EdgeSilhouette& edges = stem.edges;
+  if (edges.full_rings >= std::max(1, options.min_edge_rings)) {
+    return edges.off_centre <= options.max_off_centre && edges.columns >= options.min_edge_columns;
   }
-  return stem.columns >= options.min_visible_columns;
+  return edges.columns >= options.min_visible_columns;
 }
 
 // Axis, ground point, DBH and checks for one chain of slice circles. The cylinder through the
@@ -190,16 +191,16 @@ Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>
              : SliceProfile(circles, kept, position, a);
   const TaperFit taper = FitTaper(samples, dbh_height);
   trunk.silhouette_width = gathered.silhouette;
-  trunk.silhouette_rings = gathered.silhouette_rings;
-  trunk.occluded_rings = gathered.occluded_rings;
-  trunk.true_edges = gathered.true_edges;
-  trunk.visible_columns = gathered.columns;
-  trunk.off_centre = gathered.off_centre;
+  trunk.silhouette_rings = gathered.edges.full_rings;
+  trunk.occluded_rings = gathered.edges.occluded_rings;
+  trunk.true_edges = gathered.edges.true_edges;
+  trunk.visible_columns = gathered.edges.columns;
+  trunk.off_centre = gathered.edges.off_centre;
   // With the organised scan the silhouette is measured (stem_silhouette.cc) where it is one stem's
   // whole outline; else the DBH is left unknown (see min_edge_rings).
   const bool with_grid = fitted && !beams.empty();
   trunk.dbh_measured = !with_grid || DbhMeasured(gathered, options);
-  trunk.radius_sd = fitted ? gathered.radius_sd : kUnknown;
+  trunk.radius_sd = fitted ? gathered.fit.radius_sd : kUnknown;
   trunk.cylinder_dbh = fitted ? 2 * gathered.fit.cylinder.radius : kUnknown;
   trunk.beam_fill = gathered.beam_fill;
   trunk.breast_height_point = position + dbh_height * a;

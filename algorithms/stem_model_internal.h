@@ -68,41 +68,12 @@ std::vector<int> ConsistentSlices(const std::vector<SliceCircle>& circles,
                                   const std::vector<int>& chain, const Axis& axis,
                                   const StemModelOptions& options);
 
-// A stem's points gathered from its whole cluster and one cylinder through them. Far stems give a
-// few points per slice, too few for a circle each (or for a second linked slice) but plenty
-// together; and a stem found in two slices has more points in the others.
-struct GatheredStem {
-  CylinderFitResult fit;
-  std::vector<Eigen::Vector3d> points;  // within the fit's inlier band
-  double coverage = 0;                  // arc coverage around the axis
-  std::vector<uint32_t> beams;          // the points' beams (with a ScanGrid)
-  double radius_sd = 0;                 // m, the fit's standard error of the radius
-  double off_centre = 0;                // see EdgeSilhouette
-  double silhouette = 0;                // m, see SilhouetteWidth / EdgeSilhouette
-  int silhouette_rings = 0;             // see DetectedTrunk
-  int occluded_rings = 0;
-  int true_edges = 0;
-  double columns = 0;         // see EdgeSilhouette (0 without a grid)
-  double beam_fill = 1;       // [0, 1], see BeamFill (1 when unknown)
-  double z_lo = 0, z_hi = 0;  // m, height range of the points
-};
-
-// A stem's points within `reach` + `lean` * |z - seed height| of the seed's surface gathered
-// from its cluster and a robust cylinder through them, `fits` times, each time gathering within
-// 2.5 rms (>= 2 cm) of the last fit; then the points within that band of the final cylinder.
-// With the sensor at the origin the silhouette informs the fit: with a grid (`beams`: the beam of
-// each cluster point) the true edges as tangent rays and the visible width as a lower bound,
-// without one the width of the points seen from the origin as a prior (SilhouettePrior).
-GatheredStem GatherStem(std::span<const Eigen::Vector3d> cluster, std::span<const uint32_t> beams,
-                        const ScanGrid& grid, const Cylinder& seed, double reach, double lean,
-                        int fits, const StemModelOptions& options);
-
 // A stem's silhouette in the organised scan: per beam ring, the run of columns its points span,
 // and whether each end of the run is the stem's true outline (the next beam returned from
 // farther than the stem by at least kBackgroundGap, or not at all) or hidden (it returned from
-// nearer: an occluder). `width` is the median over the rings with both ends true of the width
-// those columns span at the axis's distance (n columns, less the footprint's edge returns:
-// silhouette_bias_factor); without such rings, `lower` is a lower bound from all rings.
+// nearer: an occluder). `width` is the mean of the middle half, over the rings with both ends
+// true, of the width those columns span at the axis's distance (n columns, less the footprint's
+// edge returns: edge_bias_factor); without such rings, `lower` is a lower bound from all rings.
 struct EdgeSilhouette {
   double width = 0;        // m, from the rings with both edges true (0: none)
   double lower = 0;        // m, median width over all rings (a lower bound when edges are hidden)
@@ -115,6 +86,32 @@ struct EdgeSilhouette {
                           // nearest point is off the silhouette's middle
   std::vector<TangentRay> tangents;  // the true edges, for the cylinder fit
 };
+
+// A stem's points gathered from its whole cluster and one cylinder through them. Far stems give a
+// few points per slice, too few for a circle each (or for a second linked slice) but plenty
+// together; and a stem found in two slices has more points in the others.
+struct GatheredStem {
+  CylinderFitResult fit;
+  std::vector<Eigen::Vector3d> points;  // within the fit's inlier band
+  double coverage = 0;                  // arc coverage around the axis
+  std::vector<uint32_t> beams;          // the points' beams (with a ScanGrid)
+  double silhouette = 0;                // m, see SilhouetteWidth / EdgeSilhouette
+  EdgeSilhouette edges;                 // with a ScanGrid (all zero without one)
+  double beam_fill = 1;                 // [0, 1], see BeamFill (1 when unknown)
+  double z_lo = 0, z_hi = 0;            // m, height range of the points
+};
+
+// A stem's points within `reach` + `lean` * |z - seed height| of the seed's surface gathered
+// from its cluster and a robust cylinder through them, `fits` times, each time gathering within
+// 2.5 rms (>= 2 cm) of the last fit; then the points within that band of the final cylinder.
+// With the sensor at the origin the silhouette informs the fit: with a grid (`beams`: the beam of
+// each cluster point) the true edges as tangent rays and the visible width as a lower bound,
+// without one the width of the points seen from the origin as a prior (SilhouettePrior).
+GatheredStem GatherStem(std::span<const Eigen::Vector3d> cluster, std::span<const uint32_t> beams,
+                        const ScanGrid& grid, const Cylinder& seed, double reach, double lean,
+                        int fits, const StemModelOptions& options);
+
+// The silhouette of `points` (each seen by beams[i] of `grid`) around `cylinder`.
 EdgeSilhouette EdgeSilhouetteOf(std::span<const Eigen::Vector3d> points,
                                 std::span<const uint32_t> beams, const Cylinder& cylinder,
                                 const ScanGrid& grid, const StemModelOptions& options);
