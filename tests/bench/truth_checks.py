@@ -16,7 +16,8 @@ compared with the ground truth's height change over the whole sequence. If the s
 were fixed points of the trees (their bases), the two would agree.
 
   tests/bench/truth_checks.py [SEQUENCE ...] [--step N] [--range M]
-  (default: Wild_V01 Wild_V02 Oxford_Stein, step 10, range 20 m; reads ../shared/data)
+  (default: Wild_V01 Wild_V02 Oxford_Stein, step 10, range 20 m; reads $FORESTMAP_SHARED_DATA,
+  default ../shared/data)
 """
 import argparse
 import csv
@@ -24,7 +25,8 @@ import math
 import os
 import statistics
 
-DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "../../../shared/data/sequences")
+DATA = os.path.join(os.environ.get("FORESTMAP_SHARED_DATA") or os.path.normpath(
+    os.path.join(os.path.dirname(os.path.abspath(__file__)), "../../../shared/data")), "sequences")
 
 
 def rotate(q, v):
@@ -114,6 +116,8 @@ def main():
     parser.add_argument("--range", type=float, default=20.0, help="m, trees used (unbiased range)")
     args = parser.parse_args()
     for sequence in args.sequences:
+        if not os.path.isfile(os.path.join(DATA, sequence, "poses.csv")):
+            parser.error(f"no sequence '{sequence}' (poses.csv, trees.csv) under {DATA}")
         poses, frames = read(sequence, args.range)
         ratios = measure_scale(poses, frames, args.step)
         if ratios:
