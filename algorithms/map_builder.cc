@@ -157,8 +157,9 @@ class MapBuilder::Impl {
   void Finish() {
     for (int round = 0; round < options_.final_adjustment_rounds; ++round) Adjust();
     if (options_.final_max_range < options_.merge.max_range) {
-      options_.merge.max_range = options_.final_max_range;
-      Remerge();
+      MergeOptions final_merge = options_.merge;
+      final_merge.max_range = options_.final_max_range;
+      Remerge(final_merge);
     }
     if (options_.final_consolidate) map_->Consolidate();
   }
@@ -347,7 +348,8 @@ class MapBuilder::Impl {
   void TryCloseLoop(StoredFrame& frame, int index, BuilderStep& step);
   void AddSequentialEdge(bool tracked);
   void Commit(StoredFrame frame, BuilderStep& step);
-  void Remerge();
+  void Remerge() { Remerge(options_.merge); }
+  void Remerge(const MergeOptions& merge);  // every merged frame into a new map
   void NoteObservations(const std::vector<TreeObservation>& rows);
 
   MapBuilderOptions options_;
@@ -407,8 +409,8 @@ void MapBuilder::Impl::Commit(StoredFrame frame, BuilderStep& step) {
   step.map_from_sensor = MapFromSensor(frames_.back());
 }
 
-void MapBuilder::Impl::Remerge() {
-  map_ = std::make_unique<MergedMap>(options_.merge);
+void MapBuilder::Impl::Remerge(const MergeOptions& merge) {
+  map_ = std::make_unique<MergedMap>(merge);
   first_frame_.clear();
   for (size_t i = 0; i < frames_.size(); ++i) {
     if (!frames_[i].merged) continue;
