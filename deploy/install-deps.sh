@@ -10,6 +10,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev
   libpcl-dev
+  python3  # tests/bench scripts (relocalization.sh, scan_to_pose.sh, truth_checks.py)
 )
 
 missing=()
