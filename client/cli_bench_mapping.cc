@@ -22,13 +22,13 @@
 
 #include <nlohmann/json.hpp>
 
-#include "algorithms/map_builder.h"
-#include "algorithms/map_evaluation.h"
-#include "algorithms/merged_map.h"
-#include "algorithms/reloc_evaluation.h"
-#include "algorithms/relocalizer.h"
+#include "algorithms/mapping/map_builder.h"
+#include "algorithms/evaluation/map_evaluation.h"
+#include "algorithms/merging/merged_map.h"
+#include "algorithms/evaluation/reloc_evaluation.h"
+#include "algorithms/relocalization/relocalizer.h"
 #include "client/cli_commands.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 namespace {

@@ -23,14 +23,15 @@
 
 #include <nlohmann/json.hpp>
 
-#include "algorithms/kdtree.h"
-#include "algorithms/reloc_evaluation.h"
-#include "algorithms/relocalizer.h"
-#include "algorithms/simulation.h"
-#include "algorithms/tracking.h"
+#include "algorithms/core/kdtree.h"
+#include "algorithms/evaluation/reloc_evaluation.h"
+#include "algorithms/relocalization/relocalizer.h"
+#include "algorithms/simulation/forest_generator.h"
+#include "algorithms/simulation/view_simulator.h"
+#include "algorithms/relocalization/tracking.h"
 #include "client/cli_commands.h"
 #include "client/scan_trees.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 namespace {

@@ -13,9 +13,9 @@
 #include <sstream>
 #include <string>
 
-#include "algorithms/trunk_detection.h"
+#include "algorithms/detection/trunk_detection.h"
 #include "client/cli_commands.h"
-#include "client/scan_io.h"
+#include "client/io/scan_io.h"
 
 namespace forestmap::client {
 namespace {

@@ -1,6 +1,6 @@
 #include "client/cli_format.h"
 
-#include "client/csv_columns.h"
+#include "client/io/csv_columns.h"
 
 #include <algorithm>
 #include <array>

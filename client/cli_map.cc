@@ -11,10 +11,10 @@
 #include <string>
 #include <vector>
 
-#include "algorithms/map_builder.h"
+#include "algorithms/mapping/map_builder.h"
 #include "client/cli_commands.h"
 #include "client/cli_format.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 namespace {

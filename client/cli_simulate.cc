@@ -22,11 +22,12 @@
 #include <sstream>
 #include <thread>
 
-#include "algorithms/scan_simulation.h"
-#include "algorithms/simulation.h"
+#include "algorithms/simulation/scan_simulation.h"
+#include "algorithms/simulation/forest_generator.h"
+#include "algorithms/simulation/view_simulator.h"
 #include "client/cli_commands.h"
-#include "client/scan_io.h"
-#include "client/tree_csv.h"
+#include "client/io/scan_io.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 namespace {

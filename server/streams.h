@@ -7,7 +7,7 @@
 #include <functional>
 #include <vector>
 
-#include "algorithms/tracking.h"
+#include "algorithms/relocalization/tracking.h"
 #include "forestmap/v1/maps.pb.h"
 #include "forestmap/v1/tracking.pb.h"
 #include "server/map_index_cache.h"

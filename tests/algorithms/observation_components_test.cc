@@ -11,7 +11,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "algorithms/observation_components.h"
+#include "algorithms/merging/observation_components.h"
 
 namespace forestmap::algorithms {
 namespace {

@@ -6,7 +6,7 @@
 
 #include <random>
 
-#include "algorithms/tree_adjustment.h"
+#include "algorithms/mapping/tree_adjustment.h"
 
 namespace forestmap::algorithms {
 namespace {
