@@ -1,12 +1,12 @@
 // forestmap bench-mapping: building tree maps from frame sequences, in process, against truth.
 //
 // Survey merge:  --frames F --poses P --use-poses --map map.csv
-//   merges every frame with its ground-truth pose (algorithms/map_merge.h), rebuilds the map
+//   merges every frame with its ground-truth pose (algorithms/merging/map_merge.h), rebuilds the map
 //   from the set of observations as forestmapd holds it (algorithms::RebuildTrees: any order
 //   or batching of the uploads gives this map) and compares the confirmed trees with the
-//   reference map (algorithms/map_evaluation.h).
+//   reference map (algorithms/evaluation/map_evaluation.h).
 // Mapping:       --frames F --poses P [--eval-frames F2 --eval-poses P2 --truth-offset ...]
-//   builds the map from the detections alone (algorithms/map_builder.h; poses only score it):
+//   builds the map from the detections alone (algorithms/mapping/map_builder.h; poses only score it):
 //   the trajectory's ATE after a planar rigid and a planar similarity alignment to P, then the
 //   built map moved into P's world frame with the similarity (--rigid: the rigid) alignment and
 //   the frames of F2 (poses P2, moved by --truth-offset) relocalized against it, scored like

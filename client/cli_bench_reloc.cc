@@ -6,11 +6,11 @@
 //                  DIR/scan_NNN.pcd): each scan goes through the client's trunk detection
 //                  (client/scan_trees.h) and is relocalized, as `relocalize --scan` does
 // Tracking:        --track with real frames: frames in order through one tracking session
-//                  (algorithms/tracking.h), each frame's answer scored like a relocalization
+//                  (algorithms/relocalization/tracking.h), each frame's answer scored like a relocalization
 // Generated maps:  --generate N --like STEMMAP.csv --simulate N (a forest with the real map's
 //                  spatial statistics, e.g. 1,000,000 trees)
 // Prints recall, strict recall, wrong answers, error and latency percentiles (the definitions
-// are in algorithms/reloc_evaluation.h), as text or one JSON object (--json).
+// are in algorithms/evaluation/reloc_evaluation.h), as text or one JSON object (--json).
 
 #include <chrono>
 #include <cmath>

@@ -93,7 +93,7 @@ struct BuildOptions {
   std::string poses_out;
 };
 
-// Maps an unknown forest here, on the client (algorithms/map_builder.h), then uploads the
+// Maps an unknown forest here, on the client (algorithms/mapping/map_builder.h), then uploads the
 // confirmed trees as a new map. The first frame defines the map frame.
 void RunBuild(const BuildOptions& options, const CliContext& context) {
   const std::vector<Frame> frames = ReadFramesCsv(options.frames_file);

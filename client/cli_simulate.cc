@@ -1,5 +1,5 @@
 // forestmap simulate: simulated LiDAR scans of a forest, with exact truth, for testing trunk
-// detection and relocalization end to end (algorithms/scan_simulation.h).
+// detection and relocalization end to end (algorithms/simulation/scan_simulation.h).
 //
 // Output folder:
 //   map.csv              the scene's trees in the map frame (id,x,y,z,dbh; z = ground under the

@@ -12,7 +12,7 @@
 // their tracked relative poses), the 4-DoF graph is optimised (pose_graph.h) and the map is
 // re-merged from all frames with the corrected poses, so a revisited tree does not appear twice.
 //
-// Frames and units as in algorithms/geometry.h. Not thread-safe: one builder per mapping run.
+// Frames and units as in algorithms/core/geometry.h. Not thread-safe: one builder per mapping run.
 
 #include <memory>
 #include <optional>

@@ -15,7 +15,7 @@
 // consolidates it (ConsolidateTrees: re-association and duplicate merging), so the map is a
 // pure function of the set of observations, whatever the order or batching of the uploads.
 //
-// Frames and units as in algorithms/geometry.h. Thread-safety: free functions, no state.
+// Frames and units as in algorithms/core/geometry.h. Thread-safety: free functions, no state.
 
 #include <cstdint>
 #include <span>
@@ -192,7 +192,7 @@ ConsolidateResult ConsolidateTrees(std::span<const TreeEstimate> trees,
                                    const MergeOptions& options = {});
 
 // The map as a pure function of the SET of observation rows: each connected component of the
-// rows (algorithms/observation_components.h) is merged afresh on its own, frame by frame in
+// rows (algorithms/merging/observation_components.h) is merged afresh on its own, frame by frame in
 // canonical order (frame, source, detection) as into an empty map (survey priors keep their
 // trees), then consolidated (ConsolidateTrees). The current association of the rows is
 // forgotten; so is the order in which they arrived (concurrent uploads) and how they were

@@ -26,7 +26,7 @@
 //   "organised: W H"                (PLY and CSV only; PCD has WIDTH/HEIGHT) width x height.
 //
 // Georeferenced clouds keep full precision: PointCloud points are float relative to a double
-// `origin` (see algorithms/point_cloud.h). Readers take coordinates in double (LAS:
+// `origin` (see algorithms/core/point_cloud.h). Readers take coordinates in double (LAS:
 // X * scale + offset); when any finite coordinate exceeds ScanReadOptions::large_coordinate_m
 // (10 km), origin += floor(min bound over the points) is subtracted in double before the points
 // become float. Small-coordinate clouds (sensor frames) keep origin = stated offset (usually 0).

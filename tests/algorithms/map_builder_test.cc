@@ -1,4 +1,4 @@
-// Mapping without poses (algorithms/map_builder.h) and its pose graph (pose_graph.h): a
+// Mapping without poses (algorithms/mapping/map_builder.h) and its pose graph (pose_graph.h): a
 // simulated loop through a generated forest and a stretch of the real Wild_V01 traversal.
 
 #include <gtest/gtest.h>

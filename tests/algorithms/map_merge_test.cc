@@ -1,4 +1,4 @@
-// Map merging (algorithms/map_merge.h, merged_map.h): association, DBH awareness, promotion,
+// Map merging (algorithms/merging/map_merge.h, merged_map.h): association, DBH awareness, promotion,
 // removal, order robustness on a simulated forest and the survey merge on real frames.
 
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Tracking sessions (algorithms/tracking.h) on the real Venman traversals: the second visit
+// Tracking sessions (algorithms/relocalization/tracking.h) on the real Venman traversals: the second visit
 // (Wild_V02) tracked frame by frame against the first visit's map (Wild_V01), and sessions that
 // start lost, lose the track and turn faster than the prediction.
 #include <filesystem>

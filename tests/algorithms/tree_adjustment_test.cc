@@ -1,4 +1,4 @@
-// Landmark bundle adjustment (algorithms/tree_adjustment.h) against a known trajectory and forest:
+// Landmark bundle adjustment (algorithms/mapping/tree_adjustment.h) against a known trajectory and forest:
 // drifted starting poses, noisy detections, wrong associations and frames whose stem heights are
 // off by metres.
 
