@@ -11,6 +11,8 @@ PACKAGES=(
   libcli11-dev nlohmann-json3-dev
   libpcl-dev
   python3  # tests/bench scripts (relocalization.sh, scan_to_pose.sh, truth_checks.py)
+  libpq-dev   # the PostgreSQL map store (--db postgresql://...)
+  postgresql  # initdb / pg_ctl for the tests' throwaway cluster (tests/pg_fixture.h)
 )
 
 missing=()
