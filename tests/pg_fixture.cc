@@ -56,6 +56,15 @@ void Run(const std::string& dir, const std::string& command) {
   }
 }
 
+std::string Slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);
+  return line;
+}
+
+}  // namespace
+
 int FreeLoopbackPort() {
   const int fd = socket(AF_INET, SOCK_STREAM, 0);
   sockaddr_in address{};
@@ -70,15 +79,6 @@ int FreeLoopbackPort() {
   close(fd);
   return ntohs(address.sin_port);
 }
-
-std::string Slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::string line;
-  std::getline(in, line);
-  return line;
-}
-
-}  // namespace
 
 std::unique_ptr<PostgresCluster> PostgresCluster::Start() {
   const std::string bin = BinDir();

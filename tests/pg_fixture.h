@@ -41,6 +41,9 @@ class PostgresCluster {
   bool detached_ = false;
 };
 
+// A TCP port on 127.0.0.1 that nothing listened on a moment ago.
+int FreeLoopbackPort();
+
 // The server URL the tests of this process use (see above); starts a cluster on first use.
 std::string TestServerUrl();
 
