@@ -29,6 +29,7 @@ int main(int argc, char** argv) {
         return address.empty() ? std::string("the address must not be empty") : std::string();
       });
   forestmap::client::AddMapCommand(app, context);
+  forestmap::client::AddHealthCommand(app, context);
   forestmap::client::AddRelocalizeCommand(app, context);
   forestmap::client::AddBenchRelocCommand(app, context);
   forestmap::client::AddDemoDataCommand(app, context);
