@@ -221,6 +221,27 @@ void ApplyChanges(Connection& conn, MapRow& map, const MergeNote& note, const Ma
   pg_internal::InsertVersion(conn, map.id, record);
 }
 
+// Restore's observation rows: rows valid at `version` but closed since come back as copies
+// valid from `next`; current rows added after `version` are closed. Counts go into `record`.
+void RestoreObservations(Connection& conn, const MapRow& map, int64_t version, int64_t next,
+                         VersionRecord& record) {
+  const Params at = Params().Int64(map.id).Int64(version);
+  const std::vector<ObservationRecord> observation_copies =
+      pg_internal::ReadObservationRows(conn.Exec(
+          "SELECT " FORESTMAP_PG_OBSERVATION_COLUMNS
+          " FROM observations AS o WHERE o.map_id = $1 AND o.valid_to <> " FORESTMAP_PG_CURRENT
+          " AND o.valid_from <= $2 AND o.valid_to > $2 ORDER BY o.id",
+          at));
+  record.observations_removed =
+      conn.Exec(
+              "UPDATE observations SET valid_to = $3 WHERE map_id = $1 AND valid_from > $2 "
+              "AND valid_to = " FORESTMAP_PG_CURRENT,
+              Params().Int64(map.id).Int64(version).Int64(next))
+          .affected();
+  pg_internal::InsertObservations(conn, map.id, observation_copies, next);
+  record.observations_added = static_cast<int64_t>(observation_copies.size());
+}
+
 }  // namespace
 
 MapSnapshot PostgresMapStore::ReadMapVersion(const std::string& name, int64_t version) {
@@ -305,20 +326,7 @@ MapInfo PostgresMapStore::RestoreVersion(const std::string& name, int64_t versio
     record.trees_removed = static_cast<int64_t>(closed.size()) - record.trees_updated;
     pg_internal::InsertTrees(conn, map, copies, ids, next);
 
-    const std::vector<ObservationRecord> observation_copies =
-        pg_internal::ReadObservationRows(conn.Exec(
-            "SELECT " FORESTMAP_PG_OBSERVATION_COLUMNS
-            " FROM observations AS o WHERE o.map_id = $1 AND o.valid_to <> " FORESTMAP_PG_CURRENT
-            " AND o.valid_from <= $2 AND o.valid_to > $2 ORDER BY o.id",
-            at));
-    record.observations_removed =
-        conn.Exec(
-                "UPDATE observations SET valid_to = $3 WHERE map_id = $1 AND valid_from > $2 "
-                "AND valid_to = " FORESTMAP_PG_CURRENT,
-                Params().Int64(map.id).Int64(version).Int64(next))
-            .affected();
-    pg_internal::InsertObservations(conn, map.id, observation_copies, next);
-    record.observations_added = static_cast<int64_t>(observation_copies.size());
+    RestoreObservations(conn, map, version, next, record);
 
     MapInfo& info = map.info;
     info.version = next;
