@@ -21,7 +21,7 @@
 #include <tuple>
 
 #include "client/forestmap_client.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 #include "tests/pg_fixture.h"
 
 extern char** environ;
