@@ -6,6 +6,7 @@
 #include <atomic>
 #include <mutex>
 #include <chrono>
+#include <sstream>
 #include <thread>
 
 #include <nlohmann/json.hpp>
@@ -16,6 +17,19 @@
 
 namespace forestmap::client {
 namespace {
+
+// "a,b,c" started at replica `first`: "b,c,a" for first = 1, so that client threads spread over
+// the replicas of --server.
+std::string RotateReplicas(const std::string& servers, size_t first) {
+  std::vector<std::string> list;
+  std::stringstream in(servers);
+  for (std::string one; std::getline(in, one, ',');) list.push_back(one);
+  std::string rotated;
+  for (size_t k = 0; k < list.size(); ++k) {
+    rotated += (k == 0 ? "" : ",") + list[(first + k) % list.size()];
+  }
+  return rotated;
+}
 
 struct ServerBenchOptions {
   std::string map_name, frames_path;
@@ -29,6 +43,7 @@ void Run(const ServerBenchOptions& o, CliContext& context) {
   context.Connect().GetMap(o.map_name);  // fails early, with a clear message, if absent
   std::atomic<int> next{0};
   std::atomic<int> localized{0};
+  std::atomic<int64_t> retries{0};
   std::vector<std::vector<double>> latencies(o.concurrency);
   const auto start = std::chrono::steady_clock::now();
   std::vector<std::thread> threads;
@@ -37,7 +52,7 @@ void Run(const ServerBenchOptions& o, CliContext& context) {
   for (int t = 0; t < o.concurrency; ++t) {
     threads.emplace_back([&, t] {
       try {
-        ForestMapClient client = context.Connect();
+        ForestMapClient client(RotateReplicas(context.server, static_cast<size_t>(t)));
         for (int i = next++; i < o.requests; i = next++) {
           const Frame& frame = frames[i % frames.size()];
           const auto sent = std::chrono::steady_clock::now();
@@ -46,6 +61,7 @@ void Run(const ServerBenchOptions& o, CliContext& context) {
                                      std::chrono::steady_clock::now() - sent).count());
           localized += response.status() == v1::RelocalizeResponse::LOCALIZED;
         }
+        retries += client.retries();
       } catch (...) {
         std::lock_guard<std::mutex> lock(failure_mutex);
         failure = std::current_exception();
@@ -63,7 +79,8 @@ void Run(const ServerBenchOptions& o, CliContext& context) {
       {"requests", all.size()},         {"concurrency", o.concurrency},
       {"seconds", seconds},             {"requests_per_second", all.size() / seconds},
       {"localized", localized.load()},  {"latency_p50_ms", algorithms::Percentile(all, 0.5)},
-      {"latency_p95_ms", algorithms::Percentile(all, 0.95)}, {"latency_p99_ms", algorithms::Percentile(all, 0.99)}};
+      {"latency_p95_ms", algorithms::Percentile(all, 0.95)}, {"latency_p99_ms", algorithms::Percentile(all, 0.99)},
+      {"retried_on_another_replica", retries.load()}};
   *context.out << report.dump() << "\n";
 }
 

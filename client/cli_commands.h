@@ -43,5 +43,6 @@ void AddObserveCommand(CLI::App& app, CliContext& context);      // cli_observe.
 void AddDetectCommand(CLI::App& app, CliContext& context);      // cli_detect.cc
 void AddSimulateCommand(CLI::App& app, CliContext& context);    // cli_simulate.cc
 void AddTrackCommand(CLI::App& app, CliContext& context);       // cli_track.cc
+void AddHealthCommand(CLI::App& app, CliContext& context);      // cli_health.cc
 
 }  // namespace forestmap::client

@@ -121,7 +121,12 @@ void RunFrames(const RelocalizeOptions& options, const CliContext& context) {
   char median[32];
   std::snprintf(median, sizeof(median), "%.1f", counts.MedianServerMs());
   *context.err << "relocalize: " << frames.size() << " frames: " << counts.Describe()
-               << "; median server time " << median << " ms" << std::endl;
+               << "; median server time " << median << " ms";
+  if (client.retries() > 0) {
+    *context.err << "; " << client.retries() << " calls retried on another replica (now "
+                 << client.current_address() << ")";
+  }
+  *context.err << std::endl;
   if (counts.failed > 0) {
     throw CommandError(std::to_string(counts.failed) + " of " + std::to_string(frames.size()) +
                        " frames were rejected by the server (see the warnings above)");

@@ -45,8 +45,37 @@ ForestMapClient::ForestMapClient(std::string address, const ClientOptions& optio
   options_.Check();
   grpc::ChannelArguments arguments;
   arguments.SetMaxReceiveMessageSize(options_.max_receive_bytes);
-  channel_ = grpc::CreateCustomChannel(address_, grpc::InsecureChannelCredentials(), arguments);
-  stub_ = v1::ForestMap::NewStub(channel_);
+  std::stringstream list(address_);
+  for (std::string one; std::getline(list, one, ',');) {
+    if (one.empty()) continue;
+    addresses_.push_back(one);
+    channels_.push_back(
+        grpc::CreateCustomChannel(one, grpc::InsecureChannelCredentials(), arguments));
+    stubs_.push_back(v1::ForestMap::NewStub(channels_.back()));
+  }
+  if (addresses_.empty()) {
+    throw std::invalid_argument("no server address in '" + address_ + "' (want host:port[,...])");
+  }
+  channel_ = channels_[0];
+  stub_ = stubs_[0].get();
+}
+
+template <typename Call>
+auto ForestMapClient::WithFailover(const Call& call) -> decltype(call()) {
+  for (size_t attempt = 1;; ++attempt) {
+    try {
+      return call();
+    } catch (const RpcError& e) {
+      const bool unreachable = e.code() == grpc::StatusCode::UNAVAILABLE ||
+                               (e.code() == grpc::StatusCode::DEADLINE_EXCEEDED && !connected_);
+      if (!unreachable || attempt >= addresses_.size()) throw;
+    }
+    current_ = (current_ + 1) % addresses_.size();
+    channel_ = channels_[current_];
+    stub_ = stubs_[current_].get();
+    connect_checked_ = connected_ = false;
+    ++retries_;
+  }
 }
 
 void ForestMapClient::EnsureConnected() {
@@ -68,8 +97,8 @@ std::unique_ptr<grpc::ClientContext> ForestMapClient::NewContext(double timeout)
   EnsureConnected();
   auto context = std::make_unique<grpc::ClientContext>();
   if (!connected_) {
-    context->set_deadline(After(timeout > 0 ? std::min(timeout, kUnconnectedCallTimeout)
-                                            : kUnconnectedCallTimeout));
+    context->set_deadline(
+        After(timeout > 0 ? std::min(timeout, kUnconnectedCallTimeout) : kUnconnectedCallTimeout));
   } else if (timeout > 0) {
     context->set_deadline(After(timeout));
   }
@@ -87,8 +116,8 @@ void ForestMapClient::Check(const grpc::Status& status, const char* call) const 
     } else {
       detail << status.error_message();
     }
-    throw RpcError(code, "cannot reach forestmapd at " + address_ + ": " + detail.str() +
-                             " (is it running? use --server)");
+    throw RpcError(code, "cannot reach forestmapd at " + addresses_[current_] + ": " +
+                             detail.str() + " (is it running? use --server)");
   }
   throw RpcError(code,
                  std::string(call) + ": " + StatusCodeName(code) + ": " + status.error_message());
@@ -98,7 +127,7 @@ template <typename Response, typename Method, typename Request>
 Response ForestMapClient::Unary(Method method, const Request& request, const char* call) {
   Response response;
   const auto context = NewContext(options_.call_timeout);
-  Check((stub_.get()->*method)(context.get(), request, &response), call);
+  Check((stub_->*method)(context.get(), request, &response), call);
   connected_ = true;
   return response;
 }
@@ -113,15 +142,18 @@ v1::Map ForestMapClient::CreateMap(const std::string& name, const std::string& d
 }
 
 std::vector<v1::Map> ForestMapClient::ListMaps() {
-  const auto response = Unary<v1::ListMapsResponse>(&v1::ForestMap::Stub::ListMaps,
-                                                    v1::ListMapsRequest(), "ListMaps");
+  const auto response = WithFailover([&] {
+    return Unary<v1::ListMapsResponse>(&v1::ForestMap::Stub::ListMaps, v1::ListMapsRequest(),
+                                       "ListMaps");
+  });
   return {response.maps().begin(), response.maps().end()};
 }
 
 v1::Map ForestMapClient::GetMap(const std::string& name) {
   v1::GetMapRequest request;
   request.set_name(name);
-  return Unary<v1::Map>(&v1::ForestMap::Stub::GetMap, request, "GetMap");
+  return WithFailover(
+      [&] { return Unary<v1::Map>(&v1::ForestMap::Stub::GetMap, request, "GetMap"); });
 }
 
 void ForestMapClient::DeleteMap(const std::string& name) {
@@ -157,8 +189,8 @@ v1::UploadTreesResponse ForestMapClient::UploadTrees(const std::string& name,
   return response;
 }
 
-ExportedTrees ForestMapClient::ExportTrees(const std::string& name,
-                                           const std::optional<Box2>& box, int64_t version) {
+ExportedTrees ForestMapClient::ExportTrees(const std::string& name, const std::optional<Box2>& box,
+                                           int64_t version) {
   v1::ExportTreesRequest request;
   request.set_map_name(name);
   request.set_version(version);
@@ -168,6 +200,10 @@ ExportedTrees ForestMapClient::ExportTrees(const std::string& name,
     request.mutable_box()->set_max_x(box->max_x);
     request.mutable_box()->set_max_y(box->max_y);
   }
+  return WithFailover([&] { return ExportTreesOnce(request); });
+}
+
+ExportedTrees ForestMapClient::ExportTreesOnce(const v1::ExportTreesRequest& request) {
   const auto context = NewContext(options_.stream_timeout);
   const auto reader = stub_->ExportTrees(context.get(), request);
   ExportedTrees exported;
@@ -210,7 +246,9 @@ v1::RelocalizeResponse ForestMapClient::Relocalize(
     request.mutable_gravity()->set_y(gravity->y());
     request.mutable_gravity()->set_z(gravity->z());
   }
-  return Unary<v1::RelocalizeResponse>(&v1::ForestMap::Stub::Relocalize, request, "Relocalize");
+  return WithFailover([&] {
+    return Unary<v1::RelocalizeResponse>(&v1::ForestMap::Stub::Relocalize, request, "Relocalize");
+  });
 }
 
 TrackSession ForestMapClient::Track(const std::string& name) {
@@ -288,8 +326,10 @@ std::vector<v1::MapVersion> ForestMapClient::ListVersions(const std::string& nam
   v1::ListVersionsRequest request;
   request.set_map_name(name);
   request.set_limit(limit);
-  const auto response = Unary<v1::ListVersionsResponse>(&v1::ForestMap::Stub::ListVersions,
-                                                        request, "ListVersions");
+  const auto response = WithFailover([&] {
+    return Unary<v1::ListVersionsResponse>(&v1::ForestMap::Stub::ListVersions, request,
+                                           "ListVersions");
+  });
   return {response.versions().begin(), response.versions().end()};
 }
 

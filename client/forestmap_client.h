@@ -1,7 +1,6 @@
 #pragma once
 // A blocking client of the ForestMap service (see proto/forestmap/v1/forestmap_service.proto).
 
-#include "proto/status_code_name.h"
 #include <grpcpp/grpcpp.h>
 
 #include <cstdint>
@@ -15,6 +14,7 @@
 #include "algorithms/core/geometry.h"
 #include "client/io/tree_csv.h"
 #include "forestmap/v1/forestmap_service.grpc.pb.h"
+#include "proto/status_code_name.h"
 
 namespace forestmap::client {
 
@@ -105,10 +105,9 @@ class TrackSession {
 
  private:
   friend class ForestMapClient;
-  TrackSession(ForestMapClient& client, std::string map_name,
-               std::unique_ptr<grpc::ClientContext> context,
-               std::unique_ptr<grpc::ClientReaderWriter<v1::TrackRequest, v1::TrackResponse>>
-                   stream);
+  TrackSession(
+      ForestMapClient& client, std::string map_name, std::unique_ptr<grpc::ClientContext> context,
+      std::unique_ptr<grpc::ClientReaderWriter<v1::TrackRequest, v1::TrackResponse>> stream);
 
   ForestMapClient* client_;
   std::string map_name_;
@@ -123,10 +122,19 @@ using UploadProgress = std::function<void(int64_t sent, int64_t total)>;
 // Thread-compatible: one instance per thread, or external locking.
 class ForestMapClient {
  public:
-  // Creates the channel; does not connect yet. `address` is a gRPC target ("host:port").
+  // Creates the channel; does not connect yet. `address` is a gRPC target ("host:port"), or
+  // several separated by commas ("a:1,b:2,c:3"): replicas of one service (forestmapd on one
+  // PostgreSQL). Calls go to the first; when it cannot be reached (UNAVAILABLE, or no connection
+  // before the deadline), idempotent calls (ListMaps, GetMap, ExportTrees, ListVersions,
+  // Relocalize) are retried on the next replica, which then stays the current one. Writes and
+  // Track are never retried: they fail with the replica's error.
   explicit ForestMapClient(std::string address, const ClientOptions& options = {});
 
   const std::string& address() const { return address_; }
+  // The replica calls currently go to.
+  const std::string& current_address() const { return addresses_[current_]; }
+  // Calls retried on another replica so far.
+  int64_t retries() const { return retries_; }
 
   v1::Map CreateMap(const std::string& name, const std::string& description = "",
                     const std::string& crs = "");
@@ -169,11 +177,21 @@ class ForestMapClient {
   // One unary RPC with the call timeout: `(stub->*method)(context, request, &response)`.
   template <typename Response, typename Method, typename Request>
   Response Unary(Method method, const Request& request, const char* call);
+  // Runs `call` and, while it fails because the replica cannot be reached, again on the next
+  // replica (each replica once).
+  template <typename Call>
+  auto WithFailover(const Call& call) -> decltype(call());
+  ExportedTrees ExportTreesOnce(const v1::ExportTreesRequest& request);
 
   std::string address_;
   ClientOptions options_;
-  std::shared_ptr<grpc::Channel> channel_;
-  std::unique_ptr<v1::ForestMap::Stub> stub_;
+  std::vector<std::string> addresses_;  // the replicas, in the order given
+  std::vector<std::shared_ptr<grpc::Channel>> channels_;
+  std::vector<std::unique_ptr<v1::ForestMap::Stub>> stubs_;
+  size_t current_ = 0;
+  int64_t retries_ = 0;
+  std::shared_ptr<grpc::Channel> channel_;  // channels_[current_]
+  v1::ForestMap::Stub* stub_ = nullptr;     // stubs_[current_]
   bool connect_checked_ = false;
   bool connected_ = false;
 };

@@ -20,14 +20,16 @@ int main(int argc, char** argv) {
       "forestmap"};
   CliContext context;
   app.add_option("--server", context.server,
-                 "forestmapd address HOST:PORT; the environment variable FORESTMAP_SERVER "
-                 "replaces the default")
+                 "forestmapd address HOST:PORT, or replicas HOST:PORT,HOST:PORT,... (reads and "
+                 "relocalizations move to the next one when a replica is down); the environment "
+                 "variable FORESTMAP_SERVER replaces the default")
       ->envname("FORESTMAP_SERVER")
       ->capture_default_str()
       ->check([](const std::string& address) {
         return address.empty() ? std::string("the address must not be empty") : std::string();
       });
   forestmap::client::AddMapCommand(app, context);
+  forestmap::client::AddHealthCommand(app, context);
   forestmap::client::AddRelocalizeCommand(app, context);
   forestmap::client::AddBenchRelocCommand(app, context);
   forestmap::client::AddDemoDataCommand(app, context);

@@ -11,6 +11,10 @@ PACKAGES=(
   libcli11-dev nlohmann-json3-dev
   libpcl-dev
   python3  # tests/bench scripts (relocalization.sh, scan_to_pose.sh, truth_checks.py)
+  libpq-dev   # the PostgreSQL map store (--db postgresql://...)
+  postgresql  # initdb / pg_ctl for the tests' throwaway cluster (tests/pg_fixture.h)
+  python3-grpcio python3-protobuf python3-numpy python3-pytest  # client/python and its tests
+  systemd  # systemd-analyze verify of deploy/forestmapd.service (a test)
 )
 
 missing=()

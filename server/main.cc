@@ -14,7 +14,8 @@
 #include "server/server.h"
 #include "server/service.h"
 #include "server/status.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/postgres.h"
+#include "storage/postgres_map_store.h"
 
 namespace {
 
@@ -39,11 +40,16 @@ sigset_t BlockShutdownSignals() {
 
 int Serve(const Config& config, const sigset_t& shutdown_signals) {
   using forestmap::server::LogLine;
-  std::unique_ptr<forestmap::storage::SqliteMapStore> store;
+  // A PostgreSQL URI may hold a password: only host, port and database are shown.
+  const std::string shown_db =
+      forestmap::storage::IsPostgresUri(config.db)
+          ? "postgresql " + forestmap::storage::pg::DescribeServer(config.db)
+          : config.db;
+  std::unique_ptr<forestmap::storage::MapStore> store;
   try {
-    store = std::make_unique<forestmap::storage::SqliteMapStore>(config.db);
+    store = forestmap::storage::OpenMapStore(config.db);
   } catch (const std::exception& e) {
-    LogLine("cannot open database " + config.db + ": " + e.what());
+    LogLine("cannot open database " + shown_db + ": " + e.what());
     return 1;
   }
   const size_t map_count = store->ListMaps().size();
@@ -60,7 +66,7 @@ int Serve(const Config& config, const sigset_t& shutdown_signals) {
     LogLine(e.what());
     return 1;
   }
-  LogLine("serving on " + server->address() + ", database " + config.db + ", " +
+  LogLine("serving on " + server->address() + ", database " + shown_db + ", " +
           std::to_string(map_count) + " maps");
 
   int signal_number = 0;
@@ -78,7 +84,9 @@ int Serve(const Config& config, const sigset_t& shutdown_signals) {
 int main(int argc, char** argv) {
   Config config;
   CLI::App app{"forestmapd: the ForestMap gRPC server (maps of trees, relocalization)"};
-  app.add_option("--db", config.db, "SQLite database file (created if missing)")
+  app.add_option("--db", config.db,
+                 "SQLite database file (created if missing), or a PostgreSQL server as "
+                 "postgresql://user@host:port/dbname (several replicas may share one)")
       ->capture_default_str();
   app.add_option("--listen", config.listen, "address to listen on, host:port (port 0: any)")
       ->capture_default_str();

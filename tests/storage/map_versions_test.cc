@@ -15,6 +15,7 @@
 
 #include "storage/sqlite.h"
 #include "storage/sqlite_map_store.h"
+#include "tests/storage/store_backends.h"
 
 namespace forestmap::storage {
 namespace {
@@ -70,7 +71,7 @@ void ExpectError(Call call, Code code, const std::string& fragment) {
   }
 }
 
-class MapVersionsTest : public ::testing::Test {
+class MapVersionsTest : public ::testing::TestWithParam<Backend> {
  protected:
   // Version 2 upload {1,2,3}; version 3 one candidate (id 4) with an observation of "drone-a".
   void SetUp() override {
@@ -87,10 +88,12 @@ class MapVersionsTest : public ::testing::Test {
                  });
   }
 
-  SqliteMapStore store_{":memory:"};
+  TestStore test_store_{GetParam()};
+  MapStore& store_ = *test_store_;
 };
+INSTANTIATE_TEST_SUITE_P(Backends, MapVersionsTest, kAllBackends, BackendName);
 
-TEST_F(MapVersionsTest, EveryVersionStaysReadable) {
+TEST_P(MapVersionsTest, EveryVersionStaysReadable) {
   EXPECT_TRUE(store_.ReadMapVersion("m", 1).trees.empty());
   EXPECT_EQ(Ids(store_.ReadMapVersion("m", 2).trees), (std::vector<int64_t>{1, 2, 3}));
   const MapSnapshot v3 = store_.ReadMapVersion("m", 3);
@@ -114,7 +117,7 @@ TEST_F(MapVersionsTest, EveryVersionStaysReadable) {
   ExpectError([&] { store_.ReadMapVersion("m", -1); }, Code::kInvalidArgument, "negative");
 }
 
-TEST_F(MapVersionsTest, HistoryCountsWhatChanged) {
+TEST_P(MapVersionsTest, HistoryCountsWhatChanged) {
   const std::vector<VersionRecord> history = store_.ListVersions("m", 0);
   ASSERT_EQ(history.size(), 3u);
   EXPECT_EQ(history[0].kind, VersionKind::kCreate);
@@ -131,7 +134,7 @@ TEST_F(MapVersionsTest, HistoryCountsWhatChanged) {
   EXPECT_EQ(last[0].version, 3);
 }
 
-TEST_F(MapVersionsTest, MergeReadsTheCurrentVersionAndUpdatesInPlaceOfOldRows) {
+TEST_P(MapVersionsTest, MergeReadsTheCurrentVersionAndUpdatesInPlaceOfOldRows) {
   const MapInfo info =
       store_.Merge("m", MergeNote{VersionKind::kObserve, "drone-b", 3}, [](MergeReader& reader) {
         EXPECT_EQ(reader.map().version, 3);
@@ -166,7 +169,7 @@ TEST_F(MapVersionsTest, MergeReadsTheCurrentVersionAndUpdatesInPlaceOfOldRows) {
   EXPECT_EQ(record.trees_added, 0);
 }
 
-TEST_F(MapVersionsTest, StaleOrFailingMergesLeaveThePreviousVersion) {
+TEST_P(MapVersionsTest, StaleOrFailingMergesLeaveThePreviousVersion) {
   const MapSnapshot before = store_.ReadMap("m");
   ExpectError(
       [&] {
@@ -216,7 +219,7 @@ TEST_F(MapVersionsTest, StaleOrFailingMergesLeaveThePreviousVersion) {
   EXPECT_EQ(store_.Merge("m", MergeNote{}, [](MergeReader&) { return MapChanges{}; }).version, 3);
 }
 
-TEST_F(MapVersionsTest, RestoreBringsBackTreesAndObservations) {
+TEST_P(MapVersionsTest, RestoreBringsBackTreesAndObservations) {
   store_.Merge("m", MergeNote{VersionKind::kRemoveSource, "drone-a", std::nullopt},
                [](MergeReader& reader) {
                  MapChanges changes;

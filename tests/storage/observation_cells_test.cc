@@ -14,6 +14,7 @@
 #include "storage/sqlite.h"
 #include "storage/sqlite_map_store.h"
 #include "storage/sqlite_map_store_internal.h"
+#include "tests/storage/store_backends.h"
 
 namespace forestmap::storage {
 namespace {
@@ -24,8 +25,8 @@ namespace fs = std::filesystem;
 // far out, in both signs.
 std::vector<double> Coordinates() {
   const double s = kObservationCellSize;
-  return {-2 * s - 1e-9, -2 * s, -s, -s + 1e-12, -1e-300, 0.0, 1e-12, 0.5 * s, s - 1e-9, s,
-          3 * s + 0.25, 1e6 + 0.1, -1e6 - 0.1};
+  return {-2 * s - 1e-9, -2 * s,   -s, -s + 1e-12,   -1e-300,   0.0,       1e-12,
+          0.5 * s,       s - 1e-9, s,  3 * s + 0.25, 1e6 + 0.1, -1e6 - 0.1};
 }
 
 ObservationRecord Row(int64_t tree_id, double x, double y) {
@@ -102,8 +103,12 @@ TEST(ObservationCells, CellOfIsTheFloorOfCoordinateOverCellSize) {
   EXPECT_EQ(CellOf(-s - 1e-9, 2.5 * s), (ObservationCell{-2, 2}));
 }
 
-TEST(ObservationCells, TheIndexFindsExactlyTheCurrentRowsOfTheCells) {
-  SqliteMapStore store(":memory:");
+class ObservationCellsIndex : public ::testing::TestWithParam<Backend> {};
+INSTANTIATE_TEST_SUITE_P(Backends, ObservationCellsIndex, kAllBackends, BackendName);
+
+TEST_P(ObservationCellsIndex, FindsExactlyTheCurrentRowsOfTheCells) {
+  TestStore test_store(GetParam());
+  MapStore& store = *test_store;
   store.CreateMap("m", "", "");
   WriteRows(store);
   // Close the rows of the first x column (moved to another tree, as a rebuild does).
@@ -128,8 +133,7 @@ TEST(ObservationCells, TheIndexFindsExactlyTheCurrentRowsOfTheCells) {
 }
 
 TEST(ObservationCells, MigrationFromSchemaTwoIndexesExistingRows) {
-  const fs::path dir = fs::temp_directory_path() /
-                       ("forestmap_cells_" + std::to_string(getpid()));
+  const fs::path dir = fs::temp_directory_path() / ("forestmap_cells_" + std::to_string(getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
   const std::string path = (dir / "maps.db").string();

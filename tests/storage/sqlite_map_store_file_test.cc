@@ -1,5 +1,5 @@
 // SqliteMapStore on database files: persistence, schema versions, index cleanup, concurrency and
-// a million-tree map.
+// a million-tree map; the concurrency and million-tree tests run on PostgreSQL too.
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 #include <unistd.h>
@@ -17,6 +17,7 @@
 
 #include "storage/sqlite.h"
 #include "storage/sqlite_map_store.h"
+#include "tests/storage/store_backends.h"
 
 namespace forestmap::storage {
 namespace {
@@ -168,8 +169,8 @@ std::string CheckSnapshot(const MapSnapshot& snapshot) {
   return "";
 }
 
-void RunConcurrentReadersAndWriter(const std::string& path) {
-  SqliteMapStore store(path, SqliteMapStoreOptions{.max_readers = 2});
+// `writes` and `reads` may be one store or two on the same database (two replicas).
+void RunConcurrentReadersAndWriter(MapStore& store, MapStore& reader_store) {
   store.CreateMap("busy", "", "");
   constexpr int kWrites = 100;
   constexpr int kReaders = 3;
@@ -212,12 +213,12 @@ void RunConcurrentReadersAndWriter(const std::string& path) {
     readers.emplace_back([&] {
       try {
         while (!done) {
-          const std::string problem = CheckSnapshot(store.ReadMap("busy"));
+          const std::string problem = CheckSnapshot(reader_store.ReadMap("busy"));
           if (!problem.empty()) fail(problem);
-          const MapInfo info = store.GetMap("busy");
+          const MapInfo info = reader_store.GetMap("busy");
           if (info.version < 1) fail("bad version");
-          store.TreesInBox("busy", Extent{0, 0, 100, 100});
-          store.ListMaps();
+          reader_store.TreesInBox("busy", Extent{0, 0, 100, 100});
+          reader_store.ListMaps();
           ++reads;
         }
       } catch (const std::exception& e) {
@@ -234,16 +235,31 @@ void RunConcurrentReadersAndWriter(const std::string& path) {
 }
 
 TEST_F(SqliteMapStoreFileTest, ConcurrentReadersSeeConsistentSnapshots) {
-  RunConcurrentReadersAndWriter(path_);
+  SqliteMapStore store(path_, SqliteMapStoreOptions{.max_readers = 2});
+  RunConcurrentReadersAndWriter(store, store);
 }
 
 TEST(SqliteMapStoreMemoryTest, ConcurrentReadersSeeConsistentSnapshots) {
-  RunConcurrentReadersAndWriter(":memory:");
+  SqliteMapStore store(":memory:");
+  RunConcurrentReadersAndWriter(store, store);
+}
+
+TEST(PostgresMapStoreTest, ConcurrentReadersSeeConsistentSnapshots) {
+  TestStore store(Backend::kPostgres);
+  RunConcurrentReadersAndWriter(*store, *store);
+}
+
+// Two stores on one database, as two forestmapd replicas: readers of one see whole versions
+// that the other writes.
+TEST(PostgresMapStoreTest, AnotherReplicaSeesConsistentSnapshots) {
+  TestStore store(Backend::kPostgres);
+  const std::unique_ptr<MapStore> replica = store.Another();
+  RunConcurrentReadersAndWriter(*store, *replica);
 }
 
 // A survey-sized map goes through one write and one read whole, and the spatial index answers
 // small boxes exactly (a query plan that scanned the map per block would make this crawl).
-TEST_F(SqliteMapStoreFileTest, MillionTreeMapWritesAndReadsBack) {
+void MillionTreeMapWritesAndReadsBack(MapStore& store) {
   constexpr int64_t kTrees = 1'000'000;
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> coordinate(0.0, 2000.0);  // m: a 4 km^2 forest
@@ -253,7 +269,6 @@ TEST_F(SqliteMapStoreFileTest, MillionTreeMapWritesAndReadsBack) {
     tree = Tree(i + 1, coordinate(rng), coordinate(rng));
     tree.dbh = 0.1 + static_cast<double>(i % 50) * 0.01;
   }
-  SqliteMapStore store(path_);
   store.CreateMap("big", "", "");
   const MapInfo info = store.WriteTrees("big", trees, WriteMode::kReplace);
   EXPECT_EQ(info.tree_count, kTrees);
@@ -277,6 +292,16 @@ TEST_F(SqliteMapStoreFileTest, MillionTreeMapWritesAndReadsBack) {
     for (const TreeRecord& tree : store.TreesInBox("big", box)) found.push_back(*tree.id);
     ASSERT_EQ(found, expected) << "box at " << x << ", " << y;
   }
+}
+
+TEST_F(SqliteMapStoreFileTest, MillionTreeMapWritesAndReadsBack) {
+  SqliteMapStore store(path_);
+  MillionTreeMapWritesAndReadsBack(store);
+}
+
+TEST(PostgresMapStoreTest, MillionTreeMapWritesAndReadsBack) {
+  TestStore store(Backend::kPostgres);
+  MillionTreeMapWritesAndReadsBack(*store);
 }
 
 }  // namespace

@@ -1,5 +1,5 @@
-// SqliteMapStore semantics on an in-memory database: maps, errors, versions, writes, ids, exact
-// round trips and the spatial index against brute force.
+// MapStore semantics on every backend (SQLite in memory, PostgreSQL on the test cluster): maps,
+// errors, versions, writes, ids, exact round trips and the spatial index against brute force.
 #include "storage/sqlite_map_store.h"
 
 #include <gtest/gtest.h>
@@ -12,6 +12,8 @@
 #include <random>
 #include <string>
 #include <vector>
+
+#include "tests/storage/store_backends.h"
 
 namespace forestmap::storage {
 namespace {
@@ -44,12 +46,14 @@ std::vector<int64_t> Ids(const std::vector<TreeRecord>& trees) {
   return ids;
 }
 
-class SqliteMapStoreTest : public ::testing::Test {
+class MapStoreTest : public ::testing::TestWithParam<Backend> {
  protected:
-  SqliteMapStore store_{":memory:"};
+  TestStore test_store_{GetParam()};
+  MapStore& store_ = *test_store_;
 };
+INSTANTIATE_TEST_SUITE_P(Backends, MapStoreTest, kAllBackends, BackendName);
 
-TEST_F(SqliteMapStoreTest, CreateListGetDelete) {
+TEST_P(MapStoreTest, CreateListGetDelete) {
   const MapInfo created = store_.CreateMap("plot-b", "second plot", "EPSG:32633");
   store_.CreateMap("plot-a", "", "");
   store_.CreateMap("Plot_c.2", "", "");
@@ -79,7 +83,7 @@ TEST_F(SqliteMapStoreTest, CreateListGetDelete) {
   EXPECT_EQ(store_.CreateMap("plot-b", "again", "").version, 1);
 }
 
-TEST_F(SqliteMapStoreTest, ErrorsCarryCodeAndMapName) {
+TEST_P(MapStoreTest, ErrorsCarryCodeAndMapName) {
   store_.CreateMap("a", "", "");
   ExpectError([&] { store_.CreateMap("a", "", ""); }, Code::kAlreadyExists,
               "map 'a' already exists");
@@ -92,7 +96,7 @@ TEST_F(SqliteMapStoreTest, ErrorsCarryCodeAndMapName) {
   ExpectError([&] { store_.TreesInBox("nope", Extent{0, 0, 1, 1}); }, Code::kNotFound, missing);
 }
 
-TEST_F(SqliteMapStoreTest, InvalidNamesAreRejectedWithTheRule) {
+TEST_P(MapStoreTest, InvalidNamesAreRejectedWithTheRule) {
   EXPECT_EQ(ValidateMapName("Aa0_.-"), "");
   EXPECT_EQ(ValidateMapName(std::string(128, 'x')), "");
   EXPECT_NE(ValidateMapName("").find("empty"), std::string::npos);
@@ -111,7 +115,7 @@ TEST_F(SqliteMapStoreTest, InvalidNamesAreRejectedWithTheRule) {
   EXPECT_TRUE(store_.ListMaps().empty());
 }
 
-TEST_F(SqliteMapStoreTest, EveryChangeBumpsVersionAndKeepsCountAndExtent) {
+TEST_P(MapStoreTest, EveryChangeBumpsVersionAndKeepsCountAndExtent) {
   store_.CreateMap("m", "", "");
   MapInfo info =
       store_.WriteTrees("m", {Tree(1, 1, 2), Tree(2, -3, 5), Tree(3, 4, -1)}, WriteMode::kAppend);
@@ -153,7 +157,7 @@ TEST_F(SqliteMapStoreTest, EveryChangeBumpsVersionAndKeepsCountAndExtent) {
   EXPECT_FALSE(stored.extent.has_value());
 }
 
-TEST_F(SqliteMapStoreTest, AppendAddsAndReplaceSubstitutes) {
+TEST_P(MapStoreTest, AppendAddsAndReplaceSubstitutes) {
   store_.CreateMap("m", "", "");
   store_.WriteTrees("m", {Tree(5, 0, 0), Tree(2, 1, 1)}, WriteMode::kAppend);
   store_.WriteTrees("m", {Tree(3, 2, 2)}, WriteMode::kAppend);
@@ -168,7 +172,7 @@ TEST_F(SqliteMapStoreTest, AppendAddsAndReplaceSubstitutes) {
   EXPECT_EQ(snapshot.info.tree_count, 2);
 }
 
-TEST_F(SqliteMapStoreTest, FailedWritesLeaveTheMapExactlyAsItWas) {
+TEST_P(MapStoreTest, FailedWritesLeaveTheMapExactlyAsItWas) {
   store_.CreateMap("m", "", "");
   store_.WriteTrees("m", {Tree(1, 0, 0), Tree(7, 1, 1)}, WriteMode::kAppend);
   const MapSnapshot before = store_.ReadMap("m");
@@ -224,7 +228,7 @@ TEST_F(SqliteMapStoreTest, FailedWritesLeaveTheMapExactlyAsItWas) {
   EXPECT_EQ(store_.TreesInBox("m", Extent{-10, -10, 10, 10}).size(), 2u);  // index unchanged
 }
 
-TEST_F(SqliteMapStoreTest, MissingIdsGetTheNextFreeIdsInOrder) {
+TEST_P(MapStoreTest, MissingIdsGetTheNextFreeIdsInOrder) {
   store_.CreateMap("m", "", "");
   const std::nullopt_t none = std::nullopt;
   store_.WriteTrees("m", {Tree(none, 0, 0), Tree(10, 1, 0), Tree(none, 2, 0)}, WriteMode::kAppend);
@@ -252,7 +256,7 @@ TEST_F(SqliteMapStoreTest, MissingIdsGetTheNextFreeIdsInOrder) {
   EXPECT_EQ(Ids(store_.ReadMap("m").trees), (std::vector<int64_t>{kMax}));
 }
 
-TEST_F(SqliteMapStoreTest, ValuesRoundTripBitForBit) {
+TEST_P(MapStoreTest, ValuesRoundTripBitForBit) {
   std::mt19937_64 rng(42);
   std::uniform_int_distribution<uint64_t> bits;
   // Finite doubles from random bit patterns (all exponents), plus hand-picked edge cases.
@@ -309,12 +313,15 @@ TEST_F(SqliteMapStoreTest, ValuesRoundTripBitForBit) {
     EXPECT_TRUE(same_bits(out.dbh, in.dbh)) << "tree " << i;
     EXPECT_EQ(out.attributes, in.attributes) << "tree " << i;
   }
-  // The documented exception: SQLite's REAL affinity stores -0.0 as integer 0.
+  // The documented exception: SQLite's REAL affinity stores -0.0 as integer 0; PostgreSQL
+  // keeps the sign.
   store_.WriteTrees("m", {Tree(1, -0.0, 0)}, WriteMode::kReplace);
-  EXPECT_EQ(store_.ReadMap("m").trees[0].x, 0.0);
+  const double zero = store_.ReadMap("m").trees[0].x;
+  EXPECT_EQ(zero, 0.0);
+  EXPECT_EQ(std::signbit(zero), GetParam() == Backend::kPostgres);
 }
 
-TEST_F(SqliteMapStoreTest, TreesInBoxMatchesBruteForce) {
+TEST_P(MapStoreTest, TreesInBoxMatchesBruteForce) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> coordinate(-100.0, 100.0);
   std::vector<TreeRecord> trees;

@@ -1,0 +1,141 @@
+"""The Python client against a loopback forestmapd: round trips, errors, relocalization equal to
+the C++ CLI's answer to the last digit, tracking and observing a real sequence (Wild_V01)."""
+
+import csv
+import json
+import math
+import os
+import subprocess
+
+import grpc
+import numpy as np
+import pytest
+
+from forestmap import Client, ForestMapError, Tree
+
+FRAME = 300  # a frame of Wild_V01 the map localizes
+
+
+def detections(data_dir, frame):
+    """Rows x, y, z, dbh, axis_x, axis_y, axis_z, score of one frame, as the CLI reads them
+    (text -> double by the same correctly rounded parse; the axis normalised as the CLI does)."""
+    rows, lines = [], []
+    with open(os.path.join(data_dir, "trees.csv")) as f:
+        header = f.readline()
+        for line in f:
+            if int(line.split(",", 1)[0]) != frame:
+                continue
+            lines.append(line)
+            r = dict(zip(header.strip().split(","), line.strip().split(",")))
+            axis = [float(r["axis_x"]), float(r["axis_y"]), float(r["axis_z"])]
+            norm = math.sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2])
+            axis = [a / norm for a in axis] if norm > 1e-9 else [0.0, 0.0, 0.0]
+            rows.append([float(r["x"]), float(r["y"]), float(r["z"]), float(r["dbh"])] + axis +
+                        [float(r["score"])])
+    return np.array(rows), header + "".join(lines)
+
+
+def map_array(data_dir):
+    with open(os.path.join(data_dir, "map.csv")) as f:
+        return np.array([[float(r["x"]), float(r["y"]), float(r["z"]), float(r["dbh"])]
+                         for r in csv.DictReader(f)])
+
+
+@pytest.fixture(scope="module")
+def wild(server, data_dir):
+    client = Client(server)
+    client.create_map("wild", map_array(data_dir))
+    return client
+
+
+def test_trees_round_trip_bit_for_bit(server):
+    client = Client(server)
+    rng = np.random.default_rng(5)
+    trees = np.column_stack([rng.uniform(-500, 500, (200, 3)), rng.uniform(0.05, 0.9, 200)])
+    info = client.create_map("roundtrip", trees, description="numpy", crs="EPSG:32633")
+    assert info.tree_count == 200 and info.version == 2 and info.crs == "EPSG:32633"
+    exported = client.export("roundtrip")
+    assert [(t.x, t.y, t.z, t.dbh) for t in exported] == [tuple(row) for row in trees]
+    assert all(t.confirmed for t in exported)
+    client.upload("roundtrip", [Tree(x=1.5, y=2.5, id=1000, attributes={"species": "Picea"})])
+    assert client.get_map("roundtrip").tree_count == 201
+    assert client.export("roundtrip")[-1].attributes == {"species": "Picea"}
+    assert "roundtrip" in [m.name for m in client.list_maps()]
+    client.delete_map("roundtrip")
+
+
+def test_errors_carry_the_grpc_status(server):
+    client = Client(server)
+    with pytest.raises(ForestMapError) as error:
+        client.get_map("no-such-map")
+    assert error.value.code == grpc.StatusCode.NOT_FOUND
+    assert "no-such-map" in error.value.details
+    with pytest.raises(ForestMapError) as error:
+        client.create_map("bad name!")
+    assert error.value.code == grpc.StatusCode.INVALID_ARGUMENT
+    with pytest.raises(ValueError):
+        client.relocalize("x", np.zeros(3))  # not an N x k array
+
+
+def test_relocalize_equals_the_cli_to_the_last_digit(wild, server, data_dir, cli, tmp_path):
+    trees, text = detections(data_dir, FRAME)
+    path = tmp_path / "frame.csv"
+    path.write_text(text)
+    run = subprocess.run([cli, "--server", server, "relocalize", "wild", "--trees", str(path)],
+                         capture_output=True, text=True, check=True)
+    expected = json.loads(run.stdout)
+    answer = wild.relocalize("wild", trees)
+    assert answer.status == expected["status"].upper() == "LOCALIZED"
+    got = {"x": answer.x, "y": answer.y, "z": answer.z, "qx": answer.quaternion[0],
+           "qy": answer.quaternion[1], "qz": answer.quaternion[2], "qw": answer.quaternion[3],
+           "yaw_deg": answer.yaw_deg, "inliers": answer.inliers, "rmse_m": answer.rmse_m,
+           "confidence": answer.confidence}
+    for key, value in got.items():
+        assert value == expected[key], f"{key}: python {value!r}, CLI {expected[key]!r}"
+        assert json.dumps(value) == json.dumps(expected[key])  # the same printed digits
+    # The 4 x 4 pose agrees with the translation and is a rotation.
+    assert answer.map_from_sensor[0, 3] == answer.x
+    rotation = answer.map_from_sensor[:3, :3]
+    assert np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-12)
+
+
+def test_relocalize_with_a_prior(wild, data_dir):
+    trees, _ = detections(data_dir, FRAME)
+    free = wild.relocalize("wild", trees)
+    near = wild.relocalize("wild", trees, prior=(free.x + 3, free.y - 2, 0.0, 10.0))
+    assert near.localized and abs(near.x - free.x) < 0.05 and abs(near.y - free.y) < 0.05
+
+
+def test_track_yields_one_answer_per_frame(wild, data_dir):
+    frames = [(frame, detections(data_dir, frame)[0]) for frame in range(FRAME, FRAME + 10)]
+    answers = list(wild.track("wild", frames))
+    assert [a.frame_id for a in answers] == list(range(FRAME, FRAME + 10))
+    assert sum(a.state in ("TRACKING", "RECOVERED") for a in answers) >= 8
+
+
+def test_observe_builds_a_shared_map(server, data_dir):
+    client = Client(server)
+    client.create_map("observed")
+    poses = {}
+    with open(os.path.join(data_dir, "poses.csv")) as f:
+        for r in csv.DictReader(f):
+            x, y, z, w = (float(r[k]) for k in ("qx", "qy", "qz", "qw"))
+            matrix = np.eye(4)
+            matrix[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                              [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                              [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+            matrix[:3, 3] = [float(r["x"]), float(r["y"]), float(r["z"])]
+            poses[int(r["frame"])] = matrix
+    frames = [(f, detections(data_dir, f)[0], poses[f]) for f in range(0, 25)]
+    result = client.observe("observed", frames, source="py-drone")
+    assert result.merged == 25 and result.skipped == 0
+    trees = client.export("observed")
+    assert len(trees) > 20 and result.map_version == 2
+    assert all(t.observations >= 1 for t in trees)
+
+
+def test_replicas_fail_over(server):
+    # A dead address first: the idempotent call moves on to the live server and says so.
+    client = Client("127.0.0.1:1," + server)
+    assert isinstance(client.list_maps(), list)
+    assert client.retries == 1

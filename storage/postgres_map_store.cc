@@ -1,0 +1,255 @@
+#include "storage/postgres_map_store.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <string>
+#include <utility>
+
+#include "storage/postgres.h"
+#include "storage/postgres_map_store_internal.h"
+#include "storage/sqlite_map_store.h"
+#include "storage/sqlite_map_store_internal.h"  // backend-neutral helpers: CheckName, Union, ...
+
+namespace forestmap::storage {
+namespace {
+
+using Code = StorageError::Code;
+using pg::Connection;
+using pg::Params;
+using pg::Transaction;
+using pg_internal::MapRow;
+
+// What a batch needs before it touches the database, checked up front (as in SQLite).
+struct BatchSummary {
+  std::optional<int64_t> max_explicit_id;
+  size_t auto_id_count = 0;
+  std::optional<Extent> extent;
+};
+
+BatchSummary CheckBatch(const std::string& map_name, const std::vector<TreeRecord>& trees) {
+  BatchSummary summary;
+  std::vector<std::pair<int64_t, size_t>> ids;  // (id, index in batch)
+  for (size_t i = 0; i < trees.size(); ++i) {
+    const TreeRecord& tree = trees[i];
+    const auto reject = [&](const char* field, double value) {
+      throw StorageError(Code::kInvalidArgument,
+                         "map '" + map_name + "': " + internal::TreeLabel(trees, i) + ": " + field +
+                             " must be a finite number, got " + std::to_string(value));
+    };
+    if (!std::isfinite(tree.x)) reject("x", tree.x);
+    if (!std::isfinite(tree.y)) reject("y", tree.y);
+    if (tree.z && !std::isfinite(*tree.z)) reject("z", *tree.z);
+    if (tree.dbh && !std::isfinite(*tree.dbh)) reject("dbh", *tree.dbh);
+    summary.extent = internal::Union(summary.extent, Extent{tree.x, tree.y, tree.x, tree.y});
+    if (tree.id) {
+      ids.emplace_back(*tree.id, i);
+    } else {
+      ++summary.auto_id_count;
+    }
+  }
+  std::sort(ids.begin(), ids.end());
+  for (size_t k = 1; k < ids.size(); ++k) {
+    if (ids[k].first == ids[k - 1].first) {
+      throw StorageError(Code::kInvalidArgument, "map '" + map_name + "': duplicate tree id " +
+                                                     std::to_string(ids[k].first) + " at indices " +
+                                                     std::to_string(ids[k - 1].second) + " and " +
+                                                     std::to_string(ids[k].second) +
+                                                     " of the batch");
+    }
+  }
+  if (!ids.empty()) summary.max_explicit_id = ids.back().first;
+  return summary;
+}
+
+// Ids of the batch in batch order: explicit ones, then the next free ones above `max_id`.
+std::vector<int64_t> AssignIds(const std::string& map_name, const std::vector<TreeRecord>& trees,
+                               std::optional<int64_t> max_id, size_t auto_count) {
+  const int64_t above = std::max<int64_t>(max_id.value_or(0), 0);
+  constexpr int64_t kMax = std::numeric_limits<int64_t>::max();
+  if (auto_count > 0 && static_cast<uint64_t>(kMax - above) < auto_count) {
+    throw StorageError(Code::kInvalidArgument,
+                       "map '" + map_name + "': no free tree ids left above " +
+                           std::to_string(above) + " for " + std::to_string(auto_count) +
+                           " trees without an id");
+  }
+  std::vector<int64_t> ids(trees.size());
+  int64_t assigned = 0;  // counted apart so the last id may be INT64_MAX without overflow
+  for (size_t i = 0; i < trees.size(); ++i)
+    ids[i] = trees[i].id ? *trees[i].id : above + ++assigned;
+  return ids;
+}
+
+}  // namespace
+
+bool IsPostgresUri(const std::string& db) {
+  return db.rfind("postgresql://", 0) == 0 || db.rfind("postgres://", 0) == 0;
+}
+
+std::unique_ptr<MapStore> OpenMapStore(const std::string& db) {
+  if (IsPostgresUri(db)) return std::make_unique<PostgresMapStore>(db);
+  return std::make_unique<SqliteMapStore>(db);
+}
+
+void PostgresMapStoreOptions::Check() const {
+  if (max_connections < 1) {
+    throw StorageError(Code::kInvalidArgument,
+                       "PostgresMapStoreOptions: max_connections must be >= 1");
+  }
+}
+
+PostgresMapStore::PostgresMapStore(const std::string& conninfo,
+                                   const PostgresMapStoreOptions& options)
+    : options_(options) {
+  options_.Check();
+  pool_ = std::make_unique<pg::ConnectionPool>(conninfo, options_.max_connections);
+  if (static_cast<int64_t>(pg_internal::SchemaSteps().size()) != kSchemaVersion) {
+    throw StorageError(Code::kInternal, "schema steps and kSchemaVersion disagree");
+  }
+  With([](Connection& conn) { pg::MigrateSchema(conn, pg_internal::SchemaSteps()); });
+}
+
+PostgresMapStore::~PostgresMapStore() = default;
+
+void PostgresMapStore::With(const Body& body) { pool_->With(body); }
+
+MapInfo PostgresMapStore::CreateMap(const std::string& name, const std::string& description,
+                                    const std::string& crs) {
+  internal::CheckName(name);
+  MapInfo info;
+  info.name = name;
+  info.description = description;
+  info.crs = crs;
+  info.version = 1;
+  info.created_unix_ms = info.updated_unix_ms = internal::NowUnixMs();
+  With([&](Connection& conn) {
+    Transaction transaction(conn, Transaction::Kind::kWrite);
+    int64_t id = 0;
+    try {
+      id = conn.Exec(
+                   "INSERT INTO maps (name, description, crs, version, tree_count, "
+                   "created_unix_ms, updated_unix_ms) VALUES ($1, $2, $3, 1, 0, $4, $4) "
+                   "RETURNING id",
+                   Params().Text(name).Text(description).Text(crs).Int64(info.created_unix_ms))
+               .Int64(0, 0);
+    } catch (const StorageError& e) {
+      if (e.code() != Code::kAlreadyExists) throw;  // UNIQUE(name)
+      throw StorageError(Code::kAlreadyExists, "map '" + name + "' already exists");
+    }
+    VersionRecord created;
+    created.version = 1;
+    created.created_unix_ms = info.created_unix_ms;
+    created.kind = VersionKind::kCreate;
+    pg_internal::InsertVersion(conn, id, created);
+    transaction.Commit();
+  });
+  return info;
+}
+
+std::vector<MapInfo> PostgresMapStore::ListMaps() {
+  std::vector<MapInfo> maps;
+  With([&](Connection& conn) {
+    const pg::Result result =
+        conn.Exec("SELECT " FORESTMAP_PG_MAP_COLUMNS " FROM maps ORDER BY name");
+    for (int r = 0; r < result.rows(); ++r) maps.push_back(pg_internal::ReadMapRow(result, r).info);
+  });
+  return maps;
+}
+
+MapInfo PostgresMapStore::GetMap(const std::string& name) {
+  internal::CheckName(name);
+  MapInfo info;
+  With([&](Connection& conn) { info = pg_internal::RequireMap(conn, name).info; });
+  return info;
+}
+
+void PostgresMapStore::DeleteMap(const std::string& name) {
+  internal::CheckName(name);
+  With([&](Connection& conn) {
+    Transaction transaction(conn, Transaction::Kind::kWrite);
+    const MapRow map = pg_internal::LockMap(conn, name);
+    // Trees, observations and history go with it (ON DELETE CASCADE).
+    conn.Exec("DELETE FROM maps WHERE id = $1", Params().Int64(map.id));
+    transaction.Commit();
+  });
+}
+
+MapInfo PostgresMapStore::WriteTrees(const std::string& name, const std::vector<TreeRecord>& trees,
+                                     WriteMode mode) {
+  internal::CheckName(name);
+  const BatchSummary batch = CheckBatch(name, trees);
+  MapInfo result;
+  With([&](Connection& conn) {
+    Transaction transaction(conn, Transaction::Kind::kWrite);
+    MapRow map = pg_internal::LockMap(conn, name);
+    const bool replace = mode == WriteMode::kReplace;
+    if (trees.empty() && (!replace || map.info.tree_count == 0)) {
+      result = map.info;  // nothing can change: keep the version
+      return;
+    }
+    MapInfo& info = map.info;
+    VersionRecord record;
+    record.version = info.version + 1;
+    record.kind = replace ? VersionKind::kReplace : VersionKind::kUpload;
+    std::optional<int64_t> max_id = batch.max_explicit_id;
+    if (replace) {
+      record.trees_removed = info.tree_count;
+      const Params close = Params().Int64(map.id).Int64(record.version);
+      conn.Exec(
+          "UPDATE trees SET valid_to = $2 WHERE map_id = $1 AND valid_to = " FORESTMAP_PG_CURRENT,
+          close);
+      record.observations_removed =
+          conn.Exec(
+                  "UPDATE observations SET valid_to = $2 WHERE map_id = $1 AND "
+                  "valid_to = " FORESTMAP_PG_CURRENT,
+                  close)
+              .affected();
+    } else {
+      const pg::Result max_existing = conn.Exec(
+          "SELECT MAX(tree_id) FROM trees WHERE map_id = $1 AND valid_to = " FORESTMAP_PG_CURRENT,
+          Params().Int64(map.id));
+      if (!max_existing.IsNull(0, 0)) {
+        max_id = std::max(max_id.value_or(std::numeric_limits<int64_t>::min()),
+                          max_existing.Int64(0, 0));
+      }
+    }
+    const std::vector<int64_t> ids = AssignIds(name, trees, max_id, batch.auto_id_count);
+    pg_internal::InsertTrees(conn, map, trees, ids, record.version);
+
+    int64_t confirmed = 0;
+    for (const TreeRecord& tree : trees) confirmed += tree.status == TreeStatus::kConfirmed;
+    const auto count = static_cast<int64_t>(trees.size());
+    info.tree_count = replace ? count : info.tree_count + count;
+    info.confirmed_count = replace ? confirmed : info.confirmed_count + confirmed;
+    info.extent = replace ? batch.extent : internal::Union(info.extent, batch.extent);
+    info.version = record.version;
+    info.updated_unix_ms = internal::NowUnixMs();
+    pg_internal::UpdateMapRow(conn, map);
+    record.created_unix_ms = info.updated_unix_ms;
+    record.tree_count = info.tree_count;
+    record.confirmed_count = info.confirmed_count;
+    record.trees_added = count;
+    pg_internal::InsertVersion(conn, map.id, record);
+    transaction.Commit();
+    result = info;
+  });
+  return result;
+}
+
+MapSnapshot PostgresMapStore::ReadMap(const std::string& name) { return ReadMapVersion(name, 0); }
+
+std::vector<TreeRecord> PostgresMapStore::TreesInBox(const std::string& name, const Extent& box) {
+  internal::CheckName(name);
+  internal::CheckBox(name, box);
+  std::vector<TreeRecord> trees;
+  With([&](Connection& conn) {
+    Transaction transaction(conn, Transaction::Kind::kRead);
+    const MapRow map = pg_internal::RequireMap(conn, name);
+    trees = pg_internal::CurrentTreesInBox(conn, map, box);
+    transaction.Commit();
+  });
+  return trees;
+}
+
+}  // namespace forestmap::storage

@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# Installs the build into a temporary prefix (`cmake --install`), checks that both binaries are
+# there and run, and verifies deploy/forestmapd.service with `systemd-analyze verify` (ExecStart
+# pointed at the installed forestmapd, since verify checks that the binary exists).
+# Usage: verify_service.sh BUILD_DIR
+set -euo pipefail
+build="$1"
+command -v systemd-analyze >/dev/null || { echo "systemd-analyze missing (Debian: systemd)"; exit 1; }
+prefix="$(mktemp -d /tmp/forestmap-install-XXXXXX)"
+trap 'rm -rf "$prefix"' EXIT
+cmake --install "$build" --prefix "$prefix" >/dev/null
+for binary in forestmapd forestmap; do
+  test -x "$prefix/bin/$binary" || { echo "cmake --install did not install $binary"; exit 1; }
+done
+"$prefix/bin/forestmapd" --help >/dev/null
+"$prefix/bin/forestmap" --help >/dev/null
+unit="$prefix/lib/systemd/system/forestmapd.service"
+test -f "$unit" || { echo "cmake --install did not install forestmapd.service"; exit 1; }
+sed -i "s|/usr/local/bin/forestmapd|$prefix/bin/forestmapd|" "$unit"
+# verify prints problems as warnings on stderr but only some make it fail: fail on any output.
+output="$(systemd-analyze verify "$unit" 2>&1 || echo "systemd-analyze verify failed")"
+if [ -n "$output" ]; then
+  echo "$output"
+  exit 1
+fi
+echo "forestmapd.service verified; installed: $(ls "$prefix/bin" | tr '\n' ' ')"
