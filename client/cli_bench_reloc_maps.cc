@@ -4,8 +4,8 @@
 #include <ostream>
 
 #include "algorithms/simulation/forest_generator.h"
-#include "algorithms/simulation/view_simulator.h"
 #include "algorithms/simulation/stand_cases.h"
+#include "algorithms/simulation/view_simulator.h"
 #include "client/cli_commands.h"
 #include "client/io/tree_csv.h"
 

@@ -7,8 +7,8 @@
 #include "algorithms/evaluation/reloc_evaluation.h"
 #include "algorithms/relocalization/relocalizer.h"
 #include "algorithms/simulation/forest_generator.h"
-#include "algorithms/simulation/view_simulator.h"
 #include "algorithms/simulation/stand_cases.h"
+#include "algorithms/simulation/view_simulator.h"
 
 namespace forestmap::algorithms {
 namespace {
