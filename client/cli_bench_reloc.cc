@@ -9,26 +9,30 @@
 //                  (algorithms/relocalization/tracking.h), each frame's answer scored like a relocalization
 // Generated maps:  --generate N --like STEMMAP.csv --simulate N (a forest with the real map's
 //                  spatial statistics, e.g. 1,000,000 trees)
+// District cases:  --mosaic A.csv,B.csv,... or --plantation SX,SY,ERROR,MORTALITY with
+//                  --simulate N; --foreign (another seed's map) or --foreign-map B.csv
+//                  relocalizes the views in another forest (cli_bench_reloc_maps.h)
 // Prints recall, strict recall, wrong answers, error and latency percentiles (the definitions
 // are in algorithms/evaluation/reloc_evaluation.h), as text or one JSON object (--json).
+
+#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <ctime>
-#include <unistd.h>
 #include <fstream>
 #include <iomanip>
-#include <random>
-
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "algorithms/core/kdtree.h"
 #include "algorithms/evaluation/reloc_evaluation.h"
 #include "algorithms/relocalization/relocalizer.h"
+#include "algorithms/relocalization/tracking.h"
 #include "algorithms/simulation/forest_generator.h"
 #include "algorithms/simulation/view_simulator.h"
-#include "algorithms/relocalization/tracking.h"
+#include "client/cli_bench_reloc_maps.h"
 #include "client/cli_commands.h"
 #include "client/scan_trees.h"
 #include "client/io/tree_csv.h"
@@ -39,7 +43,8 @@ namespace {
 using algorithms::Pose3;
 
 struct BenchOptions {
-  std::string map_path, frames_path, poses_path, like_path, scans_dir;
+  BenchMapOptions maps;  // --map, --generate, --mosaic, --plantation, --foreign..., --seed
+  std::string frames_path, poses_path, scans_dir;
   double within = 0.3;  // m, also report the share of all frames localized this close
   std::vector<double> truth_offset;  // x, y, z (m), yaw (deg): map_from_world of the poses
   std::string truth_map_path;        // the frames' own session map, for local truth alignment
@@ -48,12 +53,16 @@ struct BenchOptions {
   double imu_noise = -1;  // deg; >= 0: queries carry gravity, the truth's tilted by this RMS
   int simulate = 0;
   double range = 15;
-  int64_t generate = 0;
-  unsigned seed = 1;
   bool json = false;
   bool track = false;
   std::string per_frame_path;  // CSV of every answer, for diagnosis
 };
+
+double Mean(const std::vector<double>& values) {
+  double sum = 0;
+  for (double v : values) sum += v;
+  return values.empty() ? 0.0 : sum / values.size();
+}
 
 double Ms(std::chrono::steady_clock::duration d) {
   return std::chrono::duration<double, std::milli>(d).count();
@@ -77,8 +86,8 @@ double ThreadCpuMs() {
 // One query: with an optional prior drawn around the truth, timed, scored.
 class Runner {
  public:
-  Runner(const std::vector<algorithms::MapTree>& map, const BenchOptions& options)
-      : options_(options), evaluator_(map), rng_(options.seed) {
+  Runner(const std::vector<algorithms::MapTree>& map, const BenchOptions& options, bool foreign)
+      : options_(options), evaluator_(map), rng_(options.maps.seed), foreign_(foreign) {
     if (!options.per_frame_path.empty()) {
       per_frame_.open(options.per_frame_path);
       if (!per_frame_) throw CommandError("cannot write " + options.per_frame_path);
@@ -111,24 +120,51 @@ class Runner {
         tracker_ ? Track(query) : algorithms::Relocalize(*index_, query);
     const double ms = Ms(std::chrono::steady_clock::now() - start);
     const double cpu_ms = ThreadCpuMs() - cpu_start;
-    const bool answerable = evaluator_.Answerable(trees, truth);
+    // In a foreign map no frame is answerable and every LOCALIZED answer is wrong.
+    const bool answerable = !foreign_ && evaluator_.Answerable(trees, truth);
     evaluator_.Add(answerable, truth, result, ms);
     if (per_frame_.is_open()) WriteRow(answerable, truth, result, ms, cpu_ms);
+    AddNees(truth, result);
     ++frames_;
     within_ += result.status == algorithms::RelocalizeStatus::kLocalized &&
                algorithms::ComparePoses(result.map_from_sensor, truth).xy <= options_.within;
   }
 
   void AddDetectionTime(double ms) { detect_ms_.push_back(ms); }
+
+  // Normalised squared error of a correct LOCALIZED answer in (x, y, yaw) under its covariance
+  // (3 degrees of freedom: a calibrated covariance gives a mean of 3).
+  void AddNees(const Pose3& truth, const algorithms::RelocalizeResult& result) {
+    const algorithms::PoseError error = algorithms::ComparePoses(result.map_from_sensor, truth);
+    if (result.status != algorithms::RelocalizeStatus::kLocalized || error.xy > 0.5 ||
+        error.yaw > 5.0) {
+      return;
+    }
+    Eigen::Vector3d e;
+    e.head<2>() = (result.map_from_sensor.translation() - truth.translation()).head<2>();
+    e.z() = algorithms::WrapAngle(algorithms::YawOf(result.map_from_sensor.linear()) -
+                                  algorithms::YawOf(truth.linear()));
+    const int index[3] = {0, 1, 5};
+    Eigen::Matrix3d cov;
+    for (int a = 0; a < 3; ++a) {
+      for (int b = 0; b < 3; ++b) cov(a, b) = result.covariance(index[a], index[b]);
+    }
+    nees_.push_back(e.dot(cov.ldlt().solve(e)));
+  }
   const std::vector<algorithms::MapTree>& map() const { return index_->trees(); }
 
   nlohmann::ordered_json Report(size_t map_trees) const {
-    const algorithms::RelocSummary s = evaluator_.Summary();
+    algorithms::RelocSummary s = evaluator_.Summary();
+    if (foreign_) {
+      s.wrong = s.localized;
+      s.wrong_rate = s.frames ? double(s.wrong) / s.frames : 0.0;
+    }
     return {{"map_trees", map_trees},
             {"index_build_ms", build_ms_},
             {"index_triangle_side_m", index_->triangle_side()},
             {"index_bytes_per_tree", map_trees ? double(index_->MemoryBytes()) / map_trees : 0},
             {"index_resident_bytes_per_tree", map_trees ? index_resident_ / map_trees : 0},
+            {"foreign_map", foreign_},
             {"frames", s.frames},
             {"answerable", s.answerable},
             {"localized", s.localized},
@@ -151,6 +187,9 @@ class Runner {
             {"track_recovered", track_counts_[1]},
             {"track_lost", track_counts_[2]},
             {"track_longest_loss_frames", longest_loss_},
+            {"nees_xy_yaw_mean", Mean(nees_)},
+            {"nees_xy_yaw_median", algorithms::Percentile(nees_, 0.5)},
+            {"nees_dof", 3},
             {"detect_p50_ms", algorithms::Percentile(detect_ms_, 0.5)},
             {"detect_p95_ms", algorithms::Percentile(detect_ms_, 0.95)}};
   }
@@ -197,8 +236,10 @@ class Runner {
   int longest_loss_ = 0;
   int frames_ = 0, within_ = 0;
   std::vector<double> detect_ms_;  // per scan (--scans)
+  std::vector<double> nees_;       // per correct LOCALIZED answer
   std::unique_ptr<algorithms::MapIndex> index_;
   std::mt19937 rng_;
+  bool foreign_ = false;  // the views come from another forest than the index's
   double build_ms_ = 0;
   double index_resident_ = 0;  // growth of the resident set while the index was built (bytes)
   std::ofstream per_frame_;
@@ -301,13 +342,13 @@ void RunSimulated(const std::vector<algorithms::MapTree>& map, Runner& runner,
   // Keep the sensor a range away from the plot's border, or a quarter of a small plot.
   const Eigen::Vector2d size = simulator.grid().max_corner() - simulator.grid().min_corner();
   const double margin = std::min(o.range, 0.25 * size.minCoeff());
-  const auto poses = simulator.SamplePoses(o.simulate, margin, o.seed, 8, o.range);
+  const auto poses = simulator.SamplePoses(o.simulate, margin, o.maps.seed, 8, o.range);
   if (poses.empty()) {
     err << "bench-reloc: no place in the map where the sensor sees 8 trees within " << o.range
         << " m\n";
   }
   for (size_t i = 0; i < poses.size(); ++i) {
-    view.seed = o.seed * 100003u + static_cast<unsigned>(i);
+    view.seed = o.maps.seed * 100003u + static_cast<unsigned>(i);
     const algorithms::SimulatedView v = simulator.Simulate(poses[i].head<2>(), poses[i].z(), view);
     runner.Run(v.trees, v.map_from_sensor);
     Progress(err, i + 1, poses.size());
@@ -315,24 +356,11 @@ void RunSimulated(const std::vector<algorithms::MapTree>& map, Runner& runner,
 }
 
 void Run(const BenchOptions& o, CliContext& context) {
-  std::vector<algorithms::MapTree> map;
-  if (o.generate > 0) {
-    const auto like = ToMapTrees(ReadMapTreesCsv(o.like_path));
-    const algorithms::StemMapStatistics stats = algorithms::EstimateStemMapStatistics(like);
-    algorithms::ForestOptions forest;
-    forest.width = forest.height = std::sqrt(o.generate / stats.density);
-    forest.seed = o.seed;
-    map = algorithms::GenerateForest(stats, forest);
-    *context.err << "bench-reloc: generated " << map.size() << " trees on "
-                 << static_cast<int>(forest.width) << " m x " << static_cast<int>(forest.height)
-                 << " m like " << o.like_path << "\n";
-  } else {
-    map = ToMapTrees(ReadMapTreesCsv(o.map_path));
-  }
-  if (map.size() < 3) throw CommandError("the map has fewer than 3 trees");
-  Runner runner(map, o);
+  const BenchMaps maps = LoadBenchMaps(o.maps, *context.err);
+  const std::vector<algorithms::MapTree>& map = maps.index;
+  Runner runner(map, o, maps.foreign);
   if (o.simulate > 0) {
-    RunSimulated(map, runner, o, *context.err);
+    RunSimulated(maps.views, runner, o, *context.err);
   } else if (!o.scans_dir.empty()) {
     RunScans(runner, o, *context.err);
   } else {
@@ -354,7 +382,7 @@ void AddBenchRelocCommand(CLI::App& app, CliContext& context) {
       "bench-reloc",
       "Measure relocalization against ground truth, in process: real frames with poses, "
       "simulated views of a stem map, or a generated map of any size");
-  cmd->add_option("--map", options->map_path, "Map CSV (id,x,y[,z,dbh])")->check(CLI::ExistingFile);
+  AddBenchMapOptions(cmd, options->maps);
   cmd->add_option("--frames", options->frames_path, "Frames CSV (frame,x,y,z,...), sensor frame")
       ->check(CLI::ExistingFile);
   cmd->add_option("--poses", options->poses_path, "Ground-truth poses CSV (frame,timestamp,x,y,z,qx,qy,qz,qw)")
@@ -384,12 +412,7 @@ void AddBenchRelocCommand(CLI::App& app, CliContext& context) {
   cmd->add_option("--range", options->range, "Simulated sensor range (m)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  cmd->add_option("--generate", options->generate,
-                  "Generate a map of N trees with the spatial statistics of --like")
-      ->check(CLI::PositiveNumber);
-  cmd->add_option("--like", options->like_path, "Stem map whose statistics --generate copies")
-      ->check(CLI::ExistingFile);
-  cmd->add_option("--seed", options->seed, "Random seed")->capture_default_str();
+  cmd->add_option("--seed", options->maps.seed, "Random seed")->capture_default_str();
   cmd->add_option("--scans", options->scans_dir,
                   "Folder from `forestmap simulate` (poses.csv, scan_NNN.pcd): detect the trunks "
                   "of every scan, then relocalize")
@@ -405,12 +428,7 @@ void AddBenchRelocCommand(CLI::App& app, CliContext& context) {
                   "Also write every answer with its error and time to this CSV");
   cmd->callback([options, &context] {
     const BenchOptions& o = *options;
-    if (o.generate > 0 && (o.like_path.empty() || o.simulate == 0)) {
-      throw CLI::ValidationError("--generate", "needs --like STEMMAP.csv and --simulate N");
-    }
-    if (o.generate == 0 && o.map_path.empty()) {
-      throw CLI::ValidationError("--map", "a map is required (or --generate)");
-    }
+    CheckBenchMapOptions(o.maps, o.simulate > 0);
     if (o.simulate == 0 && o.scans_dir.empty() &&
         (o.frames_path.empty() || o.poses_path.empty())) {
       throw CLI::ValidationError("--frames", "real frames need --frames and --poses (or use --simulate N or --scans DIR)");

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -92,9 +93,20 @@ nlohmann::ordered_json RelocalizeJson(const v1::RelocalizeResponse& response,
   line["rmse_m"] = response.rmse_m();
   line["confidence"] = response.confidence();
   line["server_ms"] = response.server_time_ms();
+  if (response.status() == v1::RelocalizeResponse::LOCALIZED && response.covariance_size() == 36) {
+    line["sigma_xy_m"] = std::sqrt(response.covariance(0) + response.covariance(7));
+    line["sigma_yaw_deg"] = std::sqrt(response.covariance(35)) * 180.0 / M_PI;
+  }
+  if (response.status() != v1::RelocalizeResponse::LOCALIZED &&
+      response.reason() != v1::RelocalizeResponse::REASON_UNSPECIFIED) {
+    std::string reason = v1::RelocalizeResponse::Reason_Name(response.reason());
+    for (char& c : reason) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    line["reason"] = reason;
+  }
   if (response.status() != v1::RelocalizeResponse::LOCALIZED && !response.detail().empty()) {
     line["detail"] = response.detail();  // why not: worth showing the user
   }
+  if (response.has_client_stamp_ns()) line["client_stamp_ns"] = response.client_stamp_ns();
   return line;
 }
 

@@ -62,10 +62,6 @@ void RunScan(const RelocalizeOptions& options, const CliContext& context) {
   *context.err << "relocalize: " << options.scan_file << ": " << scan.stats.input_points
                << " points, " << scan.trees.size() << " trees detected in " << ms << " ms"
                << std::endl;
-  if (scan.trees.size() < 3) {
-    throw CommandError(options.scan_file + ": " + std::to_string(scan.trees.size()) +
-                       " trees detected; a relocalization needs at least 3");
-  }
   PrintLine(context, context.Connect().Relocalize(options.map, scan.trees, options.prior,
                                                   options.gravity),
             {});

@@ -118,6 +118,27 @@ v1::RelocalizeResponse::Status ToProto(algorithms::RelocalizeStatus status) {
   return v1::RelocalizeResponse::STATUS_UNSPECIFIED;
 }
 
+v1::RelocalizeResponse::Reason ToProto(algorithms::RelocalizeReason reason) {
+  using R = algorithms::RelocalizeReason;
+  switch (reason) {
+    case R::kNone:
+      return v1::RelocalizeResponse::REASON_NONE;
+    case R::kTooFewTrees:
+      return v1::RelocalizeResponse::TOO_FEW_TREES;
+    case R::kNoMatchingConstellation:
+      return v1::RelocalizeResponse::NO_MATCHING_CONSTELLATION;
+    case R::kNotSignificant:
+      return v1::RelocalizeResponse::NOT_SIGNIFICANT;
+    case R::kTooFewInliers:
+      return v1::RelocalizeResponse::TOO_FEW_INLIERS;
+    case R::kAmbiguous:
+      return v1::RelocalizeResponse::AMBIGUOUS_RIVAL;
+    case R::kOutsidePrior:
+      return v1::RelocalizeResponse::OUTSIDE_PRIOR;
+  }
+  return v1::RelocalizeResponse::REASON_UNSPECIFIED;
+}
+
 v1::RelocalizeResponse ToProto(const algorithms::RelocalizeResult& result) {
   v1::RelocalizeResponse out;
   out.set_status(ToProto(result.status));
@@ -135,6 +156,16 @@ v1::RelocalizeResponse ToProto(const algorithms::RelocalizeResult& result) {
   out.set_rmse_m(result.rmse);
   out.set_confidence(result.confidence);
   out.set_detail(result.detail);
+  out.set_reason(ToProto(result.reason));
+  if (result.status == algorithms::RelocalizeStatus::kAmbiguous && result.rival_map_from_sensor) {
+    *out.mutable_rival_map_from_sensor() = ToProto(*result.rival_map_from_sensor);
+  }
+  if (result.status == algorithms::RelocalizeStatus::kLocalized) {
+    out.mutable_covariance()->Reserve(36);
+    for (int r = 0; r < 6; ++r) {
+      for (int c = 0; c < 6; ++c) out.add_covariance(result.covariance(r, c));
+    }
+  }
   return out;
 }
 

@@ -45,6 +45,7 @@ algorithms::PriorPose FromProto(const v1::PriorPose& prior);
 algorithms::RelocalizeQuery FromProto(const v1::RelocalizeRequest& request);
 v1::RelocalizeResponse::Status ToProto(algorithms::RelocalizeStatus status);
 // Everything but server_time_ms and map_version, which the service fills in.
+v1::RelocalizeResponse::Reason ToProto(algorithms::RelocalizeReason reason);
 v1::RelocalizeResponse ToProto(const algorithms::RelocalizeResult& result);
 
 // Tracking. The response lacks frame_id, server_time_ms and map_version (the stream fills them).

@@ -119,6 +119,7 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
     *response =
         ToProto(algorithms::Relocalize(*entry.index, FromProto(*request), options_.relocalizer));
     response->set_map_version(entry.version);
+    if (request->has_client_stamp_ns()) response->set_client_stamp_ns(request->client_stamp_ns());
     const std::chrono::duration<double, std::milli> elapsed =
         std::chrono::steady_clock::now() - start;
     response->set_server_time_ms(elapsed.count());

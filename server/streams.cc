@@ -227,6 +227,7 @@ void TrackReactor::Answer() {
   response_.set_frame_id(request_.frame_id());
   v1::RelocalizeResponse& result = *response_.mutable_result();
   result.set_map_version(entry.version);
+  if (request_.has_client_stamp_ns()) result.set_client_stamp_ns(request_.client_stamp_ns());
   const std::chrono::duration<double, std::milli> elapsed =
       std::chrono::steady_clock::now() - start;
   result.set_server_time_ms(elapsed.count());

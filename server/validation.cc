@@ -199,11 +199,7 @@ void Validate(const v1::RemoveSourceRequest& request) {
 
 void Validate(const v1::RelocalizeRequest& request, int max_query_trees) {
   ValidateMapName(request.map_name(), "map_name");
-  const int n = request.trees_size();
-  if (n < kMinQueryTrees) {
-    throw ValidationError("trees: a relocalization needs at least " +
-                          std::to_string(kMinQueryTrees) + " trees, got " + std::to_string(n));
-  }
+  const int n = request.trees_size();  // fewer than 3: answered NOT_FOUND (TOO_FEW_TREES)
   if (n > max_query_trees) {
     throw LimitError("trees: " + std::to_string(n) + " trees exceed the limit of " +
                      std::to_string(max_query_trees) + " per query");

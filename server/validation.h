@@ -4,7 +4,7 @@
 // Each function throws ValidationError (INVALID_ARGUMENT) or LimitError (RESOURCE_EXHAUSTED)
 // from server/status.h, with a message naming the field path and index, e.g.
 //   "trees[12].position.x is NaN"
-//   "trees: a relocalization needs at least 3 trees, got 2"
+//   "prior.radius_m is -1; it must be > 0"
 //   "trees: 100000 trees exceed the limit of 20000 per query"
 // Rules beyond "finite numbers": dbh >= 0, score in [0, 1], tree ids >= 0 and unique within an
 // upload, rotations unit quaternions within kUnitQuaternionTolerance (normalised afterwards),

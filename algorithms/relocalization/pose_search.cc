@@ -4,6 +4,8 @@
 #include <cmath>
 #include <unordered_set>
 
+#include "algorithms/relocalization/decoys.h"
+
 namespace forestmap::algorithms {
 namespace {
 
@@ -34,11 +36,16 @@ std::vector<Triangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy
 class QuickCheck {
  public:
   QuickCheck(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options)
-      : m_(m), q_(q) {
+      : m_(m), q_(q), quick_score_trees_(options.quick_score_trees) {
+    // The chance rate p0 is the map's occupied share around the matched map triangle (a dense
+    // stand beside a sparse one: each tested at its own density), in kLevels steps.
     const double p1 = options.quick_check_true_rate;
-    const double p0 = std::clamp(m.occupancy->occupied_fraction(), 0.005, 0.5 * p1);
-    hit_ = std::log(p1 / p0);
-    miss_ = std::log((1 - p1) / (1 - p0));
+    max_p0_ = 0.5 * p1;
+    for (int k = 0; k < kLevels; ++k) {
+      const double p0 = kMinP0 + (max_p0_ - kMinP0) * k / (kLevels - 1);
+      hit_[k] = std::log(p1 / p0);
+      miss_[k] = std::log((1 - p1) / (1 - p0));
+    }
     accept_ = std::log(1 / options.quick_check_false_accept);
     reject_ = std::log(options.quick_check_false_reject);
   }
@@ -57,14 +64,30 @@ class QuickCheck {
     std::sort(by_distance_.begin(), by_distance_.end());
   }
 
-  // The pose maps p to (c p.x - s p.y + tx, s p.x + c p.y + ty).
-  bool Passes(float c, float s, float tx, float ty) const {
+  // Query trees among the quick_score_trees nearest the sensor that `pose` puts near a map tree.
+  int Hits(const Rigid2& pose) const {
+    const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
+    int hits = 0;
+    for (size_t i = 0; i < std::min<size_t>(q_.xy.size(), quick_score_trees_); ++i) {
+      const Eigen::Vector2d& p = q_.xy[i];
+      hits += m_.occupancy->Near(c * p.x() - s * p.y() + pose.translation.x(),
+                                 s * p.x() + c * p.y() + pose.translation.y());
+    }
+    return hits;
+  }
+
+  // The pose maps p to (c p.x - s p.y + tx, s p.x + c p.y + ty); (x, y): where its map
+  // triangle lies.
+  bool Passes(float c, float s, float tx, float ty, float x, float y) const {
+    const double p0 = std::clamp(m_.occupancy->OccupiedFractionAt(x, y), kMinP0, max_p0_);
+    const int level =
+        static_cast<int>(std::lround((p0 - kMinP0) / (max_p0_ - kMinP0) * (kLevels - 1)));
+    const double hit = hit_[level], miss = miss_[level];
     double llr = 0;
     for (const auto& [d2, i] : by_distance_) {
       const Eigen::Vector2d& p = q_.xy[i];
-      llr += m_.occupancy->Near(c * p.x() - s * p.y() + tx, s * p.x() + c * p.y() + ty)
-                 ? hit_
-                 : miss_;
+      llr +=
+          m_.occupancy->Near(c * p.x() - s * p.y() + tx, s * p.x() + c * p.y() + ty) ? hit : miss;
       if (llr >= accept_) return true;
       if (llr <= reject_) return false;
     }
@@ -75,8 +98,13 @@ class QuickCheck {
   static constexpr size_t kMaxChecks = 40;
   const MapIndexImpl& m_;
   const LevelledQuery& q_;
+  const size_t quick_score_trees_;
   std::vector<std::pair<float, uint32_t>> by_distance_;  // the check order
-  double hit_ = 0, miss_ = 0, accept_ = 0, reject_ = 0;
+  static constexpr int kLevels = 64;
+  static constexpr double kMinP0 = 0.005;
+  double max_p0_ = 0.375;
+  double hit_[kLevels] = {}, miss_[kLevels] = {};
+  double accept_ = 0, reject_ = 0;
 };
 
 // Pose cell for recognising a pose already found (0.5 m x 0.5 m x 1.5 deg).
@@ -88,8 +116,8 @@ uint64_t PoseCell(const Rigid2& pose) {
          (static_cast<uint64_t>(cy & 0xFFFFFF) << 16) | static_cast<uint64_t>(cyaw & 0xFFFF);
 }
 
-// One least-squares step on the nearest trees (a triangle's pose can be a few degrees off),
-// then the score on them.
+}  // namespace
+
 void Polish(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
             Hypothesis* h) {
   const double gate = 1.5 * options.inlier_distance;
@@ -102,8 +130,6 @@ void Polish(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOpti
   }
   Score(m, q, options, h, options.inlier_distance, options.quick_score_trees);
 }
-
-}  // namespace
 
 std::vector<Association> Associate(const MapIndexImpl& m, const LevelledQuery& q,
                                    const Rigid2& pose, const RelocalizerOptions& options,
@@ -207,14 +233,16 @@ class Searcher {
         prior_(prior),
         prior_xy_(prior_xy),
         options_(options),
-        seed_xy_(q.xy.begin(), q.xy.begin() + std::min<size_t>(q.xy.size(), options.max_seed_trees)),
+        seed_xy_(q.xy.begin(),
+                 q.xy.begin() + std::min<size_t>(q.xy.size(), options.max_seed_trees)),
         check_(m, q, options),
-        decisive_(std::max<int>(options.min_inliers,
-                                std::ceil(options.decisive_fraction *
-                                          std::min<size_t>(q.xy.size(), options.quick_score_trees)))),
+        decisive_(
+            std::max<int>(options.min_inliers,
+                          std::ceil(options.decisive_fraction *
+                                    std::min<size_t>(q.xy.size(), options.quick_score_trees)))),
         strong_(std::max(2 * options.min_inliers,
-                         static_cast<int>(options.decisive_fraction *
-                                          RatioTrees(q, options)))) {
+                         static_cast<int>(options.decisive_fraction * RatioTrees(q, options)))),
+        polish_hits_(std::max(3, static_cast<int>(kPolishShare * decisive_))) {
     triangles_ = QueryTriangles(seed_xy_, m, options.triangle_tolerance);
     if (triangles_.size() > static_cast<size_t>(options.max_query_triangles)) {
       triangles_.resize(options.max_query_triangles);
@@ -256,8 +284,23 @@ class Searcher {
         decided = true;
         stop = std::min(triangles_.size(), turn + 1 + options_.rival_triangles);
       }
+      if (!decided && OverBudget()) break;
     }
     return decided;
+  }
+
+  bool Believable(const Hypothesis& refined) {
+    const PoseBelief belief = Assess(m_, q_, refined, result_.matches, options_);
+    result_.tested.emplace(refined.pose, belief.decoys);
+    return belief.believable();
+  }
+
+  // Whether the search has scored so many hypotheses without a decisive one that more would
+  // only find more of the same (a regular stand, matching everywhere): it ends there.
+  bool OverBudget() {
+    over_budget_ = over_budget_ || (options_.max_scored_hypotheses > 0 &&
+                                    polished_ >= options_.max_scored_hypotheses);
+    return over_budget_;
   }
 
   PoseSearchResult Finish() {
@@ -299,7 +342,7 @@ class Searcher {
           continue;
         }
         ++result_.matches;
-        if (!check_.Passes(cos_yaw, sin_yaw, tx, ty)) continue;
+        if (!check_.Passes(cos_yaw, sin_yaw, tx, ty, mt.cx, mt.cy)) continue;
         Hypothesis h;
         h.pose.yaw = std::atan2(sin_yaw, cos_yaw);
         h.pose.translation = {tx, ty};
@@ -314,6 +357,10 @@ class Searcher {
     bool decisive = false;
     for (size_t k = from; k < result_.hypotheses.size(); ++k) {
       Hypothesis& h = result_.hypotheses[k];
+      // Only a pose that already puts a good share of the nearest trees near map trees can
+      // become decisive: the others stay unscored (score 0) and cost one bitmap pass.
+      if (check_.Hits(h.pose) < polish_hits_) continue;
+      ++polished_;
       Polish(m_, q_, options_, &h);
       if (decisive || h.inliers < decisive_ || h.score <= best_score_) continue;
       best_score_ = h.score;
@@ -321,8 +368,7 @@ class Searcher {
       Refine(m_, q_, options_, &refined);
       decisive = InliersAmongNearest(m_, q_, refined.pose, RatioTrees(q_, options_), options_) >=
                      strong_ &&
-                 Significant(refined.inliers, ChanceInliers(m_, q_, refined.pose),
-                             result_.matches, options_);
+                 Believable(refined);
     }
     return decisive;
   }
@@ -336,6 +382,12 @@ class Searcher {
   QuickCheck check_;
   const int decisive_;  // inliers among the nearest trees that make a pose worth refining
   const int strong_;    // inliers within ratio_range that decide the search
+  // A hypothesis is polished and scored only with this many bitmap hits among the nearest
+  // trees: this share of decisive_ (a triangle's pose can be a few degrees off before polish).
+  static constexpr double kPolishShare = 0.4;
+  const int polish_hits_;
+  int64_t polished_ = 0;  // hypotheses polished and scored
+  bool over_budget_ = false;
   std::vector<Triangle> triangles_;
   double best_score_ = 0;
   std::unordered_set<uint64_t> found_cells_;
@@ -353,7 +405,9 @@ PoseSearchResult SearchPoses(const MapIndexImpl& m, const LevelledQuery& q,
   const bool decided = options.first_pass_tolerance > 0 &&
                        search.Pass(static_cast<float>(options.first_pass_tolerance),
                                    options.first_pass_triangles);
-  if (!decided) search.Pass(static_cast<float>(options.triangle_tolerance), SIZE_MAX);
+  if (!decided && !search.OverBudget()) {
+    search.Pass(static_cast<float>(options.triangle_tolerance), SIZE_MAX);
+  }
   return search.Finish();
 }
 

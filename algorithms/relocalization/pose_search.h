@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "algorithms/relocalization/map_index_internal.h"
@@ -46,6 +47,11 @@ std::vector<Association> Associate(const MapIndexImpl& m, const LevelledQuery& q
 void Score(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
            Hypothesis* h, double gate, size_t limit = SIZE_MAX);
 
+// One least-squares step on the quick_score_trees nearest trees (a triangle's pose can be a few
+// degrees off), then the score on them.
+void Polish(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
+            Hypothesis* h);
+
 // ICP-style refinement: re-association with a shrinking gate, least squares in x, y, yaw.
 void Refine(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
             Hypothesis* h);
@@ -70,8 +76,22 @@ double PoissonTail(int k, double lambda);
 // (the look-elsewhere effect: the search tries many poses).
 bool Significant(int inliers, double chance, int64_t trials, const RelocalizerOptions& options);
 
+// The decoys of a pose (decoys.h): alternatives on the same local pattern.
+struct DecoyTest {
+  double gate = 0;        // m, inlier gate of the comparison (from the pose's own rmse)
+  double pose_score = 0;  // the pose's score at that gate on the nearest trees
+  Hypothesis best;        // the best decoy (score at that gate); score 0 when none
+  // Share of the query trees a decoy puts within the occupancy radius of a map tree, at the
+  // decoys' best heading (the chance level of a pose aligned to the local pattern).
+  double pattern_rate = 0;
+  int candidates = 0;  // decoy poses tried
+  bool passed = true;  // pose_score >= options.decoy_ratio x best decoy score
+};
+
 struct PoseSearchResult {
   std::vector<Hypothesis> hypotheses;  // scored on the nearest trees, best first
+  // The last refined pose whose decoys the search tested, and the test (reused by the decision).
+  std::optional<std::pair<Rigid2, DecoyTest>> tested;
   int triangles = 0;                   // query triangles looked up
   int64_t matches = 0;                 // triangle matches turned into poses
 };

@@ -7,6 +7,8 @@
 #include <unordered_map>
 
 #include "algorithms/core/leveling.h"
+#include "algorithms/relocalization/decoys.h"
+#include "algorithms/relocalization/pose_covariance.h"
 #include "algorithms/relocalization/pose_search.h"
 #include "algorithms/relocalization/tilt_refinement.h"
 
@@ -43,12 +45,17 @@ bool Distinct(const Rigid2& a, const Rigid2& b, const RelocalizerOptions& option
 RelocalizeResult Finish(const MapIndexImpl& m, const LevelledQuery& q, const Hypothesis& best,
                         const RelocalizerOptions& options) {
   RelocalizeResult result;
-  std::vector<double> dz;
+  PoseCovarianceInput uncertainty;
+  uncertainty.yaw = best.pose.yaw;
+  std::vector<double>& dz = uncertainty.dz;
   for (const Association& a : Associate(m, q, best.pose, options, options.inlier_distance)) {
     result.matches.push_back({static_cast<int>(q.used[a.query]), m.trees[a.map].id, a.distance});
+    uncertainty.sensor_xy.push_back(q.xy[a.query]);
+    uncertainty.residual.push_back(m.Xy(a.map) - best.pose(q.xy[a.query]));
     const double map_z = m.trees[a.map].position.z();
     if (IsKnown(map_z)) dz.push_back(map_z - q.z[a.query]);
   }
+  result.covariance = PoseCovariance(uncertainty);
   double z = 0;  // a 2-D map has no heights: the pose is in its z = 0 plane
   if (!dz.empty()) {
     std::nth_element(dz.begin(), dz.begin() + dz.size() / 2, dz.end());
@@ -128,12 +135,49 @@ std::vector<double> HeadingPeaks(const MapIndexImpl& m, const LevelledQuery& q,
   return peaks;
 }
 
+// A levelled pose (kd coordinates) in the map frame, at the height of `like`.
+Pose3 MapPose(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
+              const Pose3& like) {
+  const Eigen::Vector2d t = pose.translation + m.origin;
+  Pose3 out = PoseFromXyzYaw(t.x(), t.y(), like.translation().z(), pose.yaw);
+  out.linear() = out.linear() * q.level_from_sensor;
+  return out;
+}
+
+// Whether `best` clearly beats `rival`: by the ambiguity ratio in score, or, when `best` fits
+// tightly (a regular stand: the rival is the same grid shifted), at the tight gate.
+bool BeatsRival(const MapIndexImpl& m, const LevelledQuery& q, const Hypothesis& best,
+                const Hypothesis& rival, const PoseBelief& belief,
+                const RelocalizerOptions& options) {
+  if (best.score >= options.ambiguity_ratio * rival.score) return true;
+  if (!belief.tight) return false;
+  Hypothesis tight_best = best, tight_rival = rival;
+  Score(m, q, options, &tight_best, belief.decoys.gate);
+  Score(m, q, options, &tight_rival, belief.decoys.gate);
+  return tight_best.score >= options.ambiguity_ratio * tight_rival.score;
+}
+
+void Ambiguous(const MapIndexImpl& m, const LevelledQuery& q, const Hypothesis& best,
+               const Hypothesis& rival, const char* what, RelocalizeResult* result) {
+  result->status = RelocalizeStatus::kAmbiguous;
+  result->reason = RelocalizeReason::kAmbiguous;
+  result->rival_map_from_sensor = MapPose(m, q, rival.pose, result->map_from_sensor);
+  char detail[200];
+  std::snprintf(detail, sizeof detail,
+                "%s, %.1f m and %.0f deg apart, fit almost equally well (scores %.1f and %.1f)",
+                what, (rival.pose.translation - best.pose.translation).norm(),
+                std::abs(WrapAngle(rival.pose.yaw - best.pose.yaw)) * 180 / M_PI, best.score,
+                rival.score);
+  result->detail = detail;
+}
+
 // The answer for the best hypothesis, given the best distinct rival (none: null): LOCALIZED
-// only when it is far above chance, explains enough of the nearby trees and beats the rival.
+// only when it is far above chance (a random forest's or the local pattern's), explains enough
+// of the nearby trees and beats the rival and its decoys (decoys.h).
 RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q,
                         const RelocalizeQuery& query, const Hypothesis& best,
                         const Hypothesis* best_rival, int64_t trials,
-                        const RelocalizerOptions& options) {
+                        const RelocalizerOptions& options, const DecoyTest* decoys = nullptr) {
   const double rival = best_rival ? best_rival->score : 0.0;
   const int nearest = RatioTrees(q, options);
   const double ratio =
@@ -142,40 +186,50 @@ RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q,
 
   RelocalizeResult result = FinishWithTilt(m, q, query, best, options);
   result.confidence = best.score > 0 ? std::clamp(1.0 - rival / best.score, 0.0, 1.0) : 0.0;
-  const double chance = ChanceInliers(m, q, best.pose);
+  const PoseBelief belief = Assess(m, q, best, trials, options, decoys);
   char detail[200];
-  if (!Significant(best.inliers, chance, trials, options)) {
+  if (!belief.significant) {
     result.status = RelocalizeStatus::kNotFound;
+    result.reason = RelocalizeReason::kNotSignificant;
     std::snprintf(detail, sizeof detail,
                   "best pose matches %d trees, no better than chance here (%.1f expected at "
                   "random); is the drone in this map?",
-                  best.inliers, chance);
+                  best.inliers, belief.chance);
   } else if (best.inliers < options.min_inliers || ratio < options.min_inlier_ratio) {
     result.status = RelocalizeStatus::kNotFound;
+    result.reason = RelocalizeReason::kTooFewInliers;
     std::snprintf(detail, sizeof detail,
                   "best pose explains only %d trees (%.0f%% of the nearest %d trees); need %d "
                   "and %.0f%%",
                   best.inliers, 100 * ratio, nearest, options.min_inliers,
                   100 * options.min_inlier_ratio);
-  } else if (rival * options.ambiguity_ratio > best.score) {
-    result.status = RelocalizeStatus::kAmbiguous;
-    std::snprintf(detail, sizeof detail,
-                  "two distinct poses, %.1f m and %.0f deg apart, fit almost equally well (scores "
-                  "%.1f and %.1f)",
-                  (best_rival->pose.translation - best.pose.translation).norm(),
-                  std::abs(WrapAngle(best_rival->pose.yaw - best.pose.yaw)) * 180 / M_PI,
-                  best.score, rival);
+  } else if (best_rival && !BeatsRival(m, q, best, *best_rival, belief, options)) {
+    Ambiguous(m, q, best, *best_rival, "two distinct poses", &result);
+  } else if (!belief.decoys.passed) {
+    Ambiguous(m, q, best, belief.decoys.best,
+              "the query and a shifted or turned copy of it on the same regular pattern", &result);
   } else {
     result.status = RelocalizeStatus::kLocalized;
+    result.reason = RelocalizeReason::kNone;
     std::snprintf(detail, sizeof detail,
                   "%d trees matched (%.0f%% of the nearest %d trees, %.1f expected by chance), "
                   "next distinct pose scores %.1f",
-                  best.inliers, 100 * ratio, nearest, chance, rival);
+                  best.inliers, 100 * ratio, nearest, belief.chance, rival);
   }
-  result.detail = detail;
+  if (result.status != RelocalizeStatus::kAmbiguous) result.detail = detail;
   if (result.status != RelocalizeStatus::kLocalized) {
     result.map_from_sensor = Pose3::Identity();
+    result.covariance.setZero();
   }
+  return result;
+}
+
+RelocalizeResult TooFewTrees(const RelocalizeQuery& query, const MapIndexImpl& m) {
+  RelocalizeResult result;
+  result.reason = RelocalizeReason::kTooFewTrees;
+  result.detail = "need at least 3 query trees and 3 map trees; the query has " +
+                  std::to_string(query.trees.size()) + ", the map " +
+                  std::to_string(m.trees.size());
   return result;
 }
 
@@ -192,7 +246,7 @@ void RelocalizerOptions::Check() const {
   require(min_inlier_ratio >= 0 && min_inlier_ratio <= 1, "min_inlier_ratio must be in [0, 1]");
   require(min_ratio_trees >= 1, "min_ratio_trees must be >= 1");
   require(dbh_ratio_gate == 0 || dbh_ratio_gate >= 1, "dbh_ratio_gate must be 0 (off) or >= 1");
-  require(ambiguity_ratio >= 1, "ambiguity_ratio must be >= 1");
+  require(ambiguity_ratio >= 1 && decoy_ratio >= 1, "ambiguity_ratio, decoy_ratio must be >= 1");
   require(chance_sigmas >= 0, "chance_sigmas must be >= 0");
   require(false_alarm > 0 && false_alarm <= 1, "false_alarm must be in (0, 1]");
   require(distinct_distance > 0 && distinct_yaw > 0, "distinct_distance/yaw must be > 0");
@@ -215,6 +269,48 @@ void RelocalizerOptions::Check() const {
   require(decisive_fraction > 0 && decisive_fraction <= 1, "decisive_fraction must be in (0, 1]");
 }
 
+const char* ToString(RelocalizeReason reason) {
+  switch (reason) {
+    case RelocalizeReason::kNone:
+      return "none";
+    case RelocalizeReason::kTooFewTrees:
+      return "too_few_trees";
+    case RelocalizeReason::kNoMatchingConstellation:
+      return "no_matching_constellation";
+    case RelocalizeReason::kNotSignificant:
+      return "not_significant";
+    case RelocalizeReason::kTooFewInliers:
+      return "too_few_inliers";
+    case RelocalizeReason::kAmbiguous:
+      return "ambiguous";
+    case RelocalizeReason::kOutsidePrior:
+      return "outside_prior";
+  }
+  return "unknown";
+}
+
+// A prior search that found nothing: does the map hold the query elsewhere? Then the answer's
+// reason is kOutsidePrior (a second, global search: only on this path).
+static RelocalizeResult ExplainPriorMiss(const MapIndex& index, const RelocalizeQuery& query,
+                                         const RelocalizerOptions& options,
+                                         RelocalizeResult result) {
+  RelocalizeQuery global = query;
+  global.prior.reset();
+  const RelocalizeResult elsewhere = Relocalize(index, global, options);
+  if (elsewhere.status != RelocalizeStatus::kLocalized) return result;
+  const double distance = (elsewhere.map_from_sensor.translation().head<2>() -
+                           query.prior->map_from_sensor.translation().head<2>())
+                              .norm();
+  if (distance <= query.prior->radius) return result;
+  char detail[160];
+  std::snprintf(detail, sizeof detail,
+                "no pose within %.1f m of the prior; the trees match the map %.1f m from it",
+                query.prior->radius, distance);
+  result.reason = RelocalizeReason::kOutsidePrior;
+  result.detail = detail;
+  return result;
+}
+
 const char* ToString(RelocalizeStatus status) {
   switch (status) {
     case RelocalizeStatus::kLocalized: return "localized";
@@ -229,10 +325,7 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   options.Check();
   const MapIndexImpl& m = index.impl();
   RelocalizeResult result;
-  if (query.trees.size() < 3 || m.trees.size() < 3) {
-    result.detail = "need at least 3 query trees and 3 map trees";
-    return result;
-  }
+  if (query.trees.size() < 3 || m.trees.size() < 3) return TooFewTrees(query, m);
   const LevelledQuery q =
       Level(query, LevelSensor(query.trees, query.gravity, options.leveling).level_from_sensor,
             options);
@@ -244,8 +337,9 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   result.triangles = search.triangles;
   result.poses_checked = search.matches;
   if (search.hypotheses.empty()) {
+    result.reason = RelocalizeReason::kNoMatchingConstellation;
     result.detail = "no constellation of the query's trees matches the map";
-    return result;
+    return query.prior ? ExplainPriorMiss(index, query, options, std::move(result)) : result;
   }
   // Refine the best few distinct hypotheses (best first by their score on the nearest trees);
   // only these take part in the decision below.
@@ -267,10 +361,16 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   for (const Hypothesis& h : hypotheses) {
     if (Distinct(h.pose, best.pose, options) && (!rival || h.score > rival->score)) rival = &h;
   }
-  result = Decide(m, q, query, best, rival, search.matches, options);
+  const bool tested = search.tested && search.tested->first.yaw == best.pose.yaw &&
+                      search.tested->first.translation == best.pose.translation;
+  result = Decide(m, q, query, best, rival, search.matches, options,
+                  tested ? &search.tested->second : nullptr);
   result.hypotheses = verified;
   result.triangles = search.triangles;
   result.poses_checked = search.matches;
+  if (query.prior && result.status == RelocalizeStatus::kNotFound) {
+    return ExplainPriorMiss(index, query, options, std::move(result));
+  }
   return result;
 }
 
@@ -279,11 +379,7 @@ RelocalizeResult RefineNear(const MapIndex& index, const RelocalizeQuery& query,
                             const RelocalizerOptions& options) {
   options.Check();
   const MapIndexImpl& m = index.impl();
-  if (query.trees.size() < 3 || m.trees.size() < 3) {
-    RelocalizeResult result;
-    result.detail = "need at least 3 query trees and 3 map trees";
-    return result;
-  }
+  if (query.trees.size() < 3 || m.trees.size() < 3) return TooFewTrees(query, m);
   const LevelledQuery q =
       Level(query, LevelSensor(query.trees, query.gravity, options.leveling).level_from_sensor,
             options);

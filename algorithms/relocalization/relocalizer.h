@@ -56,6 +56,9 @@ struct RelocalizerOptions {
   // search after rival_triangles more query triangles.
   double decisive_fraction = 0.6;
   int rival_triangles = 4;
+  // The search ends after scoring this many hypotheses without a decisive one (0 = no limit): a
+  // regular stand matches almost everywhere, and further matches are more of the same.
+  int max_scored_hypotheses = 400;
   // Refine roll/pitch from the matched trees' map heights (tilt_refinement.h). Off by default:
   // it helps steeply tilted sensors (Stein: median error 0.096 -> 0.086 m) but costs ~1 pp
   // strict recall where map heights are noisy (Venman).
@@ -81,12 +84,26 @@ struct RelocalizerOptions {
   // probability (Poisson tail times the number of poses: what decides in sparse maps).
   double false_alarm = 0.01;
   double ambiguity_ratio = 1.5;      // best score must be >= this x the best distinct pose
+  // ... and >= this x its best decoy (the query shifted or turned onto the same local pattern,
+  // decoys.h), both scored at a gate from the pose's own residuals: regular stands.
+  double decoy_ratio = 1.5;
   double distinct_distance = 2.0;    // m, poses farther apart than this are distinct
   double distinct_yaw = 0.17;        // rad (~10 deg), or whose yaws differ more than this
   void Check() const;
 };
 
 enum class RelocalizeStatus { kLocalized, kAmbiguous, kNotFound };
+
+// Why an answer is what it is (beside the human-readable detail).
+enum class RelocalizeReason {
+  kNone,                     // LOCALIZED
+  kTooFewTrees,              // fewer than 3 query trees (or map trees): nothing to match
+  kNoMatchingConstellation,  // no triangle of the query's trees matches the map
+  kNotSignificant,           // the best pose is no better than chance here
+  kTooFewInliers,            // the best pose explains too few of the nearby trees
+  kAmbiguous,                // a distinct rival pose (rival_map_from_sensor) fits about as well
+  kOutsidePrior,             // nothing within the prior's radius; the map matches elsewhere
+};
 
 struct TreeMatch {
   int query_index = 0;
@@ -102,6 +119,11 @@ struct RelocalizeResult {
   double rmse = 0;        // m, horizontal RMS of the matches
   double confidence = 0;  // [0, 1]
   std::string detail;     // why ambiguous / not found, for humans
+  RelocalizeReason reason = RelocalizeReason::kTooFewTrees;
+  std::optional<Pose3> rival_map_from_sensor;  // the best distinct rival when kAmbiguous
+  // Pose uncertainty, map frame, (x, y, z, roll, pitch, yaw) in m and rad about the map axes
+  // (ROS order): meaningful when kLocalized (zero otherwise).
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
   int hypotheses = 0;     // pose hypotheses that passed the quick check
   int triangles = 0;      // query triangles looked up
   int64_t poses_checked = 0;  // triangle matches whose pose was checked
@@ -121,5 +143,6 @@ RelocalizeResult RefineNear(const MapIndex& index, const RelocalizeQuery& query,
                             const RelocalizerOptions& options = {});
 
 const char* ToString(RelocalizeStatus status);
+const char* ToString(RelocalizeReason reason);
 
 }  // namespace forestmap::algorithms

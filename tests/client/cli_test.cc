@@ -375,15 +375,16 @@ TEST_F(CliTest, RelocalizeFramesPrintsALinePerFrameAndASummary) {
             std::string::npos)
       << result.err;
 
-  // A frame the server rejects (fewer than 3 trees) is a warning; the run goes on, exits 1.
-  const Result bad = Run(s + "relocalize m --frames '" +
-                         Write("bad.csv", "frame,x,y\n1,0,0\n" + csv.substr(10)).string() + "'");
-  EXPECT_EQ(bad.exit_code, 1);
-  EXPECT_NE(bad.err.find("forestmap: warning: frame 1: Relocalize: INVALID_ARGUMENT"),
-            std::string::npos)
-      << bad.err;
-  EXPECT_EQ(CountLines(bad.out), frames);
-  EXPECT_NE(bad.err.find("forestmap: error: 1 of 121 frames were rejected"), std::string::npos);
+  // A frame with fewer than 3 trees (a clearing) is answered NOT_FOUND with its reason; the run
+  // exits 0.
+  const Result few = Run(s + "relocalize m --frames '" +
+                         Write("few.csv", "frame,x,y\n1,0,0\n" + csv.substr(10)).string() + "'");
+  EXPECT_EQ(few.exit_code, 0) << few.err;
+  EXPECT_EQ(CountLines(few.out), frames + 1);
+  const auto first = nlohmann::json::parse(few.out.substr(0, few.out.find('\n')));
+  EXPECT_EQ(first["frame"], 1);
+  EXPECT_EQ(first["status"], "not_found");
+  EXPECT_EQ(first["reason"], "too_few_trees");
 }
 
 }  // namespace

@@ -140,8 +140,11 @@ class FakeForestMapService final : public v1::ForestMap::Service {
     std::lock_guard lock(mutex);
     last_relocalize = *request;
     if (!maps.count(request->map_name())) return NotFound(request->map_name());
-    if (request->trees_size() < 3) {
-      return {grpc::StatusCode::INVALID_ARGUMENT, "trees: at least 3 needed"};
+    if (request->trees_size() < 3) {  // as forestmapd: an answer, not an error
+      response->set_status(v1::RelocalizeResponse::NOT_FOUND);
+      response->set_reason(v1::RelocalizeResponse::TOO_FEW_TREES);
+      response->set_detail("need at least 3 query trees");
+      return grpc::Status::OK;
     }
     response->set_server_time_ms(2.5);
     response->set_map_version(maps[request->map_name()].info.version());

@@ -120,8 +120,9 @@ TEST(ValidationTest, TreeFields) {
 
 TEST(ValidationTest, RelocalizeTreeCountLimits) {
   EXPECT_NO_THROW(Validate(Query(3), 20000));
-  EXPECT_EQ(ErrorOf<ValidationError>([&] { Validate(Query(2), 20000); }),
-            "trees: a relocalization needs at least 3 trees, got 2");
+  // Fewer than 3 trees is a valid query, answered NOT_FOUND (TOO_FEW_TREES) by the relocalizer.
+  EXPECT_NO_THROW(Validate(Query(2), 20000));
+  EXPECT_NO_THROW(Validate(Query(0), 20000));
   EXPECT_EQ(ErrorOf<LimitError>([&] { Validate(Query(101), 100); }),
             "trees: 101 trees exceed the limit of 100 per query");
 }
