@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <unordered_map>
 #include <utility>
 
 #include "client/csv_columns.h"
+#include "client/io/tree_columns.h"
 #include "client/str_cat.h"
 
 namespace forestmap::client {
@@ -31,12 +33,13 @@ struct MapColumns {
   std::vector<size_t> attributes;
 };
 
-MapTreeRow ReadMapRow(const CsvReader& reader, const MapColumns& columns) {
+MapTreeRow ReadMapRow(const CsvReader& reader, const MapColumns& columns, double dbh_scale) {
   MapTreeRow row;
   row.x = RequiredNumber(reader, columns.x);
   row.y = RequiredNumber(reader, columns.y);
   if (columns.z) row.z = OptionalNumber(reader, *columns.z);
   if (columns.dbh) row.dbh = OptionalDiameter(reader, *columns.dbh);
+  if (row.dbh) *row.dbh *= dbh_scale;
   if (columns.id) row.id = OptionalInteger(reader, *columns.id);
   for (size_t column : columns.attributes) {
     const CsvField& field = reader.fields()[column];
@@ -46,12 +49,37 @@ MapTreeRow ReadMapRow(const CsvReader& reader, const MapColumns& columns) {
   return row;
 }
 
-std::vector<MapTreeRow> ReadMapTrees(CsvReader reader) {
-  const MapColumns columns(ColumnMap(reader, {"id", "x", "y", "z", "dbh"}));
+// A DBH column whose median is over kMaxMedianDbh metres holds centimetres or millimetres
+// read as metres (a 14.9 cm stem read as 14.9 m): refused, naming the column.
+constexpr double kMaxMedianDbh = 3.0;  // m
+
+void CheckDbhUnit(const CsvReader& reader, const std::vector<MapTreeRow>& rows, size_t column,
+                  DbhUnit unit) {
+  std::vector<double> dbh;
+  for (const MapTreeRow& row : rows) {
+    if (row.dbh) dbh.push_back(*row.dbh);
+  }
+  if (dbh.empty()) return;
+  std::nth_element(dbh.begin(), dbh.begin() + dbh.size() / 2, dbh.end());
+  const double median = dbh[dbh.size() / 2];
+  if (median <= kMaxMedianDbh) return;
+  char text[64];
+  std::snprintf(text, sizeof(text), "%.4g", median);
+  throw CsvError(StrCat({reader.name(), ": column '", reader.header()[column],
+                         "': the median DBH is ", text, " m read in ", DbhUnitName(unit),
+                         " (over 3 m: no tree is that thick); if the column is in centimetres, "
+                         "add --dbh-unit cm (or mm for millimetres)"}));
+}
+
+std::vector<MapTreeRow> ReadMapTrees(CsvReader reader, const TreeFileOptions& options) {
+  const ResolvedColumns resolved = ResolveMapColumns(
+      reader.header(), options, reader.name() + ":" + std::to_string(reader.header_line()));
+  const MapColumns columns(ColumnMap(reader, {"id", "x", "y", "z", "dbh"}, resolved.canonical));
+  const double dbh_scale = MetresPer(resolved.dbh_unit);
   std::vector<MapTreeRow> rows;
   std::unordered_map<int64_t, int> line_of_id;
   while (reader.Next()) {
-    rows.push_back(ReadMapRow(reader, columns));
+    rows.push_back(ReadMapRow(reader, columns, dbh_scale));
     const std::optional<int64_t> id = rows.back().id;
     if (!id) continue;
     const auto [it, inserted] = line_of_id.emplace(*id, reader.line());
@@ -59,6 +87,7 @@ std::vector<MapTreeRow> ReadMapTrees(CsvReader reader) {
       reader.FailAt(*columns.id, DuplicateMessage("tree id", *id, it->second, reader.line()));
     }
   }
+  if (columns.dbh) CheckDbhUnit(reader, rows, *columns.dbh, resolved.dbh_unit);
   return rows;
 }
 
@@ -168,12 +197,13 @@ std::map<int64_t, algorithms::Pose3> ReadPoses(CsvReader reader) {
 
 }  // namespace
 
-std::vector<MapTreeRow> ReadMapTreesCsv(const std::string& path) {
-  return ReadMapTrees(CsvReader::Open(path));
+std::vector<MapTreeRow> ReadMapTreesCsv(const std::string& path, const TreeFileOptions& options) {
+  return ReadMapTrees(CsvReader::Open(path), options);
 }
 
-std::vector<MapTreeRow> ParseMapTreesCsv(std::string content, const std::string& name) {
-  return ReadMapTrees(CsvReader(std::move(content), name));
+std::vector<MapTreeRow> ParseMapTreesCsv(std::string content, const std::string& name,
+                                         const TreeFileOptions& options) {
+  return ReadMapTrees(CsvReader(std::move(content), name), options);
 }
 
 std::vector<DetectedTreeRow> ReadDetectedTreesCsv(const std::string& path) {
