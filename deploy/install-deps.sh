@@ -10,6 +10,8 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev
   libpcl-dev
+  libproj-dev proj-bin    # CRSs (geo/crs.cc); cs2cs checks the WGS84 answers in the tests
+  libgdal-dev gdal-bin    # GeoPackage / GeoJSON / shapefile trees (client/io/geo_io.cc); ogrinfo
   python3  # tests/bench scripts (relocalization.sh, scan_to_pose.sh, truth_checks.py)
 )
 

@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "server/convert.h"
+#include "server/geo_convert.h"
 #include "server/status.h"
 #include "server/streams.h"
 #include "server/validation.h"
@@ -67,7 +68,8 @@ grpc::ServerUnaryReactor* ForestMapService::CreateMap(grpc::CallbackServerContex
                                                       v1::Map* response) {
   return AnswerOn(admin_pool_, context, "CreateMap", [this, request, response] {
     Validate(*request);
-    *response = ToProto(store_.CreateMap(request->name(), request->description(), request->crs()));
+    *response = ToProto(
+        store_.CreateMap(request->name(), request->description(), CanonicalCrs(request->crs())));
   });
 }
 
@@ -120,6 +122,7 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
     *response =
         ToProto(algorithms::Relocalize(*entry.index, FromProto(*request), options_.relocalizer));
     response->set_map_version(entry.version);
+    if (entry.to_wgs84) AddGeodetic(*response, *entry.to_wgs84);
     const std::chrono::duration<double, std::milli> elapsed =
         std::chrono::steady_clock::now() - start;
     response->set_server_time_ms(elapsed.count());
