@@ -15,6 +15,7 @@
 #include "client/cli_commands.h"
 #include "client/cli_format.h"
 #include "client/cli_tree_input.h"
+#include "client/io/geo_io.h"
 #include "client/tree_csv.h"
 
 namespace forestmap::client {
@@ -63,12 +64,14 @@ void CreateWithTrees(const CreateOptions& options, const std::vector<MapTreeRow>
                << map.version() << ")" << std::endl;
 }
 
-void RunCreate(const CreateOptions& options, const CliContext& context) {
+void RunCreate(CreateOptions options, const CliContext& context) {
   std::vector<MapTreeRow> rows;
   // Read the file before touching the server, so that a bad file leaves nothing behind.
   if (!options.trees_file.empty()) {
-    rows = ReadTreeFile(options.trees_file, TreeFileOptionsFrom(options.columns, options.dbh_unit))
-               .rows;
+    TreeFile file =
+        ReadTreeFile(options.trees_file, TreeFileOptionsFrom(options.columns, options.dbh_unit));
+    rows = std::move(file.rows);
+    if (options.crs.empty()) options.crs = file.crs;  // a GIS file's own CRS
   }
   if (!options.trees_file.empty() && rows.empty()) {
     *context.err << "forestmap: warning: " << options.trees_file
@@ -84,8 +87,9 @@ void AddCreate(CLI::App& map_app, CliContext& context) {
   sub->add_option("NAME", options->name, "Map name: 1-128 characters of A-Z a-z 0-9 _ . -")
       ->required();
   sub->add_option("--trees", options->trees_file,
-                  "CSV of the map's trees: columns x,y (m) required; z, dbh (m), id optional; "
-                  "other columns are kept as attributes");
+                  "The map's trees: CSV (columns x,y (m) required; z, dbh (m), id optional; "
+                  "other columns are kept as attributes), or .gpkg / .geojson / .shp points "
+                  "(whose CRS is used when --crs is not given)");
   AddTreeFileOptions(*sub, options->columns, options->dbh_unit);
   sub->add_option("--crs", options->crs,
                   "Coordinate reference system: EPSG code (EPSG:2959), WKT or PROJ string");
@@ -220,6 +224,7 @@ struct ExportOptions {
   std::string name;
   std::string out_file;  // empty or "-": stdout
   int64_t version = 0;   // 0: current
+  std::string format;    // csv|geojson|gpkg|shp; empty: from the extension of out_file
 };
 
 // Shared maps: the state of each tree as extra columns (status, observations, sigmas), added
@@ -249,12 +254,22 @@ void RunExport(const ExportOptions& options, const CliContext& context) {
       context.Connect().ExportTrees(options.name, std::nullopt, options.version);
   AddStateColumns(exported);
   if (options.out_file.empty() || options.out_file == "-") {
+    if (!options.format.empty() && options.format != "csv") {
+      throw CommandError("--format " + options.format + " needs --out FILE");
+    }
     WriteMapTreesCsv(*context.out, exported.trees);
     context.out->flush();
     if (!*context.out) throw CommandError("writing to standard output failed");
     return;
   }
-  WriteMapTreesCsv(options.out_file, exported.trees);
+  const TreeFormat format =
+      options.format.empty() ? TreeFormatOfPath(options.out_file) : ParseTreeFormat(options.format);
+  if (format == TreeFormat::kCsv) {
+    WriteMapTreesCsv(options.out_file, exported.trees);
+  } else {
+    WriteGeoTrees(options.out_file, format, exported.trees,
+                  context.Connect().GetMap(options.name).crs());
+  }
   *context.err << "exported " << exported.trees.size() << " trees of map '" << options.name
                << "' (version " << exported.map_version << ") to " << options.out_file << std::endl;
 }
@@ -262,9 +277,14 @@ void RunExport(const ExportOptions& options, const CliContext& context) {
 void AddExport(CLI::App& map_app, CliContext& context) {
   auto options = std::make_shared<ExportOptions>();
   CLI::App* sub =
-      map_app.add_subcommand("export", "Write a map's trees as CSV (id,x,y,z,dbh,<attributes>)");
+      map_app.add_subcommand("export",
+                             "Write a map's trees as CSV (id,x,y,z,dbh,<attributes>), GeoJSON, "
+                             "GeoPackage or shapefile (points with the map's CRS)");
   sub->add_option("NAME", options->name, "Map name")->required();
-  sub->add_option("--out", options->out_file, "Output CSV file (default: standard output)");
+  sub->add_option("--out", options->out_file, "Output file (default: CSV on standard output)");
+  sub->add_option("--format", options->format,
+                  "csv, geojson, gpkg or shp (default: from the --out extension, else csv)")
+      ->check(CLI::IsMember({"csv", "geojson", "gpkg", "shp"}));
   sub->add_option("--version", options->version,
                   "Map version to export (default 0: the current one; see 'map history')")
       ->check(CLI::NonNegativeNumber);

@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include "client/cli_commands.h"
+#include "client/io/geo_io.h"
 
 namespace forestmap::client {
 
@@ -29,7 +30,13 @@ TreeFileOptions TreeFileOptionsFrom(const std::string& columns, const std::strin
 
 TreeFile ReadTreeFile(const std::string& path, const TreeFileOptions& options) {
   TreeFile file;
-  file.rows = ReadMapTreesCsv(path, options);
+  if (TreeFormatOfPath(path) == TreeFormat::kCsv) {
+    file.rows = ReadMapTreesCsv(path, options);
+    return file;
+  }
+  GeoTrees trees = ReadGeoTrees(path, options);
+  file.rows = std::move(trees.rows);
+  file.crs = std::move(trees.crs_wkt);
   return file;
 }
 

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdio>
 #include <unordered_map>
 #include <utility>
 
@@ -49,28 +48,6 @@ MapTreeRow ReadMapRow(const CsvReader& reader, const MapColumns& columns, double
   return row;
 }
 
-// A DBH column whose median is over kMaxMedianDbh metres holds centimetres or millimetres
-// read as metres (a 14.9 cm stem read as 14.9 m): refused, naming the column.
-constexpr double kMaxMedianDbh = 3.0;  // m
-
-void CheckDbhUnit(const CsvReader& reader, const std::vector<MapTreeRow>& rows, size_t column,
-                  DbhUnit unit) {
-  std::vector<double> dbh;
-  for (const MapTreeRow& row : rows) {
-    if (row.dbh) dbh.push_back(*row.dbh);
-  }
-  if (dbh.empty()) return;
-  std::nth_element(dbh.begin(), dbh.begin() + dbh.size() / 2, dbh.end());
-  const double median = dbh[dbh.size() / 2];
-  if (median <= kMaxMedianDbh) return;
-  char text[64];
-  std::snprintf(text, sizeof(text), "%.4g", median);
-  throw CsvError(StrCat({reader.name(), ": column '", reader.header()[column],
-                         "': the median DBH is ", text, " m read in ", DbhUnitName(unit),
-                         " (over 3 m: no tree is that thick); if the column is in centimetres, "
-                         "add --dbh-unit cm (or mm for millimetres)"}));
-}
-
 std::vector<MapTreeRow> ReadMapTrees(CsvReader reader, const TreeFileOptions& options) {
   const ResolvedColumns resolved = ResolveMapColumns(
       reader.header(), options, reader.name() + ":" + std::to_string(reader.header_line()));
@@ -87,7 +64,9 @@ std::vector<MapTreeRow> ReadMapTrees(CsvReader reader, const TreeFileOptions& op
       reader.FailAt(*columns.id, DuplicateMessage("tree id", *id, it->second, reader.line()));
     }
   }
-  if (columns.dbh) CheckDbhUnit(reader, rows, *columns.dbh, resolved.dbh_unit);
+  if (columns.dbh) {
+    CheckDbhMedian(rows, reader.name(), reader.header()[*columns.dbh], resolved.dbh_unit);
+  }
   return rows;
 }
 

@@ -2,15 +2,18 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdio>
 #include <stdexcept>
 
 #include "client/csv_columns.h"
 #include "client/csv_reader.h"
 #include "client/str_cat.h"
+#include "client/tree_csv.h"
 
 namespace forestmap::client {
 namespace {
 
+constexpr double kMaxMedianDbh = 3.0;  // m: no tree is that thick
 constexpr const char* kTreeColumns[] = {"x", "y", "z", "dbh", "id"};
 
 std::string Lower(std::string_view text) {
@@ -127,6 +130,24 @@ ResolvedColumns ResolveMapColumns(const std::vector<std::string>& header,
   }
   resolved.dbh_unit = options.dbh_unit.value_or(header_unit.value_or(DbhUnit::kMetre));
   return resolved;
+}
+
+void CheckDbhMedian(const std::vector<MapTreeRow>& rows, const std::string& file,
+                    const std::string& column, DbhUnit unit) {
+  std::vector<double> dbh;
+  for (const MapTreeRow& row : rows) {
+    if (row.dbh) dbh.push_back(*row.dbh);
+  }
+  if (dbh.empty()) return;
+  std::nth_element(dbh.begin(), dbh.begin() + dbh.size() / 2, dbh.end());
+  const double median = dbh[dbh.size() / 2];
+  if (median <= kMaxMedianDbh) return;
+  char text[64];
+  std::snprintf(text, sizeof(text), "%.4g", median);
+  throw CsvError(StrCat({file, ": column '", column, "': the median DBH is ", text, " m read in ",
+                         DbhUnitName(unit),
+                         " (over 3 m: no tree is that thick); if the column is in centimetres, "
+                         "add --dbh-unit cm (or mm for millimetres)"}));
 }
 
 }  // namespace forestmap::client

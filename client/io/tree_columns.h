@@ -21,6 +21,8 @@
 
 namespace forestmap::client {
 
+struct MapTreeRow;  // tree_csv.h
+
 enum class DbhUnit { kMetre, kCentimetre, kMillimetre };
 
 struct TreeFileOptions {
@@ -44,5 +46,11 @@ struct ResolvedColumns {
 // Throws CsvError "FILE:LINE: --columns dbh=DBHX: no column 'DBHX' (columns: a,b,c)".
 ResolvedColumns ResolveMapColumns(const std::vector<std::string>& header,
                                   const TreeFileOptions& options, const std::string& where);
+
+// A DBH column whose median (in metres, after the unit) is over 3 m holds centimetres or
+// millimetres read as metres (a 14.9 cm stem read as 14.9 m): throws CsvError naming the file
+// and column and suggesting --dbh-unit cm.
+void CheckDbhMedian(const std::vector<MapTreeRow>& rows, const std::string& file,
+                    const std::string& column, DbhUnit unit);
 
 }  // namespace forestmap::client
