@@ -43,5 +43,7 @@ void AddObserveCommand(CLI::App& app, CliContext& context);      // cli_observe.
 void AddDetectCommand(CLI::App& app, CliContext& context);      // cli_detect.cc
 void AddSimulateCommand(CLI::App& app, CliContext& context);    // cli_simulate.cc
 void AddTrackCommand(CLI::App& app, CliContext& context);       // cli_track.cc
+void AddCompareCommand(CLI::App& app, CliContext& context);     // cli_compare.cc
+void AddPlotCommand(CLI::App& app, CliContext& context);        // cli_plot.cc
 
 }  // namespace forestmap::client

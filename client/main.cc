@@ -37,6 +37,7 @@ int main(int argc, char** argv) {
   forestmap::client::AddDetectCommand(app, context);
   forestmap::client::AddSimulateCommand(app, context);
   forestmap::client::AddTrackCommand(app, context);
+  forestmap::client::AddCompareCommand(app, context);
 
   try {
     app.parse(argc, argv);

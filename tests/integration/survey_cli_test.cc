@@ -7,13 +7,19 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 #include <string>
+#include <tuple>
 
 #include "client/forestmap_client.h"
+#include "client/tree_csv.h"
 #include "server/server.h"
 #include "server/service.h"
 #include "storage/sqlite_map_store.h"
@@ -169,6 +175,113 @@ TEST_F(SurveyCliTest, InputErrorsNameFileAndFieldAndCreateNothing) {
       << field.err;
 
   EXPECT_TRUE(client_.ListMaps().empty()) << "a refused upload left a map behind";
+}
+
+}  // namespace
+}  // namespace forestmap
+
+namespace forestmap {
+namespace {
+
+struct Link {
+  std::string detected, reference;
+  double distance = 0, dbh_difference = 0;
+};
+
+std::vector<Link> ReadLinks(const fs::path& path) {
+  std::vector<Link> links;
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream fields(line);
+    for (std::string field; std::getline(fields, field, ',');) f.push_back(field);
+    if (f.size() < 10) f.resize(10);
+    links.push_back({f[0], f[1], std::stod(f[6]), f[9].empty() ? NAN : std::stod(f[9])});
+  }
+  std::sort(links.begin(), links.end(), [](const Link& a, const Link& b) {
+    return std::tie(a.detected, a.reference) < std::tie(b.detected, b.reference);
+  });
+  return links;
+}
+
+// The LiDAR inventory moved by a rotation of `degrees` about the origin and a shift.
+fs::path MovedLidar(const fs::path& dir, double degrees) {
+  const auto rows = client::ReadMapTreesCsv(kPlot + "PRF025_Lidar.csv");
+  const double a = degrees * M_PI / 180.0;
+  const fs::path path = dir / "lidar_moved.csv";
+  std::ofstream out(path);
+  out.precision(12);
+  out << "treeID,X,Y,DBH\n";
+  for (const auto& row : rows) {
+    const double x = row.x - 312000, y = row.y - 5096000;  // local, so the rotation is large
+    out << *row.id << ',' << std::cos(a) * x - std::sin(a) * y + 1234.5 << ','
+        << std::sin(a) * x + std::cos(a) * y - 678.9 << ',' << *row.dbh << '\n';
+  }
+  return path;
+}
+
+double RegisteredRotation(const std::string& err) {
+  const size_t at = err.find("registered: rotation ");
+  EXPECT_NE(at, std::string::npos) << err;
+  return at == std::string::npos ? NAN : std::stod(err.substr(at + 21));
+}
+
+TEST_F(SurveyCliTest, CompareLidarWithFieldInventory) {
+  const std::string reference = " --reference '" + kPlot +
+                                "PRF025_Field.csv' --reference-columns "
+                                "x=Field_Xpj,y=Field_Ypj,dbh=DBH,id=Tree --reference-dbh-unit cm";
+  const fs::path links_csv = dir_ / "links.csv";
+  const Result plain = Cli("compare '" + kPlot + "PRF025_Lidar.csv'" + reference +
+                           " --json --out '" + links_csv.string() + "'");
+  ASSERT_EQ(plain.exit_code, 0) << plain.err;
+  const nlohmann::json result = nlohmann::json::parse(plain.out);
+  EXPECT_EQ(result["reference_trees"], 62);
+  EXPECT_EQ(result["detected_trees"], 93);
+  // The links: one-to-one, within 0.8 m, and the reported DBH RMSE is theirs.
+  const std::vector<Link> links = ReadLinks(links_csv);
+  EXPECT_EQ(links.size(), result["linked"].get<size_t>());
+  std::set<std::string> detected, referenced;
+  double squared = 0;
+  int pairs = 0;
+  for (const Link& link : links) {
+    EXPECT_LE(link.distance, 0.8);
+    EXPECT_TRUE(detected.insert(link.detected).second) << link.detected << " linked twice";
+    EXPECT_TRUE(referenced.insert(link.reference).second) << link.reference << " linked twice";
+    if (!std::isnan(link.dbh_difference)) {
+      squared += link.dbh_difference * link.dbh_difference;
+      ++pairs;
+    }
+  }
+  EXPECT_EQ(pairs, result["dbh_pairs"].get<int>());
+  EXPECT_NEAR(std::sqrt(squared / pairs), result["dbh_rmse_m"].get<double>(), 1e-4);
+
+  // The table says the same.
+  const Result table = Cli("compare '" + kPlot + "PRF025_Lidar.csv'" + reference);
+  EXPECT_NE(table.out.find("linked           " + std::to_string(links.size()) + " of 62"),
+            std::string::npos)
+      << table.out;
+  EXPECT_NE(table.out.find("DBH RMSE"), std::string::npos) << table.out;
+
+  // --register: the original and a moved copy of the LiDAR give the same links, and the two
+  // registrations differ by the rotation applied.
+  const fs::path registered_csv = dir_ / "registered.csv", moved_csv = dir_ / "moved_links.csv";
+  const Result registered = Cli("compare '" + kPlot + "PRF025_Lidar.csv' --register" + reference +
+                                " --out '" + registered_csv.string() + "'");
+  ASSERT_EQ(registered.exit_code, 0) << registered.err;
+  constexpr double kRotation = 37.0;  // deg
+  const Result moved = Cli("compare '" + MovedLidar(dir_, kRotation).string() + "' --register" +
+                           reference + " --out '" + moved_csv.string() + "'");
+  ASSERT_EQ(moved.exit_code, 0) << moved.err;
+  const std::vector<Link> a = ReadLinks(registered_csv), b = ReadLinks(moved_csv);
+  ASSERT_EQ(a.size(), b.size());
+  EXPECT_GE(a.size(), links.size());  // registration removes the survey's misalignment
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].detected, b[i].detected);
+    EXPECT_EQ(a[i].reference, b[i].reference);
+  }
+  EXPECT_NEAR(RegisteredRotation(registered.err) - RegisteredRotation(moved.err), kRotation, 0.01);
 }
 
 }  // namespace
