@@ -38,6 +38,7 @@ int main(int argc, char** argv) {
   forestmap::client::AddSimulateCommand(app, context);
   forestmap::client::AddTrackCommand(app, context);
   forestmap::client::AddCompareCommand(app, context);
+  forestmap::client::AddPlotCommand(app, context);
 
   try {
     app.parse(argc, argv);

@@ -12,6 +12,7 @@ PACKAGES=(
   libpcl-dev
   libproj-dev proj-bin    # CRSs (geo/crs.cc); cs2cs checks the WGS84 answers in the tests
   libgdal-dev gdal-bin    # GeoPackage / GeoJSON / shapefile trees (client/io/geo_io.cc); ogrinfo
+  libcairo2-dev           # forestmap plot: SVG and PNG pictures (client/map_plot.cc)
   python3  # tests/bench scripts (relocalization.sh, scan_to_pose.sh, truth_checks.py)
 )
 
