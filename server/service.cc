@@ -126,6 +126,7 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
     const std::chrono::duration<double, std::milli> elapsed =
         std::chrono::steady_clock::now() - start;
     response->set_server_time_ms(elapsed.count());
+    recent_answers_.Add(request->map_name(), *response);
   });
 }
 
