@@ -23,7 +23,14 @@ struct TreeFile {
   std::string crs;  // WKT
 };
 
-// Reads CSV (any other extension) or, by extension, .gpkg, .geojson/.json, .shp.
+// Reads CSV (any other extension) or, by extension, .gpkg, .geojson/.json, .shp. A CSV's CRS is
+// the WKT or EPSG code in FILE.prj beside it, when there is one.
 TreeFile ReadTreeFile(const std::string& path, const TreeFileOptions& options);
+
+// Writes `crs` to PATH.prj (PATH without its extension), beside a CSV.
+void WriteCrsSidecar(const std::string& csv_path, const std::string& crs);
+
+// "EPSG:n", or the name in a WKT's first quotes, for messages.
+std::string ShortCrs(const std::string& crs);
 
 }  // namespace forestmap::client
