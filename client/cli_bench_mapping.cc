@@ -1,12 +1,12 @@
 // forestmap bench-mapping: building tree maps from frame sequences, in process, against truth.
 //
 // Survey merge:  --frames F --poses P --use-poses --map map.csv
-//   merges every frame with its ground-truth pose (algorithms/map_merge.h), rebuilds the map
+//   merges every frame with its ground-truth pose (algorithms/merging/map_merge.h), rebuilds the map
 //   from the set of observations as forestmapd holds it (algorithms::RebuildTrees: any order
 //   or batching of the uploads gives this map) and compares the confirmed trees with the
-//   reference map (algorithms/map_evaluation.h).
+//   reference map (algorithms/evaluation/map_evaluation.h).
 // Mapping:       --frames F --poses P [--eval-frames F2 --eval-poses P2 --truth-offset ...]
-//   builds the map from the detections alone (algorithms/map_builder.h; poses only score it):
+//   builds the map from the detections alone (algorithms/mapping/map_builder.h; poses only score it):
 //   the trajectory's ATE after a planar rigid and a planar similarity alignment to P, then the
 //   built map moved into P's world frame with the similarity (--rigid: the rigid) alignment and
 //   the frames of F2 (poses P2, moved by --truth-offset) relocalized against it, scored like
@@ -22,13 +22,13 @@
 
 #include <nlohmann/json.hpp>
 
-#include "algorithms/map_builder.h"
-#include "algorithms/map_evaluation.h"
-#include "algorithms/merged_map.h"
-#include "algorithms/reloc_evaluation.h"
-#include "algorithms/relocalizer.h"
+#include "algorithms/mapping/map_builder.h"
+#include "algorithms/evaluation/map_evaluation.h"
+#include "algorithms/merging/merged_map.h"
+#include "algorithms/evaluation/reloc_evaluation.h"
+#include "algorithms/relocalization/relocalizer.h"
 #include "client/cli_commands.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 namespace {

@@ -6,11 +6,11 @@
 //                  DIR/scan_NNN.pcd): each scan goes through the client's trunk detection
 //                  (client/scan_trees.h) and is relocalized, as `relocalize --scan` does
 // Tracking:        --track with real frames: frames in order through one tracking session
-//                  (algorithms/tracking.h), each frame's answer scored like a relocalization
+//                  (algorithms/relocalization/tracking.h), each frame's answer scored like a relocalization
 // Generated maps:  --generate N --like STEMMAP.csv --simulate N (a forest with the real map's
 //                  spatial statistics, e.g. 1,000,000 trees)
 // Prints recall, strict recall, wrong answers, error and latency percentiles (the definitions
-// are in algorithms/reloc_evaluation.h), as text or one JSON object (--json).
+// are in algorithms/evaluation/reloc_evaluation.h), as text or one JSON object (--json).
 
 #include <chrono>
 #include <cmath>
@@ -23,14 +23,15 @@
 
 #include <nlohmann/json.hpp>
 
-#include "algorithms/kdtree.h"
-#include "algorithms/reloc_evaluation.h"
-#include "algorithms/relocalizer.h"
-#include "algorithms/simulation.h"
-#include "algorithms/tracking.h"
+#include "algorithms/core/kdtree.h"
+#include "algorithms/evaluation/reloc_evaluation.h"
+#include "algorithms/relocalization/relocalizer.h"
+#include "algorithms/simulation/forest_generator.h"
+#include "algorithms/simulation/view_simulator.h"
+#include "algorithms/relocalization/tracking.h"
 #include "client/cli_commands.h"
 #include "client/scan_trees.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 namespace {

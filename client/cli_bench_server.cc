@@ -10,9 +10,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "algorithms/reloc_evaluation.h"
+#include "algorithms/evaluation/reloc_evaluation.h"
 #include "client/cli_commands.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 namespace {

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "algorithms/inventory_comparison.h"
+#include "algorithms/evaluation/inventory_comparison.h"
 #include "client/cli_commands.h"
 #include "client/cli_tree_input.h"
 

@@ -8,9 +8,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "algorithms/simulation.h"
+#include "algorithms/simulation/forest_generator.h"
+#include "algorithms/simulation/view_simulator.h"
 #include "client/cli_commands.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 namespace {

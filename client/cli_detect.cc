@@ -13,11 +13,11 @@
 #include <sstream>
 #include <string>
 
-#include "algorithms/trunk_detection.h"
+#include "algorithms/detection/trunk_detection.h"
 #include "client/cli_commands.h"
 #include "client/cli_tree_input.h"
 #include "client/io/las_crs.h"
-#include "client/scan_io.h"
+#include "client/io/scan_io.h"
 
 namespace forestmap::client {
 namespace {

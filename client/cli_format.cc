@@ -1,5 +1,7 @@
 #include "client/cli_format.h"
 
+#include "client/io/csv_columns.h"
+
 #include <algorithm>
 #include <array>
 #include <charconv>
@@ -8,7 +10,6 @@
 #include <ctime>
 #include <stdexcept>
 
-#include "client/csv_columns.h"
 #include "client/proto_convert.h"
 
 namespace forestmap::client {

@@ -11,12 +11,12 @@
 #include <string>
 #include <vector>
 
-#include "algorithms/map_builder.h"
+#include "algorithms/mapping/map_builder.h"
 #include "client/cli_commands.h"
 #include "client/cli_format.h"
 #include "client/cli_tree_input.h"
 #include "client/io/geo_io.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 namespace {
@@ -105,7 +105,7 @@ struct BuildOptions {
   std::string poses_out;
 };
 
-// Maps an unknown forest here, on the client (algorithms/map_builder.h), then uploads the
+// Maps an unknown forest here, on the client (algorithms/mapping/map_builder.h), then uploads the
 // confirmed trees as a new map. The first frame defines the map frame.
 void RunBuild(const BuildOptions& options, const CliContext& context) {
   const std::vector<Frame> frames = ReadFramesCsv(options.frames_file);

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "client/cli_commands.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 namespace {

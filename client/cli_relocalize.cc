@@ -13,7 +13,7 @@
 #include "client/cli_commands.h"
 #include "client/cli_format.h"
 #include "client/scan_trees.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 namespace {

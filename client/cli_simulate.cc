@@ -1,5 +1,5 @@
 // forestmap simulate: simulated LiDAR scans of a forest, with exact truth, for testing trunk
-// detection and relocalization end to end (algorithms/scan_simulation.h).
+// detection and relocalization end to end (algorithms/simulation/scan_simulation.h).
 //
 // Output folder:
 //   map.csv              the scene's trees in the map frame (id,x,y,z,dbh; z = ground under the
@@ -22,11 +22,12 @@
 #include <sstream>
 #include <thread>
 
-#include "algorithms/scan_simulation.h"
-#include "algorithms/simulation.h"
+#include "algorithms/simulation/scan_simulation.h"
+#include "algorithms/simulation/forest_generator.h"
+#include "algorithms/simulation/view_simulator.h"
 #include "client/cli_commands.h"
-#include "client/scan_io.h"
-#include "client/tree_csv.h"
+#include "client/io/scan_io.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 namespace {

@@ -8,10 +8,10 @@
 #include <string>
 #include <vector>
 
-#include "algorithms/reloc_evaluation.h"
+#include "algorithms/evaluation/reloc_evaluation.h"
 #include "client/cli_commands.h"
 #include "client/cli_format.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 namespace {

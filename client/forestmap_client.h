@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "algorithms/geometry.h"
-#include "client/tree_csv.h"
+#include "algorithms/core/geometry.h"
+#include "client/io/tree_csv.h"
 #include "forestmap/v1/forestmap_service.grpc.pb.h"
 
 namespace forestmap::client {

@@ -4,8 +4,8 @@
 
 #include <optional>
 
-#include "algorithms/geometry.h"
-#include "client/tree_csv.h"
+#include "algorithms/core/geometry.h"
+#include "client/io/tree_csv.h"
 #include "forestmap/v1/maps.pb.h"
 #include "forestmap/v1/relocalization.pb.h"
 #include "proto/geometry_convert.h"

@@ -2,7 +2,7 @@
 
 #include <sstream>
 
-#include "client/scan_io.h"
+#include "client/io/scan_io.h"
 
 namespace forestmap::client {
 

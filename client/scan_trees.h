@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "algorithms/trunk_detection.h"
+#include "algorithms/detection/trunk_detection.h"
 
 namespace forestmap::client {
 

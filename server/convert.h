@@ -10,10 +10,10 @@
 
 #include <vector>
 
-#include "algorithms/geometry.h"
-#include "algorithms/map_merge.h"
-#include "algorithms/relocalizer.h"
-#include "algorithms/tracking.h"
+#include "algorithms/core/geometry.h"
+#include "algorithms/merging/map_merge.h"
+#include "algorithms/relocalization/relocalizer.h"
+#include "algorithms/relocalization/tracking.h"
 #include "forestmap/v1/maps.pb.h"
 #include "forestmap/v1/observations.pb.h"
 #include "forestmap/v1/relocalization.pb.h"

@@ -20,7 +20,7 @@
 #include <string>
 #include <unordered_map>
 
-#include "algorithms/relocalizer.h"
+#include "algorithms/relocalization/relocalizer.h"
 #include "geo/crs.h"
 #include "storage/map_store.h"
 

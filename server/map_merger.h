@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "algorithms/map_merge.h"
+#include "algorithms/merging/map_merge.h"
 #include "storage/map_store.h"
 
 namespace forestmap::server {

@@ -6,7 +6,7 @@
 #include <unordered_set>
 #include <utility>
 
-#include "algorithms/observation_components.h"
+#include "algorithms/merging/observation_components.h"
 #include "server/convert.h"
 
 namespace forestmap::server {

@@ -12,7 +12,7 @@
 #include <span>
 #include <vector>
 
-#include "algorithms/map_merge.h"
+#include "algorithms/merging/map_merge.h"
 #include "storage/map_store.h"
 
 namespace forestmap::server {

@@ -5,6 +5,7 @@
 #include <string_view>
 #include <utility>
 
+#include "algorithms/core/check.h"
 #include "server/convert.h"
 #include "server/geo_convert.h"
 #include "server/status.h"
@@ -14,6 +15,8 @@
 
 namespace forestmap::server {
 namespace {
+
+using algorithms::Require;
 
 // Runs a unary RPC body on `pool` and finishes the call with its status. The body outlives the
 // handler, so it must capture by value (request, response and context stay valid until Finish).
@@ -25,10 +28,6 @@ grpc::ServerUnaryReactor* AnswerOn(WorkerPool& pool, grpc::CallbackServerContext
       [reactor, rpc, body = std::move(body)]() mutable { reactor->Finish(RunGuarded(rpc, body)); });
   if (!queued) reactor->Finish(ServerBusy(rpc));
   return reactor;
-}
-
-void Require(bool condition, const char* message) {
-  if (!condition) throw std::invalid_argument(message);
 }
 
 ServiceOptions Checked(ServiceOptions options) {

@@ -37,9 +37,9 @@
 
 #include <cstdint>
 
-#include "algorithms/map_merge.h"
-#include "algorithms/relocalizer.h"
-#include "algorithms/tracking.h"
+#include "algorithms/merging/map_merge.h"
+#include "algorithms/relocalization/relocalizer.h"
+#include "algorithms/relocalization/tracking.h"
 #include "forestmap/v1/forestmap_service.grpc.pb.h"
 #include "server/map_index_cache.h"
 #include "server/recent_answers.h"

@@ -7,7 +7,7 @@
 #include <functional>
 #include <vector>
 
-#include "algorithms/tracking.h"
+#include "algorithms/relocalization/tracking.h"
 #include "forestmap/v1/maps.pb.h"
 #include "forestmap/v1/tracking.pb.h"
 #include "server/map_index_cache.h"
@@ -77,7 +77,7 @@ class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTrees
 };
 
 // Track: one frame at a time, in order: read a frame, answer it on `work_pool` (the session's
-// Tracker, algorithms/tracking.h), write the answer, read the next. The index comes from the
+// Tracker, algorithms/relocalization/tracking.h), write the answer, read the next. The index comes from the
 // cache for every frame, so a session moves on to a new map version as soon as there is one.
 // A bad frame, an unknown map or a map without trees ends the stream with its status, the
 // message prefixed with the frame ("frame 12: trees[3].position.x is NaN").

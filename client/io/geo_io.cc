@@ -14,8 +14,8 @@
 #include <set>
 #include <stdexcept>
 
-#include "client/csv_columns.h"
-#include "client/str_cat.h"
+#include "client/io/csv_columns.h"
+#include "client/io/str_cat.h"
 
 namespace forestmap::client {
 namespace {
@@ -128,8 +128,8 @@ std::unique_ptr<OGRSpatialReference> SpatialReference(const std::string& crs,
   return srs;
 }
 
-void WriteLayer(GDALDataset& dataset, const std::vector<MapTreeRow>& rows,
-                OGRSpatialReference* srs, const std::string& path) {
+void WriteLayer(GDALDataset& dataset, const std::vector<MapTreeRow>& rows, OGRSpatialReference* srs,
+                const std::string& path) {
   const std::vector<std::string> names = AttributeNames(rows);
   OGRLayer* layer = dataset.CreateLayer(kLayerName, srs, wkbPoint, nullptr);
   if (!layer) throw CsvError(path + ": cannot create a layer: " + LastGdalError());

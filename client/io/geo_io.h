@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "client/io/tree_columns.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 

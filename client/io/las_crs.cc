@@ -5,8 +5,8 @@
 #include <filesystem>
 #include <string_view>
 
-#include "client/scan_io.h"
-#include "client/scan_io_internal.h"
+#include "client/io/scan_io.h"
+#include "client/io/scan_io_internal.h"
 
 namespace forestmap::client {
 namespace {

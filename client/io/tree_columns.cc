@@ -5,10 +5,10 @@
 #include <cstdio>
 #include <stdexcept>
 
-#include "client/csv_columns.h"
-#include "client/csv_reader.h"
-#include "client/str_cat.h"
-#include "client/tree_csv.h"
+#include "client/io/csv_columns.h"
+#include "client/io/csv_reader.h"
+#include "client/io/str_cat.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 namespace {

@@ -1,5 +1,5 @@
 // Circle fits against exact circles: Kasa, geometric refinement, RANSAC against clutter.
-#include "algorithms/circle_fit.h"
+#include "algorithms/detection/circle_fit.h"
 
 #include <gtest/gtest.h>
 

@@ -1,7 +1,7 @@
 // Cylinder fits against exact, leaning cylinders: a partial view, clutter beside the stem, few
 // points, the radius prior that keeps a short flat arc from running away, and the silhouette's
 // tangent rays that fix its radius.
-#include "algorithms/cylinder_fit.h"
+#include "algorithms/detection/cylinder_fit.h"
 
 #include <gtest/gtest.h>
 

@@ -7,9 +7,10 @@
 
 #include <gtest/gtest.h>
 
-#include "algorithms/relocalizer.h"
-#include "algorithms/trunk_detection.h"
-#include "client/scan_io.h"
+#include "algorithms/relocalization/relocalizer.h"
+#include "algorithms/detection/trunk_detection.h"
+#include "client/io/scan_io.h"
+#include "tests/shared_data.h"
 
 namespace forestmap::algorithms {
 namespace {
@@ -52,7 +53,7 @@ std::vector<Pose3> OdometryPoses() {
 }
 
 TEST(DroneScanPair, TrunksOfTheSecondScanRelocalizeWithTheOdometrysRelativePose) {
-  if (!std::filesystem::exists(kDir + "poses.txt")) GTEST_SKIP() << "missing " << kDir;
+  if (!std::filesystem::exists(kDir + "poses.txt")) FORESTMAP_SKIP_WITHOUT_DATA() << "missing " << kDir;
   const std::vector<Pose3> odometry = OdometryPoses();
   ASSERT_EQ(odometry.size(), 2u);
   const Pose3 t0_from_t1 = odometry[0].inverse() * odometry[1];

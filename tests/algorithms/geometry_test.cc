@@ -3,10 +3,10 @@
 
 #include <gtest/gtest.h>
 
-#include "algorithms/leveling.h"
-#include "algorithms/rigid2d.h"
-#include "algorithms/tilt_refinement.h"
-#include "algorithms/triangles.h"
+#include "algorithms/core/leveling.h"
+#include "algorithms/core/rigid2d.h"
+#include "algorithms/relocalization/tilt_refinement.h"
+#include "algorithms/relocalization/triangles.h"
 
 namespace forestmap::algorithms {
 namespace {

@@ -1,5 +1,5 @@
 // Pillar ground segmentation and the height model, against ray-cast scenes with exact ground.
-#include "algorithms/ground_model.h"
+#include "algorithms/detection/ground_model.h"
 
 #include <gtest/gtest.h>
 

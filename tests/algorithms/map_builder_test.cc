@@ -1,15 +1,17 @@
-// Mapping without poses (algorithms/map_builder.h) and its pose graph (pose_graph.h): a
+// Mapping without poses (algorithms/mapping/map_builder.h) and its pose graph (pose_graph.h): a
 // simulated loop through a generated forest and a stretch of the real Wild_V01 traversal.
 
 #include <gtest/gtest.h>
 
 #include <filesystem>
 
-#include "algorithms/map_builder.h"
-#include "algorithms/map_evaluation.h"
-#include "algorithms/pose_graph.h"
-#include "algorithms/simulation.h"
-#include "client/tree_csv.h"
+#include "algorithms/mapping/map_builder.h"
+#include "algorithms/evaluation/map_evaluation.h"
+#include "algorithms/mapping/pose_graph.h"
+#include "algorithms/simulation/forest_generator.h"
+#include "algorithms/simulation/view_simulator.h"
+#include "client/io/tree_csv.h"
+#include "tests/shared_data.h"
 
 namespace forestmap::algorithms {
 namespace {
@@ -121,7 +123,7 @@ TEST(MapBuilder, SimulatedLoopHasSmallTrajectoryErrorAndNoDuplicateTrees) {
 TEST(MapBuilder, RealWildV01StretchWithoutPoses) {
   const auto dir = std::filesystem::path(FORESTMAP_SHARED_DATA) / "sequences" / "Wild_V01";
   if (!std::filesystem::exists(dir / "trees.csv")) {
-    GTEST_SKIP() << "real sequences missing under " << dir;
+    FORESTMAP_SKIP_WITHOUT_DATA() << "real sequences missing under " << dir;
   }
   const auto frames = client::ReadFramesCsv((dir / "trees.csv").string());
   const auto poses = client::ReadPosesCsv((dir / "poses.csv").string());

@@ -6,9 +6,9 @@
 #include <random>
 #include <set>
 
-#include "algorithms/occupancy_grid.h"
-#include "algorithms/pose_search.h"
-#include "algorithms/triangle_table.h"
+#include "algorithms/relocalization/occupancy_grid.h"
+#include "algorithms/relocalization/pose_search.h"
+#include "algorithms/relocalization/triangle_table.h"
 
 namespace forestmap::algorithms {
 namespace {

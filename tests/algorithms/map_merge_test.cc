@@ -1,4 +1,4 @@
-// Map merging (algorithms/map_merge.h, merged_map.h): association, DBH awareness, promotion,
+// Map merging (algorithms/merging/map_merge.h, merged_map.h): association, DBH awareness, promotion,
 // removal, order robustness on a simulated forest and the survey merge on real frames.
 
 #include <gtest/gtest.h>
@@ -10,13 +10,15 @@
 #include <span>
 #include <tuple>
 
-#include "algorithms/kdtree.h"
-#include "algorithms/map_evaluation.h"
-#include "algorithms/map_merge.h"
-#include "algorithms/merged_map.h"
-#include "algorithms/observation_components.h"
-#include "algorithms/simulation.h"
-#include "client/tree_csv.h"
+#include "algorithms/core/kdtree.h"
+#include "algorithms/evaluation/map_evaluation.h"
+#include "algorithms/merging/map_merge.h"
+#include "algorithms/merging/merged_map.h"
+#include "algorithms/merging/observation_components.h"
+#include "algorithms/simulation/forest_generator.h"
+#include "algorithms/simulation/view_simulator.h"
+#include "client/io/tree_csv.h"
+#include "tests/shared_data.h"
 
 namespace forestmap::algorithms {
 namespace {
@@ -299,7 +301,7 @@ std::filesystem::path Sequence(const std::string& name) {
 TEST(MapMergeRealData, WildV01SubsetMatchesTheReferenceMap) {
   const auto dir = Sequence("Wild_V01");
   if (!std::filesystem::exists(dir / "trees.csv")) {
-    GTEST_SKIP() << "real sequences missing under " << dir;
+    FORESTMAP_SKIP_WITHOUT_DATA() << "real sequences missing under " << dir;
   }
   const auto frames = client::ReadFramesCsv((dir / "trees.csv").string());
   const auto poses = client::ReadPosesCsv((dir / "poses.csv").string());

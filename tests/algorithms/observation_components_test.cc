@@ -1,4 +1,4 @@
-// Connected components of observation rows (algorithms/observation_components.h) against a
+// Connected components of observation rows (algorithms/merging/observation_components.h) against a
 // brute-force union of every pair closer than the link distance, in any insertion order.
 #include <gtest/gtest.h>
 
@@ -11,7 +11,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "algorithms/observation_components.h"
+#include "algorithms/merging/observation_components.h"
 
 namespace forestmap::algorithms {
 namespace {

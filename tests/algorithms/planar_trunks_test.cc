@@ -1,5 +1,5 @@
 // 2-D trunk detection on ray-cast planar scans of circular trunks.
-#include "algorithms/planar_trunks.h"
+#include "algorithms/detection/planar_trunks.h"
 
 #include <gtest/gtest.h>
 

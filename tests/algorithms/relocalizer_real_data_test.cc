@@ -6,9 +6,10 @@
 
 #include <gtest/gtest.h>
 
-#include "algorithms/reloc_evaluation.h"
-#include "algorithms/relocalizer.h"
-#include "client/tree_csv.h"
+#include "algorithms/evaluation/reloc_evaluation.h"
+#include "algorithms/relocalization/relocalizer.h"
+#include "client/io/tree_csv.h"
+#include "tests/shared_data.h"
 
 namespace forestmap::algorithms {
 namespace {
@@ -55,7 +56,7 @@ class RealSequences : public ::testing::Test {
  protected:
   void SetUp() override {
     if (!std::filesystem::exists(kSequences + "Wild_V01/map.csv")) {
-      GTEST_SKIP() << "real sequences missing under " << kSequences;
+      FORESTMAP_SKIP_WITHOUT_DATA() << "real sequences missing under " << kSequences;
     }
   }
 };

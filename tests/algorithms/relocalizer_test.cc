@@ -4,10 +4,11 @@
 
 #include <gtest/gtest.h>
 
-#include "algorithms/reloc_evaluation.h"
-#include "algorithms/relocalizer.h"
-#include "algorithms/simulation.h"
-#include "client/tree_csv.h"
+#include "algorithms/evaluation/reloc_evaluation.h"
+#include "algorithms/relocalization/relocalizer.h"
+#include "algorithms/simulation/view_simulator.h"
+#include "client/io/tree_csv.h"
+#include "tests/shared_data.h"
 
 namespace forestmap::algorithms {
 namespace {
@@ -47,7 +48,7 @@ class SimulatedViews : public ::testing::Test {
  protected:
   void SetUp() override {
     map_ = ReadStemMap("spatstat_longleaf.csv");
-    if (map_.empty()) GTEST_SKIP() << "real stem maps missing under " FORESTMAP_SHARED_DATA;
+    if (map_.empty()) FORESTMAP_SKIP_WITHOUT_DATA() << "real stem maps missing under " FORESTMAP_SHARED_DATA;
     index_ = std::make_unique<MapIndex>(map_);
   }
   std::vector<MapTree> map_;
@@ -100,7 +101,7 @@ TEST_F(SimulatedViews, PriorPathFindsThePoseAndIgnoresTheRestOfTheMap) {
 
 TEST(Relocalizer, TwoDimensionalMapWithoutDbhWorksInThreeDof) {
   std::vector<MapTree> map = ReadStemMap("spatstat_hyytiala.csv");  // x, y only
-  if (map.empty()) GTEST_SKIP() << "real stem maps missing under " FORESTMAP_SHARED_DATA;
+  if (map.empty()) FORESTMAP_SKIP_WITHOUT_DATA() << "real stem maps missing under " FORESTMAP_SHARED_DATA;
   MapIndex index(map);
   EXPECT_FALSE(index.has_z());
   EXPECT_FALSE(index.has_dbh());
@@ -114,7 +115,7 @@ TEST(Relocalizer, TwoDimensionalMapWithoutDbhWorksInThreeDof) {
 TEST(Relocalizer, ViewsOfAnotherForestAreNotFound) {
   std::vector<MapTree> map = ReadStemMap("spatstat_longleaf.csv");
   std::vector<MapTree> other = ReadStemMap("ads_BPoirier.csv");
-  if (map.empty() || other.empty()) GTEST_SKIP() << "real stem maps missing";
+  if (map.empty() || other.empty()) FORESTMAP_SKIP_WITHOUT_DATA() << "real stem maps missing";
   MapIndex index(map);
   ViewSimulator simulator(other);
   ViewOptions view;

@@ -1,5 +1,5 @@
 // Removal of invalid returns, origin duplicates and the drone's own body.
-#include "algorithms/scan_filter.h"
+#include "algorithms/detection/scan_filter.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "algorithms/scan_simulation.h"
+#include "algorithms/simulation/scan_simulation.h"
 
 #include <gtest/gtest.h>
 
@@ -10,9 +10,10 @@
 #include <string>
 #include <vector>
 
-#include "algorithms/simulation.h"
-#include "client/scan_io.h"
-#include "client/tree_csv.h"
+#include "algorithms/simulation/forest_generator.h"
+#include "client/io/scan_io.h"
+#include "client/io/tree_csv.h"
+#include "tests/shared_data.h"
 
 namespace forestmap::algorithms {
 namespace {
@@ -481,7 +482,7 @@ TEST(ScanSimulationTest, ScansRoundTripThroughPcd) {
 // 3 m above the ground are seen, trees beyond the scanner's range never are.
 TEST(ScanSimulationRealDataTest, LongleafNearTreesVisibleFarOnesNot) {
   const std::string path = std::string(FORESTMAP_SHARED_DATA) + "/stemmaps/spatstat_longleaf.csv";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << "real data missing: " << path;
+  if (!std::filesystem::exists(path)) FORESTMAP_SKIP_WITHOUT_DATA() << "real data missing: " << path;
   const std::vector<MapTree> map = client::ToMapTrees(client::ReadMapTreesCsv(path));
   ASSERT_EQ(map.size(), 584u);
   const ForestScene scene(map, SceneOptions{});

@@ -1,4 +1,5 @@
-#include "algorithms/simulation.h"
+#include "algorithms/simulation/forest_generator.h"
+#include "algorithms/simulation/view_simulator.h"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
+#include "tests/shared_data.h"
 
 namespace forestmap::algorithms {
 namespace {
@@ -146,7 +148,7 @@ TEST(EstimateStatisticsTest, DetectsClustering) {
 TEST(EstimateStatisticsTest, RealLongleafStemMap) {
   const std::vector<MapTree> trees = LoadLongleaf();
   if (trees.empty())
-    GTEST_SKIP() << "missing " FORESTMAP_SHARED_DATA "/stemmaps/spatstat_longleaf.csv";
+    FORESTMAP_SKIP_WITHOUT_DATA() << "missing " FORESTMAP_SHARED_DATA "/stemmaps/spatstat_longleaf.csv";
   ASSERT_EQ(trees.size(), 584u);
   const StemMapStatistics stats = EstimateStemMapStatistics(trees);
   constexpr double kTrueDensity = 584.0 / (200.0 * 200.0);  // trees/m^2

@@ -1,5 +1,5 @@
 // Stem layer extraction and the grid DBSCAN in the horizontal plane.
-#include "algorithms/stem_clustering.h"
+#include "algorithms/detection/stem_clustering.h"
 
 #include <gtest/gtest.h>
 

@@ -1,5 +1,5 @@
 // Stems from clusters: taper fit, per-slice circles, axis, ground point, DBH, cluster splitting.
-#include "algorithms/stem_model.h"
+#include "algorithms/detection/stem_model.h"
 
 #include <gtest/gtest.h>
 

@@ -9,7 +9,7 @@
 #include <random>
 #include <vector>
 
-#include "algorithms/point_cloud.h"
+#include "algorithms/core/point_cloud.h"
 
 namespace forestmap::algorithms::testing {
 

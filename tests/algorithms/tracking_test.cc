@@ -1,14 +1,16 @@
-// Tracking sessions (algorithms/tracking.h) on the real Venman traversals: the second visit
+// Tracking sessions (algorithms/relocalization/tracking.h) on the real Venman traversals: the second visit
 // (Wild_V02) tracked frame by frame against the first visit's map (Wild_V01), and sessions that
 // start lost, lose the track and turn faster than the prediction.
 #include <filesystem>
 
 #include <gtest/gtest.h>
 
-#include "algorithms/reloc_evaluation.h"
-#include "algorithms/simulation.h"
-#include "algorithms/tracking.h"
-#include "client/tree_csv.h"
+#include "algorithms/evaluation/reloc_evaluation.h"
+#include "algorithms/simulation/forest_generator.h"
+#include "algorithms/simulation/view_simulator.h"
+#include "algorithms/relocalization/tracking.h"
+#include "client/io/tree_csv.h"
+#include "tests/shared_data.h"
 
 namespace forestmap::algorithms {
 namespace {
@@ -30,7 +32,7 @@ class Venman : public ::testing::Test {
         client::ReadFramesCsv(kSequences + "Oxford_Stein/trees.csv"));
   }
   void SetUp() override {
-    if (!map_) GTEST_SKIP() << "real sequences missing under " << kSequences;
+    if (!map_) FORESTMAP_SKIP_WITHOUT_DATA() << "real sequences missing under " << kSequences;
   }
 
   Pose3 Truth(size_t i) const { return kV01FromV02 * poses_->at((*frames_)[i].frame); }

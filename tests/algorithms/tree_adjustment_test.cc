@@ -1,4 +1,4 @@
-// Landmark bundle adjustment (algorithms/tree_adjustment.h) against a known trajectory and forest:
+// Landmark bundle adjustment (algorithms/mapping/tree_adjustment.h) against a known trajectory and forest:
 // drifted starting poses, noisy detections, wrong associations and frames whose stem heights are
 // off by metres.
 
@@ -6,7 +6,7 @@
 
 #include <random>
 
-#include "algorithms/tree_adjustment.h"
+#include "algorithms/mapping/tree_adjustment.h"
 
 namespace forestmap::algorithms {
 namespace {

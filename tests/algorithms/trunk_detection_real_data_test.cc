@@ -8,9 +8,10 @@
 #include <filesystem>
 #include <iostream>
 
-#include "algorithms/trunk_detection.h"
-#include "client/csv_reader.h"
-#include "client/scan_io.h"
+#include "algorithms/detection/trunk_detection.h"
+#include "client/io/csv_reader.h"
+#include "client/io/scan_io.h"
+#include "tests/shared_data.h"
 
 namespace forestmap::algorithms {
 namespace {
@@ -63,7 +64,7 @@ class TrunkSlicesTest : public ::testing::Test {
  protected:
   void SetUp() override {
     if (!std::filesystem::exists(kSlices + "reference.csv")) {
-      GTEST_SKIP() << "no trunk slices at " << kSlices;
+      FORESTMAP_SKIP_WITHOUT_DATA() << "no trunk slices at " << kSlices;
     }
     slices_ = ReadSlices();
   }
@@ -124,7 +125,7 @@ TEST_F(TrunkSlicesTest, AllThirteenInOneCloudAndNoFalseStems) {
 // within 1 m, then requires agreement of the stems found in both.
 TEST(PonderosaClipsTest, MobileAndDroneStemsAgree) {
   const std::string dir = kScans + "spanner_ponderosa/";
-  if (!std::filesystem::exists(dir + "MLS_Clip.pcd")) GTEST_SKIP() << "no clips at " << dir;
+  if (!std::filesystem::exists(dir + "MLS_Clip.pcd")) FORESTMAP_SKIP_WITHOUT_DATA() << "no clips at " << dir;
   const PointCloud mls = client::ReadScan(dir + "MLS_Clip.pcd");
   const PointCloud uas = client::ReadScan(dir + "UAS_Clip.pcd");
   ASSERT_EQ(mls.origin, uas.origin);

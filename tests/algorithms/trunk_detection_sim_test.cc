@@ -14,9 +14,10 @@
 #include <random>
 #include <set>
 
-#include "algorithms/scan_simulation.h"
-#include "algorithms/trunk_detection.h"
-#include "client/tree_csv.h"
+#include "algorithms/simulation/scan_simulation.h"
+#include "algorithms/detection/trunk_detection.h"
+#include "client/io/tree_csv.h"
+#include "tests/shared_data.h"
 
 namespace forestmap::algorithms {
 namespace {
@@ -309,7 +310,7 @@ int PosesFromEnvironment(int fallback) {
 }
 
 TEST(TrunkDetectionSimTest, RecallPrecisionAndAccuracyOverDronePoses) {
-  if (!std::filesystem::exists(kStemMaps)) GTEST_SKIP() << "no stem maps at " << kStemMaps;
+  if (!std::filesystem::exists(kStemMaps)) FORESTMAP_SKIP_WITHOUT_DATA() << "no stem maps at " << kStemMaps;
   const int poses = PosesFromEnvironment(20);
   TrunkDetectionOptions options;
   options.stem.beam_divergence = 3.1e-3;  // the simulated Ouster beams

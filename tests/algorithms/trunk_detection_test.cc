@@ -1,6 +1,6 @@
 // The whole pipeline on ray-cast synthetic scans with exact truth: flat and sloped ground,
 // drone returns at the origin, a tilted sensor, occluded stems, and stage statistics.
-#include "algorithms/trunk_detection.h"
+#include "algorithms/detection/trunk_detection.h"
 
 #include <gtest/gtest.h>
 

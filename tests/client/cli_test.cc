@@ -14,8 +14,9 @@
 #include <string>
 #include <vector>
 
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 #include "fake_forestmap_server.h"
+#include "tests/shared_data.h"
 
 namespace forestmap::client {
 namespace {
@@ -303,7 +304,7 @@ TEST_F(CliTest, RelocalizeScanSendsTheTrunksItDetects) {
 // stem map -> trunk detection -> relocalization, scored against the simulator's poses.
 TEST_F(CliTest, SimulatedScansOfARealStemMapRelocalize) {
   const std::string stemmap = std::string(FORESTMAP_SHARED_DATA) + "/stemmaps/spatstat_longleaf.csv";
-  if (!fs::exists(stemmap)) GTEST_SKIP() << "missing " << stemmap;
+  if (!fs::exists(stemmap)) FORESTMAP_SKIP_WITHOUT_DATA() << "missing " << stemmap;
   const std::string dir = (dir_ / "scans").string();
   const Result simulated = Run("simulate --map '" + stemmap +
                                "' --random-poses 40 --scanner os1-64 --seed 7 --out '" + dir + "'");
@@ -321,7 +322,7 @@ TEST_F(CliTest, SimulatedScansOfARealStemMapRelocalize) {
 // Mapping an unknown forest: 100 real Wild_V01 frames, no poses, become a new map.
 TEST_F(CliTest, MapBuildCreatesAMapFromFramesAlone) {
   const std::string frames = std::string(FORESTMAP_SHARED_DATA) + "/sequences/Wild_V01/trees.csv";
-  if (!fs::exists(frames)) GTEST_SKIP() << "missing " << frames;
+  if (!fs::exists(frames)) FORESTMAP_SKIP_WITHOUT_DATA() << "missing " << frames;
   std::ifstream in(frames);
   std::string csv, line;
   while (std::getline(in, line) && (csv.empty() || std::stoi(line) < 100)) csv += line + "\n";

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "client/scan_io.h"
+#include "client/io/scan_io.h"
 
 namespace forestmap::client {
 namespace {

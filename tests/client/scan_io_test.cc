@@ -1,6 +1,6 @@
 // Scan I/O: the real scans of the shared data, and round trips through every written format.
 
-#include "client/scan_io.h"
+#include "client/io/scan_io.h"
 
 #include <gtest/gtest.h>
 
@@ -13,6 +13,7 @@
 #include <string>
 
 #include "tests/client/scan_io_test_util.h"
+#include "tests/shared_data.h"
 
 namespace forestmap::client {
 namespace {
@@ -26,7 +27,7 @@ const std::string kScans = std::string(FORESTMAP_SHARED_DATA) + "/scans";
 constexpr double kMillimetre = 1e-3;  // m
 
 #define SKIP_WITHOUT(path) \
-  if (!fs::exists(path)) GTEST_SKIP() << "shared data missing: " << (path)
+  if (!fs::exists(path)) FORESTMAP_SKIP_WITHOUT_DATA() << "shared data missing: " << (path)
 
 size_t CountFinite(const PointCloud& cloud) {
   size_t n = 0;

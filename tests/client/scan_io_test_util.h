@@ -9,7 +9,7 @@
 #include <string>
 #include <string_view>
 
-#include "client/scan_io.h"
+#include "client/io/scan_io.h"
 
 namespace forestmap::client::testing_util {
 

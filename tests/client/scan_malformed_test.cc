@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "client/scan_io.h"
+#include "client/io/scan_io.h"
 #include "tests/client/scan_io_test_util.h"
 
 namespace forestmap::client {

@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 
 namespace forestmap::client {
 namespace {

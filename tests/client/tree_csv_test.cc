@@ -1,4 +1,4 @@
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 
 #include <gtest/gtest.h>
 
@@ -9,6 +9,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include "tests/shared_data.h"
 
 namespace forestmap::client {
 namespace {
@@ -260,7 +261,7 @@ const fs::path kData = FORESTMAP_SHARED_DATA;
 
 TEST(TreeCsvRealDataTest, EveryStemMapReadsWithItsCountAndRoundTrips) {
   const fs::path dir = kData / "stemmaps";
-  if (!fs::exists(dir / "INDEX.csv")) GTEST_SKIP() << "no stem maps at " << dir;
+  if (!fs::exists(dir / "INDEX.csv")) FORESTMAP_SKIP_WITHOUT_DATA() << "no stem maps at " << dir;
   CsvReader index = CsvReader::Open((dir / "INDEX.csv").string());
   ASSERT_EQ(index.header()[0], "name");
   ASSERT_EQ(index.header()[1], "n");
@@ -285,7 +286,7 @@ TEST(TreeCsvRealDataTest, EveryStemMapReadsWithItsCountAndRoundTrips) {
 
 TEST(TreeCsvRealDataTest, StemMapMarksBecomeAttributes) {
   const fs::path path = kData / "stemmaps" / "siplab_boreasNP.csv";
-  if (!fs::exists(path)) GTEST_SKIP() << "missing " << path;
+  if (!fs::exists(path)) FORESTMAP_SKIP_WITHOUT_DATA() << "missing " << path;
   const auto rows = ReadMapTreesCsv(path.string());
   ASSERT_FALSE(rows.empty());
   EXPECT_EQ(rows[0].id, 1);
@@ -298,7 +299,7 @@ TEST(TreeCsvRealDataTest, StemMapMarksBecomeAttributes) {
 
 TEST(TreeCsvRealDataTest, WildV02FramesAndPoses) {
   const fs::path dir = kData / "sequences" / "Wild_V02";
-  if (!fs::exists(dir / "trees.csv")) GTEST_SKIP() << "no sequence at " << dir;
+  if (!fs::exists(dir / "trees.csv")) FORESTMAP_SKIP_WITHOUT_DATA() << "no sequence at " << dir;
   const auto frames = ReadFramesCsv((dir / "trees.csv").string());
   ASSERT_EQ(frames.size(), 1375u);
   size_t trees = 0;

@@ -12,12 +12,13 @@
 
 #include <gtest/gtest.h>
 
-#include "algorithms/kdtree.h"
+#include "algorithms/core/kdtree.h"
 #include "client/forestmap_client.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 #include "server/server.h"
 #include "server/service.h"
 #include "storage/sqlite_map_store.h"
+#include "tests/shared_data.h"
 
 namespace forestmap {
 namespace {
@@ -91,7 +92,7 @@ int Matched(const Confirmed& a, const Confirmed& b) {
 
 TEST(ConcurrentObserve, FourDronesBuildTheMapOneSequentialUploadBuilds) {
   if (!std::filesystem::exists(kData + "/sequences/Wild_V01/trees.csv")) {
-    GTEST_SKIP() << "real data missing under " << kData;
+    FORESTMAP_SKIP_WITHOUT_DATA() << "real data missing under " << kData;
   }
   const std::filesystem::path dir = std::filesystem::temp_directory_path() /
                                     ("forestmap_concurrent_" + std::to_string(getpid()));

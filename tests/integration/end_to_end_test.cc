@@ -5,13 +5,14 @@
 
 #include <gtest/gtest.h>
 
-#include "algorithms/reloc_evaluation.h"
+#include "algorithms/evaluation/reloc_evaluation.h"
 #include "client/forestmap_client.h"
 #include "client/proto_convert.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 #include "server/server.h"
 #include "server/service.h"
 #include "storage/sqlite_map_store.h"
+#include "tests/shared_data.h"
 
 namespace forestmap {
 namespace {
@@ -22,7 +23,7 @@ class EndToEnd : public ::testing::Test {
  protected:
   void SetUp() override {
     if (!std::filesystem::exists(kData + "/sequences/Wild_V01/map.csv")) {
-      GTEST_SKIP() << "real data missing under " << kData;
+      FORESTMAP_SKIP_WITHOUT_DATA() << "real data missing under " << kData;
     }
     store_ = std::make_unique<storage::SqliteMapStore>(":memory:");
     service_ = std::make_unique<server::ForestMapService>(*store_, server::ServiceOptions{});

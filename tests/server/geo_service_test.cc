@@ -10,7 +10,7 @@
 #include <sstream>
 
 #include "client/forestmap_client.h"
-#include "client/tree_csv.h"
+#include "client/io/tree_csv.h"
 #include "server/server.h"
 #include "server/service.h"
 #include "storage/sqlite_map_store.h"

@@ -1,0 +1,388 @@
+// ConsolidateTrees and RebuildTrees: order-free re-association and duplicate merging (see
+// map_merge.h).
+//
+// Incremental merging is greedy: the first frame to see a tree decides where its candidate
+// starts, and two uploads that see a new tree at the same time create two candidates.
+// RebuildTrees makes the map depend on the set of observations only: the rows are split into
+// connected components, and each component is merged afresh in canonical row order, then its
+// duplicate trees are merged and every frame's rows re-associated one-to-one with the current
+// estimates (a few k-means style sweeps, as ConsolidateTrees does for the current association).
+
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+#include <map>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+#include <tuple>
+#include <unordered_map>
+#include <unordered_set>
+#include <utility>
+
+#include "algorithms/merging/map_merge.h"
+#include "algorithms/merging/map_merge_internal.h"
+#include "algorithms/merging/observation_components.h"
+
+namespace forestmap::algorithms {
+namespace {
+
+// Frame number first: when the uploads of several drones number their frames along one
+// sequence, the order (and so the map) does not depend on how the sources are named or split.
+bool CanonicalLess(const TreeObservation& a, const TreeObservation& b) {
+  return std::tie(a.frame_id, a.source, a.detection_index, a.tree_id) <
+         std::tie(b.frame_id, b.source, b.detection_index, b.tree_id);
+}
+
+bool SameFrame(const TreeObservation& a, const TreeObservation& b) {
+  return a.frame_id == b.frame_id && a.source == b.source;
+}
+
+[[noreturn]] void ThrowUnknownTree(const TreeObservation& row) {
+  throw std::invalid_argument(
+      "ConsolidateTrees: observation of frame " + std::to_string(row.frame_id) + " of '" +
+      row.source + "' refers to tree " + std::to_string(row.tree_id) + ", which is not given");
+}
+
+// Tree ids handed out by one RebuildTrees call (shared by its components).
+struct IdPool {
+  int64_t next_free_id = 1;
+  std::unordered_set<int64_t> taken;
+};
+
+class Consolidator {
+ public:
+  // `rows` in any order; `tree_ids` must hold every tree id the rows refer to.
+  Consolidator(std::vector<TreeObservation> rows, std::vector<int64_t> tree_ids,
+               const MergeOptions& options)
+      : options_(options), rows_(std::move(rows)), ids_(std::move(tree_ids)) {
+    std::stable_sort(rows_.begin(), rows_.end(), CanonicalLess);
+    std::sort(ids_.begin(), ids_.end());
+    ids_.erase(std::unique(ids_.begin(), ids_.end()), ids_.end());
+    for (size_t i = 0; i < ids_.size(); ++i) index_of_[ids_[i]] = static_cast<int>(i);
+    owner_.resize(rows_.size());
+    for (size_t r = 0; r < rows_.size(); ++r) {
+      const auto it = index_of_.find(rows_[r].tree_id);
+      if (it == index_of_.end()) ThrowUnknownTree(rows_[r]);
+      owner_[r] = it->second;
+    }
+    for (const TreeObservation& row : rows_) original_ids_.push_back(row.tree_id);
+    Recompute();
+  }
+
+  // Forgets the current association: the rows are merged afresh, frame by frame in canonical
+  // order (survey priors first, each its own tree), as MergeFrame would merge them into an empty
+  // map. Each new tree takes the id most of its rows had (ties: the smaller), if still free in
+  // `pool`; else a new id from the pool.
+  void Restart(IdPool& pool) {
+    std::vector<TreeEstimate> clusters;
+    std::vector<int> cluster_of(rows_.size(), -1);
+    std::unordered_map<int64_t, std::vector<int>> grid;  // 1 m cells -> clusters
+    auto cell = [](const Eigen::Vector3d& p) {
+      return (static_cast<int64_t>(std::floor(p.x())) << 32) ^
+             static_cast<int64_t>(static_cast<uint32_t>(std::floor(p.y())));
+    };
+    auto add = [&](int cluster, size_t r) {
+      const int64_t before = cell(clusters[cluster].position);
+      AddObservation(clusters[cluster], rows_[r], options_);
+      cluster_of[r] = cluster;
+      const int64_t after = cell(clusters[cluster].position);
+      if (before == after && clusters[cluster].observations > 1) return;
+      if (clusters[cluster].observations > 1) std::erase(grid[before], cluster);
+      grid[after].push_back(cluster);
+    };
+    for (size_t r = 0; r < rows_.size(); ++r) {
+      if (!rows_[r].prior) continue;
+      clusters.emplace_back();
+      add(static_cast<int>(clusters.size()) - 1, r);
+    }
+    const int reach = static_cast<int>(std::ceil(options_.gate_distance));
+    std::vector<TreeEstimate> nearby;
+    std::vector<int> nearby_index;
+    std::vector<TreeObservation> frame_rows;
+    std::vector<size_t> frame_index;
+    for (size_t begin = 0; begin < rows_.size();) {
+      size_t end = begin + 1;
+      while (end < rows_.size() && SameFrame(rows_[end], rows_[begin])) ++end;
+      frame_rows.clear();
+      frame_index.clear();
+      nearby.clear();
+      nearby_index.clear();
+      std::vector<int> seen;
+      for (size_t r = begin; r < end; ++r) {
+        if (rows_[r].prior) continue;
+        frame_rows.push_back(rows_[r]);
+        frame_index.push_back(r);
+        const Eigen::Vector3d& p = rows_[r].position;
+        for (int dx = -reach; dx <= reach; ++dx) {
+          for (int dy = -reach; dy <= reach; ++dy) {
+            const auto it = grid.find(cell(p + Eigen::Vector3d(dx, dy, 0)));
+            if (it != grid.end()) seen.insert(seen.end(), it->second.begin(), it->second.end());
+          }
+        }
+      }
+      std::sort(seen.begin(), seen.end());
+      seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
+      for (int c : seen) {
+        nearby.push_back(clusters[c]);
+        nearby.back().id = c;  // ties broken by creation order
+        nearby_index.push_back(c);
+      }
+      const internal::Association association =
+          internal::AssociateGreedy(nearby, frame_rows, options_);
+      for (size_t k = 0; k < frame_rows.size(); ++k) {
+        const size_t r = frame_index[k];
+        if (association.tree[k] >= 0) {
+          add(nearby_index[association.tree[k]], r);
+        } else {
+          clusters.emplace_back();
+          add(static_cast<int>(clusters.size()) - 1, r);
+        }
+      }
+      begin = end;
+    }
+    // Ids: the most common previous id of each cluster's rows, in creation order.
+    std::vector<std::map<int64_t, int>> votes(clusters.size());
+    for (size_t r = 0; r < rows_.size(); ++r) ++votes[cluster_of[r]][original_ids_[r]];
+    std::vector<int64_t> cluster_id(clusters.size(), 0);
+    for (size_t c = 0; c < clusters.size(); ++c) {
+      int best = 0;
+      for (const auto& [id, n] : votes[c]) {
+        if (n > best && pool.taken.count(id) == 0) cluster_id[c] = id, best = n;
+      }
+      if (best == 0) {
+        while (pool.taken.count(pool.next_free_id) != 0) ++pool.next_free_id;
+        cluster_id[c] = pool.next_free_id++;
+      }
+      pool.taken.insert(cluster_id[c]);
+    }
+    for (size_t c = 0; c < clusters.size(); ++c) ids_.push_back(cluster_id[c]);
+    std::sort(ids_.begin(), ids_.end());
+    ids_.erase(std::unique(ids_.begin(), ids_.end()), ids_.end());
+    index_of_.clear();
+    for (size_t i = 0; i < ids_.size(); ++i) index_of_[ids_[i]] = static_cast<int>(i);
+    for (size_t r = 0; r < rows_.size(); ++r) owner_[r] = index_of_.at(cluster_id[cluster_of[r]]);
+    Recompute();
+  }
+
+  // Appends the surviving trees and the rows (with their trees) to `result`; with
+  // `report_removed`, also the trees left without rows.
+  void Run(ConsolidateResult& result, bool report_removed = true) {
+    // Duplicates are looked for last, so the trees returned have been checked as they are.
+    for (int sweep = 0; sweep < std::max(1, options_.consolidate_iterations); ++sweep) {
+      const int moved = Reassociate();
+      const int merged = MergeDuplicates();
+      result.merged += merged;
+      if (merged == 0 && moved == 0) break;
+    }
+    for (size_t t = 0; t < ids_.size(); ++t) {
+      if (estimates_[t].observations > 0) {
+        result.trees.push_back(estimates_[t]);
+      } else if (report_removed) {
+        result.removed_ids.push_back(ids_[t]);
+      }
+    }
+    for (size_t r = 0; r < rows_.size(); ++r) {
+      rows_[r].tree_id = ids_[owner_[r]];
+      if (rows_[r].tree_id != original_ids_[r]) ++result.reassigned;
+    }
+    result.observations.insert(result.observations.end(), std::make_move_iterator(rows_.begin()),
+                               std::make_move_iterator(rows_.end()));
+    rows_.clear();
+  }
+
+ private:
+  void Recompute() {
+    estimates_.assign(ids_.size(), TreeEstimate{});
+    for (size_t t = 0; t < ids_.size(); ++t) estimates_[t].id = ids_[t];
+    for (size_t r = 0; r < rows_.size(); ++r) {
+      AddObservation(estimates_[owner_[r]], rows_[r], options_);
+    }
+  }
+
+  // Frames (by row range) that observed each tree, to keep apart two stems seen in one frame.
+  std::vector<std::vector<int>> FramesOfTrees() const {
+    std::vector<std::vector<int>> frames(ids_.size());
+    int frame = -1;
+    for (size_t r = 0; r < rows_.size(); ++r) {
+      if (r == 0 || !SameFrame(rows_[r], rows_[r - 1])) ++frame;
+      frames[owner_[r]].push_back(frame);
+    }
+    return frames;
+  }
+
+  int MergeDuplicates() {
+    std::vector<TreeEstimate> live;
+    std::vector<int> live_index;
+    for (size_t t = 0; t < ids_.size(); ++t) {
+      if (estimates_[t].observations == 0) continue;
+      live.push_back(estimates_[t]);
+      live_index.push_back(static_cast<int>(t));
+    }
+    if (live.size() < 2 || options_.duplicate_distance <= 0) return 0;
+    const auto kd = internal::BuildTreeIndex(live);
+    std::vector<std::tuple<double, int, int>> pairs;  // (distance^2, tree a, tree b), a < b
+    std::vector<std::pair<uint32_t, double>> near;
+    for (size_t i = 0; i < live.size(); ++i) {
+      kd->Radius({live[i].position.x(), live[i].position.y()}, options_.duplicate_distance, near);
+      for (const auto& [j, d2] : near) {
+        if (j > i) pairs.emplace_back(d2, live_index[i], live_index[j]);
+      }
+    }
+    // Closest pairs first; equal distances in the canonical order of the trees' first rows (not
+    // by id: ids depend on the order in which rows arrived).
+    std::vector<size_t> first_row(ids_.size(), rows_.size());
+    for (size_t r = rows_.size(); r-- > 0;) first_row[owner_[r]] = r;
+    std::sort(pairs.begin(), pairs.end(), [&first_row](const auto& p, const auto& q) {
+      const auto key = [&first_row](const std::tuple<double, int, int>& t) {
+        const size_t a = first_row[std::get<1>(t)], b = first_row[std::get<2>(t)];
+        return std::make_tuple(std::get<0>(t), std::min(a, b), std::max(a, b));
+      };
+      return key(p) < key(q);
+    });
+    const std::vector<std::vector<int>> frames = FramesOfTrees();
+    std::vector<int> root(ids_.size());
+    std::iota(root.begin(), root.end(), 0);
+    int merged = 0;
+    for (const auto& [d2, a, b] : pairs) {
+      if (root[a] != a || root[b] != b) continue;  // one merge per tree and sweep
+      const TreeEstimate& ta = estimates_[a];
+      const TreeEstimate& tb = estimates_[b];
+      if (ta.surveyed && tb.surveyed) continue;
+      // One stem or two? Two stems are seen side by side in the frames that see either (the
+      // association is one-to-one per frame); one stem whose DBH fits disagree (partial arcs
+      // shift the centre) never is. Overlapping stems are one whatever the frames say.
+      const double d = std::sqrt(d2);
+      const bool overlap = IsKnown(ta.dbh) && IsKnown(tb.dbh) && d < 0.5 * (ta.dbh + tb.dbh);
+      std::vector<int> common;
+      std::set_intersection(frames[a].begin(), frames[a].end(), frames[b].begin(),
+                            frames[b].end(), std::back_inserter(common));
+      const double smaller = static_cast<double>(std::min(frames[a].size(), frames[b].size()));
+      const bool side_by_side =
+          static_cast<int>(common.size()) >= options_.min_shared_frames &&
+          common.size() > options_.max_shared_frames * smaller;
+      if (!overlap && side_by_side) continue;
+      root[b] = a;  // ids_ is sorted: the smaller id survives
+      root[a] = -1 - a;
+      ++merged;
+    }
+    if (merged == 0) return 0;
+    for (int& owner : owner_) {
+      if (root[owner] >= 0 && root[owner] != owner) owner = root[owner];
+    }
+    Recompute();
+    return merged;
+  }
+
+  int Reassociate() {
+    // Equal costs are broken by the trees' first canonical rows, not by their ids (which depend
+    // on the order in which rows arrived).
+    std::vector<size_t> first_row(ids_.size(), rows_.size());
+    for (size_t r = rows_.size(); r-- > 0;) first_row[owner_[r]] = r;
+    std::vector<TreeEstimate> live;
+    std::vector<int> live_index;
+    for (size_t t = 0; t < ids_.size(); ++t) {
+      if (estimates_[t].observations == 0) continue;
+      live.push_back(estimates_[t]);
+      live.back().id = static_cast<int64_t>(first_row[t]);
+      live_index.push_back(static_cast<int>(t));
+    }
+    if (live.empty()) return 0;
+    const auto kd = internal::BuildTreeIndex(live);
+    int moved = 0;
+    size_t begin = 0;
+    std::vector<TreeObservation> frame_rows;
+    std::vector<size_t> frame_index;
+    while (begin < rows_.size()) {
+      size_t end = begin + 1;
+      while (end < rows_.size() && SameFrame(rows_[end], rows_[begin])) ++end;
+      frame_rows.clear();
+      frame_index.clear();
+      for (size_t r = begin; r < end; ++r) {
+        if (rows_[r].prior) continue;  // a survey prior defines its tree
+        frame_rows.push_back(rows_[r]);
+        frame_index.push_back(r);
+      }
+      const internal::Association association =
+          internal::AssociateGreedy(live, *kd, frame_rows, options_);
+      for (size_t k = 0; k < frame_rows.size(); ++k) {
+        const int assigned = association.tree[k];
+        if (assigned < 0) continue;  // keeps its tree: no estimate explains it better
+        const int owner = live_index[assigned];
+        if (owner_[frame_index[k]] != owner) {
+          owner_[frame_index[k]] = owner;
+          ++moved;
+        }
+      }
+      begin = end;
+    }
+    if (moved > 0) Recompute();
+    return moved;
+  }
+
+  const MergeOptions& options_;
+  std::vector<TreeObservation> rows_;
+  std::vector<int64_t> ids_;  // sorted
+  std::unordered_map<int64_t, int> index_of_;
+  std::vector<int> owner_;  // per row, index into ids_
+  std::vector<int64_t> original_ids_;  // per row, its tree before
+  std::vector<TreeEstimate> estimates_;
+};
+
+std::vector<int64_t> IdsOf(std::span<const TreeEstimate> trees) {
+  std::vector<int64_t> ids;
+  for (const TreeEstimate& tree : trees) ids.push_back(tree.id);
+  return ids;
+}
+
+}  // namespace
+
+ConsolidateResult ConsolidateTrees(std::span<const TreeEstimate> trees,
+                                   std::span<const TreeObservation> observations,
+                                   const MergeOptions& options) {
+  options.Check();
+  ConsolidateResult result;
+  Consolidator consolidator({observations.begin(), observations.end()}, IdsOf(trees), options);
+  consolidator.Run(result);
+  return result;
+}
+
+ConsolidateResult RebuildTrees(std::span<const TreeEstimate> trees,
+                               std::span<const TreeObservation> observations,
+                               int64_t next_free_id, const MergeOptions& options) {
+  options.Check();
+  const std::vector<int64_t> given = IdsOf(trees);
+  const std::unordered_set<int64_t> known(given.begin(), given.end());
+  std::vector<TreeObservation> rows(observations.begin(), observations.end());
+  for (const TreeObservation& row : rows) {
+    if (known.count(row.tree_id) == 0) ThrowUnknownTree(row);
+  }
+  std::stable_sort(rows.begin(), rows.end(), CanonicalLess);
+  // Components numbered by their first canonical row: a canonical order of components too.
+  const std::vector<int> component = ObservationComponents(rows, options);
+  const int count = rows.empty() ? 0 : *std::max_element(component.begin(), component.end()) + 1;
+  std::vector<std::vector<TreeObservation>> parts(count);
+  for (size_t r = 0; r < rows.size(); ++r) parts[component[r]].push_back(std::move(rows[r]));
+  ConsolidateResult result;
+  IdPool pool{next_free_id, {}};
+  for (std::vector<TreeObservation>& part : parts) {
+    std::vector<int64_t> ids;
+    for (const TreeObservation& row : part) ids.push_back(row.tree_id);
+    Consolidator consolidator(std::move(part), std::move(ids), options);
+    consolidator.Restart(pool);
+    consolidator.Run(result, /*report_removed=*/false);
+  }
+  std::unordered_set<int64_t> kept;
+  for (const TreeEstimate& tree : result.trees) kept.insert(tree.id);
+  for (const int64_t id : given) {
+    if (kept.count(id) == 0) result.removed_ids.push_back(id);
+  }
+  std::sort(result.removed_ids.begin(), result.removed_ids.end());
+  result.removed_ids.erase(std::unique(result.removed_ids.begin(), result.removed_ids.end()),
+                           result.removed_ids.end());
+  std::sort(result.trees.begin(), result.trees.end(),
+            [](const TreeEstimate& a, const TreeEstimate& b) { return a.id < b.id; });
+  return result;
+}
+
+}  // namespace forestmap::algorithms

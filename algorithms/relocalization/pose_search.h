@@ -1,0 +1,88 @@
+#pragma once
+// Internal to the relocalizer: the levelled query, pose hypotheses and their scoring against the
+// map, and the search that generates hypotheses from triangle matches.
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "algorithms/relocalization/map_index_internal.h"
+#include "algorithms/relocalization/relocalizer.h"
+#include "algorithms/core/rigid2d.h"
+
+namespace forestmap::algorithms {
+
+// The query after levelling, nearest trees first.
+struct LevelledQuery {
+  Eigen::Matrix3d level_from_sensor = Eigen::Matrix3d::Identity();
+  std::vector<Eigen::Vector2d> xy;  // levelled horizontal positions (sensor at the origin)
+  std::vector<double> z;            // levelled heights relative to the sensor
+  std::vector<double> dbh;
+  std::vector<uint32_t> used;       // indices into the request's trees
+};
+
+// A candidate pose of the levelled sensor in the map's kd coordinates.
+struct Hypothesis {
+  Rigid2 pose;       // kd coordinates from levelled sensor coordinates
+  int inliers = 0;
+  double score = 0;  // sum over inliers of (1 - (d / inlier_distance)^2)
+  double rmse = 0;   // m
+};
+
+// A query tree and the map tree nearest to it under a pose.
+struct Association {
+  uint32_t query = 0;  // index into LevelledQuery
+  uint32_t map = 0;    // index into the map's trees
+  double distance = 0;
+};
+
+// Each of the `limit` nearest query trees whose nearest map tree is within `gate` (m), unless
+// both DBH are known and differ by more than options.dbh_ratio_gate.
+std::vector<Association> Associate(const MapIndexImpl& m, const LevelledQuery& q,
+                                   const Rigid2& pose, const RelocalizerOptions& options,
+                                   double gate, size_t limit = SIZE_MAX);
+
+// Scores a pose on the `limit` nearest query trees (all by default), gate `gate` (m).
+void Score(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
+           Hypothesis* h, double gate, size_t limit = SIZE_MAX);
+
+// ICP-style refinement: re-association with a shrinking gate, least squares in x, y, yaw.
+void Refine(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
+            Hypothesis* h);
+
+// The nearest query trees an answer must explain a share of: those within
+// options.ratio_range, at least the nearest options.min_ratio_trees (a drone high above a
+// sparse forest sees its trees far away).
+int RatioTrees(const LevelledQuery& q, const RelocalizerOptions& options);
+// Inliers of `pose` among the `count` nearest query trees.
+int InliersAmongNearest(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
+                        int count, const RelocalizerOptions& options);
+
+// Inliers a random pose would get here: the sum over query trees of the local chance of
+// landing near a map tree (the occupied share of the occupancy grid around each).
+double ChanceInliers(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose);
+
+// P(X >= k) for X ~ Poisson(lambda).
+double PoissonTail(int k, double lambda);
+
+// Whether `inliers` beat `chance` by options.chance_sigmas Poisson standard deviations, and
+// the best of `trials` random poses would reach them with probability <= options.false_alarm
+// (the look-elsewhere effect: the search tries many poses).
+bool Significant(int inliers, double chance, int64_t trials, const RelocalizerOptions& options);
+
+struct PoseSearchResult {
+  std::vector<Hypothesis> hypotheses;  // scored on the nearest trees, best first
+  int triangles = 0;                   // query triangles looked up
+  int64_t matches = 0;                 // triangle matches turned into poses
+};
+
+// Hypothesize and verify: every map triangle matching a query triangle (nearest first) implies
+// a sensor pose; a sequential test on the nearest query trees against the map's occupancy grid
+// rejects almost every wrong one after a handful of lookups; the survivors are scored. The
+// search ends once a pose explains most nearby trees and a few more triangles found no rival,
+// or when the query's triangles run out. With a prior, poses outside its radius are skipped.
+PoseSearchResult SearchPoses(const MapIndexImpl& m, const LevelledQuery& q,
+                             const std::optional<PriorPose>& prior,
+                             const Eigen::Vector2d& prior_xy, const RelocalizerOptions& options);
+
+}  // namespace forestmap::algorithms

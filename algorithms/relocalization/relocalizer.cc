@@ -1,0 +1,326 @@
+#include "algorithms/relocalization/relocalizer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <stdexcept>
+#include <unordered_map>
+
+#include "algorithms/core/leveling.h"
+#include "algorithms/relocalization/pose_search.h"
+#include "algorithms/relocalization/tilt_refinement.h"
+
+namespace forestmap::algorithms {
+namespace {
+
+LevelledQuery Level(const RelocalizeQuery& query, const Eigen::Matrix3d& level_from_sensor,
+                    const RelocalizerOptions& options) {
+  LevelledQuery q;
+  q.level_from_sensor = level_from_sensor;
+  std::vector<std::pair<double, uint32_t>> by_range;
+  for (uint32_t i = 0; i < query.trees.size(); ++i) {
+    const Eigen::Vector3d p = q.level_from_sensor * query.trees[i].position;
+    const double range = p.head<2>().norm();
+    if (range <= options.max_query_range) by_range.push_back({range, i});
+  }
+  std::sort(by_range.begin(), by_range.end());
+  for (auto [range, i] : by_range) {
+    const Eigen::Vector3d p = q.level_from_sensor * query.trees[i].position;
+    q.xy.push_back(p.head<2>());
+    q.z.push_back(p.z());
+    q.dbh.push_back(query.trees[i].dbh);
+    q.used.push_back(i);
+  }
+  return q;
+}
+
+bool Distinct(const Rigid2& a, const Rigid2& b, const RelocalizerOptions& options) {
+  return (a.translation - b.translation).norm() > options.distinct_distance ||
+         std::abs(WrapAngle(a.yaw - b.yaw)) > options.distinct_yaw;
+}
+
+// The final pose in the map frame, with z from the matched trees.
+RelocalizeResult Finish(const MapIndexImpl& m, const LevelledQuery& q, const Hypothesis& best,
+                        const RelocalizerOptions& options) {
+  RelocalizeResult result;
+  std::vector<double> dz;
+  for (const Association& a : Associate(m, q, best.pose, options, options.inlier_distance)) {
+    result.matches.push_back({static_cast<int>(q.used[a.query]), m.trees[a.map].id, a.distance});
+    const double map_z = m.trees[a.map].position.z();
+    if (IsKnown(map_z)) dz.push_back(map_z - q.z[a.query]);
+  }
+  double z = 0;  // a 2-D map has no heights: the pose is in its z = 0 plane
+  if (!dz.empty()) {
+    std::nth_element(dz.begin(), dz.begin() + dz.size() / 2, dz.end());
+    z = dz[dz.size() / 2];
+  }
+  const Eigen::Vector2d t = best.pose.translation + m.origin;
+  result.map_from_sensor = PoseFromXyzYaw(t.x(), t.y(), z, best.pose.yaw);
+  result.map_from_sensor.linear() = result.map_from_sensor.linear() * q.level_from_sensor;
+  result.inliers = best.inliers;
+  result.rmse = best.rmse;
+  return result;
+}
+
+// With map heights, refines roll and pitch from the matched trees' heights (tilt_refinement.h),
+// then the pose again in x, y, yaw; keeps the refinement only when it fits at least as well.
+RelocalizeResult FinishWithTilt(const MapIndexImpl& m, const LevelledQuery& q,
+                                const RelocalizeQuery& query, const Hypothesis& best,
+                                const RelocalizerOptions& options) {
+  std::vector<Eigen::Vector3d> levelled;
+  std::vector<double> map_z;
+  for (const Association& a : Associate(m, q, best.pose, options, options.inlier_distance)) {
+    const double z = m.trees[a.map].position.z();
+    if (!IsKnown(z)) continue;
+    levelled.push_back({q.xy[a.query].x(), q.xy[a.query].y(), q.z[a.query]});
+    map_z.push_back(z);
+  }
+  const std::optional<Eigen::Matrix3d> correction =
+      options.refine_tilt ? RefineTilt(levelled, map_z, options.tilt) : std::nullopt;
+  if (correction) {
+    const LevelledQuery tilted = Level(query, *correction * q.level_from_sensor, options);
+    Hypothesis refined = best;
+    Refine(m, tilted, options, &refined);
+    if (refined.inliers >= best.inliers && refined.rmse <= best.rmse) {
+      return Finish(m, tilted, refined, options);
+    }
+  }
+  return Finish(m, q, best, options);
+}
+
+// Sensor headings that align the query's bearings with the map's as seen from `at` (kd
+// coordinates): every query tree and map tree at about the same range vote for the heading that
+// puts one on the other; returns the centres of the `count` strongest separated bins.
+std::vector<double> HeadingPeaks(const MapIndexImpl& m, const LevelledQuery& q,
+                                 const Eigen::Vector2d& at, int count) {
+  constexpr int kBins = 72;              // 5 deg
+  constexpr double kMinRange = 2.0;      // m, nearer bearings swing with a small position error
+  constexpr double kRangeTolerance = 1.0;  // m
+  double max_range = 0;
+  std::vector<std::pair<double, double>> query;  // range, bearing
+  for (const Eigen::Vector2d& p : q.xy) {
+    if (p.norm() < kMinRange) continue;
+    query.push_back({p.norm(), std::atan2(p.y(), p.x())});
+    max_range = std::max(max_range, p.norm());
+  }
+  std::vector<double> votes(kBins, 0.0);
+  std::vector<std::pair<uint32_t, float>> found;
+  m.positions->Radius({static_cast<float>(at.x()), static_cast<float>(at.y())},
+                      static_cast<float>(max_range + kRangeTolerance), found);
+  for (const auto& [j, d2] : found) {
+    const Eigen::Vector2d d = m.Xy(j) - at;
+    const double range = std::sqrt(d2);
+    if (range < kMinRange) continue;
+    const double bearing = std::atan2(d.y(), d.x());
+    for (const auto& [query_range, query_bearing] : query) {
+      if (std::abs(query_range - range) > kRangeTolerance) continue;
+      const double yaw = WrapAngle(bearing - query_bearing);
+      votes[static_cast<int>((yaw + M_PI) / (2 * M_PI) * kBins) % kBins] += 1.0;
+    }
+  }
+  std::vector<double> peaks;
+  for (int n = 0; n < count; ++n) {
+    const int best = static_cast<int>(std::max_element(votes.begin(), votes.end()) - votes.begin());
+    if (votes[best] <= 0) break;
+    peaks.push_back(-M_PI + (best + 0.5) * 2 * M_PI / kBins);
+    for (int k = -2; k <= 2; ++k) votes[(best + k + kBins) % kBins] = 0;  // separate the peaks
+  }
+  return peaks;
+}
+
+// The answer for the best hypothesis, given the best distinct rival (none: null): LOCALIZED
+// only when it is far above chance, explains enough of the nearby trees and beats the rival.
+RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q,
+                        const RelocalizeQuery& query, const Hypothesis& best,
+                        const Hypothesis* best_rival, int64_t trials,
+                        const RelocalizerOptions& options) {
+  const double rival = best_rival ? best_rival->score : 0.0;
+  const int nearest = RatioTrees(q, options);
+  const double ratio =
+      nearest > 0 ? static_cast<double>(InliersAmongNearest(m, q, best.pose, nearest, options)) / nearest
+                  : 0.0;
+
+  RelocalizeResult result = FinishWithTilt(m, q, query, best, options);
+  result.confidence = best.score > 0 ? std::clamp(1.0 - rival / best.score, 0.0, 1.0) : 0.0;
+  const double chance = ChanceInliers(m, q, best.pose);
+  char detail[200];
+  if (!Significant(best.inliers, chance, trials, options)) {
+    result.status = RelocalizeStatus::kNotFound;
+    std::snprintf(detail, sizeof detail,
+                  "best pose matches %d trees, no better than chance here (%.1f expected at "
+                  "random); is the drone in this map?",
+                  best.inliers, chance);
+  } else if (best.inliers < options.min_inliers || ratio < options.min_inlier_ratio) {
+    result.status = RelocalizeStatus::kNotFound;
+    std::snprintf(detail, sizeof detail,
+                  "best pose explains only %d trees (%.0f%% of the nearest %d trees); need %d "
+                  "and %.0f%%",
+                  best.inliers, 100 * ratio, nearest, options.min_inliers,
+                  100 * options.min_inlier_ratio);
+  } else if (rival * options.ambiguity_ratio > best.score) {
+    result.status = RelocalizeStatus::kAmbiguous;
+    std::snprintf(detail, sizeof detail,
+                  "two distinct poses, %.1f m and %.0f deg apart, fit almost equally well (scores "
+                  "%.1f and %.1f)",
+                  (best_rival->pose.translation - best.pose.translation).norm(),
+                  std::abs(WrapAngle(best_rival->pose.yaw - best.pose.yaw)) * 180 / M_PI,
+                  best.score, rival);
+  } else {
+    result.status = RelocalizeStatus::kLocalized;
+    std::snprintf(detail, sizeof detail,
+                  "%d trees matched (%.0f%% of the nearest %d trees, %.1f expected by chance), "
+                  "next distinct pose scores %.1f",
+                  best.inliers, 100 * ratio, nearest, chance, rival);
+  }
+  result.detail = detail;
+  if (result.status != RelocalizeStatus::kLocalized) {
+    result.map_from_sensor = Pose3::Identity();
+  }
+  return result;
+}
+
+}  // namespace
+
+void RelocalizerOptions::Check() const {
+  auto require = [](bool ok, const char* what) {
+    if (!ok) throw std::invalid_argument(std::string("RelocalizerOptions: ") + what);
+  };
+  require(max_query_range > 0, "max_query_range must be > 0");
+  require(inlier_distance > 0, "inlier_distance must be > 0");
+  require(triangle_tolerance > 0, "triangle_tolerance must be > 0");
+  require(min_inliers >= 3, "min_inliers must be >= 3");
+  require(min_inlier_ratio >= 0 && min_inlier_ratio <= 1, "min_inlier_ratio must be in [0, 1]");
+  require(min_ratio_trees >= 1, "min_ratio_trees must be >= 1");
+  require(dbh_ratio_gate == 0 || dbh_ratio_gate >= 1, "dbh_ratio_gate must be 0 (off) or >= 1");
+  require(ambiguity_ratio >= 1, "ambiguity_ratio must be >= 1");
+  require(chance_sigmas >= 0, "chance_sigmas must be >= 0");
+  require(false_alarm > 0 && false_alarm <= 1, "false_alarm must be in (0, 1]");
+  require(distinct_distance > 0 && distinct_yaw > 0, "distinct_distance/yaw must be > 0");
+  require(max_seed_trees >= 3, "max_seed_trees must be >= 3");
+  require(refine_score_fraction >= 0 && refine_score_fraction <= 1,
+          "refine_score_fraction must be in [0, 1]");
+  require(refine_hypotheses >= 1 && quick_score_trees >= 3,
+          "refine_hypotheses must be >= 1 and quick_score_trees >= 3");
+  require(first_pass_tolerance >= 0 && first_pass_tolerance <= triangle_tolerance &&
+              first_pass_triangles >= 0,
+          "first pass: need 0 <= first_pass_tolerance <= triangle_tolerance, triangles >= 0");
+  require(max_query_triangles >= 1 && rival_triangles >= 0,
+          "max_query_triangles must be >= 1 and rival_triangles >= 0");
+  require(quick_check_true_rate > 0 && quick_check_true_rate < 1 &&
+              quick_check_false_accept > 0 && quick_check_false_accept < 1 &&
+              quick_check_false_reject > 0 && quick_check_false_reject < 1,
+          "quick check rates must be in (0, 1)");
+  tilt.Check();
+  leveling.Check();
+  require(decisive_fraction > 0 && decisive_fraction <= 1, "decisive_fraction must be in (0, 1]");
+}
+
+const char* ToString(RelocalizeStatus status) {
+  switch (status) {
+    case RelocalizeStatus::kLocalized: return "localized";
+    case RelocalizeStatus::kAmbiguous: return "ambiguous";
+    case RelocalizeStatus::kNotFound: return "not_found";
+  }
+  return "unknown";
+}
+
+RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
+                            const RelocalizerOptions& options) {
+  options.Check();
+  const MapIndexImpl& m = index.impl();
+  RelocalizeResult result;
+  if (query.trees.size() < 3 || m.trees.size() < 3) {
+    result.detail = "need at least 3 query trees and 3 map trees";
+    return result;
+  }
+  const LevelledQuery q =
+      Level(query, LevelSensor(query.trees, query.gravity, options.leveling).level_from_sensor,
+            options);
+  Eigen::Vector2d prior_xy = Eigen::Vector2d::Zero();
+  if (query.prior) prior_xy = query.prior->map_from_sensor.translation().head<2>() - m.origin;
+
+  const PoseSearchResult search = SearchPoses(m, q, query.prior, prior_xy, options);
+  const int verified = static_cast<int>(search.hypotheses.size());
+  result.triangles = search.triangles;
+  result.poses_checked = search.matches;
+  if (search.hypotheses.empty()) {
+    result.detail = "no constellation of the query's trees matches the map";
+    return result;
+  }
+  // Refine the best few distinct hypotheses (best first by their score on the nearest trees);
+  // only these take part in the decision below.
+  std::vector<Hypothesis> hypotheses;
+  for (const Hypothesis& h : search.hypotheses) {
+    if (h.score < options.refine_score_fraction * search.hypotheses.front().score) break;
+    if (std::all_of(hypotheses.begin(), hypotheses.end(),
+                    [&](const Hypothesis& p) { return Distinct(h.pose, p.pose, options); })) {
+      hypotheses.push_back(h);
+    }
+    if (hypotheses.size() == static_cast<size_t>(options.refine_hypotheses)) break;
+  }
+  for (Hypothesis& h : hypotheses) Refine(m, q, options, &h);
+  std::sort(hypotheses.begin(), hypotheses.end(),
+            [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; });
+
+  const Hypothesis& best = hypotheses.front();
+  const Hypothesis* rival = nullptr;
+  for (const Hypothesis& h : hypotheses) {
+    if (Distinct(h.pose, best.pose, options) && (!rival || h.score > rival->score)) rival = &h;
+  }
+  result = Decide(m, q, query, best, rival, search.matches, options);
+  result.hypotheses = verified;
+  result.triangles = search.triangles;
+  result.poses_checked = search.matches;
+  return result;
+}
+
+RelocalizeResult RefineNear(const MapIndex& index, const RelocalizeQuery& query,
+                            const Pose3& map_from_sensor_guess, double yaw_window,
+                            const RelocalizerOptions& options) {
+  options.Check();
+  const MapIndexImpl& m = index.impl();
+  if (query.trees.size() < 3 || m.trees.size() < 3) {
+    RelocalizeResult result;
+    result.detail = "need at least 3 query trees and 3 map trees";
+    return result;
+  }
+  const LevelledQuery q =
+      Level(query, LevelSensor(query.trees, query.gravity, options.leveling).level_from_sensor,
+            options);
+  // The guess's heading in the levelled frame (its tilt is replaced by this frame's levelling).
+  const double guess_yaw = YawOf(map_from_sensor_guess.linear() * q.level_from_sensor.transpose());
+  const Eigen::Vector2d guess_xy = map_from_sensor_guess.translation().head<2>() - m.origin;
+  // Headings tried: across the window around the guess (headings wobble more than positions
+  // between frames), and the strongest bearing alignments (a turn the guess missed).
+  constexpr double kYawStep = 0.05;  // rad
+  std::vector<double> headings;
+  const int steps = static_cast<int>(std::ceil(yaw_window / kYawStep));
+  for (int k = -steps; k <= steps; ++k) headings.push_back(WrapAngle(guess_yaw + k * kYawStep));
+  for (double yaw : HeadingPeaks(m, q, guess_xy, /*count=*/3)) headings.push_back(yaw);
+
+  const double shift = options.inlier_distance;  // m, position seeds around the guess
+  std::vector<Hypothesis> seeds;
+  for (double yaw : headings) {
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        Hypothesis h;
+        h.pose.yaw = yaw;
+        h.pose.translation = guess_xy + shift * Eigen::Vector2d(dx, dy);
+        Score(m, q, options, &h, 1.5 * options.inlier_distance, options.quick_score_trees);
+        seeds.push_back(h);
+      }
+    }
+  }
+  auto by_score = [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; };
+  std::sort(seeds.begin(), seeds.end(), by_score);
+  const int64_t seeds_tried = static_cast<int64_t>(seeds.size());
+  seeds.resize(std::min<size_t>(seeds.size(), 3));
+  for (Hypothesis& h : seeds) Refine(m, q, options, &h);
+  std::sort(seeds.begin(), seeds.end(), by_score);
+  RelocalizeResult result = Decide(m, q, query, seeds.front(), /*best_rival=*/nullptr,
+                                   seeds_tried, options);
+  result.hypotheses = static_cast<int>(seeds.size());
+  return result;
+}
+
+}  // namespace forestmap::algorithms

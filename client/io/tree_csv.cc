@@ -1,0 +1,233 @@
+#include "client/io/tree_csv.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <unordered_map>
+#include <utility>
+
+#include "client/io/csv_columns.h"
+#include "client/io/str_cat.h"
+#include "client/io/tree_columns.h"
+
+namespace forestmap::client {
+namespace {
+
+std::string DuplicateMessage(const char* what, int64_t value, int first_line, int line) {
+  return StrCat({"duplicate ", what, " ", std::to_string(value), " (lines ",
+                 std::to_string(first_line), " and ", std::to_string(line), ")"});
+}
+
+// Where the columns of a map file are; resolved once, not per row.
+struct MapColumns {
+  explicit MapColumns(const ColumnMap& columns)
+      : x(columns.Require("x")),
+        y(columns.Require("y")),
+        z(columns.Find("z")),
+        dbh(columns.Find("dbh")),
+        id(columns.Find("id")),
+        attributes(columns.OtherNamedColumns()) {}
+  size_t x, y;
+  std::optional<size_t> z, dbh, id;
+  std::vector<size_t> attributes;
+};
+
+MapTreeRow ReadMapRow(const CsvReader& reader, const MapColumns& columns, double dbh_scale) {
+  MapTreeRow row;
+  row.x = RequiredNumber(reader, columns.x);
+  row.y = RequiredNumber(reader, columns.y);
+  if (columns.z) row.z = OptionalNumber(reader, *columns.z);
+  if (columns.dbh) row.dbh = OptionalDiameter(reader, *columns.dbh);
+  if (row.dbh) *row.dbh *= dbh_scale;
+  if (columns.id) row.id = OptionalInteger(reader, *columns.id);
+  for (size_t column : columns.attributes) {
+    const CsvField& field = reader.fields()[column];
+    if (!field.quoted && (field.text.empty() || field.text == "NA")) continue;
+    row.attributes.emplace(reader.header()[column], std::string(field.text));
+  }
+  return row;
+}
+
+std::vector<MapTreeRow> ReadMapTrees(CsvReader reader, const TreeFileOptions& options) {
+  const ResolvedColumns resolved = ResolveMapColumns(
+      reader.header(), options, reader.name() + ":" + std::to_string(reader.header_line()));
+  const MapColumns columns(ColumnMap(reader, {"id", "x", "y", "z", "dbh"}, resolved.canonical));
+  const double dbh_scale = MetresPer(resolved.dbh_unit);
+  std::vector<MapTreeRow> rows;
+  std::unordered_map<int64_t, int> line_of_id;
+  while (reader.Next()) {
+    rows.push_back(ReadMapRow(reader, columns, dbh_scale));
+    const std::optional<int64_t> id = rows.back().id;
+    if (!id) continue;
+    const auto [it, inserted] = line_of_id.emplace(*id, reader.line());
+    if (!inserted) {
+      reader.FailAt(*columns.id, DuplicateMessage("tree id", *id, it->second, reader.line()));
+    }
+  }
+  if (columns.dbh) {
+    CheckDbhMedian(rows, reader.name(), reader.header()[*columns.dbh], resolved.dbh_unit);
+  }
+  return rows;
+}
+
+struct DetectionColumns {
+  DetectionColumns(const ColumnMap& columns, bool require_frame)
+      : frame(require_frame ? columns.Require("frame") : columns.Find("frame")),
+        x(columns.Require("x")),
+        y(columns.Require("y")),
+        z(columns.Find("z")),
+        dbh(columns.Find("dbh")),
+        score(columns.Find("score")) {
+    // The stem axis: all three columns or none.
+    if (columns.Find("axis_x") || columns.Find("axis_y") || columns.Find("axis_z")) {
+      axis = {columns.Require("axis_x"), columns.Require("axis_y"), columns.Require("axis_z")};
+    }
+  }
+  std::optional<size_t> frame;
+  size_t x, y;
+  std::optional<size_t> z, dbh, score;
+  std::optional<std::array<size_t, 3>> axis;
+};
+
+// The stem axis of a detection: all three components or none.
+Eigen::Vector3d ReadAxis(const CsvReader& reader, const std::array<size_t, 3>& columns) {
+  Eigen::Vector3d axis;
+  int known = 0;
+  for (int i = 0; i < 3; ++i) {
+    const std::optional<double> value = OptionalNumber(reader, columns[i]);
+    axis[i] = value.value_or(0.0);
+    known += value.has_value();
+  }
+  if (known == 0) return axis;
+  if (known == 3) {
+    // A stem axis is a direction: normalised here so that every consumer sees a unit vector.
+    return axis.norm() > 1e-9 ? Eigen::Vector3d(axis.normalized()) : Eigen::Vector3d::Zero();
+  }
+  for (size_t column : columns) {
+    if (IsMissing(reader.fields()[column])) {
+      reader.FailAt(column, "missing while other axis components are given");
+    }
+  }
+  return axis;
+}
+
+std::vector<DetectedTreeRow> ReadDetections(CsvReader reader, bool require_frame) {
+  const DetectionColumns columns(
+      ColumnMap(reader, {"frame", "x", "y", "z", "dbh", "score", "axis_x", "axis_y", "axis_z"}),
+      require_frame);
+  std::vector<DetectedTreeRow> rows;
+  while (reader.Next()) {
+    DetectedTreeRow& row = rows.emplace_back();
+    if (columns.frame) row.frame = RequiredInteger(reader, *columns.frame);
+    algorithms::DetectedTree& tree = row.tree;
+    tree.position.x() = RequiredNumber(reader, columns.x);
+    tree.position.y() = RequiredNumber(reader, columns.y);
+    if (columns.z) tree.position.z() = OptionalNumber(reader, *columns.z).value_or(0.0);
+    if (columns.dbh) {
+      tree.dbh = OptionalDiameter(reader, *columns.dbh).value_or(algorithms::kUnknown);
+    }
+    if (columns.score) {
+      tree.score = OptionalNumber(reader, *columns.score).value_or(algorithms::kUnknown);
+    }
+    if (columns.axis) tree.axis = ReadAxis(reader, *columns.axis);
+  }
+  return rows;
+}
+
+std::vector<Frame> GroupFrames(std::vector<DetectedTreeRow> rows) {
+  std::vector<Frame> frames;
+  std::unordered_map<int64_t, size_t> index_of_frame;
+  for (DetectedTreeRow& row : rows) {
+    const auto [it, inserted] = index_of_frame.emplace(*row.frame, frames.size());
+    if (inserted) frames.push_back(Frame{*row.frame, {}});
+    frames[it->second].trees.push_back(row.tree);
+  }
+  return frames;
+}
+
+std::map<int64_t, algorithms::Pose3> ReadPoses(CsvReader reader) {
+  const ColumnMap columns(reader, {"frame", "timestamp", "x", "y", "z", "qx", "qy", "qz", "qw"});
+  const size_t frame_column = columns.Require("frame");
+  std::array<size_t, 3> t;
+  std::array<size_t, 4> q;  // w, x, y, z
+  for (int i = 0; i < 3; ++i) t[i] = columns.Require(std::array{"x", "y", "z"}[i]);
+  for (int i = 0; i < 4; ++i) q[i] = columns.Require(std::array{"qw", "qx", "qy", "qz"}[i]);
+  std::map<int64_t, algorithms::Pose3> poses;
+  std::unordered_map<int64_t, int> line_of_frame;
+  while (reader.Next()) {
+    const int64_t frame = RequiredInteger(reader, frame_column);
+    const auto [it, inserted] = line_of_frame.emplace(frame, reader.line());
+    if (!inserted) {
+      reader.FailAt(frame_column, DuplicateMessage("frame", frame, it->second, reader.line()));
+    }
+    const Eigen::Quaterniond rotation(RequiredNumber(reader, q[0]), RequiredNumber(reader, q[1]),
+                                      RequiredNumber(reader, q[2]), RequiredNumber(reader, q[3]));
+    if (std::abs(rotation.norm() - 1.0) > 0.01) {
+      reader.FailAt(q[0], "quaternion norm " + std::to_string(rotation.norm()) + " is not 1");
+    }
+    algorithms::Pose3 world_from_sensor = algorithms::Pose3::Identity();
+    world_from_sensor.linear() = rotation.normalized().toRotationMatrix();
+    world_from_sensor.translation() = Eigen::Vector3d(
+        RequiredNumber(reader, t[0]), RequiredNumber(reader, t[1]), RequiredNumber(reader, t[2]));
+    poses.emplace(frame, world_from_sensor);
+  }
+  return poses;
+}
+
+}  // namespace
+
+std::vector<MapTreeRow> ReadMapTreesCsv(const std::string& path, const TreeFileOptions& options) {
+  return ReadMapTrees(CsvReader::Open(path), options);
+}
+
+std::vector<MapTreeRow> ParseMapTreesCsv(std::string content, const std::string& name,
+                                         const TreeFileOptions& options) {
+  return ReadMapTrees(CsvReader(std::move(content), name), options);
+}
+
+std::vector<DetectedTreeRow> ReadDetectedTreesCsv(const std::string& path) {
+  return ReadDetections(CsvReader::Open(path), /*require_frame=*/false);
+}
+
+std::vector<DetectedTreeRow> ParseDetectedTreesCsv(std::string content, const std::string& name) {
+  return ReadDetections(CsvReader(std::move(content), name), /*require_frame=*/false);
+}
+
+std::vector<Frame> ReadFramesCsv(const std::string& path) {
+  return GroupFrames(ReadDetections(CsvReader::Open(path), /*require_frame=*/true));
+}
+
+std::vector<Frame> ParseFramesCsv(std::string content, const std::string& name) {
+  return GroupFrames(ReadDetections(CsvReader(std::move(content), name), /*require_frame=*/true));
+}
+
+std::map<int64_t, algorithms::Pose3> ReadPosesCsv(const std::string& path) {
+  return ReadPoses(CsvReader::Open(path));
+}
+
+std::map<int64_t, algorithms::Pose3> ParsePosesCsv(std::string content, const std::string& name) {
+  return ReadPoses(CsvReader(std::move(content), name));
+}
+
+std::vector<algorithms::MapTree> ToMapTrees(const std::vector<MapTreeRow>& rows) {
+  std::vector<algorithms::MapTree> trees;
+  trees.reserve(rows.size());
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const MapTreeRow& r = rows[i];
+    trees.push_back({r.id.value_or(static_cast<int64_t>(i)),
+                     {r.x, r.y, r.z.value_or(algorithms::kUnknown)},
+                     r.dbh.value_or(algorithms::kUnknown)});
+  }
+  return trees;
+}
+
+std::optional<algorithms::Pose3> OdometryFromPoses::Next(int64_t frame) {
+  const auto pose = poses_.find(frame);
+  const algorithms::Pose3* current = pose == poses_.end() ? nullptr : &pose->second;
+  std::optional<algorithms::Pose3> motion;
+  if (previous_ && current) motion = previous_->inverse() * *current;
+  previous_ = current;
+  return motion;
+}
+
+}  // namespace forestmap::client
