@@ -124,6 +124,16 @@ TEST_F(GeoServiceTest, RelocalizationOnPrf025AgreesWithCs2cs) {
   EXPECT_NEAR(g.grid_convergence_deg(), convergence, kConvergenceTolerance);
   const double grid_heading = 90.0 - 30.0;
   EXPECT_NEAR(g.true_heading_deg(), grid_heading + convergence, kConvergenceTolerance + 0.05);
+
+  // A tracking session's answers carry the same WGS84 pose.
+  client::TrackSession session = client_.Track("prf025");
+  client::TrackFrame frame;
+  frame.trees = query;
+  const v1::TrackResponse tracked = session.Step(frame);
+  session.Finish();
+  ASSERT_TRUE(tracked.result().has_geodetic());
+  EXPECT_NEAR(tracked.result().geodetic().latitude_deg(), expected.x(), kDegreeTolerance);
+  EXPECT_NEAR(tracked.result().geodetic().longitude_deg(), expected.y(), kDegreeTolerance);
 }
 
 }  // namespace
