@@ -44,5 +44,7 @@ void AddDetectCommand(CLI::App& app, CliContext& context);      // cli_detect.cc
 void AddSimulateCommand(CLI::App& app, CliContext& context);    // cli_simulate.cc
 void AddTrackCommand(CLI::App& app, CliContext& context);       // cli_track.cc
 void AddHealthCommand(CLI::App& app, CliContext& context);      // cli_health.cc
+void AddCompareCommand(CLI::App& app, CliContext& context);     // cli_compare.cc
+void AddPlotCommand(CLI::App& app, CliContext& context);        // cli_plot.cc
 
 }  // namespace forestmap::client

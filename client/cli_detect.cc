@@ -15,6 +15,8 @@
 
 #include "algorithms/detection/trunk_detection.h"
 #include "client/cli_commands.h"
+#include "client/cli_tree_input.h"
+#include "client/io/las_crs.h"
 #include "client/io/scan_io.h"
 
 namespace forestmap::client {
@@ -129,8 +131,11 @@ void Run(const DetectCommandOptions& options, const CliContext& context) {
   }
   const algorithms::TrunkDetectionResult result = algorithms::DetectTrunks(cloud, detection);
   std::ostringstream text;
+  const std::string crs = ReadLasCrs(options.scan);  // "" unless a LAS file declares one
   if (options.format == "json") {
-    text << ToJson(result, cloud.origin).dump(2) << '\n';
+    nlohmann::json json = ToJson(result, cloud.origin);
+    if (!crs.empty()) json["crs"] = crs;
+    text << json.dump(2) << '\n';
   } else {
     WriteCsv(text, result, cloud.origin);
   }
@@ -141,7 +146,10 @@ void Run(const DetectCommandOptions& options, const CliContext& context) {
     file << text.str();
     file.close();
     if (!file) throw CommandError(options.out + ": cannot write the tree list");
+    // The CRS beside a CSV, as GIS tools keep it (map create --trees reads it back).
+    if (!crs.empty() && options.format != "json") WriteCrsSidecar(options.out, crs);
   }
+  if (!crs.empty()) *context.err << options.scan << ": CRS " << ShortCrs(crs) << std::endl;
   *context.err << Summary(options.scan, result) << std::endl;
 }
 

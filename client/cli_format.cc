@@ -89,6 +89,14 @@ nlohmann::ordered_json RelocalizeJson(const v1::RelocalizeResponse& response,
     line["qw"] = pose.rotation().w();
     line["yaw_deg"] = YawDegrees(FromProto(pose));
   }
+  if (response.has_geodetic()) {  // maps with a CRS: WGS84
+    const v1::GeodeticPose& g = response.geodetic();
+    line["lat_deg"] = g.latitude_deg();
+    line["lon_deg"] = g.longitude_deg();
+    line["ellipsoidal_height_m"] = g.ellipsoidal_height_m();
+    line["true_heading_deg"] = g.true_heading_deg();
+    line["grid_convergence_deg"] = g.grid_convergence_deg();
+  }
   line["inliers"] = response.inliers();
   line["rmse_m"] = response.rmse_m();
   line["confidence"] = response.confidence();

@@ -25,6 +25,8 @@ double YawDegrees(const algorithms::Pose3& map_from_sensor);
 
 // One line of `forestmap relocalize` output, keys in this order:
 // frame (when given), status, x, y, z, qx, qy, qz, qw, yaw_deg (pose only when localized),
+// lat_deg, lon_deg, ellipsoidal_height_m, true_heading_deg, grid_convergence_deg (WGS84, only
+// when the server gave them: localized on a map with a CRS),
 // inliers, rmse_m, confidence, server_ms, detail (the server's reason, only when not localized).
 nlohmann::ordered_json RelocalizeJson(const v1::RelocalizeResponse& response,
                                       std::optional<int64_t> frame = std::nullopt);

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
-#include <map>
 #include <iomanip>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -14,6 +14,8 @@
 #include "algorithms/mapping/map_builder.h"
 #include "client/cli_commands.h"
 #include "client/cli_format.h"
+#include "client/cli_tree_input.h"
+#include "client/io/geo_io.h"
 #include "client/io/tree_csv.h"
 
 namespace forestmap::client {
@@ -24,6 +26,8 @@ struct CreateOptions {
   std::string trees_file;
   std::string crs;
   std::string description;
+  std::string columns;   // --columns x=HEADER,... (io/tree_columns.h)
+  std::string dbh_unit;  // --dbh-unit m|cm|mm; empty: from the header, else m
 };
 
 // Uploads in chunks; reports progress on stderr only when there is more than one chunk.
@@ -60,10 +64,15 @@ void CreateWithTrees(const CreateOptions& options, const std::vector<MapTreeRow>
                << map.version() << ")" << std::endl;
 }
 
-void RunCreate(const CreateOptions& options, const CliContext& context) {
+void RunCreate(CreateOptions options, const CliContext& context) {
   std::vector<MapTreeRow> rows;
   // Read the file before touching the server, so that a bad file leaves nothing behind.
-  if (!options.trees_file.empty()) rows = ReadMapTreesCsv(options.trees_file);
+  if (!options.trees_file.empty()) {
+    TreeFile file =
+        ReadTreeFile(options.trees_file, TreeFileOptionsFrom(options.columns, options.dbh_unit));
+    rows = std::move(file.rows);
+    if (options.crs.empty()) options.crs = file.crs;  // a GIS file's own CRS
+  }
   if (!options.trees_file.empty() && rows.empty()) {
     *context.err << "forestmap: warning: " << options.trees_file
                  << " has no trees; the map is empty" << std::endl;
@@ -78,9 +87,12 @@ void AddCreate(CLI::App& map_app, CliContext& context) {
   sub->add_option("NAME", options->name, "Map name: 1-128 characters of A-Z a-z 0-9 _ . -")
       ->required();
   sub->add_option("--trees", options->trees_file,
-                  "CSV of the map's trees: columns x,y (m) required; z, dbh (m), id optional; "
-                  "other columns are kept as attributes");
-  sub->add_option("--crs", options->crs, "Coordinate reference system, e.g. EPSG:32612");
+                  "The map's trees: CSV (columns x,y (m) required; z, dbh (m), id optional; "
+                  "other columns are kept as attributes), or .gpkg / .geojson / .shp points "
+                  "(whose CRS is used when --crs is not given)");
+  AddTreeFileOptions(*sub, options->columns, options->dbh_unit);
+  sub->add_option("--crs", options->crs,
+                  "Coordinate reference system: EPSG code (EPSG:2959), WKT or PROJ string");
   sub->add_option("--description", options->description, "Free text");
   sub->callback(
       [options, &context] { context.run = [options, &context] { RunCreate(*options, context); }; });
@@ -212,6 +224,7 @@ struct ExportOptions {
   std::string name;
   std::string out_file;  // empty or "-": stdout
   int64_t version = 0;   // 0: current
+  std::string format;    // csv|geojson|gpkg|shp; empty: from the extension of out_file
 };
 
 // Shared maps: the state of each tree as extra columns (status, observations, sigmas), added
@@ -237,16 +250,26 @@ void AddStateColumns(ExportedTrees& exported) {
 }
 
 void RunExport(const ExportOptions& options, const CliContext& context) {
-  ExportedTrees exported = context.Connect().ExportTrees(options.name, std::nullopt,
-                                                         options.version);
+  ExportedTrees exported =
+      context.Connect().ExportTrees(options.name, std::nullopt, options.version);
   AddStateColumns(exported);
   if (options.out_file.empty() || options.out_file == "-") {
+    if (!options.format.empty() && options.format != "csv") {
+      throw CommandError("--format " + options.format + " needs --out FILE");
+    }
     WriteMapTreesCsv(*context.out, exported.trees);
     context.out->flush();
     if (!*context.out) throw CommandError("writing to standard output failed");
     return;
   }
-  WriteMapTreesCsv(options.out_file, exported.trees);
+  const TreeFormat format =
+      options.format.empty() ? TreeFormatOfPath(options.out_file) : ParseTreeFormat(options.format);
+  if (format == TreeFormat::kCsv) {
+    WriteMapTreesCsv(options.out_file, exported.trees);
+  } else {
+    WriteGeoTrees(options.out_file, format, exported.trees,
+                  context.Connect().GetMap(options.name).crs());
+  }
   *context.err << "exported " << exported.trees.size() << " trees of map '" << options.name
                << "' (version " << exported.map_version << ") to " << options.out_file << std::endl;
 }
@@ -254,9 +277,14 @@ void RunExport(const ExportOptions& options, const CliContext& context) {
 void AddExport(CLI::App& map_app, CliContext& context) {
   auto options = std::make_shared<ExportOptions>();
   CLI::App* sub =
-      map_app.add_subcommand("export", "Write a map's trees as CSV (id,x,y,z,dbh,<attributes>)");
+      map_app.add_subcommand("export",
+                             "Write a map's trees as CSV (id,x,y,z,dbh,<attributes>), GeoJSON, "
+                             "GeoPackage or shapefile (points with the map's CRS)");
   sub->add_option("NAME", options->name, "Map name")->required();
-  sub->add_option("--out", options->out_file, "Output CSV file (default: standard output)");
+  sub->add_option("--out", options->out_file, "Output file (default: CSV on standard output)");
+  sub->add_option("--format", options->format,
+                  "csv, geojson, gpkg or shp (default: from the --out extension, else csv)")
+      ->check(CLI::IsMember({"csv", "geojson", "gpkg", "shp"}));
   sub->add_option("--version", options->version,
                   "Map version to export (default 0: the current one; see 'map history')")
       ->check(CLI::NonNegativeNumber);
@@ -289,14 +317,15 @@ void PrintHistory(const std::vector<v1::MapVersion>& versions, std::ostream& out
   out << std::left << std::setw(8) << "VERSION" << std::setw(22) << "TIME" << std::setw(14)
       << "KIND" << std::setw(16) << "SOURCE" << std::right << std::setw(9) << "TREES"
       << std::setw(10) << "CONFIRMED" << std::setw(8) << "ADDED" << std::setw(8) << "UPDATED"
-      << std::setw(8) << "REMOVED" << std::setw(9) << "OBS+" << std::setw(9) << "OBS-" << "\n";
+      << std::setw(8) << "REMOVED" << std::setw(9) << "OBS+" << std::setw(9) << "OBS-"
+      << "\n";
   for (const v1::MapVersion& v : versions) {
     std::string source = v.source().empty() ? "-" : v.source();
     if (v.kind() == v1::MapVersion::RESTORE) source = "from v" + std::to_string(v.restored_from());
     out << std::left << std::setw(8) << v.version() << std::setw(22)
-        << FormatUnixMs(v.created_unix_ms()) << std::setw(14) << KindName(v.kind())
-        << std::setw(16) << source << std::right << std::setw(9) << v.tree_count()
-        << std::setw(10) << v.confirmed_count() << std::setw(8) << v.trees_added() << std::setw(8)
+        << FormatUnixMs(v.created_unix_ms()) << std::setw(14) << KindName(v.kind()) << std::setw(16)
+        << source << std::right << std::setw(9) << v.tree_count() << std::setw(10)
+        << v.confirmed_count() << std::setw(8) << v.trees_added() << std::setw(8)
         << v.trees_updated() << std::setw(8) << v.trees_removed() << std::setw(9)
         << v.observations_added() << std::setw(9) << v.observations_removed() << "\n";
   }
@@ -348,9 +377,9 @@ void AddRemoveSource(CLI::App& map_app, CliContext& context) {
     context.run = [name, source, &context] {
       const v1::RemoveSourceResponse r = context.Connect().RemoveSource(*name, *source);
       *context.out << "removed " << r.observations_removed() << " observations of '" << *source
-                   << "' from map '" << *name << "': " << r.trees_updated()
-                   << " trees recomputed, " << r.trees_removed() << " removed; version "
-                   << r.map().version() << " (" << r.map().tree_count() << " trees)" << std::endl;
+                   << "' from map '" << *name << "': " << r.trees_updated() << " trees recomputed, "
+                   << r.trees_removed() << " removed; version " << r.map().version() << " ("
+                   << r.map().tree_count() << " trees)" << std::endl;
     };
   });
 }

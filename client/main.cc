@@ -39,6 +39,8 @@ int main(int argc, char** argv) {
   forestmap::client::AddDetectCommand(app, context);
   forestmap::client::AddSimulateCommand(app, context);
   forestmap::client::AddTrackCommand(app, context);
+  forestmap::client::AddCompareCommand(app, context);
+  forestmap::client::AddPlotCommand(app, context);
 
   try {
     app.parse(argc, argv);

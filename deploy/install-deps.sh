@@ -10,6 +10,11 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev
   libpcl-dev
+  libproj-dev proj-bin    # CRSs (geo/crs.cc); cs2cs checks the WGS84 answers in the tests
+  libgdal-dev gdal-bin    # GeoPackage / GeoJSON / shapefile trees (client/io/geo_io.cc); ogrinfo
+  libcairo2-dev           # forestmap plot: SVG and PNG pictures (client/map_plot.cc)
+  libcpp-httplib-dev      # forestmapd --http: the read-only web page (server/http_page.cc)
+  chromium                # the web page's browser test (tests/server/http_page_test.cc)
   python3  # tests/bench scripts (relocalization.sh, scan_to_pose.sh, truth_checks.py)
   libpq-dev   # the PostgreSQL map store (--db postgresql://...)
   postgresql  # initdb / pg_ctl for the tests' throwaway cluster (tests/pg_fixture.h)

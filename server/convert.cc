@@ -3,6 +3,8 @@
 #include <cmath>
 #include <optional>
 
+#include "server/geo_convert.h"
+
 namespace forestmap::server {
 namespace {
 
@@ -24,6 +26,7 @@ v1::Map ToProto(const storage::MapInfo& info) {
   if (info.extent) *map.mutable_extent() = ToProto(*info.extent);
   map.set_created_unix_ms(info.created_unix_ms);
   map.set_updated_unix_ms(info.updated_unix_ms);
+  DescribeCrs(map);
   return map;
 }
 
@@ -181,14 +184,26 @@ algorithms::TrackingFrame FromProto(const v1::TrackRequest& request) {
 v1::TrackResponse ToProto(const algorithms::TrackingStep& step) {
   v1::TrackResponse out;
   switch (step.state) {
-    case algorithms::TrackState::kTracking: out.set_state(v1::TrackResponse::TRACKING); break;
-    case algorithms::TrackState::kRecovered: out.set_state(v1::TrackResponse::RECOVERED); break;
-    case algorithms::TrackState::kLost: out.set_state(v1::TrackResponse::LOST); break;
+    case algorithms::TrackState::kTracking:
+      out.set_state(v1::TrackResponse::TRACKING);
+      break;
+    case algorithms::TrackState::kRecovered:
+      out.set_state(v1::TrackResponse::RECOVERED);
+      break;
+    case algorithms::TrackState::kLost:
+      out.set_state(v1::TrackResponse::LOST);
+      break;
   }
   switch (step.method) {
-    case algorithms::TrackMethod::kLocal: out.set_method(v1::TrackResponse::LOCAL); break;
-    case algorithms::TrackMethod::kPrior: out.set_method(v1::TrackResponse::PRIOR); break;
-    case algorithms::TrackMethod::kGlobal: out.set_method(v1::TrackResponse::GLOBAL); break;
+    case algorithms::TrackMethod::kLocal:
+      out.set_method(v1::TrackResponse::LOCAL);
+      break;
+    case algorithms::TrackMethod::kPrior:
+      out.set_method(v1::TrackResponse::PRIOR);
+      break;
+    case algorithms::TrackMethod::kGlobal:
+      out.set_method(v1::TrackResponse::GLOBAL);
+      break;
   }
   out.set_frames_lost(step.frames_lost);
   *out.mutable_result() = ToProto(step.result);
@@ -283,7 +298,7 @@ storage::TreeRecord ToTreeRecord(const algorithms::TreeEstimate& tree,
   out.dbh = Known(tree.dbh);
   out.attributes = attributes;
   out.status = tree.status == algorithms::TreeStatus::kConfirmed ? storage::TreeStatus::kConfirmed
-                                                                  : storage::TreeStatus::kCandidate;
+                                                                 : storage::TreeStatus::kCandidate;
   out.observations = tree.observations;
   out.position_sigma = Known(tree.position_sigma);
   out.dbh_sigma = Known(tree.dbh_sigma);

@@ -11,6 +11,7 @@
 #include <memory>
 #include <string>
 
+#include "server/http_page.h"
 #include "server/server.h"
 #include "server/service.h"
 #include "server/status.h"
@@ -25,6 +26,7 @@ struct Config {
   std::string db = "./forestmap.db";
   std::string listen = "127.0.0.1:50051";
   int max_message_mb = 64;
+  std::string http;  // --http ADDR: the read-only web page; empty: none
 };
 
 // Blocks SIGINT and SIGTERM in this thread and in every thread started after it (gRPC's), so
@@ -68,11 +70,23 @@ int Serve(const Config& config, const sigset_t& shutdown_signals) {
   }
   LogLine("serving on " + server->address() + ", database " + shown_db + ", " +
           std::to_string(map_count) + " maps");
+  std::unique_ptr<forestmap::server::HttpPage> page;
+  if (!config.http.empty()) {
+    try {
+      page = std::make_unique<forestmap::server::HttpPage>(*store, service.recent_answers(),
+                                                           config.http);
+    } catch (const std::exception& e) {
+      LogLine(e.what());
+      return 1;
+    }
+    LogLine("web page on http://" + page->address() + "/");
+  }
 
   int signal_number = 0;
   sigwait(&shutdown_signals, &signal_number);
   LogLine(std::string("received ") + (signal_number == SIGINT ? "SIGINT" : "SIGTERM") +
           ", shutting down");
+  page.reset();
   server->Shutdown(kShutdownGrace);
   server->Wait();
   LogLine("stopped");
@@ -93,6 +107,9 @@ int main(int argc, char** argv) {
   app.add_option("--max-message-mb", config.max_message_mb, "largest request message accepted, MiB")
       ->check(CLI::Range(1, 2047))
       ->capture_default_str();
+  app.add_option("--http", config.http,
+                 "also serve a read-only web page (maps, versions, trees, last relocalizations) "
+                 "on host:port");
   CLI11_PARSE(app, argc, argv);
 
   const sigset_t shutdown_signals = BlockShutdownSignals();

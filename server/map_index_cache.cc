@@ -98,6 +98,13 @@ MapIndexCache::Entry MapIndexCache::BuildEntry(const std::string& name) const {
   Entry entry;
   entry.version = snapshot.info.version;
   entry.created_unix_ms = snapshot.info.created_unix_ms;
+  if (!snapshot.info.crs.empty()) {
+    try {
+      entry.to_wgs84 = std::make_shared<const geo::MapToWgs84>(snapshot.info.crs);
+    } catch (const geo::CrsError&) {
+      // A free-text CRS from before validation: answers stay in map coordinates.
+    }
+  }
   entry.index = std::make_shared<const algorithms::MapIndex>(std::move(trees), options_.index);
   return entry;
 }

@@ -21,6 +21,7 @@
 #include <unordered_map>
 
 #include "algorithms/relocalization/relocalizer.h"
+#include "geo/crs.h"
 #include "storage/map_store.h"
 
 namespace forestmap::server {
@@ -37,6 +38,7 @@ class MapIndexCache {
     std::shared_ptr<const algorithms::MapIndex> index;  // never null
     int64_t version = 0;                                // map version the index was built from
     int64_t created_unix_ms = 0;  // the map's creation time: tells a re-created map apart
+    std::shared_ptr<const geo::MapToWgs84> to_wgs84;  // null when the map has no (known) CRS
   };
 
   struct Stats {

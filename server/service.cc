@@ -7,6 +7,7 @@
 
 #include "algorithms/core/check.h"
 #include "server/convert.h"
+#include "server/geo_convert.h"
 #include "server/status.h"
 #include "server/streams.h"
 #include "server/validation.h"
@@ -66,7 +67,8 @@ grpc::ServerUnaryReactor* ForestMapService::CreateMap(grpc::CallbackServerContex
                                                       v1::Map* response) {
   return AnswerOn(admin_pool_, context, "CreateMap", [this, request, response] {
     Validate(*request);
-    *response = ToProto(store_.CreateMap(request->name(), request->description(), request->crs()));
+    *response = ToProto(
+        store_.CreateMap(request->name(), request->description(), CanonicalCrs(request->crs())));
   });
 }
 
@@ -120,9 +122,11 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
         ToProto(algorithms::Relocalize(*entry.index, FromProto(*request), options_.relocalizer));
     response->set_map_version(entry.version);
     if (request->has_client_stamp_ns()) response->set_client_stamp_ns(request->client_stamp_ns());
+    if (entry.to_wgs84) AddGeodetic(*response, *entry.to_wgs84);
     const std::chrono::duration<double, std::milli> elapsed =
         std::chrono::steady_clock::now() - start;
     response->set_server_time_ms(elapsed.count());
+    recent_answers_.Add(request->map_name(), *response);
   });
 }
 

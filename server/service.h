@@ -42,6 +42,7 @@
 #include "algorithms/relocalization/tracking.h"
 #include "forestmap/v1/forestmap_service.grpc.pb.h"
 #include "server/map_index_cache.h"
+#include "server/recent_answers.h"
 #include "server/validation.h"
 #include "server/worker_pool.h"
 #include "storage/map_store.h"
@@ -82,6 +83,7 @@ class ForestMapService final : public v1::ForestMap::CallbackService {
 
   const ServiceOptions& options() const { return options_; }
   const MapIndexCache& index_cache() const { return index_cache_; }
+  const RecentAnswers& recent_answers() const { return recent_answers_; }  // the web page's
 
   grpc::ServerUnaryReactor* CreateMap(grpc::CallbackServerContext* context,
                                       const v1::CreateMapRequest* request,
@@ -128,6 +130,7 @@ class ForestMapService final : public v1::ForestMap::CallbackService {
   storage::MapStore& store_;
   ServiceOptions options_;
   MapIndexCache index_cache_;
+  RecentAnswers recent_answers_;
   // Declared last: destroyed (drained and joined) first, while what their jobs use is alive.
   WorkerPool admin_pool_;
   WorkerPool work_pool_;

@@ -4,6 +4,7 @@
 #include <utility>
 
 #include "server/convert.h"
+#include "server/geo_convert.h"
 #include "server/service.h"
 #include "server/status.h"
 
@@ -228,6 +229,7 @@ void TrackReactor::Answer() {
   v1::RelocalizeResponse& result = *response_.mutable_result();
   result.set_map_version(entry.version);
   if (request_.has_client_stamp_ns()) result.set_client_stamp_ns(request_.client_stamp_ns());
+  if (entry.to_wgs84) AddGeodetic(result, *entry.to_wgs84);
   const std::chrono::duration<double, std::milli> elapsed =
       std::chrono::steady_clock::now() - start;
   result.set_server_time_ms(elapsed.count());

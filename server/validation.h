@@ -26,7 +26,7 @@ namespace forestmap::server {
 inline constexpr double kUnitQuaternionTolerance = 1e-3;  // | |q| - 1 | allowed
 inline constexpr int kMinQueryTrees = 3;
 inline constexpr size_t kMaxDescriptionLength = 4096;     // bytes
-inline constexpr size_t kMaxCrsLength = 256;              // bytes
+inline constexpr size_t kMaxCrsLength = 16384;              // bytes
 inline constexpr size_t kMaxAttributes = 64;              // per tree
 inline constexpr size_t kMaxAttributeKeyLength = 128;     // bytes
 inline constexpr size_t kMaxAttributeValueLength = 4096;  // bytes

@@ -9,7 +9,6 @@
 namespace forestmap::client {
 namespace {
 
-
 bool EqualsIgnoreCase(std::string_view a, std::string_view b) {
   return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
            return std::tolower(static_cast<unsigned char>(x)) ==
@@ -70,6 +69,14 @@ std::string CanonicalColumnName(std::string_view header_name) {
 }
 
 ColumnMap::ColumnMap(const CsvReader& reader, std::initializer_list<const char*> known)
+    : ColumnMap(reader, known, [&reader] {
+        std::vector<std::string> names;
+        for (const std::string& name : reader.header()) names.push_back(CanonicalColumnName(name));
+        return names;
+      }()) {}
+
+ColumnMap::ColumnMap(const CsvReader& reader, std::initializer_list<const char*> known,
+                     const std::vector<std::string>& canonical_names)
     : reader_(reader),
       known_(known.begin(), known.end()),
       index_(known.size(), reader.header().size()) {
@@ -77,7 +84,7 @@ ColumnMap::ColumnMap(const CsvReader& reader, std::initializer_list<const char*>
   const std::string where = reader.name() + ":" + std::to_string(reader.header_line()) + ": ";
   std::set<std::string> other_names;
   for (size_t column = 0; column < header.size(); ++column) {
-    const std::string canonical = CanonicalColumnName(header[column]);
+    const std::string& canonical = canonical_names[column];
     const auto it = std::find(known_.begin(), known_.end(), canonical);
     if (it == known_.end()) {
       if (!header[column].empty() && !other_names.insert(header[column]).second) {

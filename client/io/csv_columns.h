@@ -22,6 +22,9 @@ class ColumnMap {
   // Throws CsvError at the header line when two columns give the same known column
   // ("columns 'x' and 'X_m' both give 'x'") or two other columns have the same name.
   ColumnMap(const CsvReader& reader, std::initializer_list<const char*> known);
+  // As above with the known name of each header column given (io/tree_columns.h resolves them).
+  ColumnMap(const CsvReader& reader, std::initializer_list<const char*> known,
+            const std::vector<std::string>& canonical_names);
 
   // The column giving `canonical`, if any.
   std::optional<size_t> Find(std::string_view canonical) const;

@@ -8,6 +8,7 @@
 
 #include "client/io/csv_columns.h"
 #include "client/io/str_cat.h"
+#include "client/io/tree_columns.h"
 
 namespace forestmap::client {
 namespace {
@@ -31,12 +32,13 @@ struct MapColumns {
   std::vector<size_t> attributes;
 };
 
-MapTreeRow ReadMapRow(const CsvReader& reader, const MapColumns& columns) {
+MapTreeRow ReadMapRow(const CsvReader& reader, const MapColumns& columns, double dbh_scale) {
   MapTreeRow row;
   row.x = RequiredNumber(reader, columns.x);
   row.y = RequiredNumber(reader, columns.y);
   if (columns.z) row.z = OptionalNumber(reader, *columns.z);
   if (columns.dbh) row.dbh = OptionalDiameter(reader, *columns.dbh);
+  if (row.dbh) *row.dbh *= dbh_scale;
   if (columns.id) row.id = OptionalInteger(reader, *columns.id);
   for (size_t column : columns.attributes) {
     const CsvField& field = reader.fields()[column];
@@ -46,18 +48,24 @@ MapTreeRow ReadMapRow(const CsvReader& reader, const MapColumns& columns) {
   return row;
 }
 
-std::vector<MapTreeRow> ReadMapTrees(CsvReader reader) {
-  const MapColumns columns(ColumnMap(reader, {"id", "x", "y", "z", "dbh"}));
+std::vector<MapTreeRow> ReadMapTrees(CsvReader reader, const TreeFileOptions& options) {
+  const ResolvedColumns resolved = ResolveMapColumns(
+      reader.header(), options, reader.name() + ":" + std::to_string(reader.header_line()));
+  const MapColumns columns(ColumnMap(reader, {"id", "x", "y", "z", "dbh"}, resolved.canonical));
+  const double dbh_scale = MetresPer(resolved.dbh_unit);
   std::vector<MapTreeRow> rows;
   std::unordered_map<int64_t, int> line_of_id;
   while (reader.Next()) {
-    rows.push_back(ReadMapRow(reader, columns));
+    rows.push_back(ReadMapRow(reader, columns, dbh_scale));
     const std::optional<int64_t> id = rows.back().id;
     if (!id) continue;
     const auto [it, inserted] = line_of_id.emplace(*id, reader.line());
     if (!inserted) {
       reader.FailAt(*columns.id, DuplicateMessage("tree id", *id, it->second, reader.line()));
     }
+  }
+  if (columns.dbh) {
+    CheckDbhMedian(rows, reader.name(), reader.header()[*columns.dbh], resolved.dbh_unit);
   }
   return rows;
 }
@@ -168,12 +176,13 @@ std::map<int64_t, algorithms::Pose3> ReadPoses(CsvReader reader) {
 
 }  // namespace
 
-std::vector<MapTreeRow> ReadMapTreesCsv(const std::string& path) {
-  return ReadMapTrees(CsvReader::Open(path));
+std::vector<MapTreeRow> ReadMapTreesCsv(const std::string& path, const TreeFileOptions& options) {
+  return ReadMapTrees(CsvReader::Open(path), options);
 }
 
-std::vector<MapTreeRow> ParseMapTreesCsv(std::string content, const std::string& name) {
-  return ReadMapTrees(CsvReader(std::move(content), name));
+std::vector<MapTreeRow> ParseMapTreesCsv(std::string content, const std::string& name,
+                                         const TreeFileOptions& options) {
+  return ReadMapTrees(CsvReader(std::move(content), name), options);
 }
 
 std::vector<DetectedTreeRow> ReadDetectedTreesCsv(const std::string& path) {

@@ -26,6 +26,7 @@
 
 #include "algorithms/core/geometry.h"
 #include "client/io/csv_reader.h"
+#include "client/io/tree_columns.h"
 
 namespace forestmap::client {
 
@@ -57,13 +58,17 @@ struct Frame {
   std::vector<algorithms::DetectedTree> trees;
 };
 
-std::vector<MapTreeRow> ReadMapTreesCsv(const std::string& path);
+// `options` name columns and the DBH unit (io/tree_columns.h); DBH is returned in metres. A DBH
+// column whose median is over 3 m is refused, naming the column.
+std::vector<MapTreeRow> ReadMapTreesCsv(const std::string& path,
+                                        const TreeFileOptions& options = {});
 
 // Map rows as the relocalizer's trees: unknown z / dbh become NaN; a row without an id gets its
 // index.
 std::vector<algorithms::MapTree> ToMapTrees(const std::vector<MapTreeRow>& rows);
 // As above for text in memory; `name` stands for the file name in messages.
-std::vector<MapTreeRow> ParseMapTreesCsv(std::string content, const std::string& name);
+std::vector<MapTreeRow> ParseMapTreesCsv(std::string content, const std::string& name,
+                                         const TreeFileOptions& options = {});
 
 // Writes `id,x,y,z,dbh,<attributes in name order>` with every number in its shortest form that
 // reads back exactly, and empty fields for unknown values, so that reading the output gives the

@@ -1,0 +1,138 @@
+#include "algorithms/evaluation/inventory_comparison.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "algorithms/relocalization/map_index.h"
+
+namespace forestmap::algorithms {
+namespace {
+
+std::vector<InventoryLink> LinkOneToOne(const std::vector<DetectedTree>& detected,
+                                        const std::vector<MapTree>& reference, double distance) {
+  std::vector<InventoryLink> candidates;
+  for (size_t d = 0; d < detected.size(); ++d) {
+    for (size_t r = 0; r < reference.size(); ++r) {
+      const double gap = (detected[d].position.head<2>() - reference[r].position.head<2>()).norm();
+      if (gap <= distance) {
+        candidates.push_back({static_cast<int>(d), static_cast<int>(r), gap});
+      }
+    }
+  }
+  std::sort(candidates.begin(), candidates.end(),
+            [](const InventoryLink& a, const InventoryLink& b) { return a.distance < b.distance; });
+  std::vector<bool> detected_used(detected.size()), reference_used(reference.size());
+  std::vector<InventoryLink> links;
+  for (const InventoryLink& link : candidates) {
+    if (detected_used[link.detected] || reference_used[link.reference]) continue;
+    detected_used[link.detected] = reference_used[link.reference] = true;
+    links.push_back(link);
+  }
+  return links;
+}
+
+void OmissionByDbh(const std::vector<MapTree>& reference, const std::vector<InventoryLink>& links,
+                   double width, InventoryComparison& out) {
+  std::vector<bool> linked(reference.size());
+  for (const InventoryLink& link : links) linked[link.reference] = true;
+  for (size_t r = 0; r < reference.size(); ++r) {
+    const double dbh = reference[r].dbh;
+    if (!std::isfinite(dbh)) {
+      ++out.reference_without_dbh;
+      continue;
+    }
+    const size_t k = static_cast<size_t>(std::floor(dbh / width));
+    while (out.omission_by_dbh.size() <= k) {
+      const double min = width * static_cast<double>(out.omission_by_dbh.size());
+      out.omission_by_dbh.push_back({min, min + width, 0, 0, 0});
+    }
+    ++out.omission_by_dbh[k].reference_trees;
+    out.omission_by_dbh[k].linked += linked[r];
+  }
+  std::erase_if(out.omission_by_dbh,
+                [](const DbhClassOmission& c) { return c.reference_trees == 0; });
+  for (DbhClassOmission& c : out.omission_by_dbh) {
+    c.omission = 1.0 - static_cast<double>(c.linked) / c.reference_trees;
+  }
+}
+
+}  // namespace
+
+void InventoryComparisonOptions::Check() const {
+  if (!(link_distance > 0)) throw std::invalid_argument("link_distance must be > 0 m");
+  if (!(dbh_class_width > 0)) throw std::invalid_argument("dbh_class_width must be > 0 m");
+}
+
+InventoryComparison CompareInventories(const std::vector<DetectedTree>& detected,
+                                       const std::vector<MapTree>& reference,
+                                       const InventoryComparisonOptions& options) {
+  options.Check();
+  InventoryComparison out;
+  out.detected_trees = static_cast<int>(detected.size());
+  out.reference_trees = static_cast<int>(reference.size());
+  out.links = LinkOneToOne(detected, reference, options.link_distance);
+  const double links = static_cast<double>(out.links.size());
+  if (!reference.empty()) out.completeness = links / reference.size();
+  if (!detected.empty()) out.commission = 1.0 - links / detected.size();
+  double squared = 0, dbh_squared = 0, dbh_sum = 0;
+  for (const InventoryLink& link : out.links) {
+    const Eigen::Vector2d offset =
+        detected[link.detected].position.head<2>() - reference[link.reference].position.head<2>();
+    squared += offset.squaredNorm();
+    out.bias_x += offset.x() / links;
+    out.bias_y += offset.y() / links;
+    const double dbh_error = detected[link.detected].dbh - reference[link.reference].dbh;
+    if (std::isfinite(dbh_error)) {
+      ++out.dbh_pairs;
+      dbh_squared += dbh_error * dbh_error;
+      dbh_sum += dbh_error;
+    }
+  }
+  if (!out.links.empty()) out.position_rmse = std::sqrt(squared / links);
+  if (out.dbh_pairs > 0) {
+    out.dbh_rmse = std::sqrt(dbh_squared / out.dbh_pairs);
+    out.dbh_bias = dbh_sum / out.dbh_pairs;
+  }
+  OmissionByDbh(reference, out.links, options.dbh_class_width, out);
+  return out;
+}
+
+Registration RegisterToReference(const std::vector<DetectedTree>& detected,
+                                 const std::vector<MapTree>& reference,
+                                 const RelocalizerOptions& options) {
+  Registration registration;
+  if (detected.empty() || reference.empty()) {
+    registration.result.detail = "no trees to register";
+    return registration;
+  }
+  // Horizontal centroids; heights are dropped (a survey's z and a scan's are not comparable).
+  Eigen::Vector3d detected_centre = Eigen::Vector3d::Zero(),
+                  reference_centre = Eigen::Vector3d::Zero();
+  for (const DetectedTree& tree : detected) detected_centre.head<2>() += tree.position.head<2>();
+  for (const MapTree& tree : reference) reference_centre.head<2>() += tree.position.head<2>();
+  detected_centre /= static_cast<double>(detected.size());
+  reference_centre /= static_cast<double>(reference.size());
+  std::vector<MapTree> centred_reference = reference;
+  for (MapTree& tree : centred_reference) {
+    tree.position = Eigen::Vector3d(tree.position.x() - reference_centre.x(),
+                                    tree.position.y() - reference_centre.y(), kUnknown);
+  }
+  RelocalizeQuery query;
+  for (DetectedTree tree : detected) {
+    tree.position = Eigen::Vector3d(tree.position.x() - detected_centre.x(),
+                                    tree.position.y() - detected_centre.y(), 0.0);
+    tree.axis = Eigen::Vector3d::Zero();
+    query.trees.push_back(tree);
+  }
+  const MapIndex index(std::move(centred_reference));
+  registration.result = Relocalize(index, query, options);
+  Pose3 to_reference = Pose3::Identity(), from_detected = Pose3::Identity();
+  to_reference.translation() = reference_centre;
+  from_detected.translation() = -detected_centre;
+  registration.reference_from_detected =
+      to_reference * registration.result.map_from_sensor * from_detected;
+  return registration;
+}
+
+}  // namespace forestmap::algorithms

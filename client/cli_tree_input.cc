@@ -1,0 +1,66 @@
+#include "client/cli_tree_input.h"
+
+#include <cctype>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <stdexcept>
+
+#include "client/cli_commands.h"
+#include "client/io/geo_io.h"
+
+namespace forestmap::client {
+
+void AddTreeFileOptions(CLI::App& command, std::string& columns, std::string& dbh_unit) {
+  command.add_option("--columns", columns,
+                     "Which file columns are the tree's, when their names are not x, y, z, dbh, "
+                     "id: e.g. x=Field_Xpj,y=Field_Ypj,dbh=DBH,id=Tree (any subset); other "
+                     "columns are kept as attributes");
+  command.add_option("--dbh-unit", dbh_unit,
+                     "Unit of the DBH column: m, cm or mm (default: from a _cm/_mm suffix of "
+                     "its name, else m)");
+}
+
+TreeFileOptions TreeFileOptionsFrom(const std::string& columns, const std::string& dbh_unit) {
+  TreeFileOptions options;
+  try {
+    if (!columns.empty()) options.columns = ParseColumnMapping(columns);
+    if (!dbh_unit.empty()) options.dbh_unit = ParseDbhUnit(dbh_unit);
+  } catch (const std::invalid_argument& e) {
+    throw CommandError(e.what());
+  }
+  return options;
+}
+
+TreeFile ReadTreeFile(const std::string& path, const TreeFileOptions& options) {
+  TreeFile file;
+  if (TreeFormatOfPath(path) == TreeFormat::kCsv) {
+    file.rows = ReadMapTreesCsv(path, options);
+    std::ifstream prj(std::filesystem::path(path).replace_extension(".prj"));
+    if (prj) file.crs.assign(std::istreambuf_iterator<char>(prj), {});
+    while (!file.crs.empty() && std::isspace(static_cast<unsigned char>(file.crs.back()))) {
+      file.crs.pop_back();
+    }
+    return file;
+  }
+  GeoTrees trees = ReadGeoTrees(path, options);
+  file.rows = std::move(trees.rows);
+  file.crs = std::move(trees.crs_wkt);
+  return file;
+}
+
+void WriteCrsSidecar(const std::string& csv_path, const std::string& crs) {
+  const std::string path = std::filesystem::path(csv_path).replace_extension(".prj").string();
+  std::ofstream out(path);
+  out << crs << '\n';
+  if (!out) throw CommandError(path + ": cannot write the CRS");
+}
+
+std::string ShortCrs(const std::string& crs) {
+  const size_t open = crs.find('"');
+  const size_t close = open == std::string::npos ? open : crs.find('"', open + 1);
+  if (crs.rfind("EPSG:", 0) == 0 || close == std::string::npos) return crs.substr(0, 64);
+  return crs.substr(open + 1, close - open - 1);
+}
+
+}  // namespace forestmap::client

@@ -1,0 +1,36 @@
+#pragma once
+// Tree inventories as commands read them: --columns and --dbh-unit (io/tree_columns.h), and the
+// file format chosen by extension (CSV, or GeoPackage / GeoJSON / shapefile through GDAL).
+
+#include <CLI/CLI.hpp>
+#include <string>
+#include <vector>
+
+#include "client/io/tree_columns.h"
+#include "client/io/tree_csv.h"
+
+namespace forestmap::client {
+
+// Adds --columns and --dbh-unit to `command`, storing their text.
+void AddTreeFileOptions(CLI::App& command, std::string& columns, std::string& dbh_unit);
+
+// The options from their text; throws CommandError naming the flag.
+TreeFileOptions TreeFileOptionsFrom(const std::string& columns, const std::string& dbh_unit);
+
+// A tree file and the CRS it declares (empty when it declares none, as CSV never does).
+struct TreeFile {
+  std::vector<MapTreeRow> rows;
+  std::string crs;  // WKT
+};
+
+// Reads CSV (any other extension) or, by extension, .gpkg, .geojson/.json, .shp. A CSV's CRS is
+// the WKT or EPSG code in FILE.prj beside it, when there is one.
+TreeFile ReadTreeFile(const std::string& path, const TreeFileOptions& options);
+
+// Writes `crs` to PATH.prj (PATH without its extension), beside a CSV.
+void WriteCrsSidecar(const std::string& csv_path, const std::string& crs);
+
+// "EPSG:n", or the name in a WKT's first quotes, for messages.
+std::string ShortCrs(const std::string& crs);
+
+}  // namespace forestmap::client

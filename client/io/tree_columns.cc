@@ -1,0 +1,153 @@
+#include "client/io/tree_columns.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+#include <stdexcept>
+
+#include "client/io/csv_columns.h"
+#include "client/io/csv_reader.h"
+#include "client/io/str_cat.h"
+#include "client/io/tree_csv.h"
+
+namespace forestmap::client {
+namespace {
+
+constexpr double kMaxMedianDbh = 3.0;  // m: no tree is that thick
+constexpr const char* kTreeColumns[] = {"x", "y", "z", "dbh", "id"};
+
+std::string Lower(std::string_view text) {
+  std::string out(Trim(text));
+  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return out;
+}
+
+bool IsTreeColumn(const std::string& name) {
+  return std::find(std::begin(kTreeColumns), std::end(kTreeColumns), name) !=
+         std::end(kTreeColumns);
+}
+
+// A name no header column canonicalises to: the column is kept as an attribute.
+std::string AsAttribute(const std::string& header_name) { return "attribute:" + header_name; }
+
+std::string HeaderList(const std::vector<std::string>& header) {
+  std::string names;
+  for (const std::string& name : header) names += (names.empty() ? "" : ",") + name;
+  return names;
+}
+
+}  // namespace
+
+std::map<std::string, std::string> ParseColumnMapping(const std::string& text) {
+  std::map<std::string, std::string> mapping;
+  size_t start = 0;
+  while (start <= text.size()) {
+    const size_t end = std::min(text.find(',', start), text.size());
+    const std::string entry(Trim(std::string_view(text).substr(start, end - start)));
+    const size_t equals = entry.find('=');
+    if (equals == std::string::npos) {
+      throw std::invalid_argument("--columns: '" + entry +
+                                  "' is not COLUMN=HEADER (e.g. x=Field_Xpj,dbh=DBH)");
+    }
+    const std::string column = Lower(entry.substr(0, equals));
+    const std::string header(Trim(std::string_view(entry).substr(equals + 1)));
+    if (!IsTreeColumn(column)) {
+      throw std::invalid_argument("--columns: '" + column +
+                                  "' is not a tree column (x, y, z, dbh, id)");
+    }
+    if (header.empty()) throw std::invalid_argument("--columns: " + column + "= names no column");
+    if (!mapping.emplace(column, header).second) {
+      throw std::invalid_argument("--columns: '" + column + "' is given twice");
+    }
+    start = end + 1;
+  }
+  return mapping;
+}
+
+DbhUnit ParseDbhUnit(const std::string& text) {
+  const std::string unit = Lower(text);
+  if (unit == "m") return DbhUnit::kMetre;
+  if (unit == "cm") return DbhUnit::kCentimetre;
+  if (unit == "mm") return DbhUnit::kMillimetre;
+  throw std::invalid_argument("--dbh-unit: '" + text + "' is not one of m, cm, mm");
+}
+
+const char* DbhUnitName(DbhUnit unit) {
+  switch (unit) {
+    case DbhUnit::kCentimetre:
+      return "cm";
+    case DbhUnit::kMillimetre:
+      return "mm";
+    default:
+      return "m";
+  }
+}
+
+double MetresPer(DbhUnit unit) {
+  switch (unit) {
+    case DbhUnit::kCentimetre:
+      return 0.01;
+    case DbhUnit::kMillimetre:
+      return 0.001;
+    default:
+      return 1.0;
+  }
+}
+
+ResolvedColumns ResolveMapColumns(const std::vector<std::string>& header,
+                                  const TreeFileOptions& options, const std::string& where) {
+  ResolvedColumns resolved;
+  const bool fortls = std::any_of(header.begin(), header.end(),
+                                  [](const std::string& h) { return Lower(h) == "h.dist"; });
+  for (const std::string& name : header) {
+    const std::string lower = Lower(name);
+    std::string canonical = CanonicalColumnName(name);
+    if (lower == "treeid") canonical = "id";
+    if (lower == "dbh_cm" || lower == "dbh_mm") canonical = "dbh";
+    if (fortls && lower == "id") canonical = AsAttribute(name);
+    if (fortls && lower == "tree") canonical = "id";
+    resolved.canonical.push_back(canonical);
+  }
+  for (const auto& [column, header_name] : options.columns) {
+    const std::string wanted = Lower(header_name);
+    const auto it = std::find_if(header.begin(), header.end(),
+                                 [&](const std::string& h) { return Lower(h) == wanted; });
+    if (it == header.end()) {
+      throw CsvError(StrCat({where, ": --columns ", column, "=", header_name, ": no column '",
+                             header_name, "' (columns: ", HeaderList(header), ")"}));
+    }
+    for (size_t i = 0; i < header.size(); ++i) {
+      if (resolved.canonical[i] == column) resolved.canonical[i] = AsAttribute(header[i]);
+    }
+    resolved.canonical[it - header.begin()] = column;
+  }
+  std::optional<DbhUnit> header_unit;  // the unit the DBH column's name or dialect implies
+  for (size_t i = 0; i < header.size(); ++i) {
+    if (resolved.canonical[i] != "dbh") continue;
+    const std::string lower = Lower(header[i]);
+    if (lower.ends_with("_cm") || (fortls && lower == "dbh")) header_unit = DbhUnit::kCentimetre;
+    if (lower.ends_with("_mm")) header_unit = DbhUnit::kMillimetre;
+  }
+  resolved.dbh_unit = options.dbh_unit.value_or(header_unit.value_or(DbhUnit::kMetre));
+  return resolved;
+}
+
+void CheckDbhMedian(const std::vector<MapTreeRow>& rows, const std::string& file,
+                    const std::string& column, DbhUnit unit) {
+  std::vector<double> dbh;
+  for (const MapTreeRow& row : rows) {
+    if (row.dbh) dbh.push_back(*row.dbh);
+  }
+  if (dbh.empty()) return;
+  std::nth_element(dbh.begin(), dbh.begin() + dbh.size() / 2, dbh.end());
+  const double median = dbh[dbh.size() / 2];
+  if (median <= kMaxMedianDbh) return;
+  char text[64];
+  std::snprintf(text, sizeof(text), "%.4g", median);
+  throw CsvError(StrCat({file, ": column '", column, "': the median DBH is ", text, " m read in ",
+                         DbhUnitName(unit),
+                         " (over 3 m: no tree is that thick); if the column is in centimetres, "
+                         "add --dbh-unit cm (or mm for millimetres)"}));
+}
+
+}  // namespace forestmap::client

@@ -1,0 +1,56 @@
+#pragma once
+// Which header column is which tree column, for inventories as field crews and other tools
+// deliver them (see tree_csv.h for the columns themselves).
+//
+// Resolution, per column of a map file's header:
+// 1. By name, case-insensitively: x | x_m, y | y_m, z | z_m, dbh | dbh_m | dbh_cm | dbh_mm,
+//    id | tree_id | treeid. These cover lidR (treeID, X, Y, Z, DBH in m) and 3DFin (X, Y, Z,
+//    DBH in m) output.
+// 2. FORTLS tree lists (recognised by their `h.dist` column): `tree` is the tree id, `dbh` is in
+//    cm, and `id` (FORTLS's plot id) stays an attribute.
+// 3. `--columns x=Field_Xpj,y=Field_Ypj,dbh=DBH,id=Tree` (any subset) names the columns
+//    explicitly and wins over 1 and 2; a column that would otherwise have given the same tree
+//    column is kept as an attribute.
+// The DBH unit: --dbh-unit when given, else the column name's suffix (_cm, _mm), else FORTLS's
+// cm, else metres.
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace forestmap::client {
+
+struct MapTreeRow;  // tree_csv.h
+
+enum class DbhUnit { kMetre, kCentimetre, kMillimetre };
+
+struct TreeFileOptions {
+  std::map<std::string, std::string> columns;  // tree column (x, y, z, dbh, id) -> header name
+  std::optional<DbhUnit> dbh_unit;             // nullopt: from the header, else metres
+};
+
+// "x=Field_Xpj,y=Field_Ypj": throws std::invalid_argument naming the bad entry.
+std::map<std::string, std::string> ParseColumnMapping(const std::string& text);
+// "m", "cm" or "mm": throws std::invalid_argument otherwise.
+DbhUnit ParseDbhUnit(const std::string& text);
+const char* DbhUnitName(DbhUnit unit);
+double MetresPer(DbhUnit unit);  // 1, 0.01 or 0.001
+
+// The resolved header of a map file.
+struct ResolvedColumns {
+  std::vector<std::string> canonical;  // per header column: x, y, z, dbh, id or another name
+  DbhUnit dbh_unit = DbhUnit::kMetre;
+};
+
+// Throws CsvError "FILE:LINE: --columns dbh=DBHX: no column 'DBHX' (columns: a,b,c)".
+ResolvedColumns ResolveMapColumns(const std::vector<std::string>& header,
+                                  const TreeFileOptions& options, const std::string& where);
+
+// A DBH column whose median (in metres, after the unit) is over 3 m holds centimetres or
+// millimetres read as metres (a 14.9 cm stem read as 14.9 m): throws CsvError naming the file
+// and column and suggesting --dbh-unit cm.
+void CheckDbhMedian(const std::vector<MapTreeRow>& rows, const std::string& file,
+                    const std::string& column, DbhUnit unit);
+
+}  // namespace forestmap::client

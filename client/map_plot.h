@@ -1,0 +1,48 @@
+#pragma once
+// Pictures of a map (cairo, the one file that includes it): stems to scale by DBH, candidate
+// and confirmed trees told apart, a scale bar, a north arrow and the CRS; optionally one
+// relocalization answer (sensor pose, range, matched and unmatched query trees) or a tracked
+// path. SVG or PNG by the output's extension.
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace forestmap::client {
+
+struct PlotTree {
+  double x = 0, y = 0;        // m, map frame (x east, y north)
+  std::optional<double> dbh;  // m
+  bool candidate = false;     // shared maps: not yet confirmed
+};
+
+struct PlotPose {
+  double x = 0, y = 0;  // m, map frame
+  double yaw = 0;       // rad, sensor x axis, counter-clockwise from map x
+};
+
+struct PlotInput {
+  std::string title;  // e.g. the map's name and tree count
+  std::string crs;    // e.g. "EPSG:2959 NAD83(CSRS) / UTM zone 18N"; empty: none
+  std::vector<PlotTree> trees;
+  std::optional<PlotPose> sensor;          // one relocalization answer
+  double sensor_range = 0;                 // m, drawn as a circle around the sensor (0: none)
+  std::vector<Eigen::Vector2d> matched;    // query trees on a map tree (map frame)
+  std::vector<Eigen::Vector2d> unmatched;  // query trees on none
+  std::vector<Eigen::Vector2d> path;       // a tracked path (map frame)
+};
+
+struct PlotOptions {
+  int size_px = 900;         // px, the longer side of the drawing
+  double margin_m = 2.0;     // m, around what is drawn
+  double min_stem_px = 1.5;  // px, stems smaller than this are drawn this big
+  double unknown_dbh = 0.2;  // m, the drawn diameter of a stem of unknown DBH (outlined)
+  // Only this window of the map (m, map frame); empty: everything.
+  std::optional<Eigen::Vector4d> window;  // min_x, min_y, max_x, max_y
+};
+
+// Writes `path` (.svg or .png). Throws std::runtime_error naming the file when it cannot.
+void WritePlot(const std::string& path, const PlotInput& input, const PlotOptions& options = {});
+
+}  // namespace forestmap::client

@@ -1,0 +1,63 @@
+#pragma once
+// Coordinate reference systems through PROJ (the one file that includes proj.h): parsing and
+// validating a CRS given as an EPSG code, WKT or PROJ string, and turning map poses into WGS84
+// latitude, longitude, ellipsoidal height and true heading.
+//
+// Map frame convention: x east(ing), y north(ing), z up, metres, in the map's projected CRS;
+// the CRS's own axis order (some EPSG CRSs are northing-first) is normalised away here.
+
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+
+namespace forestmap::geo {
+
+// A CRS PROJ does not know or cannot use; the message is PROJ's reason, for users.
+class CrsError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct CrsInfo {
+  std::string wkt;   // WKT2:2019
+  int epsg = 0;      // the EPSG code it is identical to; 0 when it has none
+  std::string name;  // e.g. "NAD83(CSRS) / UTM zone 17N"
+  bool projected = false;
+  // How to store it: "EPSG:n" when it has an EPSG code, else the WKT.
+  std::string Canonical() const;
+};
+
+// Parses `text` ("EPSG:2959", WKT, "+proj=utm +zone=17 ..."); throws CrsError. Results are
+// cached (PROJ's database look-ups take milliseconds). Thread-safe.
+CrsInfo ParseCrs(const std::string& text);
+
+// The WGS84 pose of a sensor.
+struct GeodeticPose {
+  double latitude_deg = 0;          // WGS84 (EPSG:4979)
+  double longitude_deg = 0;         // WGS84, east positive
+  double ellipsoidal_height_m = 0;  // above the WGS84 ellipsoid (map z taken as ellipsoidal)
+  double true_heading_deg = 0;      // of the sensor's x axis, clockwise from true north, [0, 360)
+  double grid_convergence_deg = 0;  // true heading minus grid heading (clockwise from grid north)
+};
+
+// Map CRS -> WGS84 (EPSG:4979) with PROJ's best transformation for each point, as cs2cs does.
+// Thread-safe (PROJ objects are used under a lock).
+class MapToWgs84 {
+ public:
+  explicit MapToWgs84(const std::string& crs);  // throws CrsError
+  ~MapToWgs84();
+  MapToWgs84(const MapToWgs84&) = delete;
+  MapToWgs84& operator=(const MapToWgs84&) = delete;
+
+  // A position (map x, y, z in metres) and the sensor's grid heading (yaw, radians counter-
+  // clockwise from map x). Throws CrsError when PROJ cannot transform the point.
+  GeodeticPose Convert(double x, double y, double z, double yaw_rad) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  mutable std::mutex mutex_;
+};
+
+}  // namespace forestmap::geo

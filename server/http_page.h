@@ -1,0 +1,44 @@
+#pragma once
+// forestmapd --http ADDR: a read-only web page (cpp-httplib) showing the maps, their versions,
+// a map's trees with pan and zoom, and the last relocalizations. Nothing on it writes.
+//
+// Routes: GET /                        the page (server/http_page_html.cc)
+//         GET /api/maps                [{name, trees, version, crs, extent}]
+//         GET /api/maps/NAME/trees     {trees: [[x, y, dbh|null, confirmed], ...]} (current)
+//         GET /api/maps/NAME/versions  [{version, kind, source, trees, time_ms}]
+//         GET /api/relocalizations     the last answers, newest first
+
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "server/recent_answers.h"
+#include "storage/map_store.h"
+
+namespace httplib {
+class Server;
+}
+
+namespace forestmap::server {
+
+class HttpPage {
+ public:
+  // Binds `address` ("host:port", port 0: any) and serves on its own thread. Throws
+  // std::runtime_error when the address cannot be bound.
+  HttpPage(storage::MapStore& store, const RecentAnswers& answers, const std::string& address);
+  ~HttpPage();  // stops serving
+  HttpPage(const HttpPage&) = delete;
+  HttpPage& operator=(const HttpPage&) = delete;
+
+  const std::string& address() const { return address_; }  // host:port actually bound
+
+ private:
+  std::unique_ptr<httplib::Server> http_;
+  std::thread thread_;
+  std::string address_;
+};
+
+// The page itself (http_page_html.cc).
+extern const char* const kHttpPageHtml;
+
+}  // namespace forestmap::server

@@ -1,0 +1,126 @@
+// Inventories as delivered: --columns, --dbh-unit, the median-DBH check and the tools' dialects,
+// on the real PRF025 field and LiDAR inventories.
+#include "client/io/tree_columns.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+
+#include "client/io/tree_csv.h"
+
+namespace forestmap::client {
+namespace {
+
+const std::string kPlot = std::string(FORESTMAP_SHARED_DATA) + "/survey_vs_lidar/PRF025/";
+constexpr double kTolerance = 1e-9;
+
+template <typename Read>
+std::string ErrorOf(Read read) {
+  try {
+    read();
+  } catch (const CsvError& error) {
+    return error.what();
+  }
+  return "";
+}
+
+TreeFileOptions FieldOptions() {
+  TreeFileOptions options;
+  options.columns = ParseColumnMapping("x=Field_Xpj,y=Field_Ypj,dbh=DBH,id=Tree");
+  options.dbh_unit = DbhUnit::kCentimetre;
+  return options;
+}
+
+void SkipWithoutData() {
+  if (!std::filesystem::exists(kPlot + "PRF025_Field.csv")) GTEST_SKIP() << "no " << kPlot;
+}
+
+TEST(TreeColumnsTest, FieldInventoryReadsAsDeliveredWithColumnsAndUnit) {
+  SkipWithoutData();
+  const auto rows = ReadMapTreesCsv(kPlot + "PRF025_Field.csv", FieldOptions());
+  ASSERT_EQ(rows.size(), 62u);
+  // Line 2: "PRF025","1",41,...,DBH 14.9,...,Field_Xpj 312030.0203,Field_Ypj 5096043.185
+  EXPECT_EQ(rows[0].id, 1);
+  EXPECT_NEAR(rows[0].x, 312030.0203, kTolerance);
+  EXPECT_NEAR(rows[0].y, 5096043.185, kTolerance);
+  ASSERT_TRUE(rows[0].dbh.has_value());
+  EXPECT_NEAR(*rows[0].dbh, 0.149, kTolerance);
+  // Every other column is an attribute, under its own name; NA is absent.
+  EXPECT_EQ(rows[0].attributes.at("Spp"), "41");
+  EXPECT_EQ(rows[0].attributes.at("Plot"), "PRF025");
+  EXPECT_EQ(rows[0].attributes.at("Field_X"), "0.502574283");
+  EXPECT_EQ(rows[0].attributes.count("LI"), 0u);
+  EXPECT_EQ(rows[0].attributes.count("DBH"), 0u);
+  EXPECT_EQ(rows[0].attributes.count("Tree"), 0u);
+}
+
+TEST(TreeColumnsTest, CentimetreDbhWithoutUnitIsRefusedNamingFileAndColumn) {
+  SkipWithoutData();
+  TreeFileOptions options = FieldOptions();
+  options.dbh_unit.reset();
+  const std::string error = ErrorOf([&] { ReadMapTreesCsv(kPlot + "PRF025_Field.csv", options); });
+  EXPECT_NE(error.find("PRF025_Field.csv"), std::string::npos) << error;
+  EXPECT_NE(error.find("column 'DBH'"), std::string::npos) << error;
+  EXPECT_NE(error.find("--dbh-unit cm"), std::string::npos) << error;
+}
+
+TEST(TreeColumnsTest, UnmappedAndMissingColumnsAreNamed) {
+  SkipWithoutData();
+  const std::string path = kPlot + "PRF025_Field.csv";
+  const std::string unmapped = ErrorOf([&] { ReadMapTreesCsv(path); });
+  EXPECT_NE(unmapped.find("PRF025_Field.csv:1: missing required column 'x'"), std::string::npos)
+      << unmapped;
+  TreeFileOptions options = FieldOptions();
+  options.columns["x"] = "Field_Xpjj";
+  const std::string wrong = ErrorOf([&] { ReadMapTreesCsv(path, options); });
+  EXPECT_NE(wrong.find("PRF025_Field.csv:1: --columns x=Field_Xpjj: no column 'Field_Xpjj'"),
+            std::string::npos)
+      << wrong;
+}
+
+TEST(TreeColumnsTest, LidrOutputReadsWithoutMapping) {
+  SkipWithoutData();
+  const auto rows = ReadMapTreesCsv(kPlot + "PRF025_Lidar.csv");
+  ASSERT_EQ(rows.size(), 93u);
+  EXPECT_EQ(rows[0].id, 5);  // treeID
+  EXPECT_NEAR(rows[0].x, 312028.287811509, kTolerance);
+  EXPECT_NEAR(*rows[0].z, 185.783607597131, kTolerance);
+  EXPECT_NEAR(*rows[0].dbh, 0.0401739196739485, kTolerance);
+  EXPECT_EQ(rows[0].attributes.at("plotID"), "PRF025");
+}
+
+TEST(TreeColumnsTest, FortlsTreeListUsesTreeAsIdAndCentimetres) {
+  const auto rows = ParseMapTreesCsv(
+      "id,file,tree,x,y,phi,h.dist,dbh,h\nplot7,p7.las,3,1.5,2.5,0.1,2.9,23.4,17\n", "f.csv");
+  ASSERT_EQ(rows.size(), 1u);
+  EXPECT_EQ(rows[0].id, 3);
+  EXPECT_NEAR(*rows[0].dbh, 0.234, kTolerance);
+  EXPECT_EQ(rows[0].attributes.at("id"), "plot7");
+}
+
+TEST(TreeColumnsTest, UnitSuffixAndExplicitUnit) {
+  EXPECT_NEAR(*ParseMapTreesCsv("x,y,dbh_cm\n1,2,31\n", "a.csv")[0].dbh, 0.31, kTolerance);
+  EXPECT_NEAR(*ParseMapTreesCsv("x,y,DBH_mm\n1,2,310\n", "a.csv")[0].dbh, 0.31, kTolerance);
+  TreeFileOptions options;
+  options.dbh_unit = DbhUnit::kMillimetre;
+  EXPECT_NEAR(*ParseMapTreesCsv("x,y,dbh\n1,2,310\n", "a.csv", options)[0].dbh, 0.31, kTolerance);
+  // A mapped column keeps a column that would also give `x` as an attribute.
+  options = {};
+  options.columns = {{"x", "E"}};
+  const auto rows = ParseMapTreesCsv("x,E,y\n9,1,2\n", "a.csv", options);
+  EXPECT_EQ(rows[0].x, 1);
+  EXPECT_EQ(rows[0].attributes.at("x"), "9");
+}
+
+TEST(TreeColumnsTest, OptionTextErrorsSayWhatIsWrong) {
+  EXPECT_THROW(ParseColumnMapping("x"), std::invalid_argument);
+  EXPECT_THROW(ParseColumnMapping("height=Ht"), std::invalid_argument);
+  EXPECT_THROW(ParseColumnMapping("x=A,x=B"), std::invalid_argument);
+  EXPECT_THROW(ParseDbhUnit("inch"), std::invalid_argument);
+  EXPECT_EQ(ParseColumnMapping(" X = Field_Xpj ,dbh=DBH").at("x"), "Field_Xpj");
+}
+
+}  // namespace
+}  // namespace forestmap::client

@@ -1,0 +1,288 @@
+// Survey teams' workflow (issue 14) through the built `forestmap` binary against a real in-process
+// server: PRF025's field inventory uploaded as delivered, exported to GeoPackage / GeoJSON /
+// shapefile and checked with GDAL's own `ogrinfo`, read back, and every input error refused
+// with one message naming file and field, leaving nothing behind.
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+#include <string>
+#include <tuple>
+
+#include "client/forestmap_client.h"
+#include "client/io/tree_csv.h"
+#include "server/server.h"
+#include "server/service.h"
+#include "storage/sqlite_map_store.h"
+
+namespace forestmap {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kPlot = std::string(FORESTMAP_SHARED_DATA) + "/survey_vs_lidar/PRF025/";
+const std::string kFieldColumns = "--columns x=Field_Xpj,y=Field_Ypj,dbh=DBH,id=Tree";
+// PRF025_Field.csv's columns other than the four mapped ones: each must reach the export. (LI and
+// LO are NA in all 62 rows: an unknown value is an absent attribute, so they have no field.)
+const char* kFieldAttributes[] = {"Plot",     "Spp",     "Status",  "Origin",  "Dist",
+                                  "Azim",     "DbhHt",   "Ht",      "BT",      "Plotsize",
+                                  "Dbh_meas", "Field_X", "Field_Y", "Easting", "Northing"};
+
+struct Result {
+  int exit_code = -1;
+  std::string out, err;
+};
+
+std::string ReadFile(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+class SurveyCliTest : public ::testing::Test {
+ protected:
+  SurveyCliTest()
+      : store_(":memory:"),
+        service_(store_, {}),
+        runner_("127.0.0.1:0", service_),
+        client_(runner_.address()) {}
+
+  void SetUp() override {
+    if (!fs::exists(kPlot + "PRF025_Field.csv")) GTEST_SKIP() << "no " << kPlot;
+    dir_ = fs::temp_directory_path() /
+           ("forestmap_survey_test_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    if (!dir_.empty()) fs::remove_all(dir_);
+  }
+
+  // Runs a shell command line, capturing its output.
+  Result Shell(const std::string& command) {
+    const fs::path out = dir_ / "stdout", err = dir_ / "stderr";
+    const int status =
+        std::system((command + " >'" + out.string() + "' 2>'" + err.string() + "'").c_str());
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ReadFile(out), ReadFile(err)};
+  }
+  Result Cli(const std::string& args) {
+    return Shell("'" FORESTMAP_CLI_PATH "' --server " + runner_.address() + " " + args);
+  }
+  Result CreateField(const std::string& name, const std::string& extra) {
+    return Cli("map create " + name + " --trees '" + kPlot + "PRF025_Field.csv' " + kFieldColumns +
+               " " + extra);
+  }
+
+  storage::SqliteMapStore store_;
+  server::ForestMapService service_;
+  server::ServerRunner runner_;
+  client::ForestMapClient client_;
+  fs::path dir_;
+};
+
+TEST_F(SurveyCliTest, FieldInventoryUploadsAndExportsToGeoPackageWithCrsAndAttributes) {
+  const Result created = CreateField("prf025", "--dbh-unit cm --crs EPSG:2959");
+  ASSERT_EQ(created.exit_code, 0) << created.err;
+  EXPECT_EQ(client_.GetMap("prf025").tree_count(), 62);
+  const std::string gpkg = (dir_ / "prf025.gpkg").string();
+  const Result exported = Cli("map export prf025 --out '" + gpkg + "'");
+  ASSERT_EQ(exported.exit_code, 0) << exported.err;
+
+  const Result info = Shell("ogrinfo -so -al '" + gpkg + "'");
+  ASSERT_EQ(info.exit_code, 0) << info.err << " (is gdal-bin installed?)";
+  EXPECT_NE(info.out.find("Feature Count: 62"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("Geometry: Point"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("ID[\"EPSG\",2959]]"), std::string::npos) << info.out;
+  for (const char* field : {"id", "x", "y", "dbh"}) {
+    EXPECT_NE(info.out.find(std::string("\n") + field + ": "), std::string::npos) << field;
+  }
+  for (const char* attribute : kFieldAttributes) {
+    EXPECT_NE(info.out.find(std::string("\n") + attribute + ": String"), std::string::npos)
+        << attribute << " missing from\n"
+        << info.out;
+  }
+  // A value: tree 1 has DBH 14.9 cm and species code 41.
+  const Result tree1 = Shell("ogrinfo -al -where 'id = 1' '" + gpkg + "'");
+  EXPECT_NE(tree1.out.find("dbh (Real) = 0.149"), std::string::npos) << tree1.out;
+  EXPECT_NE(tree1.out.find("Spp (String) = 41"), std::string::npos) << tree1.out;
+}
+
+TEST_F(SurveyCliTest, GeoJsonAndShapefileRoundTripWithTheirCrs) {
+  ASSERT_EQ(CreateField("prf025", "--dbh-unit cm --crs EPSG:2959").exit_code, 0);
+  for (const std::string name : {"trees.geojson", "trees.shp"}) {
+    const std::string path = (dir_ / name).string();
+    const Result exported = Cli("map export prf025 --out '" + path + "'");
+    ASSERT_EQ(exported.exit_code, 0) << exported.err;
+    const std::string copy = "copy" + std::to_string(name.size());
+    const Result created = Cli("map create " + copy + " --trees '" + path + "'");
+    ASSERT_EQ(created.exit_code, 0) << created.err;
+    const v1::Map map = client_.GetMap(copy);
+    EXPECT_EQ(map.tree_count(), 62) << name;
+    EXPECT_EQ(map.crs_epsg(), 2959) << name << ": " << map.crs();
+    const auto original = client_.ExportTrees("prf025").trees;
+    const auto read_back = client_.ExportTrees(copy).trees;
+    ASSERT_EQ(read_back.size(), original.size());
+    for (size_t i = 0; i < original.size(); ++i) {
+      EXPECT_EQ(read_back[i].id, original[i].id);
+      EXPECT_NEAR(read_back[i].x, original[i].x, 1e-6);
+      EXPECT_NEAR(read_back[i].y, original[i].y, 1e-6);
+      EXPECT_NEAR(read_back[i].dbh.value_or(-1), original[i].dbh.value_or(-1), 1e-9);
+    }
+  }
+}
+
+TEST_F(SurveyCliTest, InputErrorsNameFileAndFieldAndCreateNothing) {
+  const Result unit = CreateField("a", "--crs EPSG:2959");
+  EXPECT_EQ(unit.exit_code, 1);
+  EXPECT_NE(unit.err.find("PRF025_Field.csv: column 'DBH'"), std::string::npos) << unit.err;
+  EXPECT_NE(unit.err.find("--dbh-unit cm"), std::string::npos) << unit.err;
+
+  const Result unmapped = Cli("map create b --trees '" + kPlot + "PRF025_Field.csv'");
+  EXPECT_EQ(unmapped.exit_code, 1);
+  EXPECT_NE(unmapped.err.find("PRF025_Field.csv:1: missing required column 'x'"), std::string::npos)
+      << unmapped.err;
+
+  const Result crs = CreateField("c", "--dbh-unit cm --crs 'not a crs at all'");
+  EXPECT_EQ(crs.exit_code, 1);
+  EXPECT_NE(crs.err.find("INVALID_ARGUMENT: crs \"not a crs at all\""), std::string::npos)
+      << crs.err;
+
+  const fs::path bad = dir_ / "bad.geojson";
+  std::ofstream(bad) << "{\"type\": \"FeatureCollection\", \"features\": [{\"type\": ";
+  const Result geojson = Cli("map create d --trees '" + bad.string() + "'");
+  EXPECT_EQ(geojson.exit_code, 1);
+  EXPECT_NE(geojson.err.find(bad.string() + ": not a readable geojson file"), std::string::npos)
+      << geojson.err;
+
+  const fs::path text_dbh = dir_ / "text.geojson";
+  std::ofstream(text_dbh) << R"({"type": "FeatureCollection", "features": [
+    {"type": "Feature", "properties": {"dbh": "thick"},
+     "geometry": {"type": "Point", "coordinates": [1, 2]}}]})";
+  const Result field = Cli("map create e --trees '" + text_dbh.string() + "'");
+  EXPECT_EQ(field.exit_code, 1);
+  EXPECT_NE(field.err.find("text.geojson: feature 1: field 'dbh': 'thick' is not a number"),
+            std::string::npos)
+      << field.err;
+
+  EXPECT_TRUE(client_.ListMaps().empty()) << "a refused upload left a map behind";
+}
+
+}  // namespace
+}  // namespace forestmap
+
+namespace forestmap {
+namespace {
+
+struct Link {
+  std::string detected, reference;
+  double distance = 0, dbh_difference = 0;
+};
+
+std::vector<Link> ReadLinks(const fs::path& path) {
+  std::vector<Link> links;
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream fields(line);
+    for (std::string field; std::getline(fields, field, ',');) f.push_back(field);
+    if (f.size() < 10) f.resize(10);
+    links.push_back({f[0], f[1], std::stod(f[6]), f[9].empty() ? NAN : std::stod(f[9])});
+  }
+  std::sort(links.begin(), links.end(), [](const Link& a, const Link& b) {
+    return std::tie(a.detected, a.reference) < std::tie(b.detected, b.reference);
+  });
+  return links;
+}
+
+// The LiDAR inventory moved by a rotation of `degrees` about the origin and a shift.
+fs::path MovedLidar(const fs::path& dir, double degrees) {
+  const auto rows = client::ReadMapTreesCsv(kPlot + "PRF025_Lidar.csv");
+  const double a = degrees * M_PI / 180.0;
+  const fs::path path = dir / "lidar_moved.csv";
+  std::ofstream out(path);
+  out.precision(12);
+  out << "treeID,X,Y,DBH\n";
+  for (const auto& row : rows) {
+    const double x = row.x - 312000, y = row.y - 5096000;  // local, so the rotation is large
+    out << *row.id << ',' << std::cos(a) * x - std::sin(a) * y + 1234.5 << ','
+        << std::sin(a) * x + std::cos(a) * y - 678.9 << ',' << *row.dbh << '\n';
+  }
+  return path;
+}
+
+double RegisteredRotation(const std::string& err) {
+  const size_t at = err.find("registered: rotation ");
+  EXPECT_NE(at, std::string::npos) << err;
+  return at == std::string::npos ? NAN : std::stod(err.substr(at + 21));
+}
+
+TEST_F(SurveyCliTest, CompareLidarWithFieldInventory) {
+  const std::string reference = " --reference '" + kPlot +
+                                "PRF025_Field.csv' --reference-columns "
+                                "x=Field_Xpj,y=Field_Ypj,dbh=DBH,id=Tree --reference-dbh-unit cm";
+  const fs::path links_csv = dir_ / "links.csv";
+  const Result plain = Cli("compare '" + kPlot + "PRF025_Lidar.csv'" + reference +
+                           " --json --out '" + links_csv.string() + "'");
+  ASSERT_EQ(plain.exit_code, 0) << plain.err;
+  const nlohmann::json result = nlohmann::json::parse(plain.out);
+  EXPECT_EQ(result["reference_trees"], 62);
+  EXPECT_EQ(result["detected_trees"], 93);
+  // The links: one-to-one, within 0.8 m, and the reported DBH RMSE is theirs.
+  const std::vector<Link> links = ReadLinks(links_csv);
+  EXPECT_EQ(links.size(), result["linked"].get<size_t>());
+  std::set<std::string> detected, referenced;
+  double squared = 0;
+  int pairs = 0;
+  for (const Link& link : links) {
+    EXPECT_LE(link.distance, 0.8);
+    EXPECT_TRUE(detected.insert(link.detected).second) << link.detected << " linked twice";
+    EXPECT_TRUE(referenced.insert(link.reference).second) << link.reference << " linked twice";
+    if (!std::isnan(link.dbh_difference)) {
+      squared += link.dbh_difference * link.dbh_difference;
+      ++pairs;
+    }
+  }
+  EXPECT_EQ(pairs, result["dbh_pairs"].get<int>());
+  EXPECT_NEAR(std::sqrt(squared / pairs), result["dbh_rmse_m"].get<double>(), 1e-4);
+
+  // The table says the same.
+  const Result table = Cli("compare '" + kPlot + "PRF025_Lidar.csv'" + reference);
+  EXPECT_NE(table.out.find("linked           " + std::to_string(links.size()) + " of 62"),
+            std::string::npos)
+      << table.out;
+  EXPECT_NE(table.out.find("DBH RMSE"), std::string::npos) << table.out;
+
+  // --register: the original and a moved copy of the LiDAR give the same links, and the two
+  // registrations differ by the rotation applied.
+  const fs::path registered_csv = dir_ / "registered.csv", moved_csv = dir_ / "moved_links.csv";
+  const Result registered = Cli("compare '" + kPlot + "PRF025_Lidar.csv' --register" + reference +
+                                " --out '" + registered_csv.string() + "'");
+  ASSERT_EQ(registered.exit_code, 0) << registered.err;
+  constexpr double kRotation = 37.0;  // deg
+  const Result moved = Cli("compare '" + MovedLidar(dir_, kRotation).string() + "' --register" +
+                           reference + " --out '" + moved_csv.string() + "'");
+  ASSERT_EQ(moved.exit_code, 0) << moved.err;
+  const std::vector<Link> a = ReadLinks(registered_csv), b = ReadLinks(moved_csv);
+  ASSERT_EQ(a.size(), b.size());
+  EXPECT_GE(a.size(), links.size());  // registration removes the survey's misalignment
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].detected, b[i].detected);
+    EXPECT_EQ(a[i].reference, b[i].reference);
+  }
+  EXPECT_NEAR(RegisteredRotation(registered.err) - RegisteredRotation(moved.err), kRotation, 0.01);
+}
+
+}  // namespace
+}  // namespace forestmap
