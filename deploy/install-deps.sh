@@ -15,7 +15,8 @@ PACKAGES=(
   libcairo2-dev           # forestmap plot: SVG and PNG pictures (client/map_plot.cc)
   libcpp-httplib-dev      # forestmapd --http: the read-only web page (server/http_page.cc)
   chromium                # the web page's browser test (tests/server/http_page_test.cc)
-  python3  # tests/bench scripts (relocalization.sh, scan_to_pose.sh, truth_checks.py)
+  clang-format  # tests/tools/check_format.sh (the format check in the test run)
+  python3  # tests/bench scripts and tests/tools checks (relocalization.sh, scan_to_pose.sh, truth_checks.py)
   libpq-dev   # the PostgreSQL map store (--db postgresql://...)
   postgresql  # initdb / pg_ctl for the tests' throwaway cluster (tests/pg_fixture.h)
   python3-grpcio python3-protobuf python3-numpy python3-pytest  # client/python and its tests
