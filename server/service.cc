@@ -99,8 +99,8 @@ grpc::ServerUnaryReactor* ForestMapService::DeleteMap(grpc::CallbackServerContex
   });
 }
 
-grpc::ServerReadReactor<v1::UploadTreesRequest>* ForestMapService::UploadTrees(
-    grpc::CallbackServerContext* context, v1::UploadTreesResponse* response) {
+grpc::ServerReadReactor<grpc::ByteBuffer>* ForestMapService::UploadTrees(
+    grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
   return new UploadTreesReactor(store_, options_, admin_pool_, work_pool_, context, response);
 }
 

@@ -14,7 +14,9 @@
 //                after the first message, a bad tree "trees[k]...", duplicate id within the
 //                upload or, when appending, against the map), NOT_FOUND (map; checked on the
 //                first message), RESOURCE_EXHAUSTED (more than max_upload_trees), CANCELLED
-//                (client cancelled); ABORTED (write conflict). Nothing is written unless OK.
+//                (client cancelled); ABORTED (write conflict); INVALID_ARGUMENT for a message
+//                that cannot be decoded (e.g. a string that is not UTF-8). Nothing is written
+//                unless OK.
 //   ExportTrees  INVALID_ARGUMENT (map_name, box), NOT_FOUND, ABORTED (box export: the map kept
 //                changing while being read), CANCELLED (client stopped reading)
 //   any RPC      RESOURCE_EXHAUSTED "server busy" when max_queued_requests calls are waiting
@@ -75,7 +77,10 @@ struct ServiceOptions {
   void Check() const;  // throws std::invalid_argument
 };
 
-class ForestMapService final : public v1::ForestMap::CallbackService {
+// UploadTrees is registered raw (ByteBuffer): the service decodes each message itself, so that an
+// undecodable message is INVALID_ARGUMENT instead of looking like the end of the stream.
+class ForestMapService final
+    : public v1::ForestMap::WithRawCallbackMethod_UploadTrees<v1::ForestMap::CallbackService> {
  public:
   // `store` must outlive the service, and the service the grpc::Server it is registered with.
   // Throws std::invalid_argument for invalid options.
@@ -96,8 +101,10 @@ class ForestMapService final : public v1::ForestMap::CallbackService {
   grpc::ServerUnaryReactor* DeleteMap(grpc::CallbackServerContext* context,
                                       const v1::DeleteMapRequest* request,
                                       v1::DeleteMapResponse* response) override;
-  grpc::ServerReadReactor<v1::UploadTreesRequest>* UploadTrees(
-      grpc::CallbackServerContext* context, v1::UploadTreesResponse* response) override;
+  // Messages are v1::UploadTreesRequest, the answer a v1::UploadTreesResponse (decoded and
+  // encoded by the reactor, server/streams.h).
+  grpc::ServerReadReactor<grpc::ByteBuffer>* UploadTrees(grpc::CallbackServerContext* context,
+                                                         grpc::ByteBuffer* response) override;
   grpc::ServerWriteReactor<v1::ExportTreesResponse>* ExportTrees(
       grpc::CallbackServerContext* context, const v1::ExportTreesRequest* request) override;
   grpc::ServerUnaryReactor* Relocalize(grpc::CallbackServerContext* context,

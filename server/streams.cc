@@ -1,6 +1,7 @@
 #include "server/streams.h"
 
 #include <chrono>
+#include <stdexcept>
 #include <utility>
 
 #include "server/convert.h"
@@ -15,14 +16,14 @@ namespace forestmap::server {
 UploadTreesReactor::UploadTreesReactor(storage::MapStore& store, const ServiceOptions& options,
                                        WorkerPool& admin_pool, WorkerPool& work_pool,
                                        grpc::CallbackServerContext* context,
-                                       v1::UploadTreesResponse* response)
+                                       grpc::ByteBuffer* response)
     : store_(store),
       admin_pool_(admin_pool),
       work_pool_(work_pool),
       context_(context),
       response_(response),
       validator_(options.max_upload_trees) {
-  StartRead(&request_);
+  StartRead(&buffer_);
 }
 
 void UploadTreesReactor::OnReadDone(bool ok) {
@@ -51,14 +52,14 @@ void UploadTreesReactor::OnReadDone(bool ok) {
     ThenReadNext(admin_pool_, [this] { store_.GetMap(validator_.map_name()); });
     return;
   }
-  StartRead(&request_);
+  StartRead(&buffer_);
 }
 
 void UploadTreesReactor::ThenReadNext(WorkerPool& pool, std::function<void()> body) {
   const bool queued = pool.TrySubmit([this, body = std::move(body)] {
     const grpc::Status status = RunGuarded("UploadTrees", body);
     if (status.ok()) {
-      StartRead(&request_);
+      StartRead(&buffer_);
     } else {
       Finish(status);
     }
@@ -67,6 +68,15 @@ void UploadTreesReactor::ThenReadNext(WorkerPool& pool, std::function<void()> bo
 }
 
 void UploadTreesReactor::Accept() {
+  const grpc::Status decoded =
+      grpc::SerializationTraits<v1::UploadTreesRequest>::Deserialize(&buffer_, &request_);
+  buffer_.Clear();
+  if (!decoded.ok()) {
+    throw ValidationError("upload message " + std::to_string(validator_.messages()) + " (after " +
+                          std::to_string(validator_.trees()) +
+                          " trees) cannot be decoded as an UploadTreesRequest (a string that is "
+                          "not UTF-8, or corrupt bytes); nothing was written");
+  }
   validator_.Accept(request_);
   // No reserve() per message: exact reservations would make the accumulation quadratic.
   for (const v1::Tree& tree : request_.trees()) trees_.push_back(FromProto(tree));
@@ -83,9 +93,14 @@ void UploadTreesReactor::Commit() {
   const storage::WriteMode mode =
       validator_.replace() ? storage::WriteMode::kReplace : storage::WriteMode::kAppend;
   const storage::MapInfo info = store_.WriteTrees(validator_.map_name(), trees_, mode);
-  *response_->mutable_map() = ToProto(info);
-  response_->set_trees_received(validator_.trees());
+  v1::UploadTreesResponse response;
+  *response.mutable_map() = ToProto(info);
+  response.set_trees_received(validator_.trees());
   trees_ = {};
+  bool own_buffer = false;
+  const grpc::Status encoded = grpc::SerializationTraits<v1::UploadTreesResponse>::Serialize(
+      response, response_, &own_buffer);
+  if (!encoded.ok()) throw std::runtime_error("cannot encode the UploadTrees answer");
 }
 
 // ---- ExportTrees ----

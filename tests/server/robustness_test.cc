@@ -143,5 +143,34 @@ TEST_F(RobustnessTest, FarObservationPoseIsRejectedByName) {
   ExpectServing();
 }
 
+// Finding 2: a non-UTF-8 attribute in message 3 of 5 made that message undecodable; the server
+// took that as the end of the stream and committed the trees of messages 0..2.
+TEST_F(RobustnessTest, UndecodableUploadMessageFailsTheUploadAndWritesNothing) {
+  ASSERT_TRUE(CreateMap("plot").ok());
+  v1::UploadTreesResponse response;
+  auto context = Context();
+  auto writer = stub_->UploadTrees(context.get(), &response);
+  for (int m = 0; m < 5; ++m) {
+    v1::UploadTreesRequest message;
+    if (m == 0) message.set_map_name("plot");
+    for (int i = 0; i < 1000; ++i) {
+      v1::Tree tree = TreeAt(m * 1000 + i, i);
+      if (m == 3 && i == 7)
+        (*tree.mutable_attributes())["species"] =
+            "\xe9pic\xe9"
+            "a";
+      *message.add_trees() = tree;
+    }
+    if (!writer->Write(message)) break;  // the server already answered
+  }
+  writer->WritesDone();
+  const grpc::Status status = writer->Finish();
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
+  EXPECT_THAT(status.error_message(), HasSubstr("upload message 3 (after 3000 trees)"));
+  EXPECT_THAT(status.error_message(), HasSubstr("nothing was written"));
+  EXPECT_EQ(store_.GetMap("plot").tree_count, 0);
+  ExpectServing();
+}
+
 }  // namespace
 }  // namespace forestmap::server
