@@ -132,7 +132,15 @@ class ForestMapService final
   // Finds the pose of a frame without one; false (with `detail`) when it is not LOCALIZED.
   bool RelocalizeFrame(const std::string& map_name, const v1::ObservationFrame& frame,
                        algorithms::FrameObservations& observations, std::string& detail);
-  void RunRemoveSource(const v1::RemoveSourceRequest& request, v1::RemoveSourceResponse& response);
+  void RunRemoveSource(grpc::CallbackServerContext* context, const v1::RemoveSourceRequest& request,
+                       v1::RemoveSourceResponse& response);
+  // Merges the MERGED frames of an Observe (results in `merged`) as one new version (the map
+  // after it in `after`); false when a concurrent call with the same request id answered first
+  // (`response` is then that answer).
+  bool MergeObserved(grpc::CallbackServerContext* context, const v1::ObserveRequest& request,
+                     const std::vector<algorithms::FrameObservations>& frames,
+                     const std::vector<v1::FrameResult*>& merged, v1::ObserveResponse& response,
+                     storage::MapInfo& after);
 
   storage::MapStore& store_;
   ServiceOptions options_;

@@ -6,6 +6,7 @@
 
 #include "server/convert.h"
 #include "server/geo_convert.h"
+#include "server/exactly_once.h"
 #include "server/service.h"
 #include "server/status.h"
 
@@ -77,6 +78,13 @@ void UploadTreesReactor::Accept() {
                           " trees) cannot be decoded as an UploadTreesRequest (a string that is "
                           "not UTF-8, or corrupt bytes); nothing was written");
   }
+  if (validator_.messages() == 0) {
+    request_id_ = request_.request_id();
+    ValidateRequestId(request_id_);
+  } else if (!request_.request_id().empty() && request_.request_id() != request_id_) {
+    throw ValidationError("request_id (upload message " + std::to_string(validator_.messages()) +
+                          ") differs from the first message's; only the first sets it");
+  }
   validator_.Accept(request_);
   // No reserve() per message: exact reservations would make the accumulation quadratic.
   for (const v1::Tree& tree : request_.trees()) trees_.push_back(FromProto(tree));
@@ -92,10 +100,15 @@ void UploadTreesReactor::Commit() {
   validator_.Finish();
   const storage::WriteMode mode =
       validator_.replace() ? storage::WriteMode::kReplace : storage::WriteMode::kAppend;
-  const storage::MapInfo info = store_.WriteTrees(validator_.map_name(), trees_, mode);
+  const int64_t received = validator_.trees();
+  const auto fill = [received](const storage::MapInfo& info, v1::UploadTreesResponse& answer) {
+    *answer.mutable_map() = ToProto(info);
+    answer.set_trees_received(received);
+  };
   v1::UploadTreesResponse response;
-  *response.mutable_map() = ToProto(info);
-  response.set_trees_received(validator_.trees());
+  RunExactlyOnce(store_, context_, request_id_, "UploadTrees", response,
+                 Encoder<v1::UploadTreesResponse>(fill),
+                 [&] { fill(store_.WriteTrees(validator_.map_name(), trees_, mode), response); });
   trees_ = {};
   bool own_buffer = false;
   const grpc::Status encoded = grpc::SerializationTraits<v1::UploadTreesResponse>::Serialize(

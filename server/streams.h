@@ -52,6 +52,7 @@ class UploadTreesReactor final : public grpc::ServerReadReactor<grpc::ByteBuffer
   grpc::ByteBuffer buffer_;  // the message being read
   v1::UploadTreesRequest request_;
   UploadValidator validator_;
+  std::string request_id_;  // from the first message (exactly-once, server/exactly_once.h)
   std::vector<storage::TreeRecord> trees_;
 };
 

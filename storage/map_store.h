@@ -10,12 +10,21 @@
 #include <string>
 #include <vector>
 
+#include "storage/write_request.h"
+
 namespace forestmap::storage {
 
 // The one error type of storage/. `code` tells the server which gRPC status to answer with.
 class StorageError : public std::runtime_error {
  public:
-  enum class Code { kNotFound, kAlreadyExists, kInvalidArgument, kConflict, kInternal };
+  enum class Code {
+    kNotFound,
+    kAlreadyExists,
+    kInvalidArgument,
+    kConflict,
+    kInternal,
+    kDeadlineExceeded,  // a write whose WriteRequest deadline passed: nothing was committed
+  };
   StorageError(Code code, const std::string& message) : std::runtime_error(message), code_(code) {}
   Code code() const { return code_; }
 
@@ -210,6 +219,11 @@ class MapStore {
   // kConflict when note.expected_version is set and is not the current version.
   virtual MapInfo Merge(const std::string& name, const MergeNote& note,
                         const MergeFunction& merge) = 0;
+
+  // ---- Exactly-once writes (storage/write_request.h) ----
+
+  // The answer stored for a request id by an earlier write, if any.
+  virtual std::optional<StoredRequest> FindRequest(const std::string& request_id) = 0;
 };
 
 // Valid map names: 1..128 characters of [A-Za-z0-9_.-]. Returns an error message or "".

@@ -190,7 +190,7 @@ MapInfo SqliteMapStore::CreateMap(const std::string& name, const std::string& de
     created.created_unix_ms = info.created_unix_ms;
     created.kind = VersionKind::kCreate;
     internal::InsertVersion(db, db.LastInsertRowId(), created);
-    transaction.Commit();
+    internal::CommitWrite(db, transaction, info);
   });
   return info;
 }
@@ -220,7 +220,7 @@ void SqliteMapStore::DeleteMap(const std::string& name) {
     Statement remove(db, "DELETE FROM maps WHERE id = ?1");
     remove.BindInt64(1, map.id);
     remove.Run();
-    transaction.Commit();
+    internal::CommitWrite(db, transaction, map.info);
   });
 }
 
@@ -301,7 +301,7 @@ MapInfo SqliteMapStore::WriteTrees(const std::string& name, const std::vector<Tr
     record.confirmed_count = info.confirmed_count;
     record.trees_added = count;
     internal::InsertVersion(db, map.id, record);
-    transaction.Commit();
+    internal::CommitWrite(db, transaction, info);
     result = info;
   });
   return result;

@@ -67,6 +67,11 @@ ObservationRecord ReadObservationRow(const sqlite::Statement& row);
 void InsertObservations(sqlite::Database& db, int64_t map_id,
                         const std::vector<ObservationRecord>& observations, int64_t valid_from);
 
+// Commits a write transaction, honouring the thread's WriteRequest (storage/write_request.h):
+// stores its answer under its id, refuses a passed deadline. `info`: the map after the write.
+void CommitWrite(sqlite::Database& db, sqlite::Transaction& transaction, const MapInfo& info);
+inline constexpr int64_t kRequestLogRetentionMs = 7 * 24 * 3600 * 1000LL;  // ms an answer is kept
+
 // Appends the history entry of `record.version`.
 void InsertVersion(sqlite::Database& db, int64_t map_id, const VersionRecord& record);
 

@@ -144,10 +144,23 @@ CREATE INDEX observations_in_cell ON observations (map_id, cell_x, cell_y)
 PRAGMA user_version = 3;
 )sql";
 
+// Version 4: the answers of writes made with a client request id (exactly-once writes,
+// storage/write_request.h), kept for kRequestLogRetentionMs.
+constexpr const char* kStep4 = R"sql(
+CREATE TABLE request_log (
+  request_id TEXT PRIMARY KEY,
+  rpc TEXT NOT NULL,
+  response BLOB NOT NULL,
+  created_unix_ms INTEGER NOT NULL
+);
+CREATE INDEX request_log_by_time ON request_log (created_unix_ms);
+PRAGMA user_version = 4;
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4};
   return steps;
 }
 

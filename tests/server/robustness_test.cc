@@ -10,11 +10,13 @@
 #include <chrono>
 #include <filesystem>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "server/server.h"
 #include "server/service.h"
 #include "storage/sqlite_map_store.h"
+#include "tests/server/gated_store.h"
 
 namespace forestmap::server {
 namespace {
@@ -51,7 +53,8 @@ class RobustnessTest : public ::testing::Test {
   RobustnessTest()
       : dir_(TestDir()),
         store_((dir_ / "maps.db").string()),
-        service_(store_, ServiceOptions{}),
+        gated_(store_),
+        service_(gated_, ServiceOptions{}),
         runner_("127.0.0.1:0", service_),
         stub_(v1::ForestMap::NewStub(
             grpc::CreateChannel(runner_.address(), grpc::InsecureChannelCredentials()))) {}
@@ -66,12 +69,14 @@ class RobustnessTest : public ::testing::Test {
 
   // Uploads `trees` in one message.
   grpc::Status Upload(const std::string& name, const std::vector<v1::Tree>& trees,
-                      v1::UploadTreesResponse* response = nullptr) {
+                      v1::UploadTreesResponse* response = nullptr,
+                      const std::string& request_id = "") {
     v1::UploadTreesResponse ignored;
     auto context = Context();
     auto writer = stub_->UploadTrees(context.get(), response ? response : &ignored);
     v1::UploadTreesRequest message;
     message.set_map_name(name);
+    message.set_request_id(request_id);
     for (const v1::Tree& tree : trees) *message.add_trees() = tree;
     writer->Write(message);
     writer->WritesDone();
@@ -98,6 +103,7 @@ class RobustnessTest : public ::testing::Test {
 
   std::filesystem::path dir_;
   storage::SqliteMapStore store_;
+  GatedStore gated_;  // what the service uses: can slow merges down
   ForestMapService service_;
   ServerRunner runner_;
   std::unique_ptr<v1::ForestMap::Stub> stub_;
@@ -170,6 +176,101 @@ TEST_F(RobustnessTest, UndecodableUploadMessageFailsTheUploadAndWritesNothing) {
   EXPECT_THAT(status.error_message(), HasSubstr("nothing was written"));
   EXPECT_EQ(store_.GetMap("plot").tree_count, 0);
   ExpectServing();
+}
+
+// Three frames seeing the same 6 trees from poses 1 m apart (map frame = sensor frame + x).
+v1::ObserveRequest ObserveFrames(const std::string& request_id) {
+  v1::ObserveRequest request;
+  request.set_map_name("shared");
+  request.set_source("drone1");
+  request.set_request_id(request_id);
+  for (int f = 0; f < 3; ++f) {
+    v1::ObservationFrame* frame = request.add_frames();
+    frame->set_frame_id(f);
+    frame->mutable_map_from_sensor()->mutable_translation()->set_x(f);
+    for (int t = 0; t < 6; ++t) {
+      v1::DetectedTree* tree = frame->add_trees();
+      tree->mutable_position()->set_x(5.0 * t - f);
+      tree->mutable_position()->set_y(3.0 * (t % 2));
+      tree->set_dbh(0.3);
+    }
+  }
+  return request;
+}
+
+int64_t ObservationRows(storage::MapStore& store, const std::string& name) {
+  int64_t rows = 0;
+  for (const storage::VersionRecord& v : store.ListVersions(name, 0)) {
+    rows += v.observations_added - v.observations_removed;
+  }
+  return rows;
+}
+
+// Finding 4: a retried Observe added its frames again (1,676 duplicate observations a retry).
+TEST_F(RobustnessTest, RepeatedRequestIdsAreAppliedOnceAndAnsweredAlike) {
+  ASSERT_TRUE(CreateMap("shared").ok());
+  v1::ObserveResponse first, second;
+  ASSERT_TRUE(stub_->Observe(Context().get(), ObserveFrames("obs-1"), &first).ok());
+  const int64_t rows = ObservationRows(store_, "shared");
+  EXPECT_GE(rows, 12);  // 3 frames x 6 trees, less what the merge ignores
+  ASSERT_TRUE(stub_->Observe(Context().get(), ObserveFrames("obs-1"), &second).ok());
+  EXPECT_EQ(ObservationRows(store_, "shared"), rows);  // not applied again
+  EXPECT_EQ(second.map_version(), first.map_version());
+  EXPECT_EQ(second.frames_size(), 3);
+  EXPECT_EQ(second.frames(1).trees_associated(), first.frames(1).trees_associated());
+  EXPECT_EQ(store_.GetMap("shared").version, first.map_version());
+  // A new id is a new write.
+  ASSERT_TRUE(stub_->Observe(Context().get(), ObserveFrames("obs-2"), &second).ok());
+  EXPECT_EQ(ObservationRows(store_, "shared"), 2 * rows);
+
+  ASSERT_TRUE(CreateMap("plot").ok());
+  const std::vector<v1::Tree> trees = {TreeAt(0, 0), TreeAt(3, 0), TreeAt(0, 4)};
+  v1::UploadTreesResponse up1, up2;
+  ASSERT_TRUE(Upload("plot", trees, &up1, "up-1").ok());
+  ASSERT_TRUE(Upload("plot", trees, &up2, "up-1").ok());  // would be duplicate ids if applied
+  EXPECT_EQ(up2.map().version(), up1.map().version());
+  EXPECT_EQ(up2.trees_received(), 3);
+  EXPECT_EQ(store_.GetMap("plot").tree_count, 3);
+
+  v1::CreateMapRequest create;
+  create.set_name("again");
+  create.set_request_id("create-1");
+  v1::Map made1, made2;
+  ASSERT_TRUE(stub_->CreateMap(Context().get(), create, &made1).ok());
+  const grpc::Status retried = stub_->CreateMap(Context().get(), create, &made2);
+  EXPECT_TRUE(retried.ok()) << retried.error_message();  // not ALREADY_EXISTS
+  EXPECT_EQ(made2.created_unix_ms(), made1.created_unix_ms());
+
+  // An id belongs to one call.
+  const grpc::Status reused = Upload("plot", trees, nullptr, "obs-1");
+  EXPECT_EQ(reused.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(reused.error_message(), HasSubstr("already used for a Observe call"));
+  const grpc::Status bad_id = Upload("plot", trees, nullptr, "has space");
+  EXPECT_EQ(bad_id.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(bad_id.error_message(), HasSubstr("request_id"));
+}
+
+// Finding 4: an Observe whose deadline passed (the CLI's 30 s under load) was committed anyway.
+TEST_F(RobustnessTest, WriteWhoseDeadlinePassedBeforeTheCommitIsNotCommitted) {
+  ASSERT_TRUE(CreateMap("shared").ok());
+  const int64_t version = store_.GetMap("shared").version;
+  gated_.merge_delay = std::chrono::milliseconds(1500);
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(400));
+  v1::ObserveResponse response;
+  const grpc::Status late = stub_->Observe(&context, ObserveFrames("obs-late"), &response);
+  EXPECT_EQ(late.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED);
+  std::this_thread::sleep_for(std::chrono::milliseconds(2000));  // the server's merge ends
+  EXPECT_EQ(store_.GetMap("shared").version, version);
+  EXPECT_EQ(ObservationRows(store_, "shared"), 0);
+  // The retry with the same id (and time enough) is applied, once.
+  gated_.merge_delay = std::chrono::milliseconds(0);
+  ASSERT_TRUE(stub_->Observe(Context().get(), ObserveFrames("obs-late"), &response).ok());
+  const int64_t rows = ObservationRows(store_, "shared");
+  EXPECT_GE(rows, 12);
+  EXPECT_EQ(store_.GetMap("shared").version, version + 1);
+  ASSERT_TRUE(stub_->Observe(Context().get(), ObserveFrames("obs-late"), &response).ok());
+  EXPECT_EQ(ObservationRows(store_, "shared"), rows);
 }
 
 }  // namespace
