@@ -407,4 +407,12 @@ v1::RemoveSourceResponse ForestMapClient::RemoveSource(const std::string& name,
                                               "RemoveSource");
 }
 
+v1::PruneVersionsResponse ForestMapClient::PruneVersions(const std::string& name, int64_t keep) {
+  v1::PruneVersionsRequest request;
+  request.set_map_name(name);
+  request.set_keep(keep);
+  return UnaryWrite<v1::PruneVersionsResponse>(&v1::ForestMap::Stub::PruneVersions, request,
+                                               "PruneVersions");
+}
+
 }  // namespace forestmap::client

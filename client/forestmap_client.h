@@ -160,6 +160,8 @@ class ForestMapClient {
   std::vector<v1::MapVersion> ListVersions(const std::string& name, int limit = 0);
   v1::Map RestoreVersion(const std::string& name, int64_t version);
   v1::RemoveSourceResponse RemoveSource(const std::string& name, const std::string& source);
+  // Keeps the newest `keep` versions readable, drops the older history.
+  v1::PruneVersionsResponse PruneVersions(const std::string& name, int64_t keep);
 
   // A tracking session in map `name` (no deadline: it lasts as long as the flight).
   TrackSession Track(const std::string& name);

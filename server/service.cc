@@ -54,6 +54,7 @@ void ServiceOptions::Check() const {
           "ServiceOptions.observe.max_request_trees must be >= 1");
   merge.Check();
   tracking.Check();
+  Require(keep_versions >= 0, "ServiceOptions.keep_versions must be >= 0 (0 keeps all)");
 }
 
 ForestMapService::ForestMapService(storage::MapStore& store, ServiceOptions options)
@@ -147,6 +148,7 @@ grpc::ServerUnaryReactor* ForestMapService::Observe(grpc::CallbackServerContext*
                                                     v1::ObserveResponse* response) {
   return AnswerOn(work_pool_, context, "Observe", [this, context, request, response] {
     RunObserve(context, *request, *response);
+    ApplyRetention(request->map_name());
   });
 }
 
@@ -174,6 +176,7 @@ grpc::ServerUnaryReactor* ForestMapService::RestoreVersion(
                      *response->mutable_map() =
                          ToProto(store_.RestoreVersion(request->map_name(), request->version()));
                    });
+    ApplyRetention(request->map_name());
   });
 }
 
@@ -182,7 +185,15 @@ grpc::ServerUnaryReactor* ForestMapService::RemoveSource(grpc::CallbackServerCon
                                                          v1::RemoveSourceResponse* response) {
   return AnswerOn(work_pool_, context, "RemoveSource", [this, context, request, response] {
     RunRemoveSource(context, *request, *response);
+    ApplyRetention(request->map_name());
   });
+}
+
+grpc::ServerUnaryReactor* ForestMapService::PruneVersions(grpc::CallbackServerContext* context,
+                                                          const v1::PruneVersionsRequest* request,
+                                                          v1::PruneVersionsResponse* response) {
+  return AnswerOn(work_pool_, context, "PruneVersions",
+                  [this, context, request, response] { RunPrune(context, *request, *response); });
 }
 
 }  // namespace forestmap::server

@@ -36,6 +36,9 @@
 //   RestoreVersion INVALID_ARGUMENT (map_name, version < 1), NOT_FOUND (map, or a version that
 //                does not exist or predates the history)
 //   RemoveSource INVALID_ARGUMENT (map_name, source), NOT_FOUND (map, or no observation of it)
+//   PruneVersions INVALID_ARGUMENT (map_name, keep < 1), NOT_FOUND (map)
+//   every write  INVALID_ARGUMENT (request_id malformed or used for another RPC),
+//                DEADLINE_EXCEEDED (the deadline passed before the commit: nothing written)
 
 #include <cstdint>
 
@@ -74,6 +77,9 @@ struct ServiceOptions {
   // set of observations, and concurrent drones give the map a sequential upload gives. False
   // keeps the incremental, order-dependent merge.
   bool consolidate = true;
+  // History retention: after every write the map keeps its newest keep_versions versions
+  // readable (0 = all; forestmapd --keep-versions). `map prune` does it on demand.
+  int64_t keep_versions = 0;
   void Check() const;  // throws std::invalid_argument
 };
 
@@ -125,6 +131,13 @@ class ForestMapService final
   grpc::ServerUnaryReactor* RemoveSource(grpc::CallbackServerContext* context,
                                          const v1::RemoveSourceRequest* request,
                                          v1::RemoveSourceResponse* response) override;
+  // History retention; bodies in server/prune_service.cc.
+  grpc::ServerUnaryReactor* PruneVersions(grpc::CallbackServerContext* context,
+                                          const v1::PruneVersionsRequest* request,
+                                          v1::PruneVersionsResponse* response) override;
+  // With options.keep_versions > 0, drops the history of `map` beyond that many versions
+  // (after a write; a failure is logged, the write stands).
+  void ApplyRetention(const std::string& map) noexcept;
 
  private:
   void RunObserve(grpc::CallbackServerContext* context, const v1::ObserveRequest& request,
@@ -134,6 +147,8 @@ class ForestMapService final
                        algorithms::FrameObservations& observations, std::string& detail);
   void RunRemoveSource(grpc::CallbackServerContext* context, const v1::RemoveSourceRequest& request,
                        v1::RemoveSourceResponse& response);
+  void RunPrune(grpc::CallbackServerContext* context, const v1::PruneVersionsRequest& request,
+                v1::PruneVersionsResponse& response);
   // Merges the MERGED frames of an Observe (results in `merged`) as one new version (the map
   // after it in `after`); false when a concurrent call with the same request id answered first
   // (`response` is then that answer).

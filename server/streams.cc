@@ -23,7 +23,8 @@ UploadTreesReactor::UploadTreesReactor(storage::MapStore& store, const ServiceOp
       work_pool_(work_pool),
       context_(context),
       response_(response),
-      validator_(options.max_upload_trees) {
+      validator_(options.max_upload_trees),
+      keep_versions_(options.keep_versions) {
   StartRead(&buffer_);
 }
 
@@ -110,6 +111,13 @@ void UploadTreesReactor::Commit() {
                  Encoder<v1::UploadTreesResponse>(fill),
                  [&] { fill(store_.WriteTrees(validator_.map_name(), trees_, mode), response); });
   trees_ = {};
+  if (keep_versions_ > 0) {  // history retention (forestmapd --keep-versions)
+    try {
+      store_.PruneVersions(validator_.map_name(), keep_versions_);
+    } catch (const std::exception& e) {
+      LogLine("UploadTrees: retention failed (the upload stands): " + std::string(e.what()));
+    }
+  }
   bool own_buffer = false;
   const grpc::Status encoded = grpc::SerializationTraits<v1::UploadTreesResponse>::Serialize(
       response, response_, &own_buffer);

@@ -53,6 +53,7 @@ class UploadTreesReactor final : public grpc::ServerReadReactor<grpc::ByteBuffer
   v1::UploadTreesRequest request_;
   UploadValidator validator_;
   std::string request_id_;  // from the first message (exactly-once, server/exactly_once.h)
+  int64_t keep_versions_;   // ServiceOptions::keep_versions
   std::vector<storage::TreeRecord> trees_;
 };
 

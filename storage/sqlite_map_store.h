@@ -82,6 +82,8 @@ class SqliteMapStore final : public MapStore {
   MapInfo Merge(const std::string& name, const MergeNote& note,
                 const MergeFunction& merge) override;
   std::optional<StoredRequest> FindRequest(const std::string& request_id) override;
+  // Deleted rows leave free pages that later writes reuse; the file does not shrink (VACUUM).
+  PruneResult PruneVersions(const std::string& name, int64_t keep) override;
 
  private:
   using Body = std::function<void(sqlite::Database&)>;

@@ -106,6 +106,9 @@ class GatedStore final : public storage::MapStore {
       return merge(reader);
     });
   }
+  storage::PruneResult PruneVersions(const std::string& name, int64_t keep) override {
+    return inner_.PruneVersions(name, keep);
+  }
   std::optional<storage::StoredRequest> FindRequest(const std::string& request_id) override {
     return inner_.FindRequest(request_id);
   }

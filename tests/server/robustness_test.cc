@@ -50,11 +50,11 @@ v1::Tree TreeAt(double x, double y) {
 
 class RobustnessTest : public ::testing::Test {
  protected:
-  RobustnessTest()
+  explicit RobustnessTest(ServiceOptions options = {})
       : dir_(TestDir()),
         store_((dir_ / "maps.db").string()),
         gated_(store_),
-        service_(gated_, ServiceOptions{}),
+        service_(gated_, options),
         runner_("127.0.0.1:0", service_),
         stub_(v1::ForestMap::NewStub(
             grpc::CreateChannel(runner_.address(), grpc::InsecureChannelCredentials()))) {}
@@ -271,6 +271,62 @@ TEST_F(RobustnessTest, WriteWhoseDeadlinePassedBeforeTheCommitIsNotCommitted) {
   EXPECT_EQ(store_.GetMap("shared").version, version + 1);
   ASSERT_TRUE(stub_->Observe(Context().get(), ObserveFrames("obs-late"), &response).ok());
   EXPECT_EQ(ObservationRows(store_, "shared"), rows);
+}
+
+// Finding 5: history was never pruned (eight replace uploads left a 1.05 GB database).
+TEST_F(RobustnessTest, PruneVersionsKeepsTheNewestVersions) {
+  ASSERT_TRUE(CreateMap("plot").ok());
+  for (int upload = 0; upload < 4; ++upload) {
+    std::vector<v1::Tree> trees;
+    for (int i = 0; i < 50; ++i) trees.push_back(TreeAt(100.0 * upload + 2 * i, i));
+    v1::UploadTreesRequest replace;
+    auto context = Context();
+    v1::UploadTreesResponse response;
+    auto writer = stub_->UploadTrees(context.get(), &response);
+    replace.set_map_name("plot");
+    replace.set_replace(true);
+    for (const v1::Tree& tree : trees) *replace.add_trees() = tree;
+    writer->Write(replace);
+    writer->WritesDone();
+    ASSERT_TRUE(writer->Finish().ok());
+  }
+  v1::PruneVersionsRequest request;
+  request.set_map_name("plot");
+  request.set_keep(2);
+  v1::PruneVersionsResponse response;
+  grpc::Status status = stub_->PruneVersions(Context().get(), request, &response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_EQ(response.versions_removed(), 3);     // 1, 2, 3 of 1..5
+  EXPECT_EQ(response.tree_rows_removed(), 100);  // the trees of versions 2 and 3
+  EXPECT_EQ(response.map().version(), 5);
+  EXPECT_EQ(store_.ListVersions("plot", 0).size(), 2u);
+  EXPECT_EQ(store_.GetMap("plot").tree_count, 50);
+  request.set_keep(0);
+  status = stub_->PruneVersions(Context().get(), request, &response);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("keep is 0"));
+}
+
+class RetentionTest : public RobustnessTest {
+ protected:
+  RetentionTest() : RobustnessTest(Retaining()) {}
+  static ServiceOptions Retaining() {
+    ServiceOptions options;
+    options.keep_versions = 3;
+    return options;
+  }
+};
+
+TEST_F(RetentionTest, KeepVersionsPolicyPrunesAfterEveryWrite) {
+  ASSERT_TRUE(CreateMap("shared").ok());
+  for (int i = 0; i < 6; ++i) {
+    v1::ObserveResponse response;
+    ASSERT_TRUE(
+        stub_->Observe(Context().get(), ObserveFrames("obs-" + std::to_string(i)), &response).ok());
+    EXPECT_LE(store_.ListVersions("shared", 0).size(), 3u) << "after observe " << i;
+  }
+  EXPECT_EQ(store_.GetMap("shared").version, 7);
+  EXPECT_EQ(store_.ListVersions("shared", 0).front().version, 5);
 }
 
 }  // namespace
