@@ -129,7 +129,8 @@ SqliteMapStore::SqliteMapStore(const std::string& path, const SqliteMapStoreOpti
   if (static_cast<int64_t>(internal::SchemaSteps().size()) != kSchemaVersion) {
     throw StorageError(StorageError::Code::kInternal, "schema steps and kSchemaVersion disagree");
   }
-  // Refuses a newer schema before any change.
+  // Refuses a database of something else, and a newer schema, before any change.
+  internal::RefuseForeignDatabase(*writer_);
   sqlite::MigrateSchema(*writer_, internal::SchemaSteps());
   if (path == ":memory:") return;  // the database exists on this one connection only
   writer_->EnableWal();

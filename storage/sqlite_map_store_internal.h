@@ -23,6 +23,10 @@ const std::vector<const char*>& SchemaSteps();
 void ConfigureConnection(sqlite::Database& db, const SqliteMapStoreOptions& options,
                          bool read_only);
 
+// Throws kInvalidArgument for a database without a ForestMap schema (PRAGMA user_version 0)
+// that already holds tables: another program's file, which migrating would change.
+void RefuseForeignDatabase(sqlite::Database& db);
+
 int64_t NowUnixMs();
 void CheckName(const std::string& name);
 

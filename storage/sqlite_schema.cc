@@ -176,4 +176,19 @@ void ConfigureConnection(sqlite::Database& db, const SqliteMapStoreOptions& opti
   if (read_only) db.Execute("PRAGMA query_only = ON");
 }
 
+void RefuseForeignDatabase(sqlite::Database& db) {
+  if (db.QueryInt64("PRAGMA user_version") != 0) return;
+  sqlite::Statement tables(db,
+                           "SELECT name FROM sqlite_master WHERE type = 'table' AND name NOT LIKE "
+                           "'sqlite_%' ORDER BY name LIMIT 5");
+  std::string names;
+  while (tables.Step()) names += (names.empty() ? "" : ", ") + tables.ColumnText(0);
+  if (names.empty()) return;  // a new, empty file: ours to initialise
+  throw StorageError(StorageError::Code::kInvalidArgument,
+                     "database '" + db.path() + "' is not a ForestMap database (it holds tables " +
+                         names +
+                         " and no ForestMap schema); refusing to change it: give "
+                         "forestmapd a new file or a ForestMap database");
+}
+
 }  // namespace forestmap::storage::internal
