@@ -1,6 +1,6 @@
 // The relocalizer's index structures against brute force: the triangle table's key lookup, the
 // occupancy grid's "is a tree within r?", and the Poisson tail behind the significance test.
-#include "algorithms/map_index.h"
+#include "algorithms/relocalization/map_index.h"
 
 #include <gtest/gtest.h>
 
