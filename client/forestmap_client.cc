@@ -168,7 +168,7 @@ Response ForestMapClient::UnaryWrite(Method method, Request request, const char*
       [&](const std::string& request_id) {
         request.set_request_id(request_id);
         const auto context = NewContext(options_.call_timeout);
-        return (stub_.get()->*method)(context.get(), request, &response);
+        return (stub_->*method)(context.get(), request, &response);
       },
       call);
   return response;
