@@ -34,6 +34,7 @@ class CommandError : public std::runtime_error {
 };
 
 void AddMapCommand(CLI::App& app, CliContext& context);         // cli_map.cc
+void AddMapPruneCommand(CLI::App& map_app, CliContext& context);  // cli_prune.cc ("map prune")
 void AddRelocalizeCommand(CLI::App& app, CliContext& context);  // cli_relocalize.cc
 void AddBenchRelocCommand(CLI::App& app, CliContext& context);  // cli_bench_reloc.cc
 void AddDemoDataCommand(CLI::App& app, CliContext& context);    // cli_demo_data.cc

@@ -388,7 +388,8 @@ void AddRemoveSource(CLI::App& map_app, CliContext& context) {
 
 void AddMapCommand(CLI::App& app, CliContext& context) {
   CLI::App* map_app = app.add_subcommand(
-      "map", "Create, build, list, show, delete and export maps; history, restore, remove-source");
+      "map",
+      "Create, build, list, show, delete and export maps; history, restore, remove-source, prune");
   AddCreate(*map_app, context);
   AddBuild(*map_app, context);
   AddList(*map_app, context);
@@ -398,6 +399,7 @@ void AddMapCommand(CLI::App& app, CliContext& context) {
   AddHistory(*map_app, context);
   AddRestore(*map_app, context);
   AddRemoveSource(*map_app, context);
+  AddMapPruneCommand(*map_app, context);
 }
 
 }  // namespace forestmap::client

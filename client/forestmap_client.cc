@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <random>
 #include <sstream>
 #include <utility>
 
@@ -30,6 +32,20 @@ TreeState StateOf(const v1::Tree& tree) {
   return state;
 }
 
+// A fresh request id: 128 random bits in hex (exactly-once writes, one id per logical write).
+std::string NewRequestId() {
+  static thread_local std::mt19937_64 rng{std::random_device{}()};
+  char id[40];
+  std::snprintf(id, sizeof(id), "fm-%016llx%016llx", static_cast<unsigned long long>(rng()),
+                static_cast<unsigned long long>(rng()));
+  return id;
+}
+
+bool Retriable(const grpc::Status& status) {
+  return status.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED ||
+         status.error_code() == grpc::StatusCode::UNAVAILABLE;
+}
+
 }  // namespace
 
 void ClientOptions::Check() const {
@@ -38,6 +54,7 @@ void ClientOptions::Check() const {
   if (!(stream_timeout > 0)) throw std::invalid_argument("stream_timeout must be > 0 s");
   if (upload_chunk_trees < 1) throw std::invalid_argument("upload_chunk_trees must be >= 1");
   if (max_receive_bytes < 1) throw std::invalid_argument("max_receive_bytes must be >= 1");
+  if (write_attempts < 1) throw std::invalid_argument("write_attempts must be >= 1");
 }
 
 ForestMapClient::ForestMapClient(std::string address, const ClientOptions& options)
@@ -132,13 +149,38 @@ Response ForestMapClient::Unary(Method method, const Request& request, const cha
   return response;
 }
 
+void ForestMapClient::WriteWithRetries(
+    const std::function<grpc::Status(const std::string&)>& attempt, const char* call) {
+  const std::string request_id = NewRequestId();
+  grpc::Status status;
+  for (int i = 0; i < options_.write_attempts; ++i) {
+    status = attempt(request_id);
+    if (status.ok() || !Retriable(status) || !connected_) break;
+  }
+  Check(status, call);
+  connected_ = true;
+}
+
+template <typename Response, typename Method, typename Request>
+Response ForestMapClient::UnaryWrite(Method method, Request request, const char* call) {
+  Response response;
+  WriteWithRetries(
+      [&](const std::string& request_id) {
+        request.set_request_id(request_id);
+        const auto context = NewContext(options_.call_timeout);
+        return (stub_->*method)(context.get(), request, &response);
+      },
+      call);
+  return response;
+}
+
 v1::Map ForestMapClient::CreateMap(const std::string& name, const std::string& description,
                                    const std::string& crs) {
   v1::CreateMapRequest request;
   request.set_name(name);
   request.set_description(description);
   request.set_crs(crs);
-  return Unary<v1::Map>(&v1::ForestMap::Stub::CreateMap, request, "CreateMap");
+  return UnaryWrite<v1::Map>(&v1::ForestMap::Stub::CreateMap, request, "CreateMap");
 }
 
 std::vector<v1::Map> ForestMapClient::ListMaps() {
@@ -159,14 +201,27 @@ v1::Map ForestMapClient::GetMap(const std::string& name) {
 void ForestMapClient::DeleteMap(const std::string& name) {
   v1::DeleteMapRequest request;
   request.set_name(name);
-  Unary<v1::DeleteMapResponse>(&v1::ForestMap::Stub::DeleteMap, request, "DeleteMap");
+  UnaryWrite<v1::DeleteMapResponse>(&v1::ForestMap::Stub::DeleteMap, request, "DeleteMap");
 }
 
 v1::UploadTreesResponse ForestMapClient::UploadTrees(const std::string& name,
                                                      const std::vector<MapTreeRow>& rows,
                                                      bool replace, const UploadProgress& progress) {
-  const auto context = NewContext(options_.stream_timeout);
   v1::UploadTreesResponse response;
+  WriteWithRetries(
+      [&](const std::string& request_id) {
+        return UploadOnce(name, rows, replace, request_id, progress, response);
+      },
+      "UploadTrees");
+  return response;
+}
+
+grpc::Status ForestMapClient::UploadOnce(const std::string& name,
+                                         const std::vector<MapTreeRow>& rows, bool replace,
+                                         const std::string& request_id,
+                                         const UploadProgress& progress,
+                                         v1::UploadTreesResponse& response) {
+  const auto context = NewContext(options_.stream_timeout);
   const auto writer = stub_->UploadTrees(context.get(), &response);
   const size_t chunk = static_cast<size_t>(options_.upload_chunk_trees);
   size_t sent = 0;
@@ -174,7 +229,10 @@ v1::UploadTreesResponse ForestMapClient::UploadTrees(const std::string& name,
   do {
     v1::UploadTreesRequest request;
     request.set_map_name(name);
-    if (sent == 0) request.set_replace(replace);
+    if (sent == 0) {
+      request.set_replace(replace);
+      request.set_request_id(request_id);
+    }
     const size_t end = std::min(rows.size(), sent + chunk);
     request.mutable_trees()->Reserve(static_cast<int>(end - sent));
     for (size_t i = sent; i < end; ++i) *request.add_trees() = ToProto(rows[i]);
@@ -184,9 +242,7 @@ v1::UploadTreesResponse ForestMapClient::UploadTrees(const std::string& name,
     if (progress) progress(static_cast<int64_t>(sent), static_cast<int64_t>(rows.size()));
   } while (sent < rows.size());
   writer->WritesDone();
-  Check(writer->Finish(), "UploadTrees");
-  connected_ = true;
-  return response;
+  return writer->Finish();
 }
 
 ExportedTrees ForestMapClient::ExportTrees(const std::string& name, const std::optional<Box2>& box,
@@ -319,7 +375,7 @@ v1::ObserveResponse ForestMapClient::Observe(const std::string& name,
     for (const algorithms::DetectedTree& tree : frame.trees) *out->add_trees() = ToProto(tree);
     if (frame.map_from_sensor) *out->mutable_map_from_sensor() = ToProto(*frame.map_from_sensor);
   }
-  return Unary<v1::ObserveResponse>(&v1::ForestMap::Stub::Observe, request, "Observe");
+  return UnaryWrite<v1::ObserveResponse>(&v1::ForestMap::Stub::Observe, request, "Observe");
 }
 
 std::vector<v1::MapVersion> ForestMapClient::ListVersions(const std::string& name, int limit) {
@@ -337,8 +393,8 @@ v1::Map ForestMapClient::RestoreVersion(const std::string& name, int64_t version
   v1::RestoreVersionRequest request;
   request.set_map_name(name);
   request.set_version(version);
-  return Unary<v1::RestoreVersionResponse>(&v1::ForestMap::Stub::RestoreVersion, request,
-                                           "RestoreVersion")
+  return UnaryWrite<v1::RestoreVersionResponse>(&v1::ForestMap::Stub::RestoreVersion, request,
+                                                "RestoreVersion")
       .map();
 }
 
@@ -347,8 +403,16 @@ v1::RemoveSourceResponse ForestMapClient::RemoveSource(const std::string& name,
   v1::RemoveSourceRequest request;
   request.set_map_name(name);
   request.set_source(source);
-  return Unary<v1::RemoveSourceResponse>(&v1::ForestMap::Stub::RemoveSource, request,
-                                         "RemoveSource");
+  return UnaryWrite<v1::RemoveSourceResponse>(&v1::ForestMap::Stub::RemoveSource, request,
+                                              "RemoveSource");
+}
+
+v1::PruneVersionsResponse ForestMapClient::PruneVersions(const std::string& name, int64_t keep) {
+  v1::PruneVersionsRequest request;
+  request.set_map_name(name);
+  request.set_keep(keep);
+  return UnaryWrite<v1::PruneVersionsResponse>(&v1::ForestMap::Stub::PruneVersions, request,
+                                               "PruneVersions");
 }
 
 }  // namespace forestmap::client

@@ -38,6 +38,10 @@ struct ClientOptions {
   double stream_timeout = 600.0;     // s, deadline of a whole upload or export
   int upload_chunk_trees = 5000;     // trees per UploadTrees message
   int max_receive_bytes = 64 << 20;  // largest message accepted from the server
+  // Tries of a write call (CreateMap, DeleteMap, UploadTrees, Observe, RestoreVersion,
+  // RemoveSource) that timed out or lost its connection: every try carries the same request id,
+  // so the server applies the write at most once (exactly-once writes).
+  int write_attempts = 3;
   void Check() const;                // throws std::invalid_argument
 };
 
@@ -156,6 +160,8 @@ class ForestMapClient {
   std::vector<v1::MapVersion> ListVersions(const std::string& name, int limit = 0);
   v1::Map RestoreVersion(const std::string& name, int64_t version);
   v1::RemoveSourceResponse RemoveSource(const std::string& name, const std::string& source);
+  // Keeps the newest `keep` versions readable, drops the older history.
+  v1::PruneVersionsResponse PruneVersions(const std::string& name, int64_t keep);
 
   // A tracking session in map `name` (no deadline: it lasts as long as the flight).
   TrackSession Track(const std::string& name);
@@ -182,6 +188,16 @@ class ForestMapClient {
   template <typename Call>
   auto WithFailover(const Call& call) -> decltype(call());
   ExportedTrees ExportTreesOnce(const v1::ExportTreesRequest& request);
+  // A write RPC: `attempt(request_id)` makes one try and returns its status; tries again with
+  // the same id (up to write_attempts) after DEADLINE_EXCEEDED or UNAVAILABLE.
+  void WriteWithRetries(const std::function<grpc::Status(const std::string&)>& attempt,
+                        const char* call);
+  template <typename Response, typename Method, typename Request>
+  Response UnaryWrite(Method method, Request request, const char* call);
+  // One try of an upload stream; the status of the call.
+  grpc::Status UploadOnce(const std::string& name, const std::vector<MapTreeRow>& rows,
+                          bool replace, const std::string& request_id,
+                          const UploadProgress& progress, v1::UploadTreesResponse& response);
 
   std::string address_;
   ClientOptions options_;

@@ -27,6 +27,7 @@ struct Config {
   std::string listen = "127.0.0.1:50051";
   int max_message_mb = 64;
   std::string http;  // --http ADDR: the read-only web page; empty: none
+  int64_t keep_versions = 0;  // versions of each map kept readable (0: all)
 };
 
 // Blocks SIGINT and SIGTERM in this thread and in every thread started after it (gRPC's), so
@@ -57,6 +58,7 @@ int Serve(const Config& config, const sigset_t& shutdown_signals) {
   const size_t map_count = store->ListMaps().size();
 
   forestmap::server::ServiceOptions service_options;
+  service_options.keep_versions = config.keep_versions;
   forestmap::server::ForestMapService service(*store, service_options);
   forestmap::server::ServerOptions server_options;
   server_options.max_receive_message_bytes = config.max_message_mb << 20;
@@ -110,6 +112,11 @@ int main(int argc, char** argv) {
   app.add_option("--http", config.http,
                  "also serve a read-only web page (maps, versions, trees, last relocalizations) "
                  "on host:port");
+  app.add_option("--keep-versions", config.keep_versions,
+                 "history retention: after every write a map keeps its newest N versions "
+                 "readable (0: all)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   const sigset_t shutdown_signals = BlockShutdownSignals();

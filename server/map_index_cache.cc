@@ -57,6 +57,10 @@ MapIndexCache::Entry MapIndexCache::Get(const std::string& name) {
       ++stats_.hits;
       return *slot.ready;
     }
+    if (slot.failed && slot.failed_version == info.version &&
+        slot.failed_created_ms == info.created_unix_ms) {
+      std::rethrow_exception(slot.failed);
+    }
     if (slot.building.valid() && slot.building_version == info.version &&
         slot.building_created_ms == info.created_unix_ms) {
       ++stats_.waits;
@@ -77,6 +81,15 @@ MapIndexCache::Entry MapIndexCache::Get(const std::string& name) {
     Publish(name, build_id, &entry);
     promise.set_value(entry);
     return entry;
+  } catch (const std::invalid_argument& e) {
+    // The trees themselves cannot be indexed: an error of this map version, not of the server.
+    const std::exception_ptr error = std::make_exception_ptr(PreconditionError(
+        "map \"" + name + "\" (version " + std::to_string(info.version) +
+        ") cannot be indexed: " + e.what() + "; replace its trees or restore an earlier version"));
+    RememberFailure(name, build_id, error);
+    Publish(name, build_id, nullptr);
+    promise.set_exception(error);
+    std::rethrow_exception(error);
   } catch (...) {
     Publish(name, build_id, nullptr);
     promise.set_exception(std::current_exception());
@@ -119,6 +132,16 @@ void MapIndexCache::Publish(const std::string& name, uint64_t build_id, const En
     slot.building_id = 0;
   }
   if (entry != nullptr && (!slot.ready || Newer(*entry, *slot.ready))) slot.ready = *entry;
+}
+
+void MapIndexCache::RememberFailure(const std::string& name, uint64_t build_id,
+                                    std::exception_ptr error) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = slots_.find(name);
+  if (it == slots_.end() || it->second.building_id != build_id) return;
+  it->second.failed = std::move(error);
+  it->second.failed_version = it->second.building_version;
+  it->second.failed_created_ms = it->second.building_created_ms;
 }
 
 MapIndexCache::Slot& MapIndexCache::SlotLocked(const std::string& name) {

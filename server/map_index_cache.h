@@ -12,6 +12,7 @@
 // Thread-safety: all methods may be called concurrently.
 
 #include <cstdint>
+#include <exception>
 #include <future>
 #include <list>
 #include <memory>
@@ -52,8 +53,10 @@ class MapIndexCache {
   MapIndexCache& operator=(const MapIndexCache&) = delete;
 
   // The index of the map at its current version. Throws storage::StorageError kNotFound for an
-  // unknown map (and evicts it), PreconditionError for a map without confirmed trees, and
-  // whatever the store or the index build throws (waiters of a failed build get the same error).
+  // unknown map (and evicts it), PreconditionError for a map without confirmed trees or whose
+  // trees cannot be indexed (e.g. a coordinate beyond the index range, stored before validation
+  // checked ranges; remembered per version, so the build is not retried until the map changes),
+  // and whatever else the store or the build throws (waiters of a failed build get the same).
   Entry Get(const std::string& name);
 
   void Evict(const std::string& name);
@@ -68,6 +71,9 @@ class MapIndexCache {
     uint64_t building_id = 0;
     int64_t building_version = 0;
     int64_t building_created_ms = 0;
+    std::exception_ptr failed;  // the error of the last build that cannot succeed, and its map
+    int64_t failed_version = 0;
+    int64_t failed_created_ms = 0;
     std::list<std::string>::iterator lru;
   };
 
@@ -76,6 +82,8 @@ class MapIndexCache {
   // Ends build `build_id`: stores its entry (null when it failed) if the map's slot still exists
   // and the entry is newer than the ready one.
   void Publish(const std::string& name, uint64_t build_id, const Entry* entry);
+  // Remembers that the map version of build `build_id` cannot be indexed.
+  void RememberFailure(const std::string& name, uint64_t build_id, std::exception_ptr error);
   Slot& SlotLocked(const std::string& name);
   void EraseLocked(const std::string& name);
 

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "server/convert.h"
+#include "server/exactly_once.h"
 #include "server/map_merger.h"
 #include "server/service.h"
 #include "server/status.h"
@@ -67,6 +68,12 @@ void ForestMapService::RunObserve(grpc::CallbackServerContext* context,
                                   v1::ObserveResponse& response) {
   const auto start = std::chrono::steady_clock::now();
   Validate(request, options_.observe);
+  ValidateRequestId(request.request_id());
+  // A repeated request id: the first answer, before any relocalization or merge.
+  if (!request.request_id().empty() &&
+      ReplayRequest(store_, request.request_id(), "Observe", response)) {
+    return;
+  }
   const std::string& name = request.map_name();
   const bool reject_stale = request.conflict_policy() == v1::REJECT_IF_STALE;
   // Fail fast (unknown map, stale base) before relocalizing; the merge checks again.
@@ -100,23 +107,10 @@ void ForestMapService::RunObserve(grpc::CallbackServerContext* context,
   }
 
   storage::MapInfo after = before;
-  if (!frames.empty()) {
-    storage::MergeNote note;
-    note.kind = storage::VersionKind::kObserve;
-    note.source = request.source();
-    if (reject_stale) note.expected_version = request.base_version();
-    FramesMerge merge;
-    after = store_.Merge(name, note, [&](storage::MergeReader& reader) {
-      merge = MergeFrames(reader, frames, options_.merge, options_.consolidate);
-      return merge.changes;
-    });
-    for (size_t i = 0; i < merged_results.size(); ++i) {
-      const FrameMergeCounts& counts = merge.counts[i];
-      merged_results[i]->set_trees_associated(counts.associated);
-      merged_results[i]->set_trees_added(counts.added);
-      merged_results[i]->set_trees_promoted(counts.promoted);
-      merged_results[i]->set_trees_ignored(counts.ignored);
-    }
+  // False: a concurrent call with the same request id merged first; `response` is its answer.
+  if (!frames.empty() &&
+      !MergeObserved(context, request, frames, merged_results, response, after)) {
+    return;
   }
   response.set_map_version(after.version);
   *response.mutable_map() = ToProto(after);
@@ -125,23 +119,76 @@ void ForestMapService::RunObserve(grpc::CallbackServerContext* context,
   response.set_server_time_ms(elapsed.count());
 }
 
-void ForestMapService::RunRemoveSource(const v1::RemoveSourceRequest& request,
+bool ForestMapService::MergeObserved(grpc::CallbackServerContext* context,
+                                     const v1::ObserveRequest& request,
+                                     const std::vector<algorithms::FrameObservations>& frames,
+                                     const std::vector<v1::FrameResult*>& merged,
+                                     v1::ObserveResponse& response, storage::MapInfo& after) {
+  storage::MergeNote note;
+  note.kind = storage::VersionKind::kObserve;
+  note.source = request.source();
+  if (request.conflict_policy() == v1::REJECT_IF_STALE) {
+    note.expected_version = request.base_version();
+  }
+  FramesMerge merge;
+  const auto set_counts = [&] {
+    for (size_t i = 0; i < merged.size(); ++i) {
+      const FrameMergeCounts& counts = merge.counts[i];
+      merged[i]->set_trees_associated(counts.associated);
+      merged[i]->set_trees_added(counts.added);
+      merged[i]->set_trees_promoted(counts.promoted);
+      merged[i]->set_trees_ignored(counts.ignored);
+    }
+  };
+  // The answer stored with the write: the frame results and the map it leaves.
+  const auto encode = [&](const storage::MapInfo& info) {
+    set_counts();
+    v1::ObserveResponse answer = response;
+    answer.set_map_version(info.version);
+    *answer.mutable_map() = ToProto(info);
+    return answer.SerializeAsString();
+  };
+  bool replayed = true;
+  RunExactlyOnce(store_, context, request.request_id(), "Observe", response, encode, [&] {
+    after = store_.Merge(request.map_name(), note, [&](storage::MergeReader& reader) {
+      merge = MergeFrames(reader, frames, options_.merge, options_.consolidate);
+      return merge.changes;
+    });
+    replayed = false;
+  });
+  if (replayed) return false;
+  set_counts();
+  return true;
+}
+
+void ForestMapService::RunRemoveSource(grpc::CallbackServerContext* context,
+                                       const v1::RemoveSourceRequest& request,
                                        v1::RemoveSourceResponse& response) {
   Validate(request);
   storage::MergeNote note;
   note.kind = storage::VersionKind::kRemoveSource;
   note.source = request.source();
   SourceRemoval removal;
-  const storage::MapInfo info =
-      store_.Merge(request.map_name(), note, [&](storage::MergeReader& reader) {
-        removal = RemoveSourceChanges(reader, request.source(), options_.merge);
-        return removal.changes;
-      });
-  *response.mutable_map() = ToProto(info);
-  response.set_observations_removed(
-      static_cast<int64_t>(removal.changes.removed_observations.size()));
-  response.set_trees_updated(removal.trees_updated);
-  response.set_trees_removed(removal.trees_removed);
+  const auto fill = [&](const storage::MapInfo& info, v1::RemoveSourceResponse& answer) {
+    *answer.mutable_map() = ToProto(info);
+    answer.set_observations_removed(
+        static_cast<int64_t>(removal.changes.removed_observations.size()));
+    answer.set_trees_updated(removal.trees_updated);
+    answer.set_trees_removed(removal.trees_removed);
+  };
+  const auto encode = [&](const storage::MapInfo& info) {
+    v1::RemoveSourceResponse answer;
+    fill(info, answer);
+    return answer.SerializeAsString();
+  };
+  RunExactlyOnce(store_, context, request.request_id(), "RemoveSource", response, encode, [&] {
+    fill(store_.Merge(request.map_name(), note,
+                      [&](storage::MergeReader& reader) {
+                        removal = RemoveSourceChanges(reader, request.source(), options_.merge);
+                        return removal.changes;
+                      }),
+         response);
+  });
 }
 
 }  // namespace forestmap::server

@@ -8,6 +8,7 @@
 #include "algorithms/core/check.h"
 #include "server/convert.h"
 #include "server/geo_convert.h"
+#include "server/exactly_once.h"
 #include "server/status.h"
 #include "server/streams.h"
 #include "server/validation.h"
@@ -53,6 +54,7 @@ void ServiceOptions::Check() const {
           "ServiceOptions.observe.max_request_trees must be >= 1");
   merge.Check();
   tracking.Check();
+  Require(keep_versions >= 0, "ServiceOptions.keep_versions must be >= 0 (0 keeps all)");
 }
 
 ForestMapService::ForestMapService(storage::MapStore& store, ServiceOptions options)
@@ -65,10 +67,14 @@ ForestMapService::ForestMapService(storage::MapStore& store, ServiceOptions opti
 grpc::ServerUnaryReactor* ForestMapService::CreateMap(grpc::CallbackServerContext* context,
                                                       const v1::CreateMapRequest* request,
                                                       v1::Map* response) {
-  return AnswerOn(admin_pool_, context, "CreateMap", [this, request, response] {
+  return AnswerOn(admin_pool_, context, "CreateMap", [this, context, request, response] {
     Validate(*request);
-    *response = ToProto(
-        store_.CreateMap(request->name(), request->description(), CanonicalCrs(request->crs())));
+    const auto encode =
+        Encoder<v1::Map>([](const storage::MapInfo& info, v1::Map& map) { map = ToProto(info); });
+    RunExactlyOnce(store_, context, request->request_id(), "CreateMap", *response, encode, [&] {
+      *response =
+          ToProto(store_.CreateMap(request->name(), request->description(), CanonicalCrs(request->crs())));
+    });
   });
 }
 
@@ -91,16 +97,18 @@ grpc::ServerUnaryReactor* ForestMapService::GetMap(grpc::CallbackServerContext* 
 
 grpc::ServerUnaryReactor* ForestMapService::DeleteMap(grpc::CallbackServerContext* context,
                                                       const v1::DeleteMapRequest* request,
-                                                      v1::DeleteMapResponse* /*response*/) {
-  return AnswerOn(admin_pool_, context, "DeleteMap", [this, request] {
+                                                      v1::DeleteMapResponse* response) {
+  return AnswerOn(admin_pool_, context, "DeleteMap", [this, context, request, response] {
     Validate(*request);
-    store_.DeleteMap(request->name());
+    const auto encode = [](const storage::MapInfo&) { return std::string(); };
+    RunExactlyOnce(store_, context, request->request_id(), "DeleteMap", *response, encode,
+                   [&] { store_.DeleteMap(request->name()); });
     index_cache_.Evict(request->name());
   });
 }
 
-grpc::ServerReadReactor<v1::UploadTreesRequest>* ForestMapService::UploadTrees(
-    grpc::CallbackServerContext* context, v1::UploadTreesResponse* response) {
+grpc::ServerReadReactor<grpc::ByteBuffer>* ForestMapService::UploadTrees(
+    grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
   return new UploadTreesReactor(store_, options_, admin_pool_, work_pool_, context, response);
 }
 
@@ -140,6 +148,7 @@ grpc::ServerUnaryReactor* ForestMapService::Observe(grpc::CallbackServerContext*
                                                     v1::ObserveResponse* response) {
   return AnswerOn(work_pool_, context, "Observe", [this, context, request, response] {
     RunObserve(context, *request, *response);
+    ApplyRetention(request->map_name());
   });
 }
 
@@ -158,18 +167,33 @@ grpc::ServerUnaryReactor* ForestMapService::ListVersions(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* ForestMapService::RestoreVersion(
     grpc::CallbackServerContext* context, const v1::RestoreVersionRequest* request,
     v1::RestoreVersionResponse* response) {
-  return AnswerOn(work_pool_, context, "RestoreVersion", [this, request, response] {
+  return AnswerOn(work_pool_, context, "RestoreVersion", [this, context, request, response] {
     Validate(*request);
-    *response->mutable_map() = ToProto(store_.RestoreVersion(request->map_name(),
-                                                             request->version()));
+    const auto encode = Encoder<v1::RestoreVersionResponse>(
+        [](const storage::MapInfo& info, auto& answer) { *answer.mutable_map() = ToProto(info); });
+    RunExactlyOnce(store_, context, request->request_id(), "RestoreVersion", *response, encode,
+                   [&] {
+                     *response->mutable_map() =
+                         ToProto(store_.RestoreVersion(request->map_name(), request->version()));
+                   });
+    ApplyRetention(request->map_name());
   });
 }
 
 grpc::ServerUnaryReactor* ForestMapService::RemoveSource(grpc::CallbackServerContext* context,
                                                          const v1::RemoveSourceRequest* request,
                                                          v1::RemoveSourceResponse* response) {
-  return AnswerOn(work_pool_, context, "RemoveSource",
-                  [this, request, response] { RunRemoveSource(*request, *response); });
+  return AnswerOn(work_pool_, context, "RemoveSource", [this, context, request, response] {
+    RunRemoveSource(context, *request, *response);
+    ApplyRetention(request->map_name());
+  });
+}
+
+grpc::ServerUnaryReactor* ForestMapService::PruneVersions(grpc::CallbackServerContext* context,
+                                                          const v1::PruneVersionsRequest* request,
+                                                          v1::PruneVersionsResponse* response) {
+  return AnswerOn(work_pool_, context, "PruneVersions",
+                  [this, context, request, response] { RunPrune(context, *request, *response); });
 }
 
 }  // namespace forestmap::server

@@ -14,7 +14,9 @@
 //                after the first message, a bad tree "trees[k]...", duplicate id within the
 //                upload or, when appending, against the map), NOT_FOUND (map; checked on the
 //                first message), RESOURCE_EXHAUSTED (more than max_upload_trees), CANCELLED
-//                (client cancelled); ABORTED (write conflict). Nothing is written unless OK.
+//                (client cancelled); ABORTED (write conflict); INVALID_ARGUMENT for a message
+//                that cannot be decoded (e.g. a string that is not UTF-8). Nothing is written
+//                unless OK.
 //   ExportTrees  INVALID_ARGUMENT (map_name, box), NOT_FOUND, ABORTED (box export: the map kept
 //                changing while being read), CANCELLED (client stopped reading)
 //   any RPC      RESOURCE_EXHAUSTED "server busy" when max_queued_requests calls are waiting
@@ -34,6 +36,9 @@
 //   RestoreVersion INVALID_ARGUMENT (map_name, version < 1), NOT_FOUND (map, or a version that
 //                does not exist or predates the history)
 //   RemoveSource INVALID_ARGUMENT (map_name, source), NOT_FOUND (map, or no observation of it)
+//   PruneVersions INVALID_ARGUMENT (map_name, keep < 1), NOT_FOUND (map)
+//   every write  INVALID_ARGUMENT (request_id malformed or used for another RPC),
+//                DEADLINE_EXCEEDED (the deadline passed before the commit: nothing written)
 
 #include <cstdint>
 
@@ -72,10 +77,16 @@ struct ServiceOptions {
   // set of observations, and concurrent drones give the map a sequential upload gives. False
   // keeps the incremental, order-dependent merge.
   bool consolidate = true;
+  // History retention: after every write the map keeps its newest keep_versions versions
+  // readable (0 = all; forestmapd --keep-versions). `map prune` does it on demand.
+  int64_t keep_versions = 0;
   void Check() const;  // throws std::invalid_argument
 };
 
-class ForestMapService final : public v1::ForestMap::CallbackService {
+// UploadTrees is registered raw (ByteBuffer): the service decodes each message itself, so that an
+// undecodable message is INVALID_ARGUMENT instead of looking like the end of the stream.
+class ForestMapService final
+    : public v1::ForestMap::WithRawCallbackMethod_UploadTrees<v1::ForestMap::CallbackService> {
  public:
   // `store` must outlive the service, and the service the grpc::Server it is registered with.
   // Throws std::invalid_argument for invalid options.
@@ -96,8 +107,10 @@ class ForestMapService final : public v1::ForestMap::CallbackService {
   grpc::ServerUnaryReactor* DeleteMap(grpc::CallbackServerContext* context,
                                       const v1::DeleteMapRequest* request,
                                       v1::DeleteMapResponse* response) override;
-  grpc::ServerReadReactor<v1::UploadTreesRequest>* UploadTrees(
-      grpc::CallbackServerContext* context, v1::UploadTreesResponse* response) override;
+  // Messages are v1::UploadTreesRequest, the answer a v1::UploadTreesResponse (decoded and
+  // encoded by the reactor, server/streams.h).
+  grpc::ServerReadReactor<grpc::ByteBuffer>* UploadTrees(grpc::CallbackServerContext* context,
+                                                         grpc::ByteBuffer* response) override;
   grpc::ServerWriteReactor<v1::ExportTreesResponse>* ExportTrees(
       grpc::CallbackServerContext* context, const v1::ExportTreesRequest* request) override;
   grpc::ServerUnaryReactor* Relocalize(grpc::CallbackServerContext* context,
@@ -118,6 +131,13 @@ class ForestMapService final : public v1::ForestMap::CallbackService {
   grpc::ServerUnaryReactor* RemoveSource(grpc::CallbackServerContext* context,
                                          const v1::RemoveSourceRequest* request,
                                          v1::RemoveSourceResponse* response) override;
+  // History retention; bodies in server/prune_service.cc.
+  grpc::ServerUnaryReactor* PruneVersions(grpc::CallbackServerContext* context,
+                                          const v1::PruneVersionsRequest* request,
+                                          v1::PruneVersionsResponse* response) override;
+  // With options.keep_versions > 0, drops the history of `map` beyond that many versions
+  // (after a write; a failure is logged, the write stands).
+  void ApplyRetention(const std::string& map) noexcept;
 
  private:
   void RunObserve(grpc::CallbackServerContext* context, const v1::ObserveRequest& request,
@@ -125,7 +145,17 @@ class ForestMapService final : public v1::ForestMap::CallbackService {
   // Finds the pose of a frame without one; false (with `detail`) when it is not LOCALIZED.
   bool RelocalizeFrame(const std::string& map_name, const v1::ObservationFrame& frame,
                        algorithms::FrameObservations& observations, std::string& detail);
-  void RunRemoveSource(const v1::RemoveSourceRequest& request, v1::RemoveSourceResponse& response);
+  void RunRemoveSource(grpc::CallbackServerContext* context, const v1::RemoveSourceRequest& request,
+                       v1::RemoveSourceResponse& response);
+  void RunPrune(grpc::CallbackServerContext* context, const v1::PruneVersionsRequest& request,
+                v1::PruneVersionsResponse& response);
+  // Merges the MERGED frames of an Observe (results in `merged`) as one new version (the map
+  // after it in `after`); false when a concurrent call with the same request id answered first
+  // (`response` is then that answer).
+  bool MergeObserved(grpc::CallbackServerContext* context, const v1::ObserveRequest& request,
+                     const std::vector<algorithms::FrameObservations>& frames,
+                     const std::vector<v1::FrameResult*>& merged, v1::ObserveResponse& response,
+                     storage::MapInfo& after);
 
   storage::MapStore& store_;
   ServiceOptions options_;

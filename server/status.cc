@@ -21,6 +21,8 @@ grpc::StatusCode CodeOf(storage::StorageError::Code code) {
       return grpc::StatusCode::INVALID_ARGUMENT;
     case Code::kConflict:
       return grpc::StatusCode::ABORTED;
+    case Code::kDeadlineExceeded:
+      return grpc::StatusCode::DEADLINE_EXCEEDED;
     case Code::kInternal:
       break;
   }

@@ -8,6 +8,7 @@
 //                         kAlreadyExists -> ALREADY_EXISTS
 //                         kInvalidArgument -> INVALID_ARGUMENT
 //                         kConflict      -> ABORTED (the client may retry)
+//                         kDeadlineExceeded -> DEADLINE_EXCEEDED (nothing was committed)
 //                         kInternal      -> INTERNAL "internal error; see server log" (logged)
 //   std::invalid_argument                -> INVALID_ARGUMENT
 //   std::bad_alloc                       -> RESOURCE_EXHAUSTED "server out of memory" (logged)

@@ -1,10 +1,12 @@
 #include "server/streams.h"
 
 #include <chrono>
+#include <stdexcept>
 #include <utility>
 
 #include "server/convert.h"
 #include "server/geo_convert.h"
+#include "server/exactly_once.h"
 #include "server/service.h"
 #include "server/status.h"
 
@@ -15,14 +17,15 @@ namespace forestmap::server {
 UploadTreesReactor::UploadTreesReactor(storage::MapStore& store, const ServiceOptions& options,
                                        WorkerPool& admin_pool, WorkerPool& work_pool,
                                        grpc::CallbackServerContext* context,
-                                       v1::UploadTreesResponse* response)
+                                       grpc::ByteBuffer* response)
     : store_(store),
       admin_pool_(admin_pool),
       work_pool_(work_pool),
       context_(context),
       response_(response),
-      validator_(options.max_upload_trees) {
-  StartRead(&request_);
+      validator_(options.max_upload_trees),
+      keep_versions_(options.keep_versions) {
+  StartRead(&buffer_);
 }
 
 void UploadTreesReactor::OnReadDone(bool ok) {
@@ -51,14 +54,14 @@ void UploadTreesReactor::OnReadDone(bool ok) {
     ThenReadNext(admin_pool_, [this] { store_.GetMap(validator_.map_name()); });
     return;
   }
-  StartRead(&request_);
+  StartRead(&buffer_);
 }
 
 void UploadTreesReactor::ThenReadNext(WorkerPool& pool, std::function<void()> body) {
   const bool queued = pool.TrySubmit([this, body = std::move(body)] {
     const grpc::Status status = RunGuarded("UploadTrees", body);
     if (status.ok()) {
-      StartRead(&request_);
+      StartRead(&buffer_);
     } else {
       Finish(status);
     }
@@ -67,6 +70,22 @@ void UploadTreesReactor::ThenReadNext(WorkerPool& pool, std::function<void()> bo
 }
 
 void UploadTreesReactor::Accept() {
+  const grpc::Status decoded =
+      grpc::SerializationTraits<v1::UploadTreesRequest>::Deserialize(&buffer_, &request_);
+  buffer_.Clear();
+  if (!decoded.ok()) {
+    throw ValidationError("upload message " + std::to_string(validator_.messages()) + " (after " +
+                          std::to_string(validator_.trees()) +
+                          " trees) cannot be decoded as an UploadTreesRequest (a string that is "
+                          "not UTF-8, or corrupt bytes); nothing was written");
+  }
+  if (validator_.messages() == 0) {
+    request_id_ = request_.request_id();
+    ValidateRequestId(request_id_);
+  } else if (!request_.request_id().empty() && request_.request_id() != request_id_) {
+    throw ValidationError("request_id (upload message " + std::to_string(validator_.messages()) +
+                          ") differs from the first message's; only the first sets it");
+  }
   validator_.Accept(request_);
   // No reserve() per message: exact reservations would make the accumulation quadratic.
   for (const v1::Tree& tree : request_.trees()) trees_.push_back(FromProto(tree));
@@ -82,10 +101,27 @@ void UploadTreesReactor::Commit() {
   validator_.Finish();
   const storage::WriteMode mode =
       validator_.replace() ? storage::WriteMode::kReplace : storage::WriteMode::kAppend;
-  const storage::MapInfo info = store_.WriteTrees(validator_.map_name(), trees_, mode);
-  *response_->mutable_map() = ToProto(info);
-  response_->set_trees_received(validator_.trees());
+  const int64_t received = validator_.trees();
+  const auto fill = [received](const storage::MapInfo& info, v1::UploadTreesResponse& answer) {
+    *answer.mutable_map() = ToProto(info);
+    answer.set_trees_received(received);
+  };
+  v1::UploadTreesResponse response;
+  RunExactlyOnce(store_, context_, request_id_, "UploadTrees", response,
+                 Encoder<v1::UploadTreesResponse>(fill),
+                 [&] { fill(store_.WriteTrees(validator_.map_name(), trees_, mode), response); });
   trees_ = {};
+  if (keep_versions_ > 0) {  // history retention (forestmapd --keep-versions)
+    try {
+      store_.PruneVersions(validator_.map_name(), keep_versions_);
+    } catch (const std::exception& e) {
+      LogLine("UploadTrees: retention failed (the upload stands): " + std::string(e.what()));
+    }
+  }
+  bool own_buffer = false;
+  const grpc::Status encoded = grpc::SerializationTraits<v1::UploadTreesResponse>::Serialize(
+      response, response_, &own_buffer);
+  if (!encoded.ok()) throw std::runtime_error("cannot encode the UploadTrees answer");
 }
 
 // ---- ExportTrees ----

@@ -24,17 +24,22 @@ struct ServiceOptions;
 // them in ONE MapStore::WriteTrees call when the client closes the stream. A cancelled or failed
 // upload writes nothing. Store calls run on the pools: the map check on `admin_pool`, the write
 // on `work_pool`; validation and conversion of each message run on gRPC's thread.
-class UploadTreesReactor final : public grpc::ServerReadReactor<v1::UploadTreesRequest> {
+// Messages arrive raw and are decoded here: one that cannot be decoded as a
+// v1::UploadTreesRequest (a string that is not UTF-8, corrupt bytes) fails the upload with
+// INVALID_ARGUMENT naming the message; gRPC's typed reader would report it as the end of the
+// stream and the trees before it would be committed. `response` gets the encoded
+// v1::UploadTreesResponse.
+class UploadTreesReactor final : public grpc::ServerReadReactor<grpc::ByteBuffer> {
  public:
   UploadTreesReactor(storage::MapStore& store, const ServiceOptions& options,
                      WorkerPool& admin_pool, WorkerPool& work_pool,
-                     grpc::CallbackServerContext* context, v1::UploadTreesResponse* response);
+                     grpc::CallbackServerContext* context, grpc::ByteBuffer* response);
 
   void OnReadDone(bool ok) override;
   void OnDone() override { delete this; }
 
  private:
-  void Accept();  // the message in request_; throws
+  void Accept();  // the message in buffer_; throws
   void Commit();  // throws
   // Runs `body` on `pool`, then reads the next message, or finishes on error.
   void ThenReadNext(WorkerPool& pool, std::function<void()> body);
@@ -43,9 +48,12 @@ class UploadTreesReactor final : public grpc::ServerReadReactor<v1::UploadTreesR
   WorkerPool& admin_pool_;
   WorkerPool& work_pool_;
   grpc::CallbackServerContext* context_;
-  v1::UploadTreesResponse* response_;
+  grpc::ByteBuffer* response_;
+  grpc::ByteBuffer buffer_;  // the message being read
   v1::UploadTreesRequest request_;
   UploadValidator validator_;
+  std::string request_id_;  // from the first message (exactly-once, server/exactly_once.h)
+  int64_t keep_versions_;   // ServiceOptions::keep_versions
   std::vector<storage::TreeRecord> trees_;
 };
 

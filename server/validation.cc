@@ -51,6 +51,23 @@ void CheckVector(const v1::Vector3& v, const std::string& path) {
   CheckFinite(v.z(), path + ".z");
 }
 
+// A coordinate of a local map frame: finite and |v| < limit (m).
+void CheckCoordinate(double v, double limit, const std::string& path) {
+  CheckFinite(v, path);
+  if (!(std::abs(v) < limit)) {
+    throw ValidationError(path + " is " + Number(v) + "; coordinates must lie within +-" +
+                          Number(limit) +
+                          " m (a local frame; keep georeferenced offsets in the map's crs)");
+  }
+}
+
+// A position: x and y within kMaxHorizontalCoordinate, z within kMaxVerticalCoordinate.
+void CheckPosition(const v1::Vector3& v, const std::string& path) {
+  CheckCoordinate(v.x(), kMaxHorizontalCoordinate, path + ".x");
+  CheckCoordinate(v.y(), kMaxHorizontalCoordinate, path + ".y");
+  CheckCoordinate(v.z(), kMaxVerticalCoordinate, path + ".z");
+}
+
 // A direction: finite and not (near) zero. Its length does not matter, it is normalised.
 void CheckDirection(const v1::Vector3& v, const std::string& path) {
   CheckVector(v, path);
@@ -241,9 +258,9 @@ void ValidateTree(const v1::Tree& tree, const std::string& path) {
   if (tree.has_id() && tree.id() < 0) {
     throw ValidationError(path + ".id is " + std::to_string(tree.id()) + "; ids must be >= 0");
   }
-  CheckFinite(tree.x(), path + ".x");
-  CheckFinite(tree.y(), path + ".y");
-  if (tree.has_z()) CheckFinite(tree.z(), path + ".z");
+  CheckCoordinate(tree.x(), kMaxHorizontalCoordinate, path + ".x");
+  CheckCoordinate(tree.y(), kMaxHorizontalCoordinate, path + ".y");
+  if (tree.has_z()) CheckCoordinate(tree.z(), kMaxVerticalCoordinate, path + ".z");
   if (tree.has_dbh()) {
     CheckFinite(tree.dbh(), path + ".dbh");
     if (tree.dbh() < 0) {
@@ -255,7 +272,7 @@ void ValidateTree(const v1::Tree& tree, const std::string& path) {
 
 void ValidateDetectedTree(const v1::DetectedTree& tree, const std::string& path) {
   if (!tree.has_position()) throw ValidationError(path + ".position is missing");
-  CheckVector(tree.position(), path + ".position");
+  CheckPosition(tree.position(), path + ".position");
   if (tree.has_dbh()) {
     CheckFinite(tree.dbh(), path + ".dbh");
     if (tree.dbh() < 0) {
@@ -272,7 +289,7 @@ void ValidateDetectedTree(const v1::DetectedTree& tree, const std::string& path)
 }
 
 void ValidatePose(const v1::Pose& pose, const std::string& path) {
-  if (pose.has_translation()) CheckVector(pose.translation(), path + ".translation");
+  if (pose.has_translation()) CheckPosition(pose.translation(), path + ".translation");
   if (!pose.has_rotation()) return;  // identity
   const v1::Quaternion& q = pose.rotation();
   const std::string rotation = path + ".rotation";

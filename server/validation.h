@@ -8,7 +8,8 @@
 //   "trees: 100000 trees exceed the limit of 20000 per query"
 // Rules beyond "finite numbers": dbh >= 0, score in [0, 1], tree ids >= 0 and unique within an
 // upload, rotations unit quaternions within kUnitQuaternionTolerance (normalised afterwards),
-// prior radius > 0, gravity and stem axes non-zero, box min <= max, bounded string lengths.
+// prior radius > 0, gravity and stem axes non-zero, box min <= max, bounded string lengths,
+// coordinates within kMaxHorizontalCoordinate / kMaxVerticalCoordinate.
 
 #include <cstdint>
 #include <string>
@@ -25,6 +26,11 @@ namespace forestmap::server {
 
 inline constexpr double kUnitQuaternionTolerance = 1e-3;  // | |q| - 1 | allowed
 inline constexpr int kMinQueryTrees = 3;
+// A map frame is a local frame (georeferenced offsets belong in the CRS): every coordinate that
+// reaches an index (trees, detected trees, poses, priors, odometry) must lie strictly within
+// these bounds, or the request is INVALID_ARGUMENT naming the field.
+inline constexpr double kMaxHorizontalCoordinate = 1e7;   // m, |x| and |y|
+inline constexpr double kMaxVerticalCoordinate = 1e5;     // m, |z|
 inline constexpr size_t kMaxDescriptionLength = 4096;     // bytes
 inline constexpr size_t kMaxCrsLength = 16384;              // bytes
 inline constexpr size_t kMaxAttributes = 64;              // per tree

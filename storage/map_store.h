@@ -10,12 +10,21 @@
 #include <string>
 #include <vector>
 
+#include "storage/write_request.h"
+
 namespace forestmap::storage {
 
 // The one error type of storage/. `code` tells the server which gRPC status to answer with.
 class StorageError : public std::runtime_error {
  public:
-  enum class Code { kNotFound, kAlreadyExists, kInvalidArgument, kConflict, kInternal };
+  enum class Code {
+    kNotFound,
+    kAlreadyExists,
+    kInvalidArgument,
+    kConflict,
+    kInternal,
+    kDeadlineExceeded,  // a write whose WriteRequest deadline passed: nothing was committed
+  };
   StorageError(Code code, const std::string& message) : std::runtime_error(message), code_(code) {}
   Code code() const { return code_; }
 
@@ -168,6 +177,14 @@ enum class WriteMode {
   kReplace,  // the map's trees become exactly these
 };
 
+// What MapStore::PruneVersions dropped.
+struct PruneResult {
+  MapInfo info;                   // the map (unchanged: pruning makes no new version)
+  int64_t versions_removed = 0;   // history entries dropped
+  int64_t tree_rows_removed = 0;  // stored tree states no kept version holds
+  int64_t observation_rows_removed = 0;
+};
+
 // Thread-safety: every method may be called from many threads at once. Each write is one
 // transaction: it is applied whole or not at all. Errors are thrown as StorageError.
 class MapStore {
@@ -210,6 +227,16 @@ class MapStore {
   // kConflict when note.expected_version is set and is not the current version.
   virtual MapInfo Merge(const std::string& name, const MergeNote& note,
                         const MergeFunction& merge) = 0;
+
+  // Keeps the newest `keep` (>= 1) versions of the map readable and drops the history before
+  // them: their ReadMapVersion / RestoreVersion become kNotFound. One transaction; honours the
+  // WriteRequest scope like every write. kInvalidArgument for keep < 1, kNotFound for the map.
+  virtual PruneResult PruneVersions(const std::string& name, int64_t keep) = 0;
+
+  // ---- Exactly-once writes (storage/write_request.h) ----
+
+  // The answer stored for a request id by an earlier write, if any.
+  virtual std::optional<StoredRequest> FindRequest(const std::string& request_id) = 0;
 };
 
 // Valid map names: 1..128 characters of [A-Za-z0-9_.-]. Returns an error message or "".

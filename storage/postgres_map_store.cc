@@ -142,7 +142,7 @@ MapInfo PostgresMapStore::CreateMap(const std::string& name, const std::string& 
     created.created_unix_ms = info.created_unix_ms;
     created.kind = VersionKind::kCreate;
     pg_internal::InsertVersion(conn, id, created);
-    transaction.Commit();
+    pg_internal::CommitWrite(conn, transaction, info);
   });
   return info;
 }
@@ -171,7 +171,7 @@ void PostgresMapStore::DeleteMap(const std::string& name) {
     const MapRow map = pg_internal::LockMap(conn, name);
     // Trees, observations and history go with it (ON DELETE CASCADE).
     conn.Exec("DELETE FROM maps WHERE id = $1", Params().Int64(map.id));
-    transaction.Commit();
+    pg_internal::CommitWrite(conn, transaction, map.info);
   });
 }
 
@@ -231,7 +231,7 @@ MapInfo PostgresMapStore::WriteTrees(const std::string& name, const std::vector<
     record.confirmed_count = info.confirmed_count;
     record.trees_added = count;
     pg_internal::InsertVersion(conn, map.id, record);
-    transaction.Commit();
+    pg_internal::CommitWrite(conn, transaction, info);
     result = info;
   });
   return result;

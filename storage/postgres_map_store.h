@@ -39,7 +39,7 @@ bool IsPostgresUri(const std::string& db);
 // Doubles round-trip bit for bit (-0.0 too); attributes are JSON object text as in SQLite.
 class PostgresMapStore final : public MapStore {
  public:
-  static constexpr int64_t kSchemaVersion = 1;
+  static constexpr int64_t kSchemaVersion = 2;
   // Trees or observation rows per INSERT ... SELECT FROM unnest(...) statement.
   static constexpr size_t kRowsPerInsert = 10000;
 
@@ -66,6 +66,8 @@ class PostgresMapStore final : public MapStore {
   MapInfo RestoreVersion(const std::string& name, int64_t version) override;
   MapInfo Merge(const std::string& name, const MergeNote& note,
                 const MergeFunction& merge) override;
+  std::optional<StoredRequest> FindRequest(const std::string& request_id) override;
+  PruneResult PruneVersions(const std::string& name, int64_t keep) override;
 
  private:
   using Body = std::function<void(pg::Connection&)>;

@@ -33,6 +33,9 @@ MapRow RequireMap(pg::Connection& conn, const std::string& name);
 // For a write: takes the map's advisory lock (held to the end of the transaction), then reads
 // its row, which no other writer can change until then. kNotFound for an unknown map.
 MapRow LockMap(pg::Connection& conn, const std::string& name);
+// Commits a write transaction honouring the thread's WriteRequest (storage/write_request.h):
+// stores its answer under its id (hex text), refuses a passed deadline (postgres_requests.cc).
+void CommitWrite(pg::Connection& conn, pg::Transaction& transaction, const MapInfo& info);
 void UpdateMapRow(pg::Connection& conn, const MapRow& map);
 std::optional<Extent> ScanExtent(pg::Connection& conn, int64_t map_id);
 

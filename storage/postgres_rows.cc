@@ -123,8 +123,20 @@ std::optional<size_t> FirstTakenId(pg::Connection& conn, int64_t map_id,
 
 }  // namespace
 
+// Step 2 (issue 15): answers of writes made with a client request id (exactly-once writes),
+// the answer bytes as hex text.
+constexpr const char* kStep2 = R"sql(
+CREATE TABLE request_log (
+  request_id TEXT COLLATE "C" PRIMARY KEY,
+  rpc TEXT NOT NULL,
+  response_hex TEXT NOT NULL,
+  created_unix_ms BIGINT NOT NULL
+);
+CREATE INDEX request_log_by_time ON request_log (created_unix_ms);
+)sql";
+
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1};
+  static const std::vector<const char*> steps = {kStep1, kStep2};
   return steps;
 }
 

@@ -342,7 +342,7 @@ MapInfo PostgresMapStore::RestoreVersion(const std::string& name, int64_t versio
     record.confirmed_count = info.confirmed_count;
     record.restored_from = version;
     pg_internal::InsertVersion(conn, map.id, record);
-    transaction.Commit();
+    pg_internal::CommitWrite(conn, transaction, map.info);
     result = info;
   });
   return result;
@@ -370,7 +370,7 @@ MapInfo PostgresMapStore::Merge(const std::string& name, const MergeNote& note,
       return;
     }
     ApplyChanges(conn, map, note, changes);
-    transaction.Commit();
+    pg_internal::CommitWrite(conn, transaction, map.info);
     result = map.info;
   });
   return result;

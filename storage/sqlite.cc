@@ -99,6 +99,8 @@ bool Database::InAutocommit() const { return sqlite3_get_autocommit(db_) != 0; }
 
 int64_t Database::LastInsertRowId() const { return sqlite3_last_insert_rowid(db_); }
 
+int64_t Database::Changes() const { return sqlite3_changes64(db_); }
+
 void Database::EnableWal() {
   Statement statement(*this, "PRAGMA journal_mode = WAL");
   const std::string mode = statement.Step() ? statement.ColumnText(0) : "";
@@ -218,6 +220,18 @@ void Statement::BindText(int index, std::string_view value) {
 }
 
 void Statement::BindNull(int index) { CheckBind(sqlite3_bind_null(stmt_, index), index); }
+
+void Statement::BindBlob(int index, std::string_view bytes) {
+  CheckBind(sqlite3_bind_blob64(stmt_, index, bytes.data(), bytes.size(), SQLITE_TRANSIENT), index);
+}
+
+std::string Statement::ColumnBlob(int column) const {
+  if (ColumnIsNull(column)) return {};
+  const void* bytes = sqlite3_column_blob(stmt_, column);
+  const int size = sqlite3_column_bytes(stmt_, column);
+  if (bytes == nullptr) return {};  // an empty blob
+  return std::string(static_cast<const char*>(bytes), static_cast<size_t>(size));
+}
 
 bool Statement::Step() {
   const int rc = sqlite3_step(stmt_);

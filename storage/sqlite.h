@@ -44,6 +44,8 @@ class Database {
   bool InAutocommit() const;
   // Rowid of the last row this connection inserted.
   int64_t LastInsertRowId() const;
+  // Rows changed by the last INSERT, UPDATE or DELETE of this connection.
+  int64_t Changes() const;
   // Switches a file database to write-ahead logging (readers then run alongside a writer);
   // throws when the file system cannot do it.
   void EnableWal();
@@ -105,6 +107,7 @@ class Statement {
   void BindOptionalDouble(int index, const std::optional<double>& value);  // nullopt -> NULL
   void BindText(int index, std::string_view value);  // copied by SQLite (SQLITE_TRANSIENT)
   void BindNull(int index);
+  void BindBlob(int index, std::string_view bytes);  // copied by SQLite
 
   // Advances: true when a row is available, false when the statement is done.
   bool Step();
@@ -119,6 +122,7 @@ class Statement {
   double ColumnDouble(int column) const;
   std::optional<double> ColumnOptionalDouble(int column) const;  // NULL -> nullopt
   std::string ColumnText(int column) const;                      // NULL -> ""
+  std::string ColumnBlob(int column) const;                      // NULL -> ""
 
  private:
   void CheckBind(int result_code, int index);

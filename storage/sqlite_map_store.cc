@@ -129,7 +129,8 @@ SqliteMapStore::SqliteMapStore(const std::string& path, const SqliteMapStoreOpti
   if (static_cast<int64_t>(internal::SchemaSteps().size()) != kSchemaVersion) {
     throw StorageError(StorageError::Code::kInternal, "schema steps and kSchemaVersion disagree");
   }
-  // Refuses a newer schema before any change.
+  // Refuses a database of something else, and a newer schema, before any change.
+  internal::RefuseForeignDatabase(*writer_);
   sqlite::MigrateSchema(*writer_, internal::SchemaSteps());
   if (path == ":memory:") return;  // the database exists on this one connection only
   writer_->EnableWal();
@@ -190,7 +191,7 @@ MapInfo SqliteMapStore::CreateMap(const std::string& name, const std::string& de
     created.created_unix_ms = info.created_unix_ms;
     created.kind = VersionKind::kCreate;
     internal::InsertVersion(db, db.LastInsertRowId(), created);
-    transaction.Commit();
+    internal::CommitWrite(db, transaction, info);
   });
   return info;
 }
@@ -220,7 +221,7 @@ void SqliteMapStore::DeleteMap(const std::string& name) {
     Statement remove(db, "DELETE FROM maps WHERE id = ?1");
     remove.BindInt64(1, map.id);
     remove.Run();
-    transaction.Commit();
+    internal::CommitWrite(db, transaction, map.info);
   });
 }
 
@@ -301,7 +302,7 @@ MapInfo SqliteMapStore::WriteTrees(const std::string& name, const std::vector<Tr
     record.confirmed_count = info.confirmed_count;
     record.trees_added = count;
     internal::InsertVersion(db, map.id, record);
-    transaction.Commit();
+    internal::CommitWrite(db, transaction, info);
     result = info;
   });
   return result;

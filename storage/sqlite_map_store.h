@@ -53,7 +53,7 @@ struct SqliteMapStoreOptions {
 class SqliteMapStore final : public MapStore {
  public:
   // Schema version this code writes; a database with a newer PRAGMA user_version is refused.
-  static constexpr int64_t kSchemaVersion = 3;
+  static constexpr int64_t kSchemaVersion = 4;
   static constexpr size_t kTreesPerBlock = 32;
 
   // Opens (creating if missing) the database at `path` and migrates its schema to
@@ -81,6 +81,9 @@ class SqliteMapStore final : public MapStore {
   MapInfo RestoreVersion(const std::string& name, int64_t version) override;
   MapInfo Merge(const std::string& name, const MergeNote& note,
                 const MergeFunction& merge) override;
+  std::optional<StoredRequest> FindRequest(const std::string& request_id) override;
+  // Deleted rows leave free pages that later writes reuse; the file does not shrink (VACUUM).
+  PruneResult PruneVersions(const std::string& name, int64_t keep) override;
 
  private:
   using Body = std::function<void(sqlite::Database&)>;

@@ -23,6 +23,10 @@ const std::vector<const char*>& SchemaSteps();
 void ConfigureConnection(sqlite::Database& db, const SqliteMapStoreOptions& options,
                          bool read_only);
 
+// Throws kInvalidArgument for a database without a ForestMap schema (PRAGMA user_version 0)
+// that already holds tables: another program's file, which migrating would change.
+void RefuseForeignDatabase(sqlite::Database& db);
+
 int64_t NowUnixMs();
 void CheckName(const std::string& name);
 
@@ -66,6 +70,11 @@ std::string TreeLabel(const std::vector<TreeRecord>& trees, size_t index);
 ObservationRecord ReadObservationRow(const sqlite::Statement& row);
 void InsertObservations(sqlite::Database& db, int64_t map_id,
                         const std::vector<ObservationRecord>& observations, int64_t valid_from);
+
+// Commits a write transaction, honouring the thread's WriteRequest (storage/write_request.h):
+// stores its answer under its id, refuses a passed deadline. `info`: the map after the write.
+void CommitWrite(sqlite::Database& db, sqlite::Transaction& transaction, const MapInfo& info);
+inline constexpr int64_t kRequestLogRetentionMs = 7 * 24 * 3600 * 1000LL;  // ms an answer is kept
 
 // Appends the history entry of `record.version`.
 void InsertVersion(sqlite::Database& db, int64_t map_id, const VersionRecord& record);

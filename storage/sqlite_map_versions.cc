@@ -429,7 +429,7 @@ MapInfo SqliteMapStore::RestoreVersion(const std::string& name, int64_t version)
     record.confirmed_count = info.confirmed_count;
     record.restored_from = version;
     internal::InsertVersion(db, map.id, record);
-    transaction.Commit();
+    internal::CommitWrite(db, transaction, info);
     result = info;
   });
   return result;
@@ -457,7 +457,7 @@ MapInfo SqliteMapStore::Merge(const std::string& name, const MergeNote& note,
       return;
     }
     ApplyChanges(db, map, note, changes);
-    transaction.Commit();
+    internal::CommitWrite(db, transaction, map.info);
     result = map.info;
   });
   return result;

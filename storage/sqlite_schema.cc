@@ -144,10 +144,23 @@ CREATE INDEX observations_in_cell ON observations (map_id, cell_x, cell_y)
 PRAGMA user_version = 3;
 )sql";
 
+// Version 4: the answers of writes made with a client request id (exactly-once writes,
+// storage/write_request.h), kept for kRequestLogRetentionMs.
+constexpr const char* kStep4 = R"sql(
+CREATE TABLE request_log (
+  request_id TEXT PRIMARY KEY,
+  rpc TEXT NOT NULL,
+  response BLOB NOT NULL,
+  created_unix_ms INTEGER NOT NULL
+);
+CREATE INDEX request_log_by_time ON request_log (created_unix_ms);
+PRAGMA user_version = 4;
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4};
   return steps;
 }
 
@@ -161,6 +174,21 @@ void ConfigureConnection(sqlite::Database& db, const SqliteMapStoreOptions& opti
   const std::string cache_sql = "PRAGMA cache_size = -" + std::to_string(options.cache_mib * 1024);
   db.Execute(cache_sql.c_str());
   if (read_only) db.Execute("PRAGMA query_only = ON");
+}
+
+void RefuseForeignDatabase(sqlite::Database& db) {
+  if (db.QueryInt64("PRAGMA user_version") != 0) return;
+  sqlite::Statement tables(db,
+                           "SELECT name FROM sqlite_master WHERE type = 'table' AND name NOT LIKE "
+                           "'sqlite_%' ORDER BY name LIMIT 5");
+  std::string names;
+  while (tables.Step()) names += (names.empty() ? "" : ", ") + tables.ColumnText(0);
+  if (names.empty()) return;  // a new, empty file: ours to initialise
+  throw StorageError(StorageError::Code::kInvalidArgument,
+                     "database '" + db.path() + "' is not a ForestMap database (it holds tables " +
+                         names +
+                         " and no ForestMap schema); refusing to change it: give "
+                         "forestmapd a new file or a ForestMap database");
 }
 
 }  // namespace forestmap::storage::internal

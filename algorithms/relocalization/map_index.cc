@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
+#include <string>
 #include <thread>
 
 #include "algorithms/relocalization/map_index_internal.h"
@@ -65,6 +67,22 @@ double ChooseTriangleSide(const KdTree<float, 2>& kd, const std::vector<Eigen::V
   return std::clamp(tri.max_side, tri.min_side + 0.5, options.max_triangle_side);
 }
 
+// Every coordinate finite and within kMaxIndexCoordinate (a z may be unknown, NaN): the float
+// kd-tree and the occupancy grid's integer cells cannot represent more.
+void CheckTreeRange(const std::vector<MapTree>& trees) {
+  auto in_range = [](double v) { return std::abs(v) <= kMaxIndexCoordinate; };  // false for NaN
+  for (size_t i = 0; i < trees.size(); ++i) {
+    const Eigen::Vector3d& p = trees[i].position;
+    if (!in_range(p.x()) || !in_range(p.y()) || !(std::isnan(p.z()) || in_range(p.z()))) {
+      char where[96];
+      std::snprintf(where, sizeof(where), "] (id %lld) at (%.6g, %.6g, %.6g)",
+                    static_cast<long long>(trees[i].id), p.x(), p.y(), p.z());
+      throw std::invalid_argument("MapIndex: trees[" + std::to_string(i) + where +
+                                  " lies beyond the index range of 1e9 m or is not finite");
+    }
+  }
+}
+
 }  // namespace
 
 void MapIndexOptions::Check() const {
@@ -87,6 +105,7 @@ void MapIndexOptions::Check() const {
 MapIndex::MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options)
     : impl_(std::make_unique<MapIndexImpl>()) {
   options.Check();
+  CheckTreeRange(trees);
   MapIndexImpl& m = *impl_;
   m.trees = std::move(trees);
   const size_t n = m.trees.size();

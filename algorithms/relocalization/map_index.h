@@ -34,10 +34,15 @@ struct MapIndexOptions {
 
 class MapIndexImpl;
 
+// Tree coordinates the index accepts (m, |x|, |y| and a known |z|); beyond it, or not finite,
+// the constructor throws std::invalid_argument naming the tree.
+inline constexpr double kMaxIndexCoordinate = 1e9;
+
 // The immutable per-map search structure, built once per map version. Thread-safe for
 // concurrent queries.
 class MapIndex {
  public:
+  // Throws std::invalid_argument for invalid options or a tree beyond kMaxIndexCoordinate.
   MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options = {});
   ~MapIndex();
   MapIndex(const MapIndex&) = delete;

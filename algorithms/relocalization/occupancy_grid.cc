@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <stdexcept>
+#include <string>
 
 namespace forestmap::algorithms {
 
@@ -10,6 +11,15 @@ OccupancyGrid::OccupancyGrid(const std::vector<Eigen::Vector2d>& points, double 
     : inverse_resolution_(1.0 / resolution) {
   if (!(radius > 0 && resolution > 0 && resolution <= radius)) {
     throw std::invalid_argument("OccupancyGrid: need 0 < resolution <= radius");
+  }
+  // Tile coordinates are 32-bit: a point beyond that range (or not finite) would have no tile.
+  for (size_t i = 0; i < points.size(); ++i) {
+    const double cx = points[i].x() * inverse_resolution_, cy = points[i].y() * inverse_resolution_;
+    if (!(std::abs(cx) < kMaxCell && std::abs(cy) < kMaxCell)) {
+      throw std::invalid_argument("OccupancyGrid: point " + std::to_string(i) +
+                                  " lies beyond the grid's range of " + std::to_string(kMaxCell) +
+                                  " cells from the origin");
+    }
   }
   // The cells of each point's disk: their centres within `radius`.
   const int reach = static_cast<int>(std::ceil(radius * inverse_resolution_));

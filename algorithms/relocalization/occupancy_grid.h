@@ -45,6 +45,7 @@ class OccupancyGrid {
 
  private:
   static constexpr int kTileBits = 6;  // 64 x 64 cells a tile
+  static constexpr double kMaxCell = 68719476736.0;  // 2^36: |cell index| bound, tiles fit int32
   static constexpr int64_t kTileMask = (1 << kTileBits) - 1;
   struct Tile {
     uint64_t rows[64] = {};

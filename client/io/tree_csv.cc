@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <unordered_map>
 #include <utility>
 
 #include "client/io/csv_columns.h"
 #include "client/io/str_cat.h"
 #include "client/io/tree_columns.h"
+#include "client/io/utf8.h"
 
 namespace forestmap::client {
 namespace {
@@ -32,6 +34,17 @@ struct MapColumns {
   std::vector<size_t> attributes;
 };
 
+// Attributes travel as Protobuf strings, which must be UTF-8: a stray Latin-1 byte would make
+// the server unable to decode the upload message holding it.
+void CheckUtf8(const CsvReader& reader, size_t column, std::string_view text, const char* what) {
+  if (const std::optional<size_t> bad = FirstInvalidUtf8(text)) {
+    char byte[8];
+    std::snprintf(byte, sizeof(byte), "0x%02x", static_cast<unsigned char>(text[*bad]));
+    reader.FailAt(column, StrCat({what, " is not valid UTF-8 (byte ", byte, " at offset ",
+                                  std::to_string(*bad), "); save the file as UTF-8"}));
+  }
+}
+
 MapTreeRow ReadMapRow(const CsvReader& reader, const MapColumns& columns, double dbh_scale) {
   MapTreeRow row;
   row.x = RequiredNumber(reader, columns.x);
@@ -43,6 +56,8 @@ MapTreeRow ReadMapRow(const CsvReader& reader, const MapColumns& columns, double
   for (size_t column : columns.attributes) {
     const CsvField& field = reader.fields()[column];
     if (!field.quoted && (field.text.empty() || field.text == "NA")) continue;
+    CheckUtf8(reader, column, reader.header()[column], "the column name");
+    CheckUtf8(reader, column, field.text, "the value");
     row.attributes.emplace(reader.header()[column], std::string(field.text));
   }
   return row;

@@ -1,5 +1,7 @@
 // The relocalizer's index structures against brute force: the triangle table's key lookup, the
 // occupancy grid's "is a tree within r?", and the Poisson tail behind the significance test.
+#include "algorithms/relocalization/map_index.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -99,6 +101,42 @@ TEST(OccupancyGrid, AgreesWithBruteForceAwayFromTheBoundary) {
     EXPECT_GT(grid.occupied_fraction(), 0.0);
     EXPECT_LT(grid.occupied_fraction(), 0.2);
   }
+}
+
+// Issue 15: a tree at x = 1e308 made the index build index tiles_[-1] and take the server down.
+// Coordinates the index cannot represent are an error, never a crash.
+TEST(OccupancyGrid, RejectsPointsBeyondItsCellRange) {
+  for (double far : {1e308, 1e15, -3e13}) {
+    const std::vector<Eigen::Vector2d> points = {{0, 0}, {3, 0}, {far, 1}};
+    EXPECT_THROW(OccupancyGrid(points, 0.4, 0.2), std::invalid_argument) << far;
+  }
+  const std::vector<Eigen::Vector2d> nan_point = {{0, 0}, {NAN, 1}};
+  EXPECT_THROW(OccupancyGrid(nan_point, 0.4, 0.2), std::invalid_argument);
+}
+
+TEST(MapIndex, RejectsTreesBeyondItsRangeInsteadOfCrashing) {
+  auto trees = [](double x, double y) {
+    std::vector<MapTree> out(4);
+    out[1].position = {3, 0, NAN};
+    out[2].position = {0, 4, NAN};
+    out[3].position = {x, y, NAN};
+    out[0].position.z() = NAN;
+    return out;
+  };
+  for (auto [x, y] :
+       {std::pair{1e308, 1.0}, {1.0, -1e45}, {2e9, 0.0}, {NAN, 0.0}, {INFINITY, 0.0}}) {
+    try {
+      MapIndex index(trees(x, y));
+      ADD_FAILURE() << "no error for a tree at (" << x << ", " << y << ")";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("trees[3]"), std::string::npos) << e.what();
+    }
+  }
+  std::vector<MapTree> tall = trees(5, 5);
+  tall[3].position.z() = 1e300;
+  EXPECT_THROW(MapIndex index(tall), std::invalid_argument);
+  const MapIndex wide(trees(9.9e6, -9.9e6));  // a large but valid local frame still builds
+  EXPECT_EQ(wide.size(), 4u);
 }
 
 TEST(PoissonTail, MatchesDirectSums) {

@@ -11,6 +11,8 @@
 #include <string>
 #include "tests/shared_data.h"
 
+#include "client/io/utf8.h"
+
 namespace forestmap::client {
 namespace {
 
@@ -128,6 +130,33 @@ TEST(TreeCsvTest, MalformedInputNamesFileLineAndColumn) {
   EXPECT_EQ(MapError("x,y,s\n1,2,\"abc\n"), "t.csv:2: column 's': unterminated quoted field");
   EXPECT_EQ(MapError("x,y,s\n1,2,\"a\"b\n"),
             "t.csv:2: column 's': unexpected text after a closing quote");
+}
+
+// Issue 15: a Latin-1 byte in an attribute made the server unable to decode that upload
+// message; the client now names the file, line and column before sending anything.
+TEST(TreeCsvTest, AttributesMustBeUtf8) {
+  std::string content = "x,y,species\n";
+  for (int i = 0; i < 12; ++i) content += std::to_string(i) + ",0,pine\n";
+  EXPECT_EQ(ParseMapTreesCsv(content + "1,2,\xc3\xa9pic\xc3\xa9"
+                                       "a\n",
+                             "t.csv")
+                .back()
+                .attributes.at("species"),
+            "\xc3\xa9pic\xc3\xa9"
+            "a");  // UTF-8 is kept as it is
+  content +=
+      "7,0,\xe9pic\xe9"
+      "a\n";  // Latin-1 "épicéa" on line 14
+  EXPECT_EQ(MapError(content),
+            "t.csv:14: column 'species': the value is not valid UTF-8 (byte 0xe9 at offset 0); "
+            "save the file as UTF-8");
+  EXPECT_EQ(MapError("x,y,note\n1,2,ok \xed\xa0\x80\n").rfind("t.csv:2: column 'note'", 0), 0u);
+  EXPECT_NE(MapError("x,y,s\xff\n1,2,a\n").find("the column name is not valid UTF-8"),
+            std::string::npos);
+  EXPECT_EQ(FirstInvalidUtf8("a\xc0\xaf"), 1u);         // overlong '/'
+  EXPECT_EQ(FirstInvalidUtf8("\xf4\x90\x80\x80"), 0u);  // beyond U+10FFFF
+  EXPECT_EQ(FirstInvalidUtf8("ab\xe2\x82"), 2u);        // truncated
+  EXPECT_EQ(FirstInvalidUtf8("\xf0\x9f\x8c\xb2 tree"), std::nullopt);
 }
 
 TEST(TreeCsvTest, FileErrorsNameTheFile) {

@@ -101,8 +101,19 @@ class GatedStore final : public storage::MapStore {
   }
   storage::MapInfo Merge(const std::string& name, const storage::MergeNote& note,
                          const storage::MergeFunction& merge) override {
-    return inner_.Merge(name, note, merge);
+    return inner_.Merge(name, note, [&](storage::MergeReader& reader) {
+      std::this_thread::sleep_for(merge_delay);  // a slow merge, inside the write transaction
+      return merge(reader);
+    });
   }
+  storage::PruneResult PruneVersions(const std::string& name, int64_t keep) override {
+    return inner_.PruneVersions(name, keep);
+  }
+  std::optional<storage::StoredRequest> FindRequest(const std::string& request_id) override {
+    return inner_.FindRequest(request_id);
+  }
+
+  std::chrono::milliseconds merge_delay{0};  // set before concurrent use
 
  private:
   storage::MapStore& inner_;

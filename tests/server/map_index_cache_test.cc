@@ -39,6 +39,32 @@ class MapIndexCacheTest : public ::testing::Test {
   GatedStore gated_{store_};
 };
 
+// Issue 15: a tree at x = 1e308 (stored before validation checked ranges) took the process
+// down in the index build; now the map answers an error naming it, once per version.
+TEST_F(MapIndexCacheTest, MapThatCannotBeIndexedIsAnErrorOfThatMapOnly) {
+  AddMap("plot", 10);
+  AddMap("far", 3);
+  std::vector<storage::TreeRecord> far(1);
+  far[0].x = 1e308;
+  store_.WriteTrees("far", far, storage::WriteMode::kAppend);
+  MapIndexCache cache(store_);
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    try {
+      cache.Get("far");
+      ADD_FAILURE() << "no error";
+    } catch (const PreconditionError& e) {
+      EXPECT_NE(std::string(e.what()).find("map \"far\" (version 3) cannot be indexed"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  EXPECT_EQ(cache.stats().builds, 1);  // not rebuilt for the same version
+  EXPECT_EQ(cache.Get("plot").index->size(), 10u);
+  // A new version of the map (the far tree replaced) is indexed again.
+  store_.WriteTrees("far", Trees(4), storage::WriteMode::kReplace);
+  EXPECT_EQ(cache.Get("far").index->size(), 4u);
+}
+
 TEST_F(MapIndexCacheTest, BuildsOncePerVersionAndRebuildsAfterAWrite) {
   AddMap("plot", 10);
   MapIndexCache cache(store_);

@@ -118,6 +118,55 @@ TEST(ValidationTest, TreeFields) {
               HasSubstr("trees[6].attributes"));
 }
 
+// Issue 15: finite but huge coordinates crashed the index build; a map frame is a local frame.
+TEST(ValidationTest, CoordinatesMustLieInALocalFrame) {
+  v1::Tree tree;
+  tree.set_x(9.99e6);
+  tree.set_y(-9.99e6);
+  tree.set_z(9.9e4);
+  EXPECT_NO_THROW(ValidateTree(tree, "trees[0]"));
+  v1::Tree far_x = tree;
+  far_x.set_x(1e308);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { ValidateTree(far_x, "trees[3]"); }),
+              HasSubstr("trees[3].x is 1e+308; coordinates must lie within +-10000000 m"));
+  v1::Tree far_y = tree;
+  far_y.set_y(-1e7);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { ValidateTree(far_y, "trees[1]"); }),
+              HasSubstr("trees[1].y is -10000000"));
+  v1::Tree high = tree;
+  high.set_z(1e5);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { ValidateTree(high, "trees[2]"); }),
+              HasSubstr("trees[2].z is 100000; coordinates must lie within +-100000 m"));
+
+  v1::RelocalizeRequest query = Query(3);
+  query.mutable_trees(1)->mutable_position()->set_y(2e7);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(query, 100); }),
+              HasSubstr("trees[1].position.y is 20000000"));
+  v1::RelocalizeRequest prior = Query(3);
+  prior.mutable_prior()->set_radius_m(10);
+  prior.mutable_prior()->mutable_map_from_sensor()->mutable_translation()->set_x(-1e45);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(prior, 100); }),
+              HasSubstr("prior.map_from_sensor.translation.x is -1e+45"));
+
+  v1::ObserveRequest observe;
+  observe.set_map_name("shared");
+  observe.set_source("drone");
+  v1::ObservationFrame* frame = observe.add_frames();
+  frame->add_trees()->mutable_position()->set_z(3e5);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(observe, ObserveLimits{}); }),
+              HasSubstr("frames[0].trees[0].position.z is 300000"));
+  frame->mutable_trees(0)->mutable_position()->set_z(1);
+  frame->mutable_map_from_sensor()->mutable_translation()->set_y(1e45);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(observe, ObserveLimits{}); }),
+              HasSubstr("frames[0].map_from_sensor.translation.y is 1e+45"));
+
+  v1::TrackRequest track;
+  track.set_map_name("plot");
+  track.mutable_odometry()->mutable_translation()->set_x(5e7);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(track, "", 100); }),
+              HasSubstr("odometry.translation.x is 50000000"));
+}
+
 TEST(ValidationTest, RelocalizeTreeCountLimits) {
   EXPECT_NO_THROW(Validate(Query(3), 20000));
   // Fewer than 3 trees is a valid query, answered NOT_FOUND (TOO_FEW_TREES) by the relocalizer.
