@@ -40,8 +40,20 @@ failed=0
 
 # Drops what depends on the clock or the machine: gtest times "(12 ms)", JSON fields and text
 # figures ("key: value") of seconds, milliseconds, rates, throughput and resident memory.
+# One-line JSON objects are spread one field a line first, so that the timing fields drop alone.
+spread_json() {
+  python3 -c '
+import json, sys
+for line in sys.stdin:
+    try:
+        print(json.dumps(json.loads(line), indent=2, sort_keys=True))
+    except ValueError:
+        sys.stdout.write(line)
+'
+}
+
 strip_timing() {
-  sed -E \
+  spread_json | sed -E \
     -e 's/ \([0-9]+ ms( total)?\)//g' \
     -e '/"[A-Za-z0-9_]*(seconds|_s|_ms|_us|ms_|time|latency|per_second|fps|throughput|rate_hz|resident|rss)[A-Za-z0-9_]*" *:/d' \
     -e '/^ *[A-Za-z0-9_]*(seconds|_s|_ms|_us|ms_|time|latency|per_second|fps|throughput|rate_hz|resident|rss)[A-Za-z0-9_]*:/d' \
