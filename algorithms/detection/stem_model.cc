@@ -19,12 +19,16 @@ using internal::GatheredStem;
 using internal::Median;
 using internal::SliceCircle;
 
-// Score in [0, 1]: residual term 1 / (1 + (rms / 1.5 cm)^2), coverage term min(1, coverage /
-// 0.35) (a single view sees at most ~half a stem), slice term n / (n + 2).
+// Score in [0, 1]: residual term 1 / (1 + (rms / kScoreRms)^2), coverage term min(1, coverage /
+// kFullCoverage) (a single view sees at most ~half a stem), slice term n / (n + kHalfSlices).
+constexpr double kScoreRms = 0.015;     // m, rms that halves the residual term
+constexpr double kFullCoverage = 0.35;  // [0, 1], arc coverage of a full coverage term
+constexpr double kHalfSlices = 2.0;     // slices that give a slice term of one half
+
 double ScoreStem(double rms, double coverage, int slices) {
-  const double residual_term = 1.0 / (1.0 + (rms / 0.015) * (rms / 0.015));
-  const double coverage_term = std::min(1.0, coverage / 0.35);
-  const double slice_term = slices / (slices + 2.0);
+  const double residual_term = 1.0 / (1.0 + (rms / kScoreRms) * (rms / kScoreRms));
+  const double coverage_term = std::min(1.0, coverage / kFullCoverage);
+  const double slice_term = slices / (slices + kHalfSlices);
   return std::clamp(residual_term * coverage_term * slice_term, 0.0, 1.0);
 }
 
@@ -62,6 +66,15 @@ namespace {
 
 using Reject = StemRejection;
 
+// Fixed-point steps of the tree-ground intersection (GroundPoint).
+constexpr int kGroundIterations = 6;
+// Weight share a slice circle's diameter keeps however little arc it covers.
+constexpr double kMinSampleCoverage = 0.05;
+// m beyond a found stem's surface within which a lone circle's centre is on that stem.
+constexpr double kFoundStemMargin = 0.1;
+// m beyond the larger stem's radius within which two breast-height points are one stem.
+constexpr double kDuplicateMargin = 0.05;
+
 // Tree-ground intersection: fixed-point iteration of "axis z == ground z under it"; without
 // ground under the stem, the axis point at `lowest_z` (ground_known false).
 Eigen::Vector3d GroundPoint(const Axis& axis, const GroundModel& ground, double lowest_z,
@@ -69,7 +82,7 @@ Eigen::Vector3d GroundPoint(const Axis& axis, const GroundModel& ground, double 
   const Eigen::Vector3d& a = axis.direction;
   *ground_known = ground.known();
   double t = 0;
-  for (int it = 0; it < 6 && *ground_known; ++it) {
+  for (int it = 0; it < kGroundIterations && *ground_known; ++it) {
     const Eigen::Vector3d p = axis.point + t * a;
     const double g = ground.Height(p.x(), p.y());
     *ground_known = IsKnown(g);
@@ -90,8 +103,8 @@ std::vector<TaperSample> SliceProfile(const std::vector<SliceCircle>& circles,
         (Eigen::Vector3d(c.circle.center.x(), c.circle.center.y(), c.z) - position).dot(a);
     // Horizontal slices of a tilted stem are ellipses whose minor axis is the true diameter.
     // A circle fitted to part of that ellipse lies between the axes: take their geometric mean.
-    samples.push_back(
-        {s, 2.0 * c.circle.radius * std::sqrt(a.z()), c.inliers * std::max(c.coverage, 0.05)});
+    samples.push_back({s, 2.0 * c.circle.radius * std::sqrt(a.z()),
+                       c.inliers * std::max(c.coverage, kMinSampleCoverage)});
   }
   return samples;
 }
@@ -314,13 +327,15 @@ void Count(Reject reject, StemModelStats& stats) {
   if (reject != Reject::kNone) ++*counters[static_cast<int>(reject) - 1];
 }
 
-// True when the circle's centre lies within one of the stems (10 cm beyond its surface).
+// True when the circle's centre lies within one of the stems (kFoundStemMargin beyond its
+// surface).
 bool OnFoundStem(const SliceCircle& c, std::span<const DetectedTrunk> trunks) {
   for (const DetectedTrunk& t : trunks) {
     const Eigen::Vector3d& a = t.tree.axis;
     const Eigen::Vector3d on_axis =
         t.breast_height_point + (c.z - t.breast_height_point.z()) / a.z() * a;
-    if ((c.circle.center - on_axis.head<2>()).norm() < 0.5 * t.tree.dbh + 0.1) return true;
+    if ((c.circle.center - on_axis.head<2>()).norm() < 0.5 * t.tree.dbh + kFoundStemMargin)
+      return true;
   }
   return false;
 }
@@ -334,7 +349,7 @@ void SuppressDuplicates(std::vector<DetectedTrunk>& trunks, StemModelStats& stat
   for (const DetectedTrunk& t : trunks) {
     bool duplicate = false;
     for (const DetectedTrunk& k : kept) {
-      const double reach = 0.5 * std::max(t.tree.dbh, k.tree.dbh) + 0.05;
+      const double reach = 0.5 * std::max(t.tree.dbh, k.tree.dbh) + kDuplicateMargin;
       if ((t.breast_height_point.head<2>() - k.breast_height_point.head<2>()).norm() < reach) {
         duplicate = true;
         break;

@@ -35,6 +35,16 @@ constexpr double kTailBands = 2.0;
 constexpr double kFacingCoverage = 0.5;
 constexpr double kFacingRadii = 0.5;
 constexpr double kSensorClearance = 0.1;
+// Linking slice circles (LinkCircles): a circle links to a chain whose last circle is at most
+// kMaxSliceGap slices below it (a stem hidden in a slice or two goes on), of a radius within
+// [kMinRadiusRatio, kMaxRadiusRatio] of it, and whose centre lies within link_distance plus
+// kLinkRadiusShare of its radius plus the tilt allowance.
+constexpr int kMaxSliceGap = 3;
+constexpr double kMinRadiusRatio = 0.5;
+constexpr double kMaxRadiusRatio = 2.0;
+constexpr double kLinkRadiusShare = 0.25;
+// A slice centre may lie off the axis by max_centre_offset plus this share of its radius.
+constexpr double kCentreRadiusShare = 0.25;
 // Stems may touch but not overlap: circles of one slice whose centres are closer than this share
 // of their radii's sum overlap (the second is a leftover of the first).
 constexpr double kOverlapShare = 0.8;
@@ -160,12 +170,12 @@ std::vector<std::vector<int>> LinkCircles(const std::vector<SliceCircle>& circle
     double best_dist = std::numeric_limits<double>::max();
     for (int k = 0; k < static_cast<int>(chains.size()); ++k) {
       const SliceCircle& last = circles[chains[k].back()];
-      if (last.slice >= c.slice || c.slice - last.slice > 3) continue;
+      if (last.slice >= c.slice || c.slice - last.slice > kMaxSliceGap) continue;
       const double ratio = c.circle.radius / last.circle.radius;
-      if (ratio < 0.5 || ratio > 2.0) continue;
+      if (ratio < kMinRadiusRatio || ratio > kMaxRadiusRatio) continue;
       const double dist = (c.circle.center - last.circle.center).norm();
-      const double tolerance =
-          options.link_distance + 0.25 * last.circle.radius + tan_tilt * std::abs(c.z - last.z);
+      const double tolerance = options.link_distance + kLinkRadiusShare * last.circle.radius +
+                               tan_tilt * std::abs(c.z - last.z);
       if (dist <= tolerance && dist < best_dist) {
         best = k;
         best_dist = dist;
@@ -220,7 +230,7 @@ std::vector<int> ConsistentSlices(const std::vector<SliceCircle>& circles,
     const bool radius_ok =
         std::abs(c.circle.radius - median_radius) <= options.max_radius_deviation * median_radius;
     const bool centre_ok =
-        AxisOffset(axis, c) <= options.max_centre_offset + 0.25 * c.circle.radius;
+        AxisOffset(axis, c) <= options.max_centre_offset + kCentreRadiusShare * c.circle.radius;
     if (radius_ok && centre_ok) kept.push_back(i);
   }
   return kept;
