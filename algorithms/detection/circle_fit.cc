@@ -193,77 +193,107 @@ double ArcCoverage(std::span<const Eigen::Vector2d> points, const Eigen::Vector2
   return static_cast<double>(count) / bins;
 }
 
+namespace {
+
+constexpr int kRefineIterations = 10;  // Gauss-Newton steps of each geometric refinement
+// Mark-and-refine rounds per band: the second picks up points the first circle just missed.
+constexpr int kRefinePasses = 2;
+// RANSAC's adaptive stop: iterations for this chance of never drawing an all-inlier sample (99%
+// confidence of one); an inlier share w with w^3 above kCertainW3 stops at once, and below
+// kNegligibleW3 the bound says nothing (max_iterations stays).
+constexpr double kMissProbability = 0.01;
+constexpr double kCertainW3 = 0.999;
+constexpr double kNegligibleW3 = 1e-6;
+
+bool RadiusOk(const Circle& c, const CircleRansacOptions& options) {
+  return c.radius >= options.min_radius && c.radius <= options.max_radius;
+}
+
+// The clean case, no sampling: one direct fit, refined, kept when it explains
+// clean_inlier_ratio of the points.
+bool CleanFit(std::span<const Eigen::Vector2d> points, const CircleRansacOptions& options,
+              Circle& best) {
+  const KasaResult direct = FitCircleKasa(points);
+  if (!direct.ok) return false;
+  const GeometricFitResult refined =
+      RefineCircleGeometric(points, direct.circle, kRefineIterations);
+  int inliers = 0;
+  MsacCost(points, refined.circle, options.inlier_distance, &inliers);
+  const int n = static_cast<int>(points.size());
+  if (!RadiusOk(refined.circle, options) || inliers < options.clean_inlier_ratio * n) return false;
+  best = refined.circle;
+  return true;
+}
+
+// MSAC over circles through three random points, with the adaptive stop; false when no sample
+// gave a circle of an allowed radius.
+bool RansacFit(std::span<const Eigen::Vector2d> points, const CircleRansacOptions& options,
+               std::mt19937& rng, Circle& best) {
+  const int n = static_cast<int>(points.size());
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  bool have_best = false;
+  double best_cost = std::numeric_limits<double>::max();
+  int needed = options.max_iterations;
+  for (int it = 0; it < needed; ++it) {
+    const int i = pick(rng);
+    int j = pick(rng);
+    int k = pick(rng);
+    if (i == j || j == k || i == k) continue;
+    const KasaResult candidate = CircleFromThreePoints(points[i], points[j], points[k]);
+    if (!candidate.ok || !RadiusOk(candidate.circle, options)) continue;
+    int inliers = 0;
+    const double cost = MsacCost(points, candidate.circle, options.inlier_distance, &inliers);
+    if (!(cost < best_cost)) continue;  // (a NaN cost is no better either)
+    best_cost = cost;
+    best = candidate.circle;
+    have_best = true;
+    const double w = static_cast<double>(inliers) / n;
+    const double w3 = w * w * w;
+    if (w3 > kCertainW3) {
+      needed = it + 1;
+    } else if (w3 > kNegligibleW3) {
+      needed =
+          std::min(options.max_iterations,
+                   static_cast<int>(std::ceil(std::log(kMissProbability) / std::log(1.0 - w3))));
+    }
+  }
+  return have_best;
+}
+
+// Refines `best` on its inliers within `band`, kRefinePasses times; false when fewer than three
+// inliers remain.
+bool RefineOnInliers(std::span<const Eigen::Vector2d> points, double band, Circle& best,
+                     std::vector<uint8_t>& mask, std::vector<Eigen::Vector2d>& inlier_points) {
+  for (int pass = 0; pass < kRefinePasses; ++pass) {
+    if (MarkInliers(points, best, band, mask, inlier_points) < 3) return false;
+    best = RefineCircleGeometric(inlier_points, best, kRefineIterations).circle;
+  }
+  return true;
+}
+
+}  // namespace
+
 CircleFitResult FitCircleRobust(std::span<const Eigen::Vector2d> points,
                                 const CircleRansacOptions& options, std::mt19937& rng) {
   CircleFitResult result;
   const int n = static_cast<int>(points.size());
   if (n < std::max(3, options.min_points)) return result;
   const double t = options.inlier_distance;
-  auto radius_ok = [&](const Circle& c) {
-    return c.radius >= options.min_radius && c.radius <= options.max_radius;
-  };
+  Circle best;
+  if (!CleanFit(points, options, best)) {
+    result.used_ransac = true;
+    if (!RansacFit(points, options, rng, best)) return result;
+  }
   std::vector<Eigen::Vector2d> inlier_points;
   inlier_points.reserve(points.size());
-
-  // Clean case first: one direct fit, no sampling.
-  Circle best;
-  bool have_best = false;
-  const KasaResult direct = FitCircleKasa(points);
-  if (direct.ok) {
-    const GeometricFitResult refined = RefineCircleGeometric(points, direct.circle, 10);
-    int inliers = 0;
-    MsacCost(points, refined.circle, t, &inliers);
-    if (radius_ok(refined.circle) && inliers >= options.clean_inlier_ratio * n) {
-      best = refined.circle;
-      have_best = true;
-    }
-  }
-  if (!have_best) {
-    result.used_ransac = true;
-    std::uniform_int_distribution<int> pick(0, n - 1);
-    double best_cost = std::numeric_limits<double>::max();
-    int needed = options.max_iterations;
-    for (int it = 0; it < needed; ++it) {
-      const int i = pick(rng);
-      int j = pick(rng);
-      int k = pick(rng);
-      if (i == j || j == k || i == k) continue;
-      const KasaResult candidate = CircleFromThreePoints(points[i], points[j], points[k]);
-      if (!candidate.ok || !radius_ok(candidate.circle)) continue;
-      int inliers = 0;
-      const double cost = MsacCost(points, candidate.circle, t, &inliers);
-      if (cost < best_cost) {
-        best_cost = cost;
-        best = candidate.circle;
-        have_best = true;
-        // Adaptive stop (99% confidence of one all-inlier sample).
-        const double w = static_cast<double>(inliers) / n;
-        const double w3 = w * w * w;
-        if (w3 > 0.999) {
-          needed = it + 1;
-        } else if (w3 > 1e-6) {
-          needed = std::min(options.max_iterations,
-                            static_cast<int>(std::ceil(std::log(0.01) / std::log(1.0 - w3))));
-        }
-      }
-    }
-    if (!have_best) return result;
-  }
-  // Refine on the inliers twice: the second pass picks up points the first circle just missed.
-  for (int pass = 0; pass < 2; ++pass) {
-    if (MarkInliers(points, best, t, result.inlier_mask, inlier_points) < 3) return result;
-    best = RefineCircleGeometric(inlier_points, best, 10).circle;
-  }
+  if (!RefineOnInliers(points, t, best, result.inlier_mask, inlier_points)) return result;
   const double band = AdaptiveBand(points, best, t, options.max_band_factor);
-  if (band > t) {
-    for (int pass = 0; pass < 2; ++pass) {
-      if (MarkInliers(points, best, band, result.inlier_mask, inlier_points) < 3) return result;
-      best = RefineCircleGeometric(inlier_points, best, 10).circle;
-    }
+  if (band > t && !RefineOnInliers(points, band, best, result.inlier_mask, inlier_points)) {
+    return result;
   }
   result.band = band;
   result.inliers = MarkInliers(points, best, band, result.inlier_mask, inlier_points);
-  if (result.inliers < options.min_points || !radius_ok(best)) return result;
+  if (result.inliers < options.min_points || !RadiusOk(best, options)) return result;
   double sum2 = 0;
   for (const Eigen::Vector2d& p : inlier_points) {
     const double e = (p - best.center).norm() - best.radius;

@@ -159,19 +159,21 @@ void CylinderFitOptions::Check() const {
   require(max_slope > 0, "max_slope must be > 0");
 }
 
-CylinderFitResult FitCylinder(std::span<const Eigen::Vector3d> points, const Cylinder& initial,
-                              const CylinderFitOptions& options, const RadiusPrior& prior,
-                              std::span<const TangentRay> tangent_rays) {
-  options.Check();
-  CylinderFitResult result;
-  if (points.size() < 6 || !(initial.radius > 0) || !(initial.direction.z() > 0)) return result;
-  const double z_ref = initial.point.z();
-  Params q;
-  q << initial.point.x(), initial.point.y(), initial.direction.x() / initial.direction.z(),
-      initial.direction.y() / initial.direction.z(), initial.radius;
-  std::vector<double> weights(points.size(), 1.0), residuals(points.size());
+namespace {
+
+constexpr double kMadToSigma = 1.4826;  // normal sigma per median absolute residual
+constexpr double kInlierSigmas = 2.5;   // residuals within this many sigma count into the rms
+constexpr double kParams = 5.0;         // x, y, two slopes, radius: degrees of freedom spent
+
+// Iteratively reweighted least squares: per round, the residuals' robust scale (sigma, at least
+// huber_scale), the weights of points and tangent rays from it (Huber in the first round with
+// huber_first, then the robust weight), and a minimisation with those weights. Leaves the last
+// round's residuals and weights in `residuals` and `weights`; returns sigma.
+double Reweight(std::span<const Eigen::Vector3d> points, double z_ref, const RadiusPrior& prior,
+                std::span<const TangentRay> tangent_rays, const CylinderFitOptions& options,
+                Params& q, std::vector<double>& weights, std::vector<double>& residuals,
+                Tangents& tangents) {
   double sigma = options.huber_scale;
-  Tangents tangents{tangent_rays, std::vector<double>(tangent_rays.size(), 1.0)};
   for (int round = 0; round <= options.reweighting_rounds; ++round) {
     const AxisFrame frame(q, z_ref);
     for (size_t i = 0; i < points.size(); ++i) {
@@ -179,7 +181,7 @@ CylinderFitResult FitCylinder(std::span<const Eigen::Vector3d> points, const Cyl
     }
     std::vector<double> sorted = residuals;
     std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-    sigma = std::max(options.huber_scale, 1.4826 * sorted[sorted.size() / 2]);
+    sigma = std::max(options.huber_scale, kMadToSigma * sorted[sorted.size() / 2]);
     if (round == options.reweighting_rounds) break;
     const bool huber = round == 0 && options.huber_first;
     for (size_t i = 0; i < points.size(); ++i) {
@@ -192,29 +194,54 @@ CylinderFitResult FitCylinder(std::span<const Eigen::Vector3d> points, const Cyl
     }
     q = Minimise(points, weights, q, z_ref, prior, tangents, sigma, options.max_iterations);
   }
-  if (!q.allFinite() || !(q(4) > 0) || Eigen::Vector2d(q(2), q(3)).norm() > options.max_slope) {
-    return result;
-  }
-  double sum2 = 0;
-  for (double e : residuals) {
-    if (e > 2.5 * sigma) continue;
-    sum2 += e * e;
-    ++result.inliers;
-  }
-  result.rms = result.inliers ? std::sqrt(sum2 / result.inliers) : 0;
-  // Covariance sigma^2 (J^T W J)^-1 at the solution, sigma^2 from the weighted residuals; of the
-  // measurements alone (points and tangent rays), without the radius prior: how well the data
-  // show the radius. (A short flat arc held up by the prior has a radius the data do not know.)
+  return sigma;
+}
+
+// Standard error of the radius: covariance sigma^2 (J^T W J)^-1 at the solution, sigma^2 from the
+// weighted residuals; of the measurements alone (points and tangent rays), without the radius
+// prior: how well the data show the radius. (A short flat arc held up by the prior has a radius
+// the data do not know.)
+double RadiusSd(std::span<const Eigen::Vector3d> points, const std::vector<double>& weights,
+                const Params& q, double z_ref, const Tangents& tangents, double sigma) {
   Eigen::Matrix<double, 5, 5> jtj;
   Params jte;
   const double weighted2 =
       Cost(points, weights, q, z_ref, RadiusPrior{}, tangents, sigma, &jtj, &jte);
   double weight_sum = 0;
   for (double w : weights) weight_sum += w;
-  const double sigma2 = weighted2 / std::max(1.0, weight_sum - 5.0);
+  const double sigma2 = weighted2 / std::max(1.0, weight_sum - kParams);
   const Eigen::Matrix<double, 5, 5> covariance =
       sigma2 * jtj.ldlt().solve(Eigen::Matrix<double, 5, 5>::Identity());
-  result.radius_sd = std::sqrt(std::max(0.0, covariance(4, 4)));
+  return std::sqrt(std::max(0.0, covariance(4, 4)));
+}
+
+}  // namespace
+
+CylinderFitResult FitCylinder(std::span<const Eigen::Vector3d> points, const Cylinder& initial,
+                              const CylinderFitOptions& options, const RadiusPrior& prior,
+                              std::span<const TangentRay> tangent_rays) {
+  options.Check();
+  CylinderFitResult result;
+  if (points.size() < 6 || !(initial.radius > 0) || !(initial.direction.z() > 0)) return result;
+  const double z_ref = initial.point.z();
+  Params q;
+  q << initial.point.x(), initial.point.y(), initial.direction.x() / initial.direction.z(),
+      initial.direction.y() / initial.direction.z(), initial.radius;
+  std::vector<double> weights(points.size(), 1.0), residuals(points.size());
+  Tangents tangents{tangent_rays, std::vector<double>(tangent_rays.size(), 1.0)};
+  const double sigma =
+      Reweight(points, z_ref, prior, tangent_rays, options, q, weights, residuals, tangents);
+  if (!q.allFinite() || !(q(4) > 0) || Eigen::Vector2d(q(2), q(3)).norm() > options.max_slope) {
+    return result;
+  }
+  double sum2 = 0;
+  for (double e : residuals) {
+    if (e > kInlierSigmas * sigma) continue;
+    sum2 += e * e;
+    ++result.inliers;
+  }
+  result.rms = result.inliers ? std::sqrt(sum2 / result.inliers) : 0;
+  result.radius_sd = RadiusSd(points, weights, q, z_ref, tangents, sigma);
   result.cylinder.point = Eigen::Vector3d(q(0), q(1), z_ref);
   result.cylinder.direction = Eigen::Vector3d(q(2), q(3), 1.0).normalized();
   result.cylinder.radius = q(4);

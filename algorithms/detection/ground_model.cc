@@ -291,136 +291,102 @@ float CentreHeight(const SampleSums& sums, const Grid& grid, int ix, int iy, int
 
 }  // namespace
 
-void GroundOptions::Check() const {
-  auto require = [](bool ok, const char* what) {
-    if (!ok) throw std::invalid_argument(std::string("GroundOptions: ") + what);
-  };
-  require(cell_size > 0, "cell_size must be > 0");
-  require(candidate_height > 0, "candidate_height must be > 0");
-  require(subcell_size > 0 && subcell_size <= cell_size, "need 0 < subcell_size <= cell_size");
-  require(max_subcell_extent > 0, "max_subcell_extent must be > 0");
-  require(min_cell_points >= 1, "min_cell_points must be >= 1");
-  require(min_ground_share >= 0 && min_ground_share <= 1, "min_ground_share must be in [0, 1]");
-  require(max_step >= 0 && max_slope >= 0, "max_step and max_slope must be >= 0");
-  require(min_ground_cells >= 1, "min_ground_cells must be >= 1");
-  require(fill_radius >= 1, "fill_radius must be >= 1");
-  require(max_grid_cells >= 1, "max_grid_cells must be >= 1");
-}
+namespace {
 
-GroundModel::GroundModel(double min_x, double min_y, double cell, int nx, int ny,
-                         std::vector<float> heights)
-    : min_x_(min_x), min_y_(min_y), cell_(cell), nx_(nx), ny_(ny), heights_(std::move(heights)) {}
+// The points sorted by pillar (a counting sort): pillar c holds order[start[c] .. start[c + 1]).
+struct PillarIndex {
+  std::vector<uint32_t> start;    // per pillar, plus one past the end
+  std::vector<uint32_t> cell_of;  // per point: its pillar
+  std::vector<uint32_t> order;    // point indices, pillar by pillar
+  bool Occupied(size_t c) const { return start[c + 1] > start[c]; }
+};
 
-double GroundModel::Height(double x, double y) const {
-  if (heights_.empty()) return kUnknown;
-  const double fx = (x - min_x_) / cell_ - 0.5, fy = (y - min_y_) / cell_ - 0.5;
-  const int ix = static_cast<int>(std::floor(fx)), iy = static_cast<int>(std::floor(fy));
-  const double tx = fx - ix, ty = fy - iy;
-  // Inside the grid with all four corners known (most points): plain bilinear interpolation.
-  if (ix >= 0 && iy >= 0 && ix + 1 < nx_ && iy + 1 < ny_) {
-    const float* row = heights_.data() + static_cast<size_t>(iy) * nx_ + ix;
-    const float h00 = row[0], h10 = row[1], h01 = row[nx_], h11 = row[nx_ + 1];
-    if (!std::isnan(h00 + h10 + h01 + h11)) {
-      return (1 - ty) * ((1 - tx) * h00 + tx * h10) + ty * ((1 - tx) * h01 + tx * h11);
-    }
-  }
-  double sum = 0, weight = 0;
-  for (int dy = 0; dy <= 1; ++dy) {
-    for (int dx = 0; dx <= 1; ++dx) {
-      const int jx = ix + dx, jy = iy + dy;
-      if (jx < 0 || jy < 0 || jx >= nx_ || jy >= ny_) continue;
-      const float h = heights_[static_cast<size_t>(jy) * nx_ + jx];
-      if (std::isnan(h)) continue;
-      const double w = (dx ? tx : 1 - tx) * (dy ? ty : 1 - ty) + 1e-9;
-      sum += w * h;
-      weight += w;
-    }
-  }
-  return weight > 0 ? sum / weight : kUnknown;
-}
-
-GroundSegmentation SegmentGround(std::span<const Eigen::Vector3f> points,
-                                 const GroundOptions& options) {
-  options.Check();
-  GroundSegmentation result;
-  result.height.assign(points.size(), kNaNf);
-  result.is_ground.assign(points.size(), 0);
-  if (points.empty()) return result;
-  const Grid grid = MakeGrid(points, options);
+PillarIndex SortByPillar(std::span<const Eigen::Vector3f> points, const Grid& grid) {
   const size_t cells = static_cast<size_t>(grid.nx) * grid.ny;
-
-  // Counting sort of the points by pillar.
-  std::vector<uint32_t> start(cells + 1, 0);
-  std::vector<uint32_t> cell_of(points.size());
+  PillarIndex index{std::vector<uint32_t>(cells + 1, 0), std::vector<uint32_t>(points.size()),
+                    std::vector<uint32_t>(points.size())};
   for (size_t i = 0; i < points.size(); ++i) {
-    cell_of[i] = grid.Cell(points[i].x(), points[i].y());
-    ++start[cell_of[i] + 1];
+    index.cell_of[i] = grid.Cell(points[i].x(), points[i].y());
+    ++index.start[index.cell_of[i] + 1];
   }
-  for (size_t c = 0; c < cells; ++c) start[c + 1] += start[c];
-  std::vector<uint32_t> order(points.size());
-  {
-    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-    for (size_t i = 0; i < points.size(); ++i) order[fill[cell_of[i]]++] = i;
-  }
+  for (size_t c = 0; c < cells; ++c) index.start[c + 1] += index.start[c];
+  std::vector<uint32_t> fill(index.start.begin(), index.start.end() - 1);
+  for (size_t i = 0; i < points.size(); ++i) index.order[fill[index.cell_of[i]]++] = i;
+  return index;
+}
 
+// One ground sample per pillar of at least min_cell_points points, then the samples rejected
+// above their neighbourhood (and, from the origin, above free beams); returns the samples and
+// sets the count of ground cells.
+std::vector<Sample> GroundSamples(std::span<const Eigen::Vector3f> points, const PillarIndex& index,
+                                  const Grid& grid, const GroundOptions& options,
+                                  int* ground_cells) {
+  const size_t cells = static_cast<size_t>(grid.nx) * grid.ny;
+  const std::vector<uint32_t>& start = index.start;
   std::vector<Sample> samples(cells);
   for (int iy = 0; iy < grid.ny; ++iy) {
     for (int ix = 0; ix < grid.nx; ++ix) {
       const size_t c = static_cast<size_t>(iy) * grid.nx + ix;
       if (start[c + 1] - start[c] < static_cast<uint32_t>(options.min_cell_points)) continue;
-      const std::span<const uint32_t> members(order.data() + start[c], start[c + 1] - start[c]);
+      const std::span<const uint32_t> members(index.order.data() + start[c],
+                                              start[c + 1] - start[c]);
       samples[c] = PillarSample(points, members, grid, ix, iy, options);
     }
   }
   std::vector<Eigen::Vector3f> lowest(
       cells, Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity()));
   for (size_t i = 0; i < points.size(); ++i) {
-    if (points[i].z() < lowest[cell_of[i]].z()) lowest[cell_of[i]] = points[i];
+    if (points[i].z() < lowest[index.cell_of[i]].z()) lowest[index.cell_of[i]] = points[i];
   }
-  result.ground_cells = RejectHighSamples(samples, lowest, grid, options);
-  if (options.sensor_at_origin) {
-    result.ground_cells = RejectSamplesAboveFreeBeams(samples, points, grid);
-  }
-  result.ground_known = result.ground_cells >= options.min_ground_cells;
+  *ground_cells = RejectHighSamples(samples, lowest, grid, options);
+  if (options.sensor_at_origin) *ground_cells = RejectSamplesAboveFreeBeams(samples, points, grid);
+  return samples;
+}
 
-  if (!result.ground_known) {
-    float lowest_z = std::numeric_limits<float>::max();
-    for (const Eigen::Vector3f& p : points) lowest_z = std::min(lowest_z, p.z());
-    result.reference_z = lowest_z;
-    for (size_t i = 0; i < points.size(); ++i) result.height[i] = points[i].z() - lowest_z;
-    return result;
+// True when the pillar or one of its eight neighbours holds points (bilinear interpolation
+// reaches one pillar out).
+bool NearPoints(const PillarIndex& index, const Grid& grid, int ix, int iy) {
+  for (int jy = std::max(0, iy - 1); jy <= std::min(grid.ny - 1, iy + 1); ++jy) {
+    for (int jx = std::max(0, ix - 1); jx <= std::min(grid.nx - 1, ix + 1); ++jx) {
+      if (index.Occupied(static_cast<size_t>(jy) * grid.nx + jx)) return true;
+    }
   }
+  return false;
+}
 
-  // Heights at the centres of occupied pillars and their neighbours (bilinear interpolation
-  // reaches one pillar out).
-  std::vector<float> heights(cells, kNaNf);
+// Heights at the centres of the pillars near points (NaN elsewhere); from the origin, a pillar
+// without samples near enough takes the global plane's height.
+std::vector<float> CentreHeights(const std::vector<Sample>& samples, const PillarIndex& index,
+                                 const Grid& grid, const GroundOptions& options) {
+  std::vector<float> heights(static_cast<size_t>(grid.nx) * grid.ny, kNaNf);
   const SampleSums sums(samples, grid);
   Eigen::Vector3d plane;
   const bool with_plane = options.sensor_at_origin && GlobalPlane(samples, &plane);
   for (int iy = 0; iy < grid.ny; ++iy) {
     for (int ix = 0; ix < grid.nx; ++ix) {
-      bool needed = false;
-      for (int jy = std::max(0, iy - 1); jy <= std::min(grid.ny - 1, iy + 1) && !needed; ++jy) {
-        for (int jx = std::max(0, ix - 1); jx <= std::min(grid.nx - 1, ix + 1); ++jx) {
-          const size_t c = static_cast<size_t>(jy) * grid.nx + jx;
-          if (start[c + 1] > start[c]) {
-            needed = true;
-            break;
-          }
-        }
-      }
-      if (needed) {
-        float& h = heights[static_cast<size_t>(iy) * grid.nx + ix];
-        h = CentreHeight(sums, grid, ix, iy, options.fill_radius);
-        if (std::isnan(h) && with_plane) {
-          const Eigen::Vector2d c = grid.Centre(ix, iy);
-          h = static_cast<float>(plane(0) + plane(1) * c.x() + plane(2) * c.y());
-        }
+      if (!NearPoints(index, grid, ix, iy)) continue;
+      float& h = heights[static_cast<size_t>(iy) * grid.nx + ix];
+      h = CentreHeight(sums, grid, ix, iy, options.fill_radius);
+      if (std::isnan(h) && with_plane) {
+        const Eigen::Vector2d c = grid.Centre(ix, iy);
+        h = static_cast<float>(plane(0) + plane(1) * c.x() + plane(2) * c.y());
       }
     }
   }
-  result.model =
-      GroundModel(grid.min_x, grid.min_y, grid.cell, grid.nx, grid.ny, std::move(heights));
+  return heights;
+}
+
+// Heights above the lowest point, for a scan without enough ground.
+void HeightsAboveLowest(std::span<const Eigen::Vector3f> points, GroundSegmentation& result) {
+  float lowest_z = std::numeric_limits<float>::max();
+  for (const Eigen::Vector3f& p : points) lowest_z = std::min(lowest_z, p.z());
+  result.reference_z = lowest_z;
+  for (size_t i = 0; i < points.size(); ++i) result.height[i] = points[i].z() - lowest_z;
+}
+
+// Heights above the ground model, and the points below label_height labelled ground.
+void LabelPoints(std::span<const Eigen::Vector3f> points, const GroundOptions& options,
+                 GroundSegmentation& result) {
   for (size_t i = 0; i < points.size(); ++i) {
     const double ground = result.model.Height(points[i].x(), points[i].y());
     if (std::isnan(ground)) continue;
@@ -431,6 +397,29 @@ GroundSegmentation SegmentGround(std::span<const Eigen::Vector3f> points,
       ++result.ground_points;
     }
   }
+}
+
+}  // namespace
+
+GroundSegmentation SegmentGround(std::span<const Eigen::Vector3f> points,
+                                 const GroundOptions& options) {
+  options.Check();
+  GroundSegmentation result;
+  result.height.assign(points.size(), kNaNf);
+  result.is_ground.assign(points.size(), 0);
+  if (points.empty()) return result;
+  const Grid grid = MakeGrid(points, options);
+  const PillarIndex index = SortByPillar(points, grid);
+  const std::vector<Sample> samples =
+      GroundSamples(points, index, grid, options, &result.ground_cells);
+  result.ground_known = result.ground_cells >= options.min_ground_cells;
+  if (!result.ground_known) {
+    HeightsAboveLowest(points, result);
+    return result;
+  }
+  result.model = GroundModel(grid.min_x, grid.min_y, grid.cell, grid.nx, grid.ny,
+                             CentreHeights(samples, index, grid, options));
+  LabelPoints(points, options, result);
   return result;
 }
 

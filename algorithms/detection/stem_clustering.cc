@@ -53,14 +53,16 @@ std::vector<uint32_t> ExtractStemLayer(std::span<const float> heights, bool grou
   return layer;
 }
 
-StemClusters ClusterStems(std::span<const Eigen::Vector3f> points,
-                          std::span<const uint32_t> indices, const StemClusterOptions& options) {
-  options.Check();
-  StemClusters result;
-  if (indices.empty()) return result;
-  const double side = options.eps * options.cell_fraction;
-  const int reach = static_cast<int>(std::ceil(options.eps / side));
-  std::vector<std::pair<uint64_t, uint32_t>> entries(indices.size());
+namespace {
+
+using Entry = std::pair<uint64_t, uint32_t>;  // cell key, point index
+
+// The points in cells of side eps * cell_fraction: `entries` sorted by cell, one Cell per
+// occupied cell (in key order) with its range of entries and its points' mean.
+std::vector<Cell> GridCells(std::span<const Eigen::Vector3f> points,
+                            std::span<const uint32_t> indices, double side,
+                            std::vector<Entry>& entries) {
+  entries.resize(indices.size());
   for (size_t k = 0; k < indices.size(); ++k) {
     const Eigen::Vector3f& p = points[indices[k]];
     entries[k] = {Key(static_cast<int64_t>(std::floor(p.x() / side)),
@@ -83,12 +85,21 @@ StemClusters ClusterStems(std::span<const Eigen::Vector3f> points,
     cell.mean /= static_cast<float>(cell.end - cell.begin);
     cells.push_back(cell);
   }
-  result.cells = cells.size();
+  return cells;
+}
 
-  // Neighbour lists (cells within eps, by their means), as one flat array.
+// Neighbour lists (cells within eps, by their means) as one flat array, and which cells are core
+// cells (min_points points within eps).
+struct Neighbours {
+  std::vector<uint32_t> start;  // per cell, plus one past the end: its range in `list`
+  std::vector<uint32_t> list;
+  std::vector<uint8_t> core;
+};
+
+Neighbours FindNeighbours(const std::vector<Cell>& cells, int reach,
+                          const StemClusterOptions& options) {
   const float eps2 = static_cast<float>(options.eps * options.eps);
-  std::vector<uint32_t> neighbour_start(cells.size() + 1, 0), neighbours;
-  std::vector<uint8_t> core(cells.size(), 0);
+  Neighbours n{std::vector<uint32_t>(cells.size() + 1, 0), {}, std::vector<uint8_t>(cells.size())};
   for (size_t c = 0; c < cells.size(); ++c) {
     uint32_t count = 0;
     for (int dy = -reach; dy <= reach; ++dy) {
@@ -99,33 +110,55 @@ StemClusters ClusterStems(std::span<const Eigen::Vector3f> points,
       for (; it != cells.end() && it->key <= last; ++it) {
         if ((it->mean - cells[c].mean).squaredNorm() > eps2) continue;
         count += it->end - it->begin;
-        neighbours.push_back(static_cast<uint32_t>(it - cells.begin()));
+        n.list.push_back(static_cast<uint32_t>(it - cells.begin()));
       }
     }
-    neighbour_start[c + 1] = static_cast<uint32_t>(neighbours.size());
-    core[c] = count >= static_cast<uint32_t>(options.min_points);
+    n.start[c + 1] = static_cast<uint32_t>(n.list.size());
+    n.core[c] = count >= static_cast<uint32_t>(options.min_points);
   }
+  return n;
+}
 
-  // Connected components of core cells; border cells join the first cluster that reaches them.
-  std::vector<int32_t> label(cells.size(), -1);
+// Connected components of core cells; border cells join the first cluster that reaches them.
+// Returns the label per cell (-1: noise) and sets the cluster count.
+std::vector<int32_t> LabelComponents(const Neighbours& n, int32_t* clusters) {
+  std::vector<int32_t> label(n.core.size(), -1);
   std::vector<uint32_t> stack;
   int32_t next = 0;
-  for (size_t seed = 0; seed < cells.size(); ++seed) {
-    if (!core[seed] || label[seed] >= 0) continue;
+  for (size_t seed = 0; seed < n.core.size(); ++seed) {
+    if (!n.core[seed] || label[seed] >= 0) continue;
     label[seed] = next;
     stack.assign(1, static_cast<uint32_t>(seed));
     while (!stack.empty()) {
       const uint32_t c = stack.back();
       stack.pop_back();
-      for (uint32_t n = neighbour_start[c]; n < neighbour_start[c + 1]; ++n) {
-        const uint32_t other = neighbours[n];
+      for (uint32_t k = n.start[c]; k < n.start[c + 1]; ++k) {
+        const uint32_t other = n.list[k];
         if (label[other] >= 0) continue;
         label[other] = next;
-        if (core[other]) stack.push_back(other);
+        if (n.core[other]) stack.push_back(other);
       }
     }
     ++next;
   }
+  *clusters = next;
+  return label;
+}
+
+}  // namespace
+
+StemClusters ClusterStems(std::span<const Eigen::Vector3f> points,
+                          std::span<const uint32_t> indices, const StemClusterOptions& options) {
+  options.Check();
+  StemClusters result;
+  if (indices.empty()) return result;
+  const double side = options.eps * options.cell_fraction;
+  const int reach = static_cast<int>(std::ceil(options.eps / side));
+  std::vector<Entry> entries;
+  const std::vector<Cell> cells = GridCells(points, indices, side, entries);
+  result.cells = cells.size();
+  int32_t next = 0;
+  const std::vector<int32_t> label = LabelComponents(FindNeighbours(cells, reach, options), &next);
   std::vector<std::vector<uint32_t>> clusters(next);
   for (size_t c = 0; c < cells.size(); ++c) {
     if (label[c] < 0) {

@@ -59,8 +59,14 @@ double SilhouetteWidth(std::span<const Eigen::Vector3d> points, const Cylinder& 
   return widths.empty() ? 0 : Median(widths);
 }
 
-// The radius a single viewpoint's silhouette suggests (see silhouette_bias_factor): a firm lower
-// bound (the sensor saw at least this much of the stem), a loose upper one (occlusion).
+// The radius a single viewpoint's silhouette suggests (sensor_at_origin, no ScanGrid): a firm
+// lower bound (the sensor saw at least this much of the stem), a loose upper one (occlusion). The
+// lateral extent of a stem's points seen from the origin is its width less one angular_step (the
+// columns that hit it span one column less), plus the beam footprint's edge returns
+// (silhouette_bias_factor * range * beam_divergence; 1.33 calibrated on simulated Ouster scans).
+// The prior holds the cylinder fit of short, flat arcs to that width (cylinder_fit.h,
+// RadiusPrior). An unknown angular_step (0; DetectTrunks takes 2 pi / columns of an organised
+// cloud) is taken as kDefaultAngularStep.
 RadiusPrior SilhouettePrior(double silhouette, double range, const StemModelOptions& options) {
   RadiusPrior prior;
   const double step =
@@ -119,59 +125,55 @@ double BeamFill(std::span<const Eigen::Vector3d> points, const Cylinder& cylinde
   return crossed > 0 ? std::min(1.0, returned / crossed) : 0;
 }
 
-}  // namespace
+// After each fit the gather band is the fit's rms times kReachRms, at least kMinReach (m), with no
+// lean: the cylinder now follows the stem's tilt.
+constexpr double kReachRms = 2.5;
+constexpr double kMinReach = 0.02;
 
-GatheredStem GatherStem(std::span<const Eigen::Vector3d> cluster, std::span<const uint32_t> beams,
-                        const ScanGrid& grid, const Cylinder& seed, double reach, double lean,
-                        int fits, const StemModelOptions& options) {
-  GatheredStem stem;
-  Cylinder cylinder = seed;
-  const bool with_grid = !grid.empty() && beams.size() == cluster.size();
-  auto gather = [&] {
-    stem.points.clear();
-    stem.beams.clear();
-    for (size_t i = 0; i < cluster.size(); ++i) {
-      const Eigen::Vector3d& p = cluster[i];
-      const double d = (p - cylinder.point).cross(cylinder.direction).norm();
-      if (std::abs(d - cylinder.radius) < reach + lean * std::abs(p.z() - cylinder.point.z())) {
-        stem.points.push_back(p);
-        if (with_grid) stem.beams.push_back(beams[i]);
-      }
+// The stem's points within `reach` + `lean` * |z - axis point's z| of the cylinder's surface (and
+// their beams, with a grid).
+void Gather(std::span<const Eigen::Vector3d> cluster, std::span<const uint32_t> beams,
+            bool with_grid, const Cylinder& cylinder, double reach, double lean,
+            GatheredStem& stem) {
+  stem.points.clear();
+  stem.beams.clear();
+  for (size_t i = 0; i < cluster.size(); ++i) {
+    const Eigen::Vector3d& p = cluster[i];
+    const double d = (p - cylinder.point).cross(cylinder.direction).norm();
+    if (std::abs(d - cylinder.radius) < reach + lean * std::abs(p.z() - cylinder.point.z())) {
+      stem.points.push_back(p);
+      if (with_grid) stem.beams.push_back(beams[i]);
     }
-  };
-  std::vector<TangentRay> tangents;
-  for (int fit = 0; fit < fits; ++fit) {
-    gather();
-    RadiusPrior prior;
-    tangents.clear();
-    const double range = cylinder.point.head<2>().norm();
-    if (with_grid) {
-      stem.edges = EdgeSilhouetteOf(stem.points, stem.beams, cylinder, grid, options);
-      const EdgeSilhouette& edges = stem.edges;
-      stem.silhouette = edges.full_rings > 0 ? edges.width : edges.lower;
-      if (options.sensor_at_origin && options.silhouette_prior) {
-        tangents = edges.tangents;
-        if (edges.lower > 0) prior = EdgePrior(edges.lower, range, grid.columns);
-      }
-    } else {
-      stem.silhouette = SilhouetteWidth(stem.points, cylinder);
-      if (options.sensor_at_origin && options.silhouette_prior && stem.silhouette > 0) {
-        prior = SilhouettePrior(stem.silhouette, range, options);
-      }
-    }
-    std::span<const Eigen::Vector3d> fit_points(stem.points);
-    std::vector<Eigen::Vector3d> subset;
-    if (stem.points.size() > kMaxFitPoints) {
-      subset = EvenSubset(stem.points, kMaxFitPoints);
-      fit_points = subset;
-    }
-    stem.fit = FitCylinder(fit_points, cylinder, {}, prior, tangents);
-    if (!stem.fit.success) return stem;
-    cylinder = stem.fit.cylinder;
-    reach = std::max(0.02, 2.5 * stem.fit.rms);
-    lean = 0;
   }
-  gather();  // the points near the final cylinder
+}
+
+// What the silhouette tells the fit: with a grid its true edges as tangent rays and the visible
+// width as a lower bound on the radius, without one the points' width seen from the origin as a
+// prior. Sets stem.silhouette (and stem.edges).
+RadiusPrior SilhouetteInputs(const Cylinder& cylinder, bool with_grid, const ScanGrid& grid,
+                             const StemModelOptions& options, GatheredStem& stem,
+                             std::vector<TangentRay>& tangents) {
+  RadiusPrior prior;
+  tangents.clear();
+  const double range = cylinder.point.head<2>().norm();
+  const bool informed = options.sensor_at_origin && options.silhouette_prior;
+  if (with_grid) {
+    stem.edges = EdgeSilhouetteOf(stem.points, stem.beams, cylinder, grid, options);
+    const EdgeSilhouette& edges = stem.edges;
+    stem.silhouette = edges.full_rings > 0 ? edges.width : edges.lower;
+    if (informed) {
+      tangents = edges.tangents;
+      if (edges.lower > 0) prior = EdgePrior(edges.lower, range, grid.columns);
+    }
+  } else {
+    stem.silhouette = SilhouetteWidth(stem.points, cylinder);
+    if (informed && stem.silhouette > 0) prior = SilhouettePrior(stem.silhouette, range, options);
+  }
+  return prior;
+}
+
+// The points' height range, arc coverage around the axis and beam fill.
+void Describe(const Cylinder& cylinder, const StemModelOptions& options, GatheredStem& stem) {
   const Eigen::Vector3d& a = cylinder.direction;
   const Eigen::Vector3d u = a.unitOrthogonal(), v = a.cross(u);
   std::vector<Eigen::Vector2d> projected;
@@ -186,6 +188,34 @@ GatheredStem GatherStem(std::span<const Eigen::Vector3d> cluster, std::span<cons
   if (options.sensor_at_origin && options.angular_step > 0) {
     stem.beam_fill = BeamFill(stem.points, cylinder, options.angular_step);
   }
+}
+
+}  // namespace
+
+GatheredStem GatherStem(std::span<const Eigen::Vector3d> cluster, std::span<const uint32_t> beams,
+                        const ScanGrid& grid, const Cylinder& seed, double reach, double lean,
+                        int fits, const StemModelOptions& options) {
+  GatheredStem stem;
+  Cylinder cylinder = seed;
+  const bool with_grid = !grid.empty() && beams.size() == cluster.size();
+  std::vector<TangentRay> tangents;
+  for (int fit = 0; fit < fits; ++fit) {
+    Gather(cluster, beams, with_grid, cylinder, reach, lean, stem);
+    const RadiusPrior prior = SilhouetteInputs(cylinder, with_grid, grid, options, stem, tangents);
+    std::span<const Eigen::Vector3d> fit_points(stem.points);
+    std::vector<Eigen::Vector3d> subset;
+    if (stem.points.size() > kMaxFitPoints) {
+      subset = EvenSubset(stem.points, kMaxFitPoints);
+      fit_points = subset;
+    }
+    stem.fit = FitCylinder(fit_points, cylinder, {}, prior, tangents);
+    if (!stem.fit.success) return stem;
+    cylinder = stem.fit.cylinder;
+    reach = std::max(kMinReach, kReachRms * stem.fit.rms);
+    lean = 0;
+  }
+  Gather(cluster, beams, with_grid, cylinder, reach, lean, stem);  // near the final cylinder
+  Describe(cylinder, options, stem);
   return stem;
 }
 

@@ -14,16 +14,21 @@ namespace forestmap::algorithms {
 namespace {
 
 using internal::Axis;
+using internal::ChainAxis;
 using internal::GatheredStem;
 using internal::Median;
 using internal::SliceCircle;
 
-// Score in [0, 1]: residual term 1 / (1 + (rms / 1.5 cm)^2), coverage term min(1, coverage /
-// 0.35) (a single view sees at most ~half a stem), slice term n / (n + 2).
+// Score in [0, 1]: residual term 1 / (1 + (rms / kScoreRms)^2), coverage term min(1, coverage /
+// kFullCoverage) (a single view sees at most ~half a stem), slice term n / (n + kHalfSlices).
+constexpr double kScoreRms = 0.015;     // m, rms that halves the residual term
+constexpr double kFullCoverage = 0.35;  // [0, 1], arc coverage of a full coverage term
+constexpr double kHalfSlices = 2.0;     // slices that give a slice term of one half
+
 double ScoreStem(double rms, double coverage, int slices) {
-  const double residual_term = 1.0 / (1.0 + (rms / 0.015) * (rms / 0.015));
-  const double coverage_term = std::min(1.0, coverage / 0.35);
-  const double slice_term = slices / (slices + 2.0);
+  const double residual_term = 1.0 / (1.0 + (rms / kScoreRms) * (rms / kScoreRms));
+  const double coverage_term = std::min(1.0, coverage / kFullCoverage);
+  const double slice_term = slices / (slices + kHalfSlices);
   return std::clamp(residual_term * coverage_term * slice_term, 0.0, 1.0);
 }
 
@@ -61,29 +66,14 @@ namespace {
 
 using Reject = StemRejection;
 
-// The chain's axis from its slice centres and the slices consistent with it. `sparse`: too few
-// consistent slices for a stem; the first circle only seeds a cylinder then (vertical axis).
-struct ChainAxis {
-  Axis axis;
-  std::vector<int> kept;
-  bool sparse = false;
-};
-
-ChainAxis AxisOfChain(const std::vector<SliceCircle>& circles, const std::vector<int>& chain,
-                      const StemModelOptions& options) {
-  ChainAxis c{internal::FitAxis(circles, chain, options.min_axis_span), chain, false};
-  if (static_cast<int>(chain.size()) >= options.min_slices) {
-    c.kept = internal::ConsistentSlices(circles, chain, c.axis, options);
-    if (c.kept.size() < chain.size() && !c.kept.empty()) {
-      c.axis = internal::FitAxis(circles, c.kept, options.min_axis_span);
-      c.kept = internal::ConsistentSlices(circles, chain, c.axis, options);
-    }
-  }
-  c.sparse = static_cast<int>(c.kept.size()) < options.min_slices ||
-             c.kept.size() < options.min_consistent_fraction * chain.size();
-  if (c.kept.empty()) c.kept.push_back(chain.front());
-  return c;
-}
+// Fixed-point steps of the tree-ground intersection (GroundPoint).
+constexpr int kGroundIterations = 6;
+// Weight share a slice circle's diameter keeps however little arc it covers.
+constexpr double kMinSampleCoverage = 0.05;
+// m beyond a found stem's surface within which a lone circle's centre is on that stem.
+constexpr double kFoundStemMargin = 0.1;
+// m beyond the larger stem's radius within which two breast-height points are one stem.
+constexpr double kDuplicateMargin = 0.05;
 
 // Tree-ground intersection: fixed-point iteration of "axis z == ground z under it"; without
 // ground under the stem, the axis point at `lowest_z` (ground_known false).
@@ -92,7 +82,7 @@ Eigen::Vector3d GroundPoint(const Axis& axis, const GroundModel& ground, double 
   const Eigen::Vector3d& a = axis.direction;
   *ground_known = ground.known();
   double t = 0;
-  for (int it = 0; it < 6 && *ground_known; ++it) {
+  for (int it = 0; it < kGroundIterations && *ground_known; ++it) {
     const Eigen::Vector3d p = axis.point + t * a;
     const double g = ground.Height(p.x(), p.y());
     *ground_known = IsKnown(g);
@@ -113,13 +103,23 @@ std::vector<TaperSample> SliceProfile(const std::vector<SliceCircle>& circles,
         (Eigen::Vector3d(c.circle.center.x(), c.circle.center.y(), c.z) - position).dot(a);
     // Horizontal slices of a tilted stem are ellipses whose minor axis is the true diameter.
     // A circle fitted to part of that ellipse lies between the axes: take their geometric mean.
-    samples.push_back(
-        {s, 2.0 * c.circle.radius * std::sqrt(a.z()), c.inliers * std::max(c.coverage, 0.05)});
+    samples.push_back({s, 2.0 * c.circle.radius * std::sqrt(a.z()),
+                       c.inliers * std::max(c.coverage, kMinSampleCoverage)});
   }
   return samples;
 }
 
-// Whether the organised scan measures the stem's DBH (StemModelOptions::min_edge_rings ff.).
+// Whether the organised scan measures the stem's DBH. A stem hidden at both silhouette edges in
+// every ring is a strip of unknown width, and a strip of a few columns fits a thin stem as well as
+// a wide one: with a ScanGrid the DBH is reported (DetectedTree::dbh) only for stems with at least
+// min_edge_rings rings whose both edges are true and that span at least min_edge_columns columns
+// (median over the rings; one column is a width known to +-100%), or whose rings span at least
+// min_visible_columns columns; else it is unknown (kUnknown; DetectedTrunk::raw_dbh keeps the
+// guess). A stem seen whole is nearest to the sensor in the middle of its silhouette; where most
+// rings (of 5 columns or more) are nearest off the middle by over a column plus 30% of the half
+// width, the silhouette spans more than one stem (two touching trunks): share > max_off_centre, DBH
+// unknown too. And the fit must know the radius: the standard error of the cylinder fit's radius
+// (points and tangent rays) at most max_radius_sd (1.25 cm: the DBH within 2.5 cm at one sigma).
 bool DbhMeasured(const GatheredStem& stem, const StemModelOptions& options) {
   if (stem.fit.radius_sd > options.max_radius_sd) return false;
   const internal::EdgeSilhouette& edges = stem.edges;
@@ -129,6 +129,133 @@ bool DbhMeasured(const GatheredStem& stem, const StemModelOptions& options) {
   return edges.columns >= options.min_visible_columns;
 }
 
+// The first gather around a chain's seed cylinder (GatherStem): points within kSeedReach +
+// kSeedReachPerRadius * r of its surface, the band widening by the lean per metre off the seed's
+// height. A sparse chain's axis is a vertical guess through one circle, so its band leans wide and
+// a second gather-and-fit round follows the tilt the first fit found; a chain of consistent slices
+// has a good axis and needs one round.
+constexpr double kSeedReach = 0.05;          // m around the seed cylinder's surface
+constexpr double kSeedReachPerRadius = 0.5;  // of the seed radius, added to kSeedReach
+constexpr double kSparseLean = 0.12;         // m per m off the seed's height (vertical guess)
+constexpr double kChainLean = 0.03;          // m per m off the seed's height (fitted chain axis)
+constexpr int kSparseFits = 2;               // gather-and-fit rounds for a sparse chain
+constexpr int kChainFits = 1;                // gather-and-fit rounds for a chain of slices
+
+// The stem's points gathered from the cluster around the chain's axis and median slice radius,
+// with one cylinder through them.
+GatheredStem GatherChainStem(const std::vector<SliceCircle>& circles, const ChainAxis& chain_axis,
+                             std::span<const Eigen::Vector3d> cluster,
+                             std::span<const uint32_t> beams, const ScanGrid& grid,
+                             const StemModelOptions& options) {
+  std::vector<double> radii;
+  for (int i : chain_axis.kept) radii.push_back(circles[i].circle.radius);
+  const double seed_radius = Median(radii);
+  const bool sparse = chain_axis.sparse;
+  const Axis& axis = chain_axis.axis;
+  return internal::GatherStem(
+      cluster, beams, grid, Cylinder{axis.point, axis.direction, seed_radius},
+      kSeedReach + kSeedReachPerRadius * seed_radius, sparse ? kSparseLean : kChainLean,
+      sparse ? kSparseFits : kChainFits, options);
+}
+
+// The lowest stem point seen: of the consistent slices' circles and of the gathered points.
+double LowestStemZ(const std::vector<SliceCircle>& circles, const std::vector<int>& kept,
+                   const GatheredStem& gathered) {
+  double lowest = std::numeric_limits<double>::max();
+  for (int i : kept) lowest = std::min(lowest, circles[i].min_z);
+  if (gathered.fit.success) lowest = std::min(lowest, gathered.z_lo);
+  return lowest;
+}
+
+// Fit quality and extent along the axis (s from `position`): of the slice circles, or of the
+// cylinder for a sparse stem.
+struct StemExtent {
+  std::vector<double> coverages;
+  double sum2 = 0;  // m^2, sum of the inliers' squared residuals
+  double s_lo = std::numeric_limits<double>::max(), s_hi = -s_lo;  // m along the axis
+  int points = 0;
+};
+
+StemExtent ExtentOf(const std::vector<SliceCircle>& circles, const std::vector<int>& kept,
+                    const GatheredStem* sparse_stem, const Eigen::Vector3d& position,
+                    const Eigen::Vector3d& a) {
+  StemExtent e;
+  for (int i : kept) {
+    const SliceCircle& c = circles[i];
+    const double s =
+        (Eigen::Vector3d(c.circle.center.x(), c.circle.center.y(), c.z) - position).dot(a);
+    e.s_lo = std::min(e.s_lo, s);
+    e.s_hi = std::max(e.s_hi, s);
+    e.coverages.push_back(c.coverage);
+    e.sum2 += c.rms * c.rms * c.inliers;
+    e.points += c.inliers;
+  }
+  if (sparse_stem != nullptr) {
+    const GatheredStem& gathered = *sparse_stem;
+    const Eigen::Vector3d& c = gathered.fit.cylinder.point;
+    e.s_lo = (Eigen::Vector3d(c.x(), c.y(), gathered.z_lo) - position).dot(a);
+    e.s_hi = (Eigen::Vector3d(c.x(), c.y(), gathered.z_hi) - position).dot(a);
+    e.coverages.assign(1, gathered.coverage);
+    e.sum2 = gathered.fit.rms * gathered.fit.rms * gathered.points.size();
+    e.points = static_cast<int>(gathered.points.size());
+  }
+  return e;
+}
+
+// The fit's residual, coverage, points and slices (`slices` 0: a sparse stem's, counted over
+// its extent).
+void FitQuality(const StemExtent& e, int slices, const StemModelOptions& options,
+                DetectedTrunk& trunk) {
+  trunk.residual = std::sqrt(e.sum2 / std::max(e.points, 1));
+  trunk.arc_coverage = Median(e.coverages);
+  trunk.points_used = e.points;
+  trunk.slices =
+      slices == 0 ? 1 + static_cast<int>((e.s_hi - e.s_lo) / options.slice_height) : slices;
+}
+
+// The silhouette diagnostics of the gathered stem.
+void CopySilhouette(const GatheredStem& gathered, DetectedTrunk& trunk) {
+  trunk.silhouette_width = gathered.silhouette;
+  trunk.silhouette_rings = gathered.edges.full_rings;
+  trunk.occluded_rings = gathered.edges.occluded_rings;
+  trunk.true_edges = gathered.edges.true_edges;
+  trunk.visible_columns = gathered.edges.columns;
+  trunk.off_centre = gathered.edges.off_centre;
+}
+
+// With the silhouette's tangent rays in the fit (a ScanGrid), the cylinder's radius is the
+// stem's, less the footprint's edge returns (edge_bias_factor), better than the points' mean
+// distance from the axis (the edge returns push the points out). It holds at the points' mean
+// height, which a drone above sees high on the layer; taper_prior carries it to dbh_height: the
+// lower stem's typical taper, about 1 cm of diameter per m (the simulator draws 0.6-1.4 cm/m); a
+// stem seen over a metre or two, from a few columns, does not show its own taper, and the radial
+// profile's does not hold it. Sets trunk.cylinder_height; returns the diameter at dbh_height.
+double GridDiameter(const GatheredStem& gathered, const Eigen::Vector3d& position,
+                    const Eigen::Vector3d& a, double dbh_height, const StemModelOptions& options,
+                    DetectedTrunk& trunk) {
+  double s_mean = 0;
+  for (const Eigen::Vector3d& p : gathered.points) s_mean += (p - position).dot(a);
+  s_mean /= static_cast<double>(std::max<size_t>(1, gathered.points.size()));
+  trunk.cylinder_height = s_mean;
+  return 2 * gathered.fit.cylinder.radius + options.taper_prior * (s_mean - dbh_height);
+}
+
+// The checks of a built stem (StemModelOptions: max_residual ff.), in order. The shape checks
+// reject crowns and shrubs reaching into the stem layer: they are wide and short (a stem is seen
+// over at least min_elongation times its DBH in height), and in a single view with a known
+// angular_step they let most beams through (a stem is solid: min_beam_fill of the beams across it
+// return from it).
+Reject CheckStem(const DetectedTrunk& trunk, double span, const StemModelOptions& options) {
+  const double dbh = trunk.tree.dbh;
+  if (trunk.residual > options.max_residual) return Reject::kResidual;
+  if (trunk.arc_coverage < options.min_arc_coverage) return Reject::kCoverage;
+  if (!(dbh >= options.min_dbh && dbh <= options.max_dbh)) return Reject::kDbh;
+  if (trunk.ground_known && span < options.min_elongation * dbh) return Reject::kShape;
+  if (trunk.beam_fill < options.min_beam_fill) return Reject::kShape;
+  if (trunk.tree.score < options.min_score) return Reject::kScore;
+  return Reject::kNone;
+}
+
 // Axis, ground point, DBH and checks for one chain of slice circles. The cylinder through the
 // stem's points of the whole cluster gives the axis and the diameters when it fits; a chain of
 // too few consistent slices is a stem only through such a cylinder.
@@ -136,17 +263,14 @@ Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>
                  std::span<const Eigen::Vector3d> cluster, std::span<const uint32_t> beams,
                  const ScanGrid& grid, const GroundModel& ground, const StemModelOptions& options,
                  DetectedTrunk& trunk) {
-  ChainAxis chain_axis = AxisOfChain(circles, chain, options);
+  ChainAxis chain_axis = internal::AxisOfChain(circles, chain, options);
   const bool sparse = chain_axis.sparse;
   const std::vector<int>& kept = chain_axis.kept;
   Axis& axis = chain_axis.axis;
-  std::vector<double> radii;
-  for (int i : kept) radii.push_back(circles[i].circle.radius);
-  const double seed_radius = Median(radii);
-  const GatheredStem gathered =
-      internal::GatherStem(cluster, beams, grid, Cylinder{axis.point, axis.direction, seed_radius},
-                           0.05 + 0.5 * seed_radius, sparse ? 0.12 : 0.03, sparse ? 2 : 1, options);
+  const GatheredStem gathered = GatherChainStem(circles, chain_axis, cluster, beams, grid, options);
   const bool fitted = gathered.fit.success;
+  // A chain of fewer than min_slices consistent slices is a stem only through a cylinder of
+  // min_cylinder_points points spanning min_axis_span.
   if (sparse &&
       (!fitted || static_cast<int>(gathered.points.size()) < options.min_cylinder_points ||
        gathered.z_hi - gathered.z_lo < options.min_axis_span)) {
@@ -157,45 +281,15 @@ Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>
     return Reject::kTilt;
   }
   const Eigen::Vector3d& a = axis.direction;
-  double lowest = std::numeric_limits<double>::max();
-  for (int i : kept) lowest = std::min(lowest, circles[i].min_z);
-  if (fitted) lowest = std::min(lowest, gathered.z_lo);
   bool ground_known = false;
-  const Eigen::Vector3d position = GroundPoint(axis, ground, lowest, &ground_known);
-
-  // Fit quality: of the slice circles, or of the cylinder for a sparse stem.
-  std::vector<double> coverages;
-  double sum2 = 0, s_lo = std::numeric_limits<double>::max(), s_hi = -s_lo;
-  int points = 0;
-  for (int i : kept) {
-    const SliceCircle& c = circles[i];
-    const double s =
-        (Eigen::Vector3d(c.circle.center.x(), c.circle.center.y(), c.z) - position).dot(a);
-    s_lo = std::min(s_lo, s);
-    s_hi = std::max(s_hi, s);
-    coverages.push_back(c.coverage);
-    sum2 += c.rms * c.rms * c.inliers;
-    points += c.inliers;
-  }
-  if (sparse) {
-    const Eigen::Vector3d& c = gathered.fit.cylinder.point;
-    s_lo = (Eigen::Vector3d(c.x(), c.y(), gathered.z_lo) - position).dot(a);
-    s_hi = (Eigen::Vector3d(c.x(), c.y(), gathered.z_hi) - position).dot(a);
-    coverages.assign(1, gathered.coverage);
-    sum2 = gathered.fit.rms * gathered.fit.rms * gathered.points.size();
-    points = static_cast<int>(gathered.points.size());
-  }
-  const double dbh_height = ground_known ? options.breast_height : 0.5 * (s_lo + s_hi);
+  const Eigen::Vector3d position =
+      GroundPoint(axis, ground, LowestStemZ(circles, kept, gathered), &ground_known);
+  const StemExtent e = ExtentOf(circles, kept, sparse ? &gathered : nullptr, position, a);
+  const double dbh_height = ground_known ? options.breast_height : 0.5 * (e.s_lo + e.s_hi);
   const std::vector<TaperSample> samples =
       fitted ? internal::RadialProfile(gathered, position, a, options.slice_height)
              : SliceProfile(circles, kept, position, a);
-  const TaperFit taper = FitTaper(samples, dbh_height);
-  trunk.silhouette_width = gathered.silhouette;
-  trunk.silhouette_rings = gathered.edges.full_rings;
-  trunk.occluded_rings = gathered.edges.occluded_rings;
-  trunk.true_edges = gathered.edges.true_edges;
-  trunk.visible_columns = gathered.edges.columns;
-  trunk.off_centre = gathered.edges.off_centre;
+  CopySilhouette(gathered, trunk);
   // With the organised scan the silhouette is measured (stem_silhouette.cc) where it is one stem's
   // whole outline; else the DBH is left unknown (see min_edge_rings).
   const bool with_grid = fitted && !beams.empty();
@@ -205,79 +299,43 @@ Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>
   trunk.beam_fill = gathered.beam_fill;
   trunk.breast_height_point = position + dbh_height * a;
   trunk.range = trunk.breast_height_point.head<2>().norm();
-  // With the silhouette's tangent rays in the fit (a ScanGrid), the cylinder's radius is the
-  // stem's, less the footprint's edge returns (edge_bias_factor), better than the points' mean
-  // distance from the axis (the edge returns push the points out). It holds at the points' mean
-  // height, which a drone above sees high on the layer; taper_prior carries it to dbh_height.
-  double diameter = taper.diameter;
-  if (with_grid) {
-    double s_mean = 0;
-    for (const Eigen::Vector3d& p : gathered.points) s_mean += (p - position).dot(a);
-    s_mean /= static_cast<double>(std::max<size_t>(1, gathered.points.size()));
-    diameter = 2 * gathered.fit.cylinder.radius + options.taper_prior * (s_mean - dbh_height);
-    trunk.cylinder_height = s_mean;
-  }
-  trunk.raw_dbh = diameter;
+  trunk.raw_dbh = with_grid ? GridDiameter(gathered, position, a, dbh_height, options, trunk)
+                            : FitTaper(samples, dbh_height).diameter;
+  // Beam divergence: edge returns reach half a footprint (range * beam_divergence) past the
+  // outline; divergence_bias_factor 0.1 of it calibrated on simulated Ouster scans.
   const double footprint =
       options.sensor_at_origin && !with_grid ? trunk.range * options.beam_divergence : 0;
-  const double dbh = diameter - options.divergence_bias_factor * footprint;
-  trunk.residual = std::sqrt(sum2 / std::max(points, 1));
-  trunk.arc_coverage = Median(coverages);
-  trunk.points_used = points;
-  trunk.slices = sparse ? 1 + static_cast<int>((s_hi - s_lo) / options.slice_height)
-                        : static_cast<int>(kept.size());
+  FitQuality(e, sparse ? 0 : static_cast<int>(kept.size()), options, trunk);
   trunk.ground_known = ground_known;
   trunk.ground_z = ground_known ? position.z() : kUnknown;
   trunk.dbh_height = dbh_height;
   trunk.tree.position = position;
   trunk.tree.axis = a;
-  trunk.tree.dbh = dbh;
+  trunk.tree.dbh = trunk.raw_dbh - options.divergence_bias_factor * footprint;
   trunk.tree.score = ScoreStem(trunk.residual, trunk.arc_coverage, trunk.slices);
-  if (trunk.residual > options.max_residual) return Reject::kResidual;
-  if (trunk.arc_coverage < options.min_arc_coverage) return Reject::kCoverage;
-  if (!(dbh >= options.min_dbh && dbh <= options.max_dbh)) return Reject::kDbh;
-  const double span = fitted ? gathered.z_hi - gathered.z_lo : s_hi - s_lo + options.slice_height;
-  if (ground_known && span < options.min_elongation * dbh) return Reject::kShape;
-  if (trunk.beam_fill < options.min_beam_fill) return Reject::kShape;
-  if (trunk.tree.score < options.min_score) return Reject::kScore;
-  return Reject::kNone;
+  return CheckStem(trunk,
+                   fitted ? gathered.z_hi - gathered.z_lo : e.s_hi - e.s_lo + options.slice_height,
+                   options);
 }
 
 void Count(Reject reject, StemModelStats& stats) {
-  switch (reject) {
-    case Reject::kSlices:
-      ++stats.rejected_slices;
-      break;
-    case Reject::kTilt:
-      ++stats.rejected_tilt;
-      break;
-    case Reject::kResidual:
-      ++stats.rejected_residual;
-      break;
-    case Reject::kCoverage:
-      ++stats.rejected_coverage;
-      break;
-    case Reject::kDbh:
-      ++stats.rejected_dbh;
-      break;
-    case Reject::kScore:
-      ++stats.rejected_score;
-      break;
-    case Reject::kShape:
-      ++stats.rejected_shape;
-      break;
-    case Reject::kNone:
-      break;
-  }
+  // In the order of StemRejection, after kNone.
+  size_t* const counters[] = {&stats.rejected_slices,   &stats.rejected_tilt,
+                              &stats.rejected_residual, &stats.rejected_coverage,
+                              &stats.rejected_dbh,      &stats.rejected_score,
+                              &stats.rejected_shape};
+  if (reject != Reject::kNone) ++*counters[static_cast<int>(reject) - 1];
 }
 
-// True when the circle's centre lies within one of the stems (10 cm beyond its surface).
+// True when the circle's centre lies within one of the stems (kFoundStemMargin beyond its
+// surface).
 bool OnFoundStem(const SliceCircle& c, std::span<const DetectedTrunk> trunks) {
   for (const DetectedTrunk& t : trunks) {
     const Eigen::Vector3d& a = t.tree.axis;
     const Eigen::Vector3d on_axis =
         t.breast_height_point + (c.z - t.breast_height_point.z()) / a.z() * a;
-    if ((c.circle.center - on_axis.head<2>()).norm() < 0.5 * t.tree.dbh + 0.1) return true;
+    if ((c.circle.center - on_axis.head<2>()).norm() < 0.5 * t.tree.dbh + kFoundStemMargin)
+      return true;
   }
   return false;
 }
@@ -291,7 +349,7 @@ void SuppressDuplicates(std::vector<DetectedTrunk>& trunks, StemModelStats& stat
   for (const DetectedTrunk& t : trunks) {
     bool duplicate = false;
     for (const DetectedTrunk& k : kept) {
-      const double reach = 0.5 * std::max(t.tree.dbh, k.tree.dbh) + 0.05;
+      const double reach = 0.5 * std::max(t.tree.dbh, k.tree.dbh) + kDuplicateMargin;
       if ((t.breast_height_point.head<2>() - k.breast_height_point.head<2>()).norm() < reach) {
         duplicate = true;
         break;
@@ -309,6 +367,43 @@ void SuppressDuplicates(std::vector<DetectedTrunk>& trunks, StemModelStats& stat
   trunks = std::move(kept);
 }
 
+// What FitStems shares with each chain of the current cluster.
+struct ChainContext {
+  const internal::SliceScratch& scratch;
+  const ScanGrid& grid;
+  const GroundModel& ground;
+  const StemModelOptions& options;
+  size_t first_trunk;  // the current cluster's first stem in result.trunks
+};
+
+// Builds the stem of one chain into `result` (or, with keep_rejected, its rejection). A lone
+// circle on a stem already found in the cluster is no second stem.
+void TryChain(const std::vector<int>& chain, const ChainContext& ctx, StemModelResult& result) {
+  const std::vector<SliceCircle>& circles = ctx.scratch.circles;
+  const StemModelOptions& options = ctx.options;
+  ++result.stats.chains;
+  if (static_cast<int>(chain.size()) < options.min_slices &&
+      OnFoundStem(circles[chain.front()], std::span(result.trunks).subspan(ctx.first_trunk))) {
+    ++result.stats.duplicates;
+    return;
+  }
+  DetectedTrunk trunk;
+  const Reject reject = BuildStem(circles, chain, ctx.scratch.cluster, ctx.scratch.cluster_beams,
+                                  ctx.grid, ctx.ground, options, trunk);
+  Count(reject, result.stats);
+  if (reject == Reject::kNone) {
+    result.trunks.push_back(trunk);
+  } else if (options.keep_rejected) {
+    if (reject == Reject::kSlices || reject == Reject::kTilt) {
+      const SliceCircle& c = circles[chain.front()];
+      trunk.breast_height_point = Eigen::Vector3d(c.circle.center.x(), c.circle.center.y(), c.z);
+      trunk.tree.position = trunk.breast_height_point;
+      trunk.tree.dbh = 2 * c.circle.radius;
+    }
+    result.rejected.push_back({trunk, reject, static_cast<int>(chain.size())});
+  }
+}
+
 }  // namespace
 
 StemModelResult FitStems(std::span<const Eigen::Vector3f> points, std::span<const float> heights,
@@ -323,70 +418,23 @@ StemModelResult FitStems(std::span<const Eigen::Vector3f> points, std::span<cons
   std::mt19937 rng(options.seed);
   internal::SliceScratch scratch;
   for (const std::vector<uint32_t>& cluster : clusters) {
-    float h_min = std::numeric_limits<float>::max(), h_max = std::numeric_limits<float>::lowest();
-    for (uint32_t i : cluster) {
-      h_min = std::min(h_min, heights[i]);
-      h_max = std::max(h_max, heights[i]);
-    }
-    // Sparse clusters (far stems) get thicker slices, so that each holds enough points.
-    const double slice_height =
-        std::clamp((h_max - h_min) * options.points_per_slice / static_cast<double>(cluster.size()),
-                   options.slice_height, std::max(options.slice_height, options.max_slice_height));
-    const int n_slices = static_cast<int>((h_max - h_min) / slice_height) + 1;
-    scratch.slices.resize(std::max<size_t>(scratch.slices.size(), n_slices));
-    for (int s = 0; s < n_slices; ++s) scratch.slices[s].clear();
-    for (uint32_t i : cluster) {
-      const int s = std::min(n_slices - 1, static_cast<int>((heights[i] - h_min) / slice_height));
-      scratch.slices[s].push_back(i);
-    }
-    scratch.circles.clear();
-    scratch.cluster.clear();
-    for (uint32_t i : cluster) scratch.cluster.push_back(points[i].cast<double>());
-    scratch.cluster_beams.clear();
-    if (!grid.empty()) {
-      for (uint32_t i : cluster) scratch.cluster_beams.push_back(grid.beam[i]);
-    }
+    const int n_slices = internal::SliceCluster(points, heights, cluster, options, grid, scratch);
     for (int s = 0; s < n_slices; ++s) {
       internal::FitSlice(points, scratch.slices[s], s, options, rng, scratch, result.stats);
     }
-    // Longest chains first; a lone circle on a stem already found is no second stem.
+    // Longest chains first.
     std::vector<std::vector<int>> chains = internal::LinkCircles(scratch.circles, options);
     std::stable_sort(chains.begin(), chains.end(),
                      [](const auto& a, const auto& b) { return a.size() > b.size(); });
-    const size_t first_trunk = result.trunks.size();
-    auto try_chain = [&](const std::vector<int>& chain) {
-      ++result.stats.chains;
-      if (static_cast<int>(chain.size()) < options.min_slices &&
-          OnFoundStem(scratch.circles[chain.front()],
-                      std::span(result.trunks).subspan(first_trunk))) {
-        ++result.stats.duplicates;
-        return;
-      }
-      DetectedTrunk trunk;
-      const Reject reject = BuildStem(scratch.circles, chain, scratch.cluster,
-                                      scratch.cluster_beams, grid, ground, options, trunk);
-      Count(reject, result.stats);
-      if (reject == Reject::kNone) {
-        result.trunks.push_back(trunk);
-      } else if (options.keep_rejected) {
-        if (reject == Reject::kSlices || reject == Reject::kTilt) {
-          const SliceCircle& c = scratch.circles[chain.front()];
-          trunk.breast_height_point =
-              Eigen::Vector3d(c.circle.center.x(), c.circle.center.y(), c.z);
-          trunk.tree.position = trunk.breast_height_point;
-          trunk.tree.dbh = 2 * c.circle.radius;
-        }
-        result.rejected.push_back({trunk, reject, static_cast<int>(chain.size())});
-      }
-    };
-    for (const std::vector<int>& chain : chains) try_chain(chain);
+    const ChainContext ctx{scratch, grid, ground, options, result.trunks.size()};
+    for (const std::vector<int>& chain : chains) TryChain(chain, ctx, result);
     // In a single view, a small cluster without a stem (no slice held enough points for a
     // circle: a far, thin stem) gets one more seed, a circle through all its points. (Merged
     // clouds have no far stems of a few returns per ring; their small clusters are clutter.)
-    if (options.sensor_at_origin && result.trunks.size() == first_trunk &&
+    if (options.sensor_at_origin && result.trunks.size() == ctx.first_trunk &&
         static_cast<int>(cluster.size()) <= options.max_seed_cluster_points &&
         internal::ClusterSeed(scratch.cluster, options, rng, scratch.circles)) {
-      try_chain({static_cast<int>(scratch.circles.size()) - 1});
+      TryChain({static_cast<int>(scratch.circles.size()) - 1}, ctx, result);
     }
   }
   SuppressDuplicates(result.trunks, result.stats);

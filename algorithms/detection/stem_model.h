@@ -60,81 +60,46 @@
 namespace forestmap::algorithms {
 
 struct StemModelOptions {
-  double slice_height = 0.25;         // m, thinnest slices
-  double max_slice_height = 0.8;      // m, thickest slices (sparse clusters)
-  int points_per_slice = 14;          // slices of sparse clusters thicken to hold about this many
-  int min_slice_points = 4;           // points (and circle inliers) per slice fit
-  int max_slice_points = 1500;        // denser slices are thinned evenly before fitting
-  int max_circles_per_slice = 3;      // stems per slice of one cluster
-  CircleRansacOptions circle;         // per-slice RANSAC circle fit
-  double min_slice_coverage = 0.08;   // [0, 1], arc coverage of a slice circle
-  double link_distance = 0.06;        // m, centre distance between linked slices, plus
-  double max_tilt = 0.5;              // rad, stem tilt from +z (also the link allowance per metre)
-  int min_slices = 2;                 // consistent slices per stem
-  double min_axis_span = 0.6;         // m, slice centres spanning less give a vertical axis
-  double max_centre_offset = 0.04;    // m, plus 0.25 r: slice centre off the axis -> inconsistent
-  double max_radius_deviation = 0.3;  // relative to the stem's median radius -> inconsistent
-  double min_consistent_fraction = 0.6;  // of the linked slices
+  double slice_height = 0.25;            // m, thinnest slices
+  double max_slice_height = 0.8;         // m, thickest slices (sparse clusters)
+  int points_per_slice = 14;             // points a sparse cluster's thicker slices aim to hold
+  int min_slice_points = 4;              // points (and circle inliers) per slice fit
+  int max_slice_points = 1500;           // points; denser slices are thinned evenly
+  int max_circles_per_slice = 3;         // stems per slice of one cluster
+  CircleRansacOptions circle;            // per-slice RANSAC circle fit
+  double min_slice_coverage = 0.08;      // [0, 1], arc coverage of a slice circle
+  double link_distance = 0.06;           // m, centre distance of linked slices (plus 0.25 r)
+  double max_tilt = 0.5;                 // rad from +z; also the link allowance per metre
+  int min_slices = 2;                    // consistent slices per stem
+  double min_axis_span = 0.6;            // m, slice centres spanning less: vertical axis
+  double max_centre_offset = 0.04;       // m (plus 0.25 r), slice centre off the axis
+  double max_radius_deviation = 0.3;     // share of the median radius a slice may differ
+  double min_consistent_fraction = 0.6;  // [0, 1], of the linked slices
   double max_residual = 0.025;           // m, stem rms of the circle inliers
   double min_arc_coverage = 0.08;        // [0, 1], median over slices (3 of 36 sectors)
-  double min_elongation = 1.5;  // visible stem height (m) per m of DBH at least: crowns and shrubs
-                                // reaching into the stem layer are wide and short
-  double min_beam_fill = 0.6;   // [0, 1], share of the beams across a stem that must return from
-                                // it (a single viewpoint with a known angular_step): a stem is
-                                // solid, a crown or a shrub lets most beams through
-  double min_dbh = 0.05;        // m
-  double max_dbh = 1.2;         // m
-  double min_score = 0.12;      // [0, 1], weaker stems (mostly shrub and crown arcs) dropped
-  double breast_height = 1.3;   // m along the stem above the ground point
-  int min_cylinder_points = 10;        // points on one cylinder (spanning min_axis_span) that a
-                                       // stem seen in fewer than min_slices slices needs
-  int max_seed_cluster_points = 300;   // points; a smaller cluster without any stem gets a seed
-                                       // circle through all its points
-  bool sensor_at_origin = true;         // single viewpoint at (0,0,0): a partial arc must face it
-  double beam_divergence = 0;           // rad, full angle; 0 disables the compensation
-  double divergence_bias_factor = 0.1;  // share of the footprint added to the fitted diameter
-                                        // (0.1: calibrated on simulated Ouster scans)
-  // Silhouette prior (sensor_at_origin, no ScanGrid): the lateral extent of a stem's points seen
-  // from the origin is its width less one angular_step (the columns that hit it span one column
-  // less), plus the beam footprint's edge returns (silhouette_bias_factor * range *
-  // beam_divergence; 1.33 calibrated on simulated Ouster scans); it holds the cylinder fit of
-  // short, flat arcs to that width (cylinder_fit.h, RadiusPrior). With a ScanGrid: tangent rays
-  // (see 3. above; false: neither).
-  bool silhouette_prior = true;
-  double angular_step = 0;  // rad, horizontal beam spacing; 0: unknown (DetectTrunks takes 2 pi /
-                            // columns of an organised cloud; the prior then assumes 2 pi / 2048)
-  double silhouette_bias_factor = 1.33;
-  // With a ScanGrid the silhouette is measured per beam ring between true edges (stem_silhouette
-  // .cc): n columns at the axis's distance D span 2 D sin(n step / 2), less edge_bias_factor * D *
-  // beam_divergence for the footprint's edge returns past the outline (in theory 0.5: an edge
-  // beam returns with the share of its footprint on the stem, scan_simulation.h; 0.6 calibrated
-  // on simulated Ouster scans, 3,400 stems at 2-20 m with taper_prior: no bias left with range;
-  // the points pushed out at the edges pull the fit a little wider still).
-  double edge_bias_factor = 0.6;
-  // m of diameter lost per m of stem, the lower stem's typical taper (about 1 cm per m; the
-  // simulator draws 0.6-1.4 cm/m): with a ScanGrid it carries the cylinder's diameter from the
-  // points' mean height to breast_height (a stem seen over a metre or two, from a few columns,
-  // does not show its own taper; the profile's does not hold it).
-  double taper_prior = 0.01;
-  // A stem hidden at both silhouette edges in every ring is a strip of unknown width, and a strip
-  // of a few columns fits a thin stem as well as a wide one: with a ScanGrid the DBH is reported
-  // (DetectedTree::dbh) only for stems with at least min_edge_rings rings whose both edges are
-  // true and that span at least min_edge_columns columns (median over the rings; one column is
-  // a width known to +-100%), or whose rings span at least min_visible_columns columns; else it
-  // is unknown (kUnknown; DetectedTrunk::raw_dbh keeps the guess).
-  // A stem seen whole is nearest to the sensor in the middle of its silhouette; where most rings
-  // (of 5 columns or more) are nearest off the middle by over a column plus 30% of the half width,
-  // the silhouette spans more than one stem (two touching trunks): share > max_off_centre, DBH
-  // unknown too.
-  // And the fit must know the radius: the standard error of the cylinder fit's radius (points and
-  // tangent rays) at most max_radius_sd (m; 1.25 cm: the DBH within 2.5 cm at one sigma).
-  int min_edge_rings = 1;
-  double min_edge_columns = 2;
-  double min_visible_columns = 4;
-  double max_off_centre = 0.3;
-  double max_radius_sd = 0.0125;
-  uint32_t seed = 1;           // RANSAC
-  bool keep_rejected = false;  // diagnostics: fill StemModelResult::rejected
+  double min_elongation = 1.5;           // m of visible stem height per m of DBH, at least
+  double min_beam_fill = 0.6;            // [0, 1], beams across a stem that return from it
+  double min_dbh = 0.05;                 // m
+  double max_dbh = 1.2;                  // m
+  double min_score = 0.12;               // [0, 1], weaker stems dropped
+  double breast_height = 1.3;            // m along the stem above the ground point
+  int min_cylinder_points = 10;          // points a stem of < min_slices slices needs
+  int max_seed_cluster_points = 300;     // points; smaller stemless clusters get a seed circle
+  bool sensor_at_origin = true;          // single viewpoint at (0,0,0): arcs must face it
+  double beam_divergence = 0;            // rad, full angle; 0 disables the compensation
+  double divergence_bias_factor = 0.1;   // share of the footprint taken off the fitted DBH
+  bool silhouette_prior = true;          // the silhouette informs the cylinder fit
+  double angular_step = 0;               // rad, horizontal beam spacing; 0: unknown
+  double silhouette_bias_factor = 1.33;  // footprints of edge returns in the points' width
+  double edge_bias_factor = 0.6;         // footprints of edge returns in a ring's width (grid)
+  double taper_prior = 0.01;             // m of diameter per m of stem, lower stem's taper
+  int min_edge_rings = 1;                // rings with both edges true for a measured DBH
+  double min_edge_columns = 2;           // columns (median) those rings span, at least
+  double min_visible_columns = 4;        // columns (median) that measure the DBH without them
+  double max_off_centre = 0.3;           // [0, 1], rings nearest off the middle: two stems
+  double max_radius_sd = 0.0125;         // m, standard error of the cylinder's radius
+  uint32_t seed = 1;                     // RANSAC
+  bool keep_rejected = false;            // diagnostics: fill StemModelResult::rejected
   void Check() const;
 };
 

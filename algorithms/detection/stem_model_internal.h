@@ -40,6 +40,12 @@ struct SliceScratch {
   std::vector<Eigen::Vector3d> cluster;  // the current cluster's points
 };
 
+// Loads one cluster into `scratch` (its points, beams with a grid, and its points sorted into
+// height slices, thicker for sparse clusters: points_per_slice); returns the slice count.
+int SliceCluster(std::span<const Eigen::Vector3f> points, std::span<const float> heights,
+                 const std::vector<uint32_t>& cluster, const StemModelOptions& options,
+                 const ScanGrid& grid, SliceScratch& scratch);
+
 // Appends up to max_circles_per_slice circles of one slice to scratch.circles.
 void FitSlice(std::span<const Eigen::Vector3f> points, const std::vector<uint32_t>& members,
               int slice, const StemModelOptions& options, std::mt19937& rng, SliceScratch& scratch,
@@ -62,6 +68,16 @@ struct Axis {
 // Weighted principal direction of the slice centres, signed up; vertical for short spans.
 Axis FitAxis(const std::vector<SliceCircle>& circles, const std::vector<int>& members,
              double min_span);
+
+// The chain's axis from its slice centres and the slices consistent with it. `sparse`: too few
+// consistent slices for a stem; the first circle only seeds a cylinder then (vertical axis).
+struct ChainAxis {
+  Axis axis;
+  std::vector<int> kept;
+  bool sparse = false;
+};
+ChainAxis AxisOfChain(const std::vector<SliceCircle>& circles, const std::vector<int>& chain,
+                      const StemModelOptions& options);
 
 // The chain's slices that agree with the axis and the median radius.
 std::vector<int> ConsistentSlices(const std::vector<SliceCircle>& circles,

@@ -24,10 +24,34 @@ double Median(std::vector<double> v) {
   return v[mid];
 }
 
-// Extracts up to max_circles_per_slice circles from one slice, each removing its inliers.
-void FitSlice(std::span<const Eigen::Vector3f> points, const std::vector<uint32_t>& members,
-              int slice, const StemModelOptions& options, std::mt19937& rng, SliceScratch& scratch,
-              StemModelStats& stats) {
+namespace {
+
+// A circle's removal band: its inliers and the ring's noise tail within this many bands, or its
+// leftovers make small circles.
+constexpr double kTailBands = 2.0;
+// A partial arc seen from the origin faces it unless it covers at least kFacingCoverage of the
+// circle (then it is a stem seen around) or its centre is nearer than its points' mean by more
+// than kFacingRadii radii; and the sensor stands at least kSensorClearance (m) outside a stem.
+constexpr double kFacingCoverage = 0.5;
+constexpr double kFacingRadii = 0.5;
+constexpr double kSensorClearance = 0.1;
+// Linking slice circles (LinkCircles): a circle links to a chain whose last circle is at most
+// kMaxSliceGap slices below it (a stem hidden in a slice or two goes on), of a radius within
+// [kMinRadiusRatio, kMaxRadiusRatio] of it, and whose centre lies within link_distance plus
+// kLinkRadiusShare of its radius plus the tilt allowance.
+constexpr int kMaxSliceGap = 3;
+constexpr double kMinRadiusRatio = 0.5;
+constexpr double kMaxRadiusRatio = 2.0;
+constexpr double kLinkRadiusShare = 0.25;
+// A slice centre may lie off the axis by max_centre_offset plus this share of its radius.
+constexpr double kCentreRadiusShare = 0.25;
+// Stems may touch but not overlap: circles of one slice whose centres are closer than this share
+// of their radii's sum overlap (the second is a leftover of the first).
+constexpr double kOverlapShare = 0.8;
+
+// The slice's points (every stride-th, at most max_slice_points) into scratch.xy and scratch.z.
+void LoadSlice(std::span<const Eigen::Vector3f> points, const std::vector<uint32_t>& members,
+               const StemModelOptions& options, SliceScratch& scratch) {
   const size_t stride =
       members.size() > static_cast<size_t>(options.max_slice_points)
           ? (members.size() + options.max_slice_points - 1) / options.max_slice_points
@@ -39,6 +63,60 @@ void FitSlice(std::span<const Eigen::Vector3f> points, const std::vector<uint32_
     scratch.xy.emplace_back(p.x(), p.y());
     scratch.z.push_back(p.z());
   }
+}
+
+// Takes the fit's inliers (and its noise tail) out of scratch.xy and scratch.z; sets the circle's
+// z and min_z from them and returns their mean x, y.
+Eigen::Vector2d TakeInliers(const CircleFitResult& fit, SliceScratch& scratch, SliceCircle& sc) {
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  double z_sum = 0;
+  sc.min_z = std::numeric_limits<double>::max();
+  size_t kept = 0;
+  const double tail = kTailBands * fit.band;
+  for (size_t i = 0; i < scratch.xy.size(); ++i) {
+    if (fit.inlier_mask[i]) {
+      mean += scratch.xy[i];
+      z_sum += scratch.z[i];
+      sc.min_z = std::min<double>(sc.min_z, scratch.z[i]);
+    } else if (std::abs((scratch.xy[i] - sc.circle.center).norm() - sc.circle.radius) >= tail) {
+      scratch.xy[kept] = scratch.xy[i];
+      scratch.z[kept] = scratch.z[i];
+      ++kept;
+    }
+  }
+  scratch.xy.resize(kept);
+  scratch.z.resize(kept);
+  mean /= fit.inliers;
+  sc.z = z_sum / fit.inliers;
+  return mean;
+}
+
+// A partial arc seen from the origin must bulge towards it: its centre lies farther away than its
+// points. An arc curving away is the inside of something (a shrub), not a stem. And the sensor
+// cannot stand inside a stem: that is a ring of ground returns around it.
+bool FacesSensor(const SliceCircle& sc, const Eigen::Vector2d& mean, double arc_coverage) {
+  return (arc_coverage >= kFacingCoverage ||
+          sc.circle.center.norm() >= mean.norm() - kFacingRadii * sc.circle.radius) &&
+         sc.circle.center.norm() > sc.circle.radius + kSensorClearance;
+}
+
+bool OverlapsAny(const Circle& circle, std::span<const SliceCircle> others) {
+  bool overlaps = false;
+  for (const SliceCircle& o : others) {
+    const Circle& other = o.circle;
+    overlaps |=
+        (other.center - circle.center).norm() < kOverlapShare * (other.radius + circle.radius);
+  }
+  return overlaps;
+}
+
+}  // namespace
+
+// Extracts up to max_circles_per_slice circles from one slice, each removing its inliers.
+void FitSlice(std::span<const Eigen::Vector3f> points, const std::vector<uint32_t>& members,
+              int slice, const StemModelOptions& options, std::mt19937& rng, SliceScratch& scratch,
+              StemModelStats& stats) {
+  LoadSlice(points, members, options, scratch);
   const size_t first_circle = scratch.circles.size();
   for (int c = 0; c < options.max_circles_per_slice; ++c) {
     if (scratch.xy.size() < static_cast<size_t>(options.min_slice_points)) return;
@@ -51,41 +129,9 @@ void FitSlice(std::span<const Eigen::Vector3f> points, const std::vector<uint32_
     sc.inliers = fit.inliers;
     sc.rms = fit.rms;
     sc.coverage = fit.arc_coverage;
-    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-    double z_sum = 0;
-    sc.min_z = std::numeric_limits<double>::max();
-    size_t kept = 0;
-    // Removes the ring's noise tail too (twice the band), or its leftovers make small circles.
-    const double tail = 2.0 * fit.band;
-    for (size_t i = 0; i < scratch.xy.size(); ++i) {
-      if (fit.inlier_mask[i]) {
-        mean += scratch.xy[i];
-        z_sum += scratch.z[i];
-        sc.min_z = std::min<double>(sc.min_z, scratch.z[i]);
-      } else if (std::abs((scratch.xy[i] - sc.circle.center).norm() - sc.circle.radius) >= tail) {
-        scratch.xy[kept] = scratch.xy[i];
-        scratch.z[kept] = scratch.z[i];
-        ++kept;
-      }
-    }
-    scratch.xy.resize(kept);
-    scratch.z.resize(kept);
-    mean /= fit.inliers;
-    sc.z = z_sum / fit.inliers;
-    // A partial arc seen from the origin must bulge towards it: its centre lies farther away
-    // than its points. An arc curving away is the inside of something (a shrub), not a stem.
-    // And the sensor cannot stand inside a stem: that is a ring of ground returns around it.
-    const bool facing = !options.sensor_at_origin ||
-                        ((fit.arc_coverage >= 0.5 ||
-                          sc.circle.center.norm() >= mean.norm() - 0.5 * sc.circle.radius) &&
-                         sc.circle.center.norm() > sc.circle.radius + 0.1);
-    // Stems may touch but not overlap: a circle overlapping one of this slice is a leftover.
-    bool overlaps = false;
-    for (size_t k = first_circle; k < scratch.circles.size(); ++k) {
-      const Circle& other = scratch.circles[k].circle;
-      overlaps |=
-          (other.center - sc.circle.center).norm() < 0.8 * (other.radius + sc.circle.radius);
-    }
+    const Eigen::Vector2d mean = TakeInliers(fit, scratch, sc);
+    const bool facing = !options.sensor_at_origin || FacesSensor(sc, mean, fit.arc_coverage);
+    const bool overlaps = OverlapsAny(sc.circle, std::span(scratch.circles).subspan(first_circle));
     if (facing && !overlaps && sc.coverage >= options.min_slice_coverage) {
       scratch.circles.push_back(sc);
       ++stats.circles;
@@ -124,12 +170,12 @@ std::vector<std::vector<int>> LinkCircles(const std::vector<SliceCircle>& circle
     double best_dist = std::numeric_limits<double>::max();
     for (int k = 0; k < static_cast<int>(chains.size()); ++k) {
       const SliceCircle& last = circles[chains[k].back()];
-      if (last.slice >= c.slice || c.slice - last.slice > 3) continue;
+      if (last.slice >= c.slice || c.slice - last.slice > kMaxSliceGap) continue;
       const double ratio = c.circle.radius / last.circle.radius;
-      if (ratio < 0.5 || ratio > 2.0) continue;
+      if (ratio < kMinRadiusRatio || ratio > kMaxRadiusRatio) continue;
       const double dist = (c.circle.center - last.circle.center).norm();
-      const double tolerance =
-          options.link_distance + 0.25 * last.circle.radius + tan_tilt * std::abs(c.z - last.z);
+      const double tolerance = options.link_distance + kLinkRadiusShare * last.circle.radius +
+                               tan_tilt * std::abs(c.z - last.z);
       if (dist <= tolerance && dist < best_dist) {
         best = k;
         best_dist = dist;
@@ -184,10 +230,57 @@ std::vector<int> ConsistentSlices(const std::vector<SliceCircle>& circles,
     const bool radius_ok =
         std::abs(c.circle.radius - median_radius) <= options.max_radius_deviation * median_radius;
     const bool centre_ok =
-        AxisOffset(axis, c) <= options.max_centre_offset + 0.25 * c.circle.radius;
+        AxisOffset(axis, c) <= options.max_centre_offset + kCentreRadiusShare * c.circle.radius;
     if (radius_ok && centre_ok) kept.push_back(i);
   }
   return kept;
+}
+
+// Loads one cluster into `scratch`: its points (and beams, with a grid), and its points sorted into
+// height slices; returns the slice count. Sparse clusters (far stems) get thicker slices, so that
+// each holds enough points (points_per_slice).
+int SliceCluster(std::span<const Eigen::Vector3f> points, std::span<const float> heights,
+                 const std::vector<uint32_t>& cluster, const StemModelOptions& options,
+                 const ScanGrid& grid, SliceScratch& scratch) {
+  float h_min = std::numeric_limits<float>::max(), h_max = std::numeric_limits<float>::lowest();
+  for (uint32_t i : cluster) {
+    h_min = std::min(h_min, heights[i]);
+    h_max = std::max(h_max, heights[i]);
+  }
+  const double slice_height =
+      std::clamp((h_max - h_min) * options.points_per_slice / static_cast<double>(cluster.size()),
+                 options.slice_height, std::max(options.slice_height, options.max_slice_height));
+  const int n_slices = static_cast<int>((h_max - h_min) / slice_height) + 1;
+  scratch.slices.resize(std::max<size_t>(scratch.slices.size(), n_slices));
+  for (int s = 0; s < n_slices; ++s) scratch.slices[s].clear();
+  for (uint32_t i : cluster) {
+    const int s = std::min(n_slices - 1, static_cast<int>((heights[i] - h_min) / slice_height));
+    scratch.slices[s].push_back(i);
+  }
+  scratch.circles.clear();
+  scratch.cluster.clear();
+  for (uint32_t i : cluster) scratch.cluster.push_back(points[i].cast<double>());
+  scratch.cluster_beams.clear();
+  if (!grid.empty()) {
+    for (uint32_t i : cluster) scratch.cluster_beams.push_back(grid.beam[i]);
+  }
+  return n_slices;
+}
+
+ChainAxis AxisOfChain(const std::vector<SliceCircle>& circles, const std::vector<int>& chain,
+                      const StemModelOptions& options) {
+  ChainAxis c{FitAxis(circles, chain, options.min_axis_span), chain, false};
+  if (static_cast<int>(chain.size()) >= options.min_slices) {
+    c.kept = ConsistentSlices(circles, chain, c.axis, options);
+    if (c.kept.size() < chain.size() && !c.kept.empty()) {
+      c.axis = FitAxis(circles, c.kept, options.min_axis_span);
+      c.kept = ConsistentSlices(circles, chain, c.axis, options);
+    }
+  }
+  c.sparse = static_cast<int>(c.kept.size()) < options.min_slices ||
+             c.kept.size() < options.min_consistent_fraction * chain.size();
+  if (c.kept.empty()) c.kept.push_back(chain.front());
+  return c;
 }
 
 }  // namespace forestmap::algorithms::internal

@@ -119,6 +119,11 @@ BuilderStep MapBuilder::Impl::AddFrame(const BuilderFrame& input) {
   return step;
 }
 
+// Joint adjustments of poses and trees (each followed by a re-merge), then the final merge and
+// consolidation. The final map merges only detections within final_max_range: tracking needs the
+// long views, the map does not (far detections are biased and split stems; Wild_V01: pairs of
+// trees closer than 0.5 m 991 -> 589 with 20 m, as many as merging the frames with their true
+// poses gives).
 void MapBuilder::Impl::Finish() {
   for (int round = 0; round < options_.final_adjustment_rounds; ++round) Adjust();
   if (options_.final_max_range < options_.merge.max_range) {
@@ -134,6 +139,8 @@ void MapBuilder::Impl::Adjust() {
   std::vector<Eigen::Vector3d> trees;
   std::vector<TreeAdjustmentObservation> observations;
   const double weight_z = 1.0 / (options_.height_sigma * options_.height_sigma);
+  // Far detections are biased towards the sensor (Wild_V01: 1 mm per m beyond 20 m) and noisier:
+  // ATE 0.13 m with adjustment_max_range 20 m, 0.23 m with 40 m.
   for (const TreeObservation& row : map_->observations()) {
     const int frame = static_cast<int>(row.frame_id);
     const Eigen::Vector3d& level = frames_[frame].level_trees[row.detection_index].position;

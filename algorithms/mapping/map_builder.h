@@ -45,8 +45,7 @@ struct MapBuilderOptions {
   int icp_iterations = 4;                  // per gate
   double yaw_search = 0.45;                // rad, first-gate headings tried around the prediction
   int min_inliers = 8;                     // fewer -> fall back to a search
-  double min_inlier_fraction = 0.4;        // inliers / query trees within icp_range (0.25 let
-                                           // wrong fixes through on Oxford_Stein)
+  double min_inlier_fraction = 0.4;        // inliers / query trees within icp_range
   double max_correction = 3.0;             // m, ICP may move the prediction at most this far
   double max_height_step = 0.15;           // m, height change per frame a fix may make
   double prior_radius = 15.0;              // m, Relocalize radius after an ICP failure
@@ -72,21 +71,14 @@ struct MapBuilderOptions {
   int loop_search_every = 5;               // frames between prior-radius searches for a loop
   int loop_cooldown = 3;                   // frames after a closure without a new one
   PoseGraphOptions pose_graph;
-  // Finish(): joint adjustment of poses and trees (tree_adjustment.h) + re-merge, this many
-  // times, then consolidation.
-  int final_adjustment_rounds = 2;
+  int final_adjustment_rounds = 2;  // Finish(): joint adjustments (tree_adjustment.h)
   TreeAdjustmentOptions adjustment;
-  // Far detections are biased towards the sensor (Wild_V01: 1 mm per m beyond 20 m) and noisier:
-  // ATE 0.13 m with 20 m, 0.23 m with 40 m.
   double adjustment_max_range = 20.0;  // m, farther detections do not enter the adjustment
   double height_sigma = 0.3;           // m, 1-sigma of a detected stem's height
   // Sensor heights from the adjusted apparent ones (SmoothHeights, tree_adjustment.h).
   double height_step_sigma = 0.2;      // m, 1-sigma height change between consecutive frames
   double height_outlier_scale = 0.3;   // m, Cauchy scale of a frame's apparent height
-  // The final map merges only detections within this range (tracking needs the long views, the
-  // map does not: far detections are biased and split stems; Wild_V01: pairs of trees closer
-  // than 0.5 m 991 -> 589, as many as merging the frames with their true poses gives).
-  double final_max_range = 20.0;       // m
+  double final_max_range = 20.0;       // m, the final map merges only nearer detections
   bool final_consolidate = true;
   void Check() const;                      // throws std::invalid_argument naming the field
 };

@@ -35,6 +35,7 @@ MapBuilder::Impl::Fix MapBuilder::Impl::FromIcp(const TreeIcpResult& icp, const 
   fix.inliers = icp.inliers;
   fix.rmse = icp.rmse;
   fix.matches = icp.matches;
+  // min_inlier_fraction 0.4: 0.25 let wrong fixes through on Oxford_Stein.
   const double considered = std::max<size_t>(1, frame.query.size());
   fix.ok = icp.inliers >= options_.min_inliers &&
            icp.inliers >= options_.min_inlier_fraction * considered;

@@ -206,7 +206,10 @@ class Adjuster {
   }
 
   // Levenberg-Marquardt: Huber steps first (convex: the result does not depend on the start),
-  // then Cauchy steps (bounded influence of wrong associations).
+  // then the optional Cauchy steps (bounded influence of wrong associations); heights are least
+  // squares in the Huber steps. huber_xy is wide (2 m): the associations come gated (0.6 m), and
+  // where they close a loop the residuals start large; a narrow kernel there keeps the loop open
+  // (Wild_V01: ATE 0.13 m with 2 m, 0.21 m with a 0.15 m Cauchy kernel after 0.5 m Huber steps).
   TreeAdjustmentResult Run() {
     TreeAdjustmentResult result;
     const int huber_iterations = options_.iterations - options_.cauchy_iterations;

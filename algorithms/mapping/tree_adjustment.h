@@ -29,14 +29,8 @@ struct TreeAdjustmentObservation {
 
 struct TreeAdjustmentOptions {
   int iterations = 15;               // Gauss-Newton steps in all (Huber, then Cauchy)
-  // Huber steps first: convex, so the result does not depend on the start. A wide threshold:
-  // the associations come gated (0.6 m), and where they close a loop the residuals start large;
-  // a narrow kernel there keeps the loop open (Wild_V01: ATE 0.13 m with 2 m, 0.21 m with a
-  // 0.15 m Cauchy kernel after 0.5 m Huber steps).
   double huber_xy = 2.0;             // m, Huber threshold of horizontal residuals
-  // Optional Cauchy steps after them (bounded influence of wrong associations); heights are
-  // least squares in the Huber steps.
-  int cauchy_iterations = 0;
+  int cauchy_iterations = 0;         // of `iterations`, Cauchy steps after the Huber steps
   double cauchy_xy = 0.15;           // m, Cauchy scale of horizontal residuals
   double cauchy_z = 0.4;             // m, Cauchy scale of height residuals
   double tolerance = 1e-6;           // relative cost decrease that ends the iterations

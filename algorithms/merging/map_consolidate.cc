@@ -50,6 +50,43 @@ struct IdPool {
   std::unordered_set<int64_t> taken;
 };
 
+// The trees a Restart grows, with a grid of 1 m cells (keyed by the floor of x and y) of their
+// positions, to find the trees near a row.
+struct Regrowth {
+  std::vector<TreeEstimate> clusters;
+  std::vector<int> cluster_of;  // per row, -1 before it joins a tree
+  std::unordered_map<int64_t, std::vector<int>> grid;
+
+  static int64_t Cell(const Eigen::Vector3d& p) {
+    return (static_cast<int64_t>(std::floor(p.x())) << 32) ^
+           static_cast<int64_t>(static_cast<uint32_t>(std::floor(p.y())));
+  }
+  // Row `r` joins tree `cluster`, which moves to its new cell if its position changed cells.
+  void Add(int cluster, size_t r, const TreeObservation& row, const MergeOptions& options) {
+    const int64_t before = Cell(clusters[cluster].position);
+    AddObservation(clusters[cluster], row, options);
+    cluster_of[r] = cluster;
+    const int64_t after = Cell(clusters[cluster].position);
+    if (before == after && clusters[cluster].observations > 1) return;
+    if (clusters[cluster].observations > 1) std::erase(grid[before], cluster);
+    grid[after].push_back(cluster);
+  }
+  // Row `r` starts a tree of its own.
+  void AddNew(size_t r, const TreeObservation& row, const MergeOptions& options) {
+    clusters.emplace_back();
+    Add(static_cast<int>(clusters.size()) - 1, r, row, options);
+  }
+  // Appends the trees in the cells within `reach` cells of `p` to `seen` (with repeats).
+  void Near(const Eigen::Vector3d& p, int reach, std::vector<int>& seen) const {
+    for (int dx = -reach; dx <= reach; ++dx) {
+      for (int dy = -reach; dy <= reach; ++dy) {
+        const auto it = grid.find(Cell(p + Eigen::Vector3d(dx, dy, 0)));
+        if (it != grid.end()) seen.insert(seen.end(), it->second.begin(), it->second.end());
+      }
+    }
+  }
+};
+
 class Consolidator {
  public:
   // `rows` in any order; `tree_ids` must hold every tree id the rows refer to.
@@ -75,93 +112,26 @@ class Consolidator {
   // map. Each new tree takes the id most of its rows had (ties: the smaller), if still free in
   // `pool`; else a new id from the pool.
   void Restart(IdPool& pool) {
-    std::vector<TreeEstimate> clusters;
-    std::vector<int> cluster_of(rows_.size(), -1);
-    std::unordered_map<int64_t, std::vector<int>> grid;  // 1 m cells -> clusters
-    auto cell = [](const Eigen::Vector3d& p) {
-      return (static_cast<int64_t>(std::floor(p.x())) << 32) ^
-             static_cast<int64_t>(static_cast<uint32_t>(std::floor(p.y())));
-    };
-    auto add = [&](int cluster, size_t r) {
-      const int64_t before = cell(clusters[cluster].position);
-      AddObservation(clusters[cluster], rows_[r], options_);
-      cluster_of[r] = cluster;
-      const int64_t after = cell(clusters[cluster].position);
-      if (before == after && clusters[cluster].observations > 1) return;
-      if (clusters[cluster].observations > 1) std::erase(grid[before], cluster);
-      grid[after].push_back(cluster);
-    };
+    Regrowth growth;
+    growth.cluster_of.assign(rows_.size(), -1);
     for (size_t r = 0; r < rows_.size(); ++r) {
-      if (!rows_[r].prior) continue;
-      clusters.emplace_back();
-      add(static_cast<int>(clusters.size()) - 1, r);
+      if (rows_[r].prior) growth.AddNew(r, rows_[r], options_);
     }
-    const int reach = static_cast<int>(std::ceil(options_.gate_distance));
-    std::vector<TreeEstimate> nearby;
-    std::vector<int> nearby_index;
-    std::vector<TreeObservation> frame_rows;
-    std::vector<size_t> frame_index;
     for (size_t begin = 0; begin < rows_.size();) {
       size_t end = begin + 1;
       while (end < rows_.size() && SameFrame(rows_[end], rows_[begin])) ++end;
-      frame_rows.clear();
-      frame_index.clear();
-      nearby.clear();
-      nearby_index.clear();
-      std::vector<int> seen;
-      for (size_t r = begin; r < end; ++r) {
-        if (rows_[r].prior) continue;
-        frame_rows.push_back(rows_[r]);
-        frame_index.push_back(r);
-        const Eigen::Vector3d& p = rows_[r].position;
-        for (int dx = -reach; dx <= reach; ++dx) {
-          for (int dy = -reach; dy <= reach; ++dy) {
-            const auto it = grid.find(cell(p + Eigen::Vector3d(dx, dy, 0)));
-            if (it != grid.end()) seen.insert(seen.end(), it->second.begin(), it->second.end());
-          }
-        }
-      }
-      std::sort(seen.begin(), seen.end());
-      seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
-      for (int c : seen) {
-        nearby.push_back(clusters[c]);
-        nearby.back().id = c;  // ties broken by creation order
-        nearby_index.push_back(c);
-      }
-      const internal::Association association =
-          internal::AssociateGreedy(nearby, frame_rows, options_);
-      for (size_t k = 0; k < frame_rows.size(); ++k) {
-        const size_t r = frame_index[k];
-        if (association.tree[k] >= 0) {
-          add(nearby_index[association.tree[k]], r);
-        } else {
-          clusters.emplace_back();
-          add(static_cast<int>(clusters.size()) - 1, r);
-        }
-      }
+      RegrowFrame(begin, end, growth);
       begin = end;
     }
-    // Ids: the most common previous id of each cluster's rows, in creation order.
-    std::vector<std::map<int64_t, int>> votes(clusters.size());
-    for (size_t r = 0; r < rows_.size(); ++r) ++votes[cluster_of[r]][original_ids_[r]];
-    std::vector<int64_t> cluster_id(clusters.size(), 0);
-    for (size_t c = 0; c < clusters.size(); ++c) {
-      int best = 0;
-      for (const auto& [id, n] : votes[c]) {
-        if (n > best && pool.taken.count(id) == 0) cluster_id[c] = id, best = n;
-      }
-      if (best == 0) {
-        while (pool.taken.count(pool.next_free_id) != 0) ++pool.next_free_id;
-        cluster_id[c] = pool.next_free_id++;
-      }
-      pool.taken.insert(cluster_id[c]);
-    }
-    for (size_t c = 0; c < clusters.size(); ++c) ids_.push_back(cluster_id[c]);
+    const std::vector<int64_t> cluster_id = ClusterIds(growth, pool);
+    for (size_t c = 0; c < growth.clusters.size(); ++c) ids_.push_back(cluster_id[c]);
     std::sort(ids_.begin(), ids_.end());
     ids_.erase(std::unique(ids_.begin(), ids_.end()), ids_.end());
     index_of_.clear();
     for (size_t i = 0; i < ids_.size(); ++i) index_of_[ids_[i]] = static_cast<int>(i);
-    for (size_t r = 0; r < rows_.size(); ++r) owner_[r] = index_of_.at(cluster_id[cluster_of[r]]);
+    for (size_t r = 0; r < rows_.size(); ++r) {
+      owner_[r] = index_of_.at(cluster_id[growth.cluster_of[r]]);
+    }
     Recompute();
   }
 
@@ -192,6 +162,58 @@ class Consolidator {
   }
 
  private:
+  // Merges the non-prior rows of one frame (rows_[begin, end)) into the trees grown so far, as
+  // MergeFrame would: associated one-to-one with the trees near them, the rest new trees.
+  void RegrowFrame(size_t begin, size_t end, Regrowth& growth) const {
+    const int reach = static_cast<int>(std::ceil(options_.gate_distance));
+    std::vector<TreeObservation> frame_rows;
+    std::vector<size_t> frame_index;
+    std::vector<int> seen;
+    for (size_t r = begin; r < end; ++r) {
+      if (rows_[r].prior) continue;
+      frame_rows.push_back(rows_[r]);
+      frame_index.push_back(r);
+      growth.Near(rows_[r].position, reach, seen);
+    }
+    std::sort(seen.begin(), seen.end());
+    seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
+    std::vector<TreeEstimate> nearby;
+    for (int c : seen) {
+      nearby.push_back(growth.clusters[c]);
+      nearby.back().id = c;  // ties broken by creation order
+    }
+    const internal::Association association =
+        internal::AssociateGreedy(nearby, frame_rows, options_);
+    for (size_t k = 0; k < frame_rows.size(); ++k) {
+      const size_t r = frame_index[k];
+      if (association.tree[k] >= 0) {
+        growth.Add(seen[association.tree[k]], r, rows_[r], options_);
+      } else {
+        growth.AddNew(r, rows_[r], options_);
+      }
+    }
+  }
+
+  // Ids of the grown trees, in creation order: the most common previous id of each tree's rows
+  // (ties: the smaller) if still free in `pool`, else a new id from the pool.
+  std::vector<int64_t> ClusterIds(const Regrowth& growth, IdPool& pool) const {
+    std::vector<std::map<int64_t, int>> votes(growth.clusters.size());
+    for (size_t r = 0; r < rows_.size(); ++r) ++votes[growth.cluster_of[r]][original_ids_[r]];
+    std::vector<int64_t> cluster_id(growth.clusters.size(), 0);
+    for (size_t c = 0; c < growth.clusters.size(); ++c) {
+      int best = 0;
+      for (const auto& [id, n] : votes[c]) {
+        if (n > best && pool.taken.count(id) == 0) cluster_id[c] = id, best = n;
+      }
+      if (best == 0) {
+        while (pool.taken.count(pool.next_free_id) != 0) ++pool.next_free_id;
+        cluster_id[c] = pool.next_free_id++;
+      }
+      pool.taken.insert(cluster_id[c]);
+    }
+    return cluster_id;
+  }
+
   void Recompute() {
     estimates_.assign(ids_.size(), TreeEstimate{});
     for (size_t t = 0; t < ids_.size(); ++t) estimates_[t].id = ids_[t];
@@ -211,7 +233,10 @@ class Consolidator {
     return frames;
   }
 
-  int MergeDuplicates() {
+  // Pairs of live trees within duplicate_distance as (distance^2, tree a, tree b), a < b, closest
+  // first; equal distances in the canonical order of the trees' first rows (not by id: ids
+  // depend on the order in which rows arrived).
+  std::vector<std::tuple<double, int, int>> ClosePairs() const {
     std::vector<TreeEstimate> live;
     std::vector<int> live_index;
     for (size_t t = 0; t < ids_.size(); ++t) {
@@ -219,9 +244,9 @@ class Consolidator {
       live.push_back(estimates_[t]);
       live_index.push_back(static_cast<int>(t));
     }
-    if (live.size() < 2 || options_.duplicate_distance <= 0) return 0;
+    std::vector<std::tuple<double, int, int>> pairs;
+    if (live.size() < 2 || options_.duplicate_distance <= 0) return pairs;
     const auto kd = internal::BuildTreeIndex(live);
-    std::vector<std::tuple<double, int, int>> pairs;  // (distance^2, tree a, tree b), a < b
     std::vector<std::pair<uint32_t, double>> near;
     for (size_t i = 0; i < live.size(); ++i) {
       kd->Radius({live[i].position.x(), live[i].position.y()}, options_.duplicate_distance, near);
@@ -229,8 +254,6 @@ class Consolidator {
         if (j > i) pairs.emplace_back(d2, live_index[i], live_index[j]);
       }
     }
-    // Closest pairs first; equal distances in the canonical order of the trees' first rows (not
-    // by id: ids depend on the order in which rows arrived).
     std::vector<size_t> first_row(ids_.size(), rows_.size());
     for (size_t r = rows_.size(); r-- > 0;) first_row[owner_[r]] = r;
     std::sort(pairs.begin(), pairs.end(), [&first_row](const auto& p, const auto& q) {
@@ -240,28 +263,42 @@ class Consolidator {
       };
       return key(p) < key(q);
     });
+    return pairs;
+  }
+
+  // One stem or two? Two stems are seen side by side in the frames that see either (the
+  // association is one-to-one per frame); one stem whose DBH fits disagree (partial arcs shift
+  // the centre) never is. Overlapping stems are one whatever the frames say. Two surveyed trees
+  // stay two. Side by side: at least min_shared_frames frames, and more than max_shared_frames of
+  // the fewer frames of the two, see both (two frames that split a stem into two detections 0.4 m
+  // apart do not make two trees).
+  bool OneStem(int a, int b, double d2, const std::vector<std::vector<int>>& frames) const {
+    const TreeEstimate& ta = estimates_[a];
+    const TreeEstimate& tb = estimates_[b];
+    if (ta.surveyed && tb.surveyed) return false;
+    const double d = std::sqrt(d2);
+    const bool overlap = IsKnown(ta.dbh) && IsKnown(tb.dbh) && d < 0.5 * (ta.dbh + tb.dbh);
+    std::vector<int> common;
+    std::set_intersection(frames[a].begin(), frames[a].end(), frames[b].begin(), frames[b].end(),
+                          std::back_inserter(common));
+    const double smaller = static_cast<double>(std::min(frames[a].size(), frames[b].size()));
+    const bool side_by_side = static_cast<int>(common.size()) >= options_.min_shared_frames &&
+                              common.size() > options_.max_shared_frames * smaller;
+    return overlap || !side_by_side;
+  }
+
+  // Merges the pairs of trees that are one stem, closest first, one merge per tree; returns the
+  // merges.
+  int MergeDuplicates() {
+    const std::vector<std::tuple<double, int, int>> pairs = ClosePairs();
+    if (pairs.empty()) return 0;
     const std::vector<std::vector<int>> frames = FramesOfTrees();
     std::vector<int> root(ids_.size());
     std::iota(root.begin(), root.end(), 0);
     int merged = 0;
     for (const auto& [d2, a, b] : pairs) {
       if (root[a] != a || root[b] != b) continue;  // one merge per tree and sweep
-      const TreeEstimate& ta = estimates_[a];
-      const TreeEstimate& tb = estimates_[b];
-      if (ta.surveyed && tb.surveyed) continue;
-      // One stem or two? Two stems are seen side by side in the frames that see either (the
-      // association is one-to-one per frame); one stem whose DBH fits disagree (partial arcs
-      // shift the centre) never is. Overlapping stems are one whatever the frames say.
-      const double d = std::sqrt(d2);
-      const bool overlap = IsKnown(ta.dbh) && IsKnown(tb.dbh) && d < 0.5 * (ta.dbh + tb.dbh);
-      std::vector<int> common;
-      std::set_intersection(frames[a].begin(), frames[a].end(), frames[b].begin(),
-                            frames[b].end(), std::back_inserter(common));
-      const double smaller = static_cast<double>(std::min(frames[a].size(), frames[b].size()));
-      const bool side_by_side =
-          static_cast<int>(common.size()) >= options_.min_shared_frames &&
-          common.size() > options_.max_shared_frames * smaller;
-      if (!overlap && side_by_side) continue;
+      if (!OneStem(a, b, d2, frames)) continue;
       root[b] = a;  // ids_ is sorted: the smaller id survives
       root[a] = -1 - a;
       ++merged;

@@ -100,8 +100,6 @@ struct MergeOptions {
   double sigma_xy_per_m = 0.004;     // m of sigma per m of horizontal range
   double score_floor = 0.5;          // [0, 1], weight share kept by a zero-score fit
   double sigma_dbh_base = 0.03;      // m
-  // DBH errors did not grow with range on Wild_V01 (a range term moved the merged DBH away from
-  // the reference's plain mean: median |diff| 0.4 mm without, 10 mm with 0.01 m/m).
   double sigma_dbh_per_m = 0.0;      // m of DBH sigma per m of range
   double max_range = 20.0;           // m, horizontal; farther detections are not merged
   double min_dbh = 0.02;             // m, smaller (or non-positive) DBH counts as unknown
@@ -112,12 +110,7 @@ struct MergeOptions {
   double dbh_gate_abs = 0.15;        // m, DBH difference always accepted
   double dbh_gate_rel = 0.5;         // of the larger DBH, DBH difference also accepted
   double dbh_cost = 1.0;             // association cost per (DBH difference / gate)^2
-  // An observation whose DBH fails the gate may still join a tree this near (m), or nearer than
-  // the sum of the two stem radii (stems cannot overlap): single-frame DBH fits are often far
-  // off. Its DBH is averaged with its weight like any other (rows are never rewritten, so that
-  // the map depends on the set of rows, not on their order; Wild_V01 survey merge: median DBH
-  // difference to map.csv 4.4 -> 2.6 mm).
-  double dbh_outlier_distance = 0.2;
+  double dbh_outlier_distance = 0.2;  // m, a DBH outside the gate still joins a tree this near
   // Promotion.
   int promotion_views = 3;           // distinct views that confirm a candidate
   double min_view_separation = 1.0;  // m, sensor positions closer than this are one view
@@ -125,11 +118,9 @@ struct MergeOptions {
   double survey_sigma_xy = 0.05;     // m
   double survey_sigma_dbh = 0.01;    // m
   // Consolidation.
-  double duplicate_distance = 0.3;   // m, trees closer than this are one stem when their stems
-                                     // overlap or they share few frames (see next)
-  double max_shared_frames = 0.4;    // of the fewer frames of the two, seeing both trees
-  int min_shared_frames = 3;         // and at least this many (two frames that split a stem
-                                     // into two detections 0.4 m apart do not make two trees)
+  double duplicate_distance = 0.3;   // m, closer trees may be one stem (MergeDuplicates)
+  double max_shared_frames = 0.4;    // share of the fewer frames of two trees that see both
+  int min_shared_frames = 3;         // frames; fewer seeing both do not make two trees
   int consolidate_iterations = 6;    // re-association sweeps
   void Check() const;                // throws std::invalid_argument naming the field
 };

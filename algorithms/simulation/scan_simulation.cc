@@ -1,5 +1,4 @@
 #include "algorithms/simulation/scan_simulation.h"
-#include "algorithms/core/check.h"
 
 #include <algorithm>
 #include <array>
@@ -7,7 +6,9 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
-#include <thread>
+
+#include "algorithms/core/check.h"
+#include "algorithms/core/parallel.h"
 
 namespace forestmap::algorithms {
 namespace {
@@ -151,6 +152,59 @@ void SimulateRings(const ScanContext& ctx, int ring_begin, int ring_end,
   }
 }
 
+// An organised cloud of the scanner's rings x columns (points, intensities, rings, labels).
+void AllocateCloud(const ScannerModel& scanner, ScanSimulationResult& result) {
+  const size_t n = static_cast<size_t>(scanner.rings()) * scanner.columns;
+  result.cloud.width = static_cast<uint32_t>(scanner.columns);
+  result.cloud.height = static_cast<uint32_t>(scanner.rings());
+  result.cloud.points.resize(n);
+  result.cloud.intensity.resize(n);
+  result.cloud.ring.resize(n);
+  result.labels.resize(n);
+  for (size_t i = 0; i < n; ++i) result.cloud.ring[i] = static_cast<uint16_t>(i / scanner.columns);
+}
+
+// The truth per scene tree in the sensor frame: base, DBH, axis and horizontal range.
+std::vector<SimulatedTreeTruth> TreeTruth(const ForestScene& scene, const Pose3& map_from_sensor) {
+  const Pose3 sensor_from_map = map_from_sensor.inverse();
+  const std::vector<SceneTree>& trees = scene.trees();
+  std::vector<SimulatedTreeTruth> truths(trees.size());
+  for (size_t i = 0; i < trees.size(); ++i) {
+    SimulatedTreeTruth& truth = truths[i];
+    truth.index = static_cast<int>(i);
+    truth.id = trees[i].id;
+    truth.position = sensor_from_map * trees[i].base;
+    truth.dbh = trees[i].dbh;
+    truth.axis = sensor_from_map.linear() * trees[i].axis;
+    truth.range =
+        (trees[i].PointAt(kBreastHeight).head<2>() - map_from_sensor.translation().head<2>())
+            .norm();
+  }
+  return truths;
+}
+
+// Counts the returns, each tree's stem points and those of its visible stem band, and marks the
+// trees visible (kMinVisibleStemPoints in the band, within max_range).
+void CountReturns(const ForestScene& scene, const Pose3& map_from_sensor,
+                  const ScannerModel& scanner, ScanSimulationResult& result) {
+  const std::vector<SceneTree>& trees = scene.trees();
+  for (size_t i = 0; i < result.labels.size(); ++i) {
+    if (result.labels[i] == kLabelNoReturn) continue;
+    ++result.returns;
+    const int32_t label = result.labels[i];
+    if (label < 0) continue;
+    const SceneTree& tree = trees[label];
+    const double s =
+        (map_from_sensor * result.cloud.points[i].cast<double>() - tree.base).dot(tree.axis);
+    ++result.trees[label].stem_points;
+    if (s >= kVisibleStemLow && s <= kVisibleStemHigh) ++result.trees[label].breast_points;
+  }
+  for (SimulatedTreeTruth& truth : result.trees) {
+    truth.visible =
+        truth.breast_points >= kMinVisibleStemPoints && truth.range <= scanner.max_range;
+  }
+}
+
 }  // namespace
 
 void ScanNoiseOptions::Check() const {
@@ -167,59 +221,17 @@ ScanSimulationResult SimulateScan(const ForestScene& scene, const Pose3& map_fro
   Require(map_from_sensor.matrix().allFinite(), "SimulateScan: map_from_sensor must be finite", 0);
   ScanSimulationResult result;
   result.map_from_sensor = map_from_sensor;
-  const size_t n = static_cast<size_t>(scanner.rings()) * scanner.columns;
-  result.cloud.width = static_cast<uint32_t>(scanner.columns);
-  result.cloud.height = static_cast<uint32_t>(scanner.rings());
-  result.cloud.points.resize(n);
-  result.cloud.intensity.resize(n);
-  result.cloud.ring.resize(n);
-  result.labels.resize(n);
-  for (size_t i = 0; i < n; ++i) result.cloud.ring[i] = static_cast<uint16_t>(i / scanner.columns);
-
+  AllocateCloud(scanner, result);
+  // The rings split into contiguous ranges, one thread each: every ray's noise is keyed by the
+  // ray, so the cloud does not depend on the split.
   const ScanContext ctx{scene, map_from_sensor, scanner, noise, seed, DroneBody()};
   const int threads = std::min(noise.threads, scanner.rings());
-  if (threads <= 1) {
-    SimulateRings(ctx, 0, scanner.rings(), &result);
-  } else {
-    std::vector<std::thread> workers;
-    for (int k = 0; k < threads; ++k) {
-      const int begin = scanner.rings() * k / threads, end = scanner.rings() * (k + 1) / threads;
-      workers.emplace_back(
-          [&ctx, begin, end, &result] { SimulateRings(ctx, begin, end, &result); });
-    }
-    for (std::thread& worker : workers) worker.join();
-  }
-
-  // Truth per scene tree.
-  const Pose3 sensor_from_map = map_from_sensor.inverse();
-  const std::vector<SceneTree>& trees = scene.trees();
-  result.trees.resize(trees.size());
-  for (size_t i = 0; i < trees.size(); ++i) {
-    SimulatedTreeTruth& truth = result.trees[i];
-    truth.index = static_cast<int>(i);
-    truth.id = trees[i].id;
-    truth.position = sensor_from_map * trees[i].base;
-    truth.dbh = trees[i].dbh;
-    truth.axis = sensor_from_map.linear() * trees[i].axis;
-    truth.range =
-        (trees[i].PointAt(kBreastHeight).head<2>() - map_from_sensor.translation().head<2>())
-            .norm();
-  }
-  for (size_t i = 0; i < n; ++i) {
-    if (result.labels[i] == kLabelNoReturn) continue;
-    ++result.returns;
-    const int32_t label = result.labels[i];
-    if (label < 0) continue;
-    const SceneTree& tree = trees[label];
-    const double s =
-        (map_from_sensor * result.cloud.points[i].cast<double>() - tree.base).dot(tree.axis);
-    ++result.trees[label].stem_points;
-    if (s >= kVisibleStemLow && s <= kVisibleStemHigh) ++result.trees[label].breast_points;
-  }
-  for (SimulatedTreeTruth& truth : result.trees) {
-    truth.visible =
-        truth.breast_points >= kMinVisibleStemPoints && truth.range <= scanner.max_range;
-  }
+  ParallelFor(static_cast<size_t>(scanner.rings()), threads,
+              [&ctx, &result](int, size_t begin, size_t end) {
+                SimulateRings(ctx, static_cast<int>(begin), static_cast<int>(end), &result);
+              });
+  result.trees = TreeTruth(scene, map_from_sensor);
+  CountReturns(scene, map_from_sensor, scanner, result);
   return result;
 }
 
