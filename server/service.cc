@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "algorithms/core/check.h"
+#include "server/auth.h"
 #include "server/convert.h"
 #include "server/geo_convert.h"
 #include "server/status.h"
@@ -65,7 +66,8 @@ ForestMapService::ForestMapService(storage::MapStore& store, ServiceOptions opti
 grpc::ServerUnaryReactor* ForestMapService::CreateMap(grpc::CallbackServerContext* context,
                                                       const v1::CreateMapRequest* request,
                                                       v1::Map* response) {
-  return AnswerOn(admin_pool_, context, "CreateMap", [this, request, response] {
+  return AnswerOn(admin_pool_, context, "CreateMap", [this, context, request, response] {
+    Authorize(options_.authorizer, *context, "CreateMap", request->name());
     Validate(*request);
     *response = ToProto(
         store_.CreateMap(request->name(), request->description(), CanonicalCrs(request->crs())));
@@ -75,15 +77,19 @@ grpc::ServerUnaryReactor* ForestMapService::CreateMap(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* ForestMapService::ListMaps(grpc::CallbackServerContext* context,
                                                      const v1::ListMapsRequest* /*request*/,
                                                      v1::ListMapsResponse* response) {
-  return AnswerOn(admin_pool_, context, "ListMaps", [this, response] {
-    for (const storage::MapInfo& info : store_.ListMaps()) *response->add_maps() = ToProto(info);
+  return AnswerOn(admin_pool_, context, "ListMaps", [this, context, response] {
+    const Caller caller = Authorize(options_.authorizer, *context, "ListMaps", "");
+    for (const storage::MapInfo& info : store_.ListMaps()) {
+      if (caller.CanRead(info.name)) *response->add_maps() = ToProto(info);
+    }
   });
 }
 
 grpc::ServerUnaryReactor* ForestMapService::GetMap(grpc::CallbackServerContext* context,
                                                    const v1::GetMapRequest* request,
                                                    v1::Map* response) {
-  return AnswerOn(admin_pool_, context, "GetMap", [this, request, response] {
+  return AnswerOn(admin_pool_, context, "GetMap", [this, context, request, response] {
+    Authorize(options_.authorizer, *context, "GetMap", request->name());
     Validate(*request);
     *response = ToProto(store_.GetMap(request->name()));
   });
@@ -92,7 +98,8 @@ grpc::ServerUnaryReactor* ForestMapService::GetMap(grpc::CallbackServerContext* 
 grpc::ServerUnaryReactor* ForestMapService::DeleteMap(grpc::CallbackServerContext* context,
                                                       const v1::DeleteMapRequest* request,
                                                       v1::DeleteMapResponse* /*response*/) {
-  return AnswerOn(admin_pool_, context, "DeleteMap", [this, request] {
+  return AnswerOn(admin_pool_, context, "DeleteMap", [this, context, request] {
+    Authorize(options_.authorizer, *context, "DeleteMap", request->name());
     Validate(*request);
     store_.DeleteMap(request->name());
     index_cache_.Evict(request->name());
@@ -105,8 +112,8 @@ grpc::ServerReadReactor<v1::UploadTreesRequest>* ForestMapService::UploadTrees(
 }
 
 grpc::ServerWriteReactor<v1::ExportTreesResponse>* ForestMapService::ExportTrees(
-    grpc::CallbackServerContext* /*context*/, const v1::ExportTreesRequest* request) {
-  return new ExportTreesReactor(store_, options_, work_pool_, request);
+    grpc::CallbackServerContext* context, const v1::ExportTreesRequest* request) {
+  return new ExportTreesReactor(store_, options_, work_pool_, context, request);
 }
 
 grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerContext* context,
@@ -114,6 +121,7 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
                                                        v1::RelocalizeResponse* response) {
   const auto start = std::chrono::steady_clock::now();
   return AnswerOn(work_pool_, context, "Relocalize", [this, context, request, response, start] {
+    Authorize(options_.authorizer, *context, "Relocalize", request->map_name());
     Validate(*request, options_.max_query_trees);
     if (context->IsCancelled()) return;  // the client is gone; its status is CANCELLED anyway
     // No lock around the relocalizer: concurrent queries share the immutable index.
@@ -131,14 +139,15 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
 }
 
 grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse>* ForestMapService::Track(
-    grpc::CallbackServerContext* /*context*/) {
-  return new TrackReactor(index_cache_, options_, work_pool_);
+    grpc::CallbackServerContext* context) {
+  return new TrackReactor(index_cache_, options_, work_pool_, context);
 }
 
 grpc::ServerUnaryReactor* ForestMapService::Observe(grpc::CallbackServerContext* context,
                                                     const v1::ObserveRequest* request,
                                                     v1::ObserveResponse* response) {
   return AnswerOn(work_pool_, context, "Observe", [this, context, request, response] {
+    Authorize(options_.authorizer, *context, "Observe", request->map_name());
     RunObserve(context, *request, *response);
   });
 }
@@ -146,7 +155,8 @@ grpc::ServerUnaryReactor* ForestMapService::Observe(grpc::CallbackServerContext*
 grpc::ServerUnaryReactor* ForestMapService::ListVersions(grpc::CallbackServerContext* context,
                                                          const v1::ListVersionsRequest* request,
                                                          v1::ListVersionsResponse* response) {
-  return AnswerOn(admin_pool_, context, "ListVersions", [this, request, response] {
+  return AnswerOn(admin_pool_, context, "ListVersions", [this, context, request, response] {
+    Authorize(options_.authorizer, *context, "ListVersions", request->map_name());
     Validate(*request);
     for (const storage::VersionRecord& record :
          store_.ListVersions(request->map_name(), request->limit())) {
@@ -158,7 +168,8 @@ grpc::ServerUnaryReactor* ForestMapService::ListVersions(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* ForestMapService::RestoreVersion(
     grpc::CallbackServerContext* context, const v1::RestoreVersionRequest* request,
     v1::RestoreVersionResponse* response) {
-  return AnswerOn(work_pool_, context, "RestoreVersion", [this, request, response] {
+  return AnswerOn(work_pool_, context, "RestoreVersion", [this, context, request, response] {
+    Authorize(options_.authorizer, *context, "RestoreVersion", request->map_name());
     Validate(*request);
     *response->mutable_map() = ToProto(store_.RestoreVersion(request->map_name(),
                                                              request->version()));
@@ -168,8 +179,10 @@ grpc::ServerUnaryReactor* ForestMapService::RestoreVersion(
 grpc::ServerUnaryReactor* ForestMapService::RemoveSource(grpc::CallbackServerContext* context,
                                                          const v1::RemoveSourceRequest* request,
                                                          v1::RemoveSourceResponse* response) {
-  return AnswerOn(work_pool_, context, "RemoveSource",
-                  [this, request, response] { RunRemoveSource(*request, *response); });
+  return AnswerOn(work_pool_, context, "RemoveSource", [this, context, request, response] {
+    Authorize(options_.authorizer, *context, "RemoveSource", request->map_name());
+    RunRemoveSource(*request, *response);
+  });
 }
 
 }  // namespace forestmap::server

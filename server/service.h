@@ -4,6 +4,7 @@
 // exception crosses an RPC. Handlers never block gRPC's threads: everything that touches the
 // store or the relocalizer runs on the service's thread pools (server/worker_pool.h).
 //
+// Every RPC first checks the caller's token (server/auth.h): UNAUTHENTICATED, PERMISSION_DENIED.
 // Statuses per RPC (besides INTERNAL for server faults and RESOURCE_EXHAUSTED from gRPC itself
 // for a message over the server's receive limit):
 //   CreateMap    INVALID_ARGUMENT (name, description, crs), ALREADY_EXISTS
@@ -49,6 +50,8 @@
 
 namespace forestmap::server {
 
+class Authorizer;
+
 struct ServiceOptions {
   int max_query_trees = 20'000;           // trees per Relocalize request
   int64_t max_upload_trees = 20'000'000;  // trees per UploadTrees stream (held in memory)
@@ -72,6 +75,9 @@ struct ServiceOptions {
   // set of observations, and concurrent drones give the map a sequential upload gives. False
   // keeps the incremental, order-dependent merge.
   bool consolidate = true;
+  // Token checks of every RPC (server/auth.h); null: every call is allowed. Must outlive the
+  // service.
+  const Authorizer* authorizer = nullptr;
   void Check() const;  // throws std::invalid_argument
 };
 
