@@ -18,12 +18,13 @@ namespace forestmap::client {
 // Shared by every subcommand: global flags and the action chosen on the command line.
 struct CliContext {
   std::string server = "127.0.0.1:50051";  // --server, or FORESTMAP_SERVER
+  ClientOptions client;  // --tls, --tls-ca, --tls-cert, --tls-key, --token (FORESTMAP_TOKEN)
   // Set by the chosen subcommand's parse callback; main runs it after parsing succeeded.
   std::function<void()> run;
   std::ostream* out = &std::cout;  // results (tables, CSV, JSON lines)
   std::ostream* err = &std::cerr;  // progress, summaries, warnings
 
-  ForestMapClient Connect() const { return ForestMapClient(server); }
+  ForestMapClient Connect() const { return ForestMapClient(server, client); }
 };
 
 // A command that could not do its job; main prints "forestmap: error: <what>" and exits 1.
@@ -47,5 +48,7 @@ void AddTrackCommand(CLI::App& app, CliContext& context);       // cli_track.cc
 void AddHealthCommand(CLI::App& app, CliContext& context);      // cli_health.cc
 void AddCompareCommand(CLI::App& app, CliContext& context);     // cli_compare.cc
 void AddPlotCommand(CLI::App& app, CliContext& context);        // cli_plot.cc
+// Global flags --tls, --tls-ca, --tls-cert, --tls-key, --token (cli_security.cc).
+void AddSecurityOptions(CLI::App& app, CliContext& context);
 
 }  // namespace forestmap::client

@@ -55,6 +55,12 @@ void ClientOptions::Check() const {
   if (upload_chunk_trees < 1) throw std::invalid_argument("upload_chunk_trees must be >= 1");
   if (max_receive_bytes < 1) throw std::invalid_argument("max_receive_bytes must be >= 1");
   if (write_attempts < 1) throw std::invalid_argument("write_attempts must be >= 1");
+  if (tls_cert.empty() != tls_key.empty()) {
+    throw std::invalid_argument("a client certificate needs both --tls-cert and --tls-key");
+  }
+  if (token.find_first_of("\r\n") != std::string::npos) {
+    throw std::invalid_argument("the token must be one line");
+  }
 }
 
 ForestMapClient::ForestMapClient(std::string address, const ClientOptions& options)
@@ -67,7 +73,7 @@ ForestMapClient::ForestMapClient(std::string address, const ClientOptions& optio
     if (one.empty()) continue;
     addresses_.push_back(one);
     channels_.push_back(
-        grpc::CreateCustomChannel(one, grpc::InsecureChannelCredentials(), arguments));
+        grpc::CreateCustomChannel(one, ChannelCredentialsFor(options_), arguments));
     stubs_.push_back(v1::ForestMap::NewStub(channels_.back()));
   }
   if (addresses_.empty()) {
@@ -113,6 +119,7 @@ void ForestMapClient::EnsureConnected() {
 std::unique_ptr<grpc::ClientContext> ForestMapClient::NewContext(double timeout) {
   EnsureConnected();
   auto context = std::make_unique<grpc::ClientContext>();
+  if (!options_.token.empty()) context->AddMetadata("authorization", "Bearer " + options_.token);
   if (!connected_) {
     context->set_deadline(
         After(timeout > 0 ? std::min(timeout, kUnconnectedCallTimeout) : kUnconnectedCallTimeout));

@@ -42,8 +42,18 @@ struct ClientOptions {
   // RemoveSource) that timed out or lost its connection: every try carries the same request id,
   // so the server applies the write at most once (exactly-once writes).
   int write_attempts = 3;
-  void Check() const;                // throws std::invalid_argument
+  // Security (server side: README "Security"). TLS is on when `tls` is set or `tls_ca` given.
+  bool tls = false;      // TLS with the system's root certificates (unless tls_ca is set)
+  std::string tls_ca;    // PEM file: CA that signed the server's certificate (implies TLS)
+  std::string tls_cert;  // PEM file: client certificate, for servers that require one
+  std::string tls_key;   // PEM file: key of tls_cert
+  std::string token;     // bearer token sent with every call ("" : none)
+  void Check() const;    // throws std::invalid_argument
 };
+
+// The channel credentials `options` ask for: plaintext, or TLS with its CA and client
+// certificate. Throws std::runtime_error naming a file that cannot be read.
+std::shared_ptr<grpc::ChannelCredentials> ChannelCredentialsFor(const ClientOptions& options);
 
 // A prior pose given as a horizontal position and heading, for Relocalize.
 struct PriorXyYaw {

@@ -28,6 +28,7 @@ int main(int argc, char** argv) {
       ->check([](const std::string& address) {
         return address.empty() ? std::string("the address must not be empty") : std::string();
       });
+  forestmap::client::AddSecurityOptions(app, context);
   forestmap::client::AddMapCommand(app, context);
   forestmap::client::AddHealthCommand(app, context);
   forestmap::client::AddRelocalizeCommand(app, context);

@@ -8,19 +8,31 @@
 #include <chrono>
 #include <cstdio>
 #include <exception>
+#include <iostream>
 #include <memory>
 #include <string>
 
 #include "server/http_page.h"
+#include "server/auth.h"
+#include "server/daemon.h"
+#include "server/logging.h"
+#include "server/metrics.h"
+#include "server/metrics_http.h"
 #include "server/server.h"
 #include "server/service.h"
 #include "server/status.h"
+#include "server/tls.h"
 #include "storage/postgres.h"
 #include "storage/postgres_map_store.h"
+#include "storage/token_store.h"
 
 namespace {
 
 constexpr auto kShutdownGrace = std::chrono::seconds(5);
+
+void LogError(const std::string& message) {
+  forestmap::server::Log(forestmap::server::LogLevel::kError, message);
+}
 
 struct Config {
   std::string db = "./forestmap.db";
@@ -28,6 +40,10 @@ struct Config {
   int max_message_mb = 64;
   std::string http;  // --http ADDR: the read-only web page; empty: none
   int64_t keep_versions = 0;  // versions of each map kept readable (0: all)
+  forestmap::server::TlsFiles tls;  // --tls-cert, --tls-key, --tls-client-ca
+  std::string log_format = "text";
+  std::string log_level = "info";
+  std::string metrics;  // host:port of the Prometheus endpoint; empty: none
 };
 
 // Blocks SIGINT and SIGTERM in this thread and in every thread started after it (gRPC's), so
@@ -52,22 +68,42 @@ int Serve(const Config& config, const sigset_t& shutdown_signals) {
   try {
     store = forestmap::storage::OpenMapStore(config.db);
   } catch (const std::exception& e) {
-    LogLine("cannot open database " + shown_db + ": " + e.what());
+    LogError("cannot open database " + shown_db + ": " + e.what());
     return 1;
   }
   const size_t map_count = store->ListMaps().size();
+  // Tokens live in the SQLite file (table access_tokens); a PostgreSQL store has none yet (open).
+  std::unique_ptr<forestmap::storage::TokenStore> tokens;
+  if (!forestmap::storage::IsPostgresUri(config.db)) {
+    tokens = std::make_unique<forestmap::storage::TokenStore>(config.db);
+  }
+  const forestmap::server::Authorizer authorizer(tokens.get());
 
   forestmap::server::ServiceOptions service_options;
   service_options.keep_versions = config.keep_versions;
+  service_options.authorizer = &authorizer;
   forestmap::server::ForestMapService service(*store, service_options);
+  forestmap::server::Metrics metrics;
+  forestmap::server::AddServerMetrics(metrics, service.index_cache(), config.db);
   forestmap::server::ServerOptions server_options;
   server_options.max_receive_message_bytes = config.max_message_mb << 20;
+  server_options.metrics = &metrics;
   std::unique_ptr<forestmap::server::ServerRunner> server;
+  std::unique_ptr<forestmap::server::MetricsHttpServer> metrics_http;
   try {
+    const bool tls =
+        !config.tls.cert.empty() || !config.tls.key.empty() || !config.tls.client_ca.empty();
+    if (tls) server_options.credentials = forestmap::server::TlsServerCredentials(config.tls);
     server =
         std::make_unique<forestmap::server::ServerRunner>(config.listen, service, server_options);
+    forestmap::server::WarnIfExposed(config.listen, tls, tokens && tokens->AnyToken());
+    if (!config.metrics.empty()) {
+      metrics_http = std::make_unique<forestmap::server::MetricsHttpServer>(
+          config.metrics, [&metrics] { return metrics.Render(); });
+      LogLine("metrics on http://" + config.metrics + "/metrics");
+    }
   } catch (const std::exception& e) {
-    LogLine(e.what());
+    LogError(e.what());
     return 1;
   }
   LogLine("serving on " + server->address() + ", database " + shown_db + ", " +
@@ -99,7 +135,13 @@ int Serve(const Config& config, const sigset_t& shutdown_signals) {
 
 int main(int argc, char** argv) {
   Config config;
-  CLI::App app{"forestmapd: the ForestMap gRPC server (maps of trees, relocalization)"};
+  CLI::App app{
+      "forestmapd: the ForestMap gRPC server (maps of trees, relocalization).\n"
+      "Usage: forestmapd [--db PATH] [--listen ADDR] [--tls-cert F --tls-key F [--tls-client-ca "
+      "F]]\n"
+      "                  [--metrics ADDR] [--log-format text|json] [--log-level L]\n"
+      "       forestmapd token create|list|revoke --db PATH [--map M] [--role R]\n"
+      "       forestmapd backup --db PATH --out FILE"};
   app.add_option("--db", config.db,
                  "SQLite database file (created if missing), or a PostgreSQL server as "
                  "postgresql://user@host:port/dbname (several replicas may share one)")
@@ -117,13 +159,40 @@ int main(int argc, char** argv) {
                  "readable (0: all)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  app.add_option("--tls-cert", config.tls.cert,
+                 "PEM certificate chain: serve TLS (with --tls-key)");
+  app.add_option("--tls-key", config.tls.key, "PEM private key of --tls-cert");
+  app.add_option("--tls-client-ca", config.tls.client_ca,
+                 "PEM CA bundle: require client certificates signed by it");
+  app.add_option("--log-format", config.log_format, "log lines as text or json")
+      ->check(CLI::IsMember({"text", "json"}))
+      ->capture_default_str();
+  app.add_option("--log-level", config.log_level, "debug, info, warn or error")
+      ->check(CLI::IsMember({"debug", "info", "warn", "error"}))
+      ->capture_default_str();
+  app.add_option("--metrics", config.metrics,
+                 "serve Prometheus metrics on http://HOST:PORT/metrics (port 0: any)");
+  std::function<int()> offline;  // a subcommand instead of serving
+  forestmap::server::AddTokenCommands(app, offline, std::cout);
+  forestmap::server::AddBackupCommand(app, offline, std::cout);
+  app.require_subcommand(0, 1);
   CLI11_PARSE(app, argc, argv);
+  forestmap::server::ConfigureLogging({forestmap::server::ParseLogFormat(config.log_format),
+                                       forestmap::server::ParseLogLevel(config.log_level)});
+  if (offline) {
+    try {
+      return offline();
+    } catch (const std::exception& e) {
+      std::cerr << "forestmapd: error: " << e.what() << std::endl;
+      return 1;
+    }
+  }
 
   const sigset_t shutdown_signals = BlockShutdownSignals();
   try {
     return Serve(config, shutdown_signals);
   } catch (const std::exception& e) {
-    forestmap::server::LogLine(std::string("fatal: ") + e.what());
+    LogError(std::string("fatal: ") + e.what());
     return 1;
   }
 }

@@ -1,5 +1,6 @@
 #include "server/map_index_cache.h"
 
+#include <chrono>
 #include <stdexcept>
 #include <utility>
 
@@ -77,7 +78,13 @@ MapIndexCache::Entry MapIndexCache::Get(const std::string& name) {
   if (other_build.valid()) return other_build.get();  // rethrows that build's error
 
   try {
+    const auto build_start = std::chrono::steady_clock::now();
     Entry entry = BuildEntry(name);
+    const std::chrono::duration<double> build_time = std::chrono::steady_clock::now() - build_start;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stats_.build_seconds += build_time.count();
+    }
     Publish(name, build_id, &entry);
     promise.set_value(entry);
     return entry;
@@ -173,6 +180,15 @@ void MapIndexCache::Evict(const std::string& name) {
 size_t MapIndexCache::size() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return slots_.size();
+}
+
+size_t MapIndexCache::memory_bytes() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  size_t bytes = 0;
+  for (const auto& [name, slot] : slots_) {
+    if (slot.ready) bytes += slot.ready->index->MemoryBytes();
+  }
+  return bytes;
 }
 
 MapIndexCache::Stats MapIndexCache::stats() const {

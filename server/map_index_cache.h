@@ -46,6 +46,7 @@ class MapIndexCache {
     int64_t builds = 0;  // indexes built (one per map version seen)
     int64_t hits = 0;    // Get answered from a ready entry
     int64_t waits = 0;   // Get that waited for another caller's build
+    double build_seconds = 0;  // s, wall time of all builds (snapshot read + index), summed
   };
 
   MapIndexCache(storage::MapStore& store, MapIndexCacheOptions options = {});
@@ -62,6 +63,8 @@ class MapIndexCache {
   void Evict(const std::string& name);
   size_t size() const;
   Stats stats() const;
+  // Approximate memory of the ready indexes (algorithms::MapIndex::MemoryBytes), bytes.
+  size_t memory_bytes() const;
 
  private:
   // A map's slot: the ready entry and/or the one build in progress.

@@ -5,9 +5,12 @@
 #include <grpcpp/health_check_service_interface.h>
 
 #include <climits>
+#include <memory>
 #include <stdexcept>
+#include <vector>
 
 #include "forestmap/v1/forestmap_service.grpc.pb.h"
+#include "server/rpc_observer.h"
 
 namespace forestmap::server {
 namespace {
@@ -43,7 +46,14 @@ ServerRunner::ServerRunner(const std::string& address, grpc::Service& service,
   options.Check();
   InitGrpcPlugins(options.reflection);
   grpc::ServerBuilder builder;
-  builder.AddListeningPort(address, grpc::InsecureServerCredentials(), &port_);
+  builder.AddListeningPort(
+      address, options.credentials ? options.credentials : grpc::InsecureServerCredentials(),
+      &port_);
+  if (options.observe_rpcs) {
+    std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> observers;
+    observers.push_back(std::make_unique<RpcObserverFactory>(options.metrics));
+    builder.experimental().SetInterceptorCreators(std::move(observers));
+  }
   builder.RegisterService(&service);
   builder.SetMaxReceiveMessageSize(options.max_receive_message_bytes);
   // gRPC sets SO_REUSEPORT by default, which lets a second server bind the same port and

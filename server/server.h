@@ -14,15 +14,23 @@
 
 namespace forestmap::server {
 
+class Metrics;
+
 struct ServerOptions {
   int max_receive_message_bytes = 64 << 20;  // bytes per incoming message (1 .. 2^31-1)
   bool reflection = true;                    // grpc.reflection.v1alpha.ServerReflection
+  // Transport security (server/tls.h); null: plaintext.
+  std::shared_ptr<grpc::ServerCredentials> credentials;
+  // One log line per RPC and the RPC metrics (server/rpc_observer.h).
+  bool observe_rpcs = true;
+  Metrics* metrics = nullptr;  // RPC counts and latencies go here when set; must outlive the server
   void Check() const;                        // throws std::invalid_argument
 };
 
 class ServerRunner {
  public:
-  // Binds `address` ("host:port"; port 0 picks a free port) without TLS, registers the
+  // Binds `address` ("host:port"; port 0 picks a free port) with options.credentials (default
+  // plaintext), registers the
   // services and starts serving. Throws std::runtime_error if the address cannot be bound,
   // std::invalid_argument for invalid options. `service` must outlive the runner.
   ServerRunner(const std::string& address, grpc::Service& service,

@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "algorithms/core/check.h"
+#include "server/auth.h"
 #include "server/convert.h"
 #include "server/geo_convert.h"
 #include "server/exactly_once.h"
@@ -68,6 +69,7 @@ grpc::ServerUnaryReactor* ForestMapService::CreateMap(grpc::CallbackServerContex
                                                       const v1::CreateMapRequest* request,
                                                       v1::Map* response) {
   return AnswerOn(admin_pool_, context, "CreateMap", [this, context, request, response] {
+    Authorize(options_.authorizer, *context, "CreateMap", request->name());
     Validate(*request);
     const auto encode =
         Encoder<v1::Map>([](const storage::MapInfo& info, v1::Map& map) { map = ToProto(info); });
@@ -81,15 +83,19 @@ grpc::ServerUnaryReactor* ForestMapService::CreateMap(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* ForestMapService::ListMaps(grpc::CallbackServerContext* context,
                                                      const v1::ListMapsRequest* /*request*/,
                                                      v1::ListMapsResponse* response) {
-  return AnswerOn(admin_pool_, context, "ListMaps", [this, response] {
-    for (const storage::MapInfo& info : store_.ListMaps()) *response->add_maps() = ToProto(info);
+  return AnswerOn(admin_pool_, context, "ListMaps", [this, context, response] {
+    const Caller caller = Authorize(options_.authorizer, *context, "ListMaps", "");
+    for (const storage::MapInfo& info : store_.ListMaps()) {
+      if (caller.CanRead(info.name)) *response->add_maps() = ToProto(info);
+    }
   });
 }
 
 grpc::ServerUnaryReactor* ForestMapService::GetMap(grpc::CallbackServerContext* context,
                                                    const v1::GetMapRequest* request,
                                                    v1::Map* response) {
-  return AnswerOn(admin_pool_, context, "GetMap", [this, request, response] {
+  return AnswerOn(admin_pool_, context, "GetMap", [this, context, request, response] {
+    Authorize(options_.authorizer, *context, "GetMap", request->name());
     Validate(*request);
     *response = ToProto(store_.GetMap(request->name()));
   });
@@ -99,6 +105,7 @@ grpc::ServerUnaryReactor* ForestMapService::DeleteMap(grpc::CallbackServerContex
                                                       const v1::DeleteMapRequest* request,
                                                       v1::DeleteMapResponse* response) {
   return AnswerOn(admin_pool_, context, "DeleteMap", [this, context, request, response] {
+    Authorize(options_.authorizer, *context, "DeleteMap", request->name());
     Validate(*request);
     const auto encode = [](const storage::MapInfo&) { return std::string(); };
     RunExactlyOnce(store_, context, request->request_id(), "DeleteMap", *response, encode,
@@ -113,8 +120,8 @@ grpc::ServerReadReactor<grpc::ByteBuffer>* ForestMapService::UploadTrees(
 }
 
 grpc::ServerWriteReactor<v1::ExportTreesResponse>* ForestMapService::ExportTrees(
-    grpc::CallbackServerContext* /*context*/, const v1::ExportTreesRequest* request) {
-  return new ExportTreesReactor(store_, options_, work_pool_, request);
+    grpc::CallbackServerContext* context, const v1::ExportTreesRequest* request) {
+  return new ExportTreesReactor(store_, options_, work_pool_, context, request);
 }
 
 grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerContext* context,
@@ -122,6 +129,7 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
                                                        v1::RelocalizeResponse* response) {
   const auto start = std::chrono::steady_clock::now();
   return AnswerOn(work_pool_, context, "Relocalize", [this, context, request, response, start] {
+    Authorize(options_.authorizer, *context, "Relocalize", request->map_name());
     Validate(*request, options_.max_query_trees);
     if (context->IsCancelled()) return;  // the client is gone; its status is CANCELLED anyway
     // No lock around the relocalizer: concurrent queries share the immutable index.
@@ -139,14 +147,15 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
 }
 
 grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse>* ForestMapService::Track(
-    grpc::CallbackServerContext* /*context*/) {
-  return new TrackReactor(index_cache_, options_, work_pool_);
+    grpc::CallbackServerContext* context) {
+  return new TrackReactor(index_cache_, options_, work_pool_, context);
 }
 
 grpc::ServerUnaryReactor* ForestMapService::Observe(grpc::CallbackServerContext* context,
                                                     const v1::ObserveRequest* request,
                                                     v1::ObserveResponse* response) {
   return AnswerOn(work_pool_, context, "Observe", [this, context, request, response] {
+    Authorize(options_.authorizer, *context, "Observe", request->map_name());
     RunObserve(context, *request, *response);
     ApplyRetention(request->map_name());
   });
@@ -155,7 +164,8 @@ grpc::ServerUnaryReactor* ForestMapService::Observe(grpc::CallbackServerContext*
 grpc::ServerUnaryReactor* ForestMapService::ListVersions(grpc::CallbackServerContext* context,
                                                          const v1::ListVersionsRequest* request,
                                                          v1::ListVersionsResponse* response) {
-  return AnswerOn(admin_pool_, context, "ListVersions", [this, request, response] {
+  return AnswerOn(admin_pool_, context, "ListVersions", [this, context, request, response] {
+    Authorize(options_.authorizer, *context, "ListVersions", request->map_name());
     Validate(*request);
     for (const storage::VersionRecord& record :
          store_.ListVersions(request->map_name(), request->limit())) {
@@ -168,6 +178,7 @@ grpc::ServerUnaryReactor* ForestMapService::RestoreVersion(
     grpc::CallbackServerContext* context, const v1::RestoreVersionRequest* request,
     v1::RestoreVersionResponse* response) {
   return AnswerOn(work_pool_, context, "RestoreVersion", [this, context, request, response] {
+    Authorize(options_.authorizer, *context, "RestoreVersion", request->map_name());
     Validate(*request);
     const auto encode = Encoder<v1::RestoreVersionResponse>(
         [](const storage::MapInfo& info, auto& answer) { *answer.mutable_map() = ToProto(info); });
@@ -184,6 +195,7 @@ grpc::ServerUnaryReactor* ForestMapService::RemoveSource(grpc::CallbackServerCon
                                                          const v1::RemoveSourceRequest* request,
                                                          v1::RemoveSourceResponse* response) {
   return AnswerOn(work_pool_, context, "RemoveSource", [this, context, request, response] {
+    Authorize(options_.authorizer, *context, "RemoveSource", request->map_name());
     RunRemoveSource(context, *request, *response);
     ApplyRetention(request->map_name());
   });
@@ -192,8 +204,10 @@ grpc::ServerUnaryReactor* ForestMapService::RemoveSource(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* ForestMapService::PruneVersions(grpc::CallbackServerContext* context,
                                                           const v1::PruneVersionsRequest* request,
                                                           v1::PruneVersionsResponse* response) {
-  return AnswerOn(work_pool_, context, "PruneVersions",
-                  [this, context, request, response] { RunPrune(context, *request, *response); });
+  return AnswerOn(work_pool_, context, "PruneVersions", [this, context, request, response] {
+    Authorize(options_.authorizer, *context, "PruneVersions", request->map_name());
+    RunPrune(context, *request, *response);
+  });
 }
 
 }  // namespace forestmap::server

@@ -4,6 +4,7 @@
 // exception crosses an RPC. Handlers never block gRPC's threads: everything that touches the
 // store or the relocalizer runs on the service's thread pools (server/worker_pool.h).
 //
+// Every RPC first checks the caller's token (server/auth.h): UNAUTHENTICATED, PERMISSION_DENIED.
 // Statuses per RPC (besides INTERNAL for server faults and RESOURCE_EXHAUSTED from gRPC itself
 // for a message over the server's receive limit):
 //   CreateMap    INVALID_ARGUMENT (name, description, crs), ALREADY_EXISTS
@@ -54,6 +55,8 @@
 
 namespace forestmap::server {
 
+class Authorizer;
+
 struct ServiceOptions {
   int max_query_trees = 20'000;           // trees per Relocalize request
   int64_t max_upload_trees = 20'000'000;  // trees per UploadTrees stream (held in memory)
@@ -80,6 +83,9 @@ struct ServiceOptions {
   // History retention: after every write the map keeps its newest keep_versions versions
   // readable (0 = all; forestmapd --keep-versions). `map prune` does it on demand.
   int64_t keep_versions = 0;
+  // Token checks of every RPC (server/auth.h); null: every call is allowed. Must outlive the
+  // service.
+  const Authorizer* authorizer = nullptr;
   void Check() const;  // throws std::invalid_argument
 };
 

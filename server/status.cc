@@ -5,6 +5,7 @@
 #include <mutex>
 #include <new>
 
+#include "server/logging.h"
 #include "storage/map_store.h"
 
 namespace forestmap::server {
@@ -31,10 +32,8 @@ grpc::StatusCode CodeOf(storage::StorageError::Code code) {
 
 // A fault of the server: the client gets a generic message, the log gets the real one.
 grpc::Status InternalFault(std::string_view rpc, std::string_view what) {
-  std::string line(rpc);
-  line += ": internal fault: ";
-  line += what;
-  LogLine(line);
+  Log(LogLevel::kError, "internal fault",
+      {{"rpc", std::string(rpc)}, {"error", std::string(what)}});
   return grpc::Status(grpc::StatusCode::INTERNAL, kInternalErrorMessage);
 }
 
@@ -49,7 +48,7 @@ grpc::Status Classify(std::string_view rpc) {
   } catch (const std::invalid_argument& e) {
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, e.what());
   } catch (const std::bad_alloc&) {
-    LogLine(std::string(rpc) + ": out of memory");
+    Log(LogLevel::kError, "out of memory", {{"rpc", std::string(rpc)}});
     return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, "server out of memory");
   } catch (const std::exception& e) {
     return InternalFault(rpc, e.what());
@@ -78,22 +77,16 @@ grpc::Status ServerBusy(std::string_view rpc) noexcept {
   return busy;
 }
 
-void LogLine(std::string_view line) noexcept {
-  static std::mutex mutex;
-  std::lock_guard<std::mutex> lock(mutex);
-  std::fprintf(stderr, "forestmapd: %.*s\n", static_cast<int>(line.size()), line.data());
-  std::fflush(stderr);
-}
+void LogLine(std::string_view line) noexcept { Log(LogLevel::kInfo, line); }
 
 void LogStatus(std::string_view rpc, const grpc::Status& status) noexcept {
   if (status.ok()) return;
   try {
-    std::string line(rpc);
-    line += ": ";
-    line += StatusCodeName(status.error_code());
-    line += ": ";
-    line += status.error_message();
-    LogLine(line);
+    // Debug only: the RPC's own log line (server/rpc_observer.h) carries code and message.
+    Log(LogLevel::kDebug, "status",
+        {{"rpc", std::string(rpc)},
+         {"code", StatusCodeName(status.error_code())},
+         {"error", status.error_message()}});
   } catch (...) {
     // Logging must never take the server down.
   }

@@ -14,7 +14,7 @@
 //   std::bad_alloc                       -> RESOURCE_EXHAUSTED "server out of memory" (logged)
 //   anything else                        -> INTERNAL "internal error; see server log" (logged)
 //   (no exception) work queue full       -> RESOURCE_EXHAUSTED "server busy ..." (ServerBusy)
-// Every non-OK status is logged as one line on stderr.
+// Every non-OK status is logged (server/logging.h); server faults with their real cause.
 
 #include "proto/status_code_name.h"
 #include <grpcpp/support/status.h>
@@ -69,7 +69,8 @@ grpc::Status StatusFromCurrentException(std::string_view rpc) noexcept;
 // RESOURCE_EXHAUSTED "server busy ..." for a call that found the work queue full (logged).
 grpc::Status ServerBusy(std::string_view rpc) noexcept;
 
-// Writes one line "forestmapd: <rpc>: <CODE>: <message>" to stderr (thread-safe, never throws).
+// Log lines through server/logging.h (thread-safe, never throw): LogStatus at debug level (the
+// RPC's own line reports its status), LogLine at info level.
 void LogStatus(std::string_view rpc, const grpc::Status& status) noexcept;
 void LogLine(std::string_view line) noexcept;
 

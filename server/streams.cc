@@ -4,6 +4,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "server/auth.h"
 #include "server/convert.h"
 #include "server/geo_convert.h"
 #include "server/exactly_once.h"
@@ -19,6 +20,7 @@ UploadTreesReactor::UploadTreesReactor(storage::MapStore& store, const ServiceOp
                                        grpc::CallbackServerContext* context,
                                        grpc::ByteBuffer* response)
     : store_(store),
+      authorizer_(options.authorizer),
       admin_pool_(admin_pool),
       work_pool_(work_pool),
       context_(context),
@@ -44,7 +46,10 @@ void UploadTreesReactor::OnReadDone(bool ok) {
     return;
   }
   const bool first = validator_.messages() == 0;
-  const grpc::Status status = RunGuarded("UploadTrees", [this] { Accept(); });
+  const grpc::Status status = RunGuarded("UploadTrees", [this, first] {
+    if (first) Authorize(authorizer_, *context_, "UploadTrees", request_.map_name());
+    Accept();
+  });
   if (!status.ok()) {
     Finish(status);  // the rest of the stream is dropped; nothing was written
     return;
@@ -127,10 +132,15 @@ void UploadTreesReactor::Commit() {
 // ---- ExportTrees ----
 
 ExportTreesReactor::ExportTreesReactor(storage::MapStore& store, const ServiceOptions& options,
-                                       WorkerPool& work_pool, const v1::ExportTreesRequest* request)
+                                       WorkerPool& work_pool, grpc::CallbackServerContext* context,
+                                       const v1::ExportTreesRequest* request)
     : chunk_trees_(options.export_chunk_trees), chunk_bytes_(options.export_chunk_bytes) {
-  const bool queued = work_pool.TrySubmit([this, &store, request] {
-    const grpc::Status status = RunGuarded("ExportTrees", [&] { Load(store, *request); });
+  const Authorizer* authorizer = options.authorizer;
+  const bool queued = work_pool.TrySubmit([this, &store, authorizer, context, request] {
+    const grpc::Status status = RunGuarded("ExportTrees", [&] {
+      Authorize(authorizer, *context, "ExportTrees", request->map_name());
+      Load(store, *request);
+    });
     if (status.ok()) {
       WriteNext();
     } else {
@@ -222,9 +232,11 @@ algorithms::TrackingOptions SessionOptions(const ServiceOptions& options) {
 }  // namespace
 
 TrackReactor::TrackReactor(MapIndexCache& index_cache, const ServiceOptions& options,
-                           WorkerPool& work_pool)
+                           WorkerPool& work_pool, grpc::CallbackServerContext* context)
     : index_cache_(index_cache),
       work_pool_(work_pool),
+      authorizer_(options.authorizer),
+      context_(context),
       max_query_trees_(options.max_query_trees),
       tracker_(SessionOptions(options)) {
   StartRead(&request_);
@@ -257,6 +269,7 @@ void TrackReactor::OnWriteDone(bool ok) {
 
 void TrackReactor::Answer() {
   const auto start = std::chrono::steady_clock::now();
+  if (map_name_.empty()) Authorize(authorizer_, *context_, "Track", request_.map_name());
   Validate(request_, map_name_, max_query_trees_);
   if (map_name_.empty()) map_name_ = request_.map_name();
   const MapIndexCache::Entry entry = index_cache_.Get(map_name_);

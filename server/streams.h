@@ -18,6 +18,7 @@
 namespace forestmap::server {
 
 struct ServiceOptions;
+class Authorizer;
 
 // UploadTrees: reads every message, validates it as it arrives (the first must name an existing
 // map: NOT_FOUND comes before the client sends the rest), accumulates the trees, and writes
@@ -45,6 +46,7 @@ class UploadTreesReactor final : public grpc::ServerReadReactor<grpc::ByteBuffer
   void ThenReadNext(WorkerPool& pool, std::function<void()> body);
 
   storage::MapStore& store_;
+  const Authorizer* authorizer_;  // checked on the first message
   WorkerPool& admin_pool_;
   WorkerPool& work_pool_;
   grpc::CallbackServerContext* context_;
@@ -66,7 +68,7 @@ class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTrees
  public:
   // `request` must stay valid until the reactor finishes (gRPC guarantees it).
   ExportTreesReactor(storage::MapStore& store, const ServiceOptions& options, WorkerPool& work_pool,
-                     const v1::ExportTreesRequest* request);
+                     grpc::CallbackServerContext* context, const v1::ExportTreesRequest* request);
 
   void OnWriteDone(bool ok) override;
   void OnDone() override { delete this; }
@@ -91,7 +93,8 @@ class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTrees
 // message prefixed with the frame ("frame 12: trees[3].position.x is NaN").
 class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse> {
  public:
-  TrackReactor(MapIndexCache& index_cache, const ServiceOptions& options, WorkerPool& work_pool);
+  TrackReactor(MapIndexCache& index_cache, const ServiceOptions& options, WorkerPool& work_pool,
+               grpc::CallbackServerContext* context);
 
   void OnReadDone(bool ok) override;
   void OnWriteDone(bool ok) override;
@@ -102,6 +105,8 @@ class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::
 
   MapIndexCache& index_cache_;
   WorkerPool& work_pool_;
+  const Authorizer* authorizer_;  // checked on the first frame
+  grpc::CallbackServerContext* context_;
   int max_query_trees_;
   algorithms::Tracker tracker_;
   std::string map_name_;  // from the first frame

@@ -53,7 +53,7 @@ struct SqliteMapStoreOptions {
 class SqliteMapStore final : public MapStore {
  public:
   // Schema version this code writes; a database with a newer PRAGMA user_version is refused.
-  static constexpr int64_t kSchemaVersion = 4;
+  static constexpr int64_t kSchemaVersion = 5;
   static constexpr size_t kTreesPerBlock = 32;
 
   // Opens (creating if missing) the database at `path` and migrates its schema to

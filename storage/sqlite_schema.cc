@@ -157,10 +157,26 @@ CREATE INDEX request_log_by_time ON request_log (created_unix_ms);
 PRAGMA user_version = 4;
 )sql";
 
+// Version 5: access tokens of the server (storage/token_store.h). Only the SHA-256 of a token's
+// secret is stored; a revoked token keeps its row, so the server stays closed (deny by default)
+// once any token has been created.
+constexpr const char* kStep5 = R"sql(
+CREATE TABLE access_tokens (
+  id INTEGER PRIMARY KEY,
+  secret_sha256 TEXT NOT NULL UNIQUE,  -- lowercase hex of SHA-256(secret)
+  map_pattern TEXT NOT NULL,           -- a map name or a glob ('*': every map)
+  role INTEGER NOT NULL,               -- storage::Role: 1 read, 2 write, 3 admin
+  note TEXT NOT NULL,
+  created_unix_ms INTEGER NOT NULL,
+  revoked_unix_ms INTEGER              -- NULL while valid
+);
+PRAGMA user_version = 5;
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4, kStep5};
   return steps;
 }
 

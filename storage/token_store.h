@@ -1,0 +1,78 @@
+#pragma once
+// Access tokens of forestmapd, kept in the server's SQLite database (table access_tokens, see
+// storage/sqlite_schema.cc). A token grants one role on the maps matching a pattern: a map name,
+// a glob ("plot-*", fnmatch syntax) or "*" for every map. Roles are ordered: admin includes
+// write, write includes read. Only the SHA-256 of the secret is stored: the secret is shown once,
+// by Create, and cannot be recovered from the database.
+//
+// Separate from MapStore on purpose: the token table lives in the SQLite file of the server
+// whatever store holds the maps.
+//
+// Thread-safety: every method may be called from many threads at once (one connection, one
+// mutex; each call is one short statement). Other processes (`forestmapd token ...`) may change
+// the table while a server reads it: changes are seen by the next call.
+
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace forestmap::storage {
+
+namespace sqlite {
+class Database;
+}  // namespace sqlite
+
+enum class Role { kRead = 1, kWrite = 2, kAdmin = 3 };
+
+const char* RoleName(Role role);                       // "read", "write", "admin"
+std::optional<Role> ParseRole(std::string_view name);  // nullopt for anything else
+
+struct TokenRecord {
+  int64_t id = 0;
+  std::string map_pattern;  // map name, glob, or "*"
+  Role role = Role::kRead;
+  std::string note;             // free text given at creation (who / what it is for)
+  int64_t created_unix_ms = 0;  // ms since 1970
+  int64_t revoked_unix_ms = 0;  // ms since 1970; 0 while valid
+  bool revoked() const { return revoked_unix_ms != 0; }
+  // True when this (valid) token grants at least `needed` on map `map`.
+  bool Allows(Role needed, std::string_view map) const;
+};
+
+struct NewToken {
+  TokenRecord record;
+  std::string secret;  // "fmt_" + 64 hex digits; shown once, stored only as its SHA-256
+};
+
+// Lowercase hex SHA-256 of `data` (OpenSSL libcrypto).
+std::string Sha256Hex(std::string_view data);
+
+class TokenStore {
+ public:
+  // Opens (creating and migrating if needed, like SqliteMapStore) the database at `path`;
+  // ":memory:" gives a private one for tests. Throws StorageError.
+  explicit TokenStore(const std::string& path, int busy_timeout_ms = 5000);
+  ~TokenStore();
+  TokenStore(const TokenStore&) = delete;
+  TokenStore& operator=(const TokenStore&) = delete;
+
+  // Throws StorageError kInvalidArgument for an empty pattern or one longer than 256 bytes.
+  NewToken Create(const std::string& map_pattern, Role role, const std::string& note = "");
+  std::vector<TokenRecord> List();  // by id, revoked ones included
+  // False when there is no such token or it was already revoked.
+  bool Revoke(int64_t id);
+  // The valid token whose secret is `secret`, if any (revoked tokens are not found).
+  std::optional<TokenRecord> Find(std::string_view secret);
+  // True once any token was created (revoked ones count): the server then denies by default.
+  bool AnyToken();
+
+ private:
+  std::mutex mutex_;
+  std::unique_ptr<sqlite::Database> db_;
+};
+
+}  // namespace forestmap::storage

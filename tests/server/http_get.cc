@@ -1,0 +1,19 @@
+#include "tests/server/http_get.h"
+
+#include <httplib.h>
+
+namespace forestmap::test {
+
+HttpAnswer HttpGet(const std::string& host, int port, const std::string& path) {
+  httplib::Client client(host, port);
+  const httplib::Result result = client.Get(path.c_str());
+  HttpAnswer answer;
+  if (!result) return answer;
+  answer.ok = true;
+  answer.status = result->status;
+  answer.content_type = result->get_header_value("Content-Type");
+  answer.body = result->body;
+  return answer;
+}
+
+}  // namespace forestmap::test
