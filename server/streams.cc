@@ -47,8 +47,8 @@ void UploadTreesReactor::OnReadDone(bool ok) {
   }
   const bool first = validator_.messages() == 0;
   const grpc::Status status = RunGuarded("UploadTrees", [this, first] {
-    if (first) Authorize(authorizer_, *context_, "UploadTrees", request_.map_name());
-    Accept();
+    Accept();  // decodes and checks the message; the first one names the map
+    if (first) Authorize(authorizer_, *context_, "UploadTrees", validator_.map_name());
   });
   if (!status.ok()) {
     Finish(status);  // the rest of the stream is dropped; nothing was written
