@@ -40,6 +40,8 @@ struct MapRow {
   "created_unix_ms, updated_unix_ms, confirmed_count"
 MapRow ReadMapRow(const sqlite::Statement& row);
 MapRow RequireMap(sqlite::Database& db, const std::string& name);  // kNotFound
+// The history entry of `version`, or kNotFound naming the versions that can be read.
+VersionRecord RequireVersion(sqlite::Database& db, const MapRow& map, int64_t version);
 // Stores version, counts, extent and updated time of `map`.
 void UpdateMapRow(sqlite::Database& db, const MapRow& map);
 

@@ -1,5 +1,5 @@
-// SqliteMapStore: versions of shared maps (reading an old version, history, restore) and the
-// merge transaction.
+// SqliteMapStore: versions of shared maps (reading an old version, history) and the merge
+// transaction; restoring a version is in sqlite_restore.cc.
 
 #include <sqlite3.h>
 
@@ -23,8 +23,7 @@ using sqlite::Transaction;
 using Code = StorageError::Code;
 using internal::MapRow;
 
-// The history entry of `version`, or kNotFound naming the versions that can be read.
-VersionRecord RequireVersion(Database& db, const MapRow& map, int64_t version) {
+VersionRecord RequireVersionImpl(Database& db, const MapRow& map, int64_t version) {
   Statement select(db,
                    "SELECT version, created_unix_ms, kind, source, tree_count, confirmed_count, "
                    "trees_added, trees_updated, trees_removed, observations_added, "
@@ -299,6 +298,10 @@ VersionRecord ApplyChanges(Database& db, MapRow& map, const MergeNote& note,
 
 }  // namespace
 
+VersionRecord internal::RequireVersion(Database& db, const MapRow& map, int64_t version) {
+  return RequireVersionImpl(db, map, version);
+}
+
 MapSnapshot SqliteMapStore::ReadMapVersion(const std::string& name, int64_t version) {
   internal::CheckName(name);
   if (version < 0) {
@@ -315,7 +318,7 @@ MapSnapshot SqliteMapStore::ReadMapVersion(const std::string& name, int64_t vers
       transaction.Commit();
       return;
     }
-    const VersionRecord record = RequireVersion(db, map, version);
+    const VersionRecord record = internal::RequireVersion(db, map, version);
     snapshot.trees = TreesAtVersion(db, map, version);
     transaction.Commit();
     MapInfo& info = snapshot.info;
@@ -346,93 +349,11 @@ std::vector<VersionRecord> SqliteMapStore::ListVersions(const std::string& name,
     std::vector<int64_t> numbers;
     while (select.Step()) numbers.push_back(select.ColumnInt64(0));
     for (auto it = numbers.rbegin(); it != numbers.rend(); ++it) {
-      versions.push_back(RequireVersion(db, map, *it));
+      versions.push_back(internal::RequireVersion(db, map, *it));
     }
     transaction.Commit();
   });
   return versions;
-}
-
-MapInfo SqliteMapStore::RestoreVersion(const std::string& name, int64_t version) {
-  internal::CheckName(name);
-  MapInfo result;
-  WithWriter([&](Database& db) {
-    Transaction transaction(db, Transaction::Kind::kWrite);
-    MapRow map = internal::RequireMap(db, name);
-    const VersionRecord old = RequireVersion(db, map, version);
-    const int64_t next = map.info.version + 1;
-    // Rows valid at `version` but no longer current come back as copies; current rows that
-    // `version` did not have are closed. Rows valid at both simply stay.
-    std::vector<TreeRecord> copies;
-    {
-      Statement select(db, "SELECT " FORESTMAP_TREE_COLUMNS
-                           " FROM trees AS t INDEXED BY "
-                           "trees_history WHERE t.map_id = ?1 AND t.valid_to != " FORESTMAP_CURRENT
-                           " AND t.valid_from <= ?2 AND t.valid_to > ?2");
-      select.BindInt64(1, map.id);
-      select.BindInt64(2, version);
-      while (select.Step()) copies.push_back(internal::ReadTreeRow(select, name));
-    }
-    std::set<int64_t> closed;
-    {
-      Statement close(db,
-                      "UPDATE trees SET valid_to = ?3 WHERE map_id = ?1 AND valid_from > ?2 AND "
-                      "valid_to = " FORESTMAP_CURRENT " RETURNING tree_id");
-      close.BindInt64(1, map.id);
-      close.BindInt64(2, version);
-      close.BindInt64(3, next);
-      while (close.Step()) closed.insert(close.ColumnInt64(0));
-    }
-    std::vector<int64_t> ids;
-    VersionRecord record;
-    for (const TreeRecord& tree : copies) {
-      ids.push_back(*tree.id);
-      ++(closed.count(*tree.id) ? record.trees_updated : record.trees_added);
-    }
-    record.trees_removed = static_cast<int64_t>(closed.size()) - record.trees_updated;
-    internal::InsertTrees(db, map, copies, ids, next);
-
-    std::vector<ObservationRecord> observation_copies;
-    {
-      Statement select(
-          db,
-          "SELECT " FORESTMAP_OBSERVATION_COLUMNS
-          " FROM observations AS o "
-          "INDEXED BY observations_history WHERE o.map_id = ?1 AND o.valid_to != " FORESTMAP_CURRENT
-          " AND o.valid_from <= ?2 AND o.valid_to > ?2 ORDER BY o.id");
-      select.BindInt64(1, map.id);
-      select.BindInt64(2, version);
-      while (select.Step()) observation_copies.push_back(internal::ReadObservationRow(select));
-    }
-    Statement close_observations(db,
-                                 "UPDATE observations SET valid_to = ?3 WHERE map_id = ?1 AND "
-                                 "valid_from > ?2 AND valid_to = " FORESTMAP_CURRENT);
-    close_observations.BindInt64(1, map.id);
-    close_observations.BindInt64(2, version);
-    close_observations.BindInt64(3, next);
-    close_observations.Run();
-    record.observations_removed = sqlite3_changes64(db.handle());
-    internal::InsertObservations(db, map.id, observation_copies, next);
-    record.observations_added = static_cast<int64_t>(observation_copies.size());
-
-    MapInfo& info = map.info;
-    info.version = next;
-    info.tree_count = old.tree_count;
-    info.confirmed_count = old.confirmed_count;
-    info.extent = internal::ScanExtent(db, map.id);
-    info.updated_unix_ms = internal::NowUnixMs();
-    internal::UpdateMapRow(db, map);
-    record.version = next;
-    record.created_unix_ms = info.updated_unix_ms;
-    record.kind = VersionKind::kRestore;
-    record.tree_count = info.tree_count;
-    record.confirmed_count = info.confirmed_count;
-    record.restored_from = version;
-    internal::InsertVersion(db, map.id, record);
-    internal::CommitWrite(db, transaction, info);
-    result = info;
-  });
-  return result;
 }
 
 MapInfo SqliteMapStore::Merge(const std::string& name, const MergeNote& note,
