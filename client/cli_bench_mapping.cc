@@ -1,13 +1,13 @@
 // forestmap bench-mapping: building tree maps from frame sequences, in process, against truth.
 //
 // Survey merge:  --frames F --poses P --use-poses --map map.csv
-//   merges every frame with its ground-truth pose (algorithms/merging/map_merge.h), rebuilds the map
-//   from the set of observations as forestmapd holds it (algorithms::RebuildTrees: any order
-//   or batching of the uploads gives this map) and compares the confirmed trees with the
-//   reference map (algorithms/evaluation/map_evaluation.h).
+//   merges every frame with its ground-truth pose (algorithms/merging/map_merge.h), rebuilds the
+//   map from the set of observations as forestmapd holds it (algorithms::RebuildTrees: any order or
+//   batching of the uploads gives this map) and compares the confirmed trees with the reference map
+//   (algorithms/evaluation/map_evaluation.h).
 // Mapping:       --frames F --poses P [--eval-frames F2 --eval-poses P2 --truth-offset ...]
-//   builds the map from the detections alone (algorithms/mapping/map_builder.h; poses only score it):
-//   the trajectory's ATE after a planar rigid and a planar similarity alignment to P, then the
+//   builds the map from the detections alone (algorithms/mapping/map_builder.h; poses only score
+//   it): the trajectory's ATE after a planar rigid and a planar similarity alignment to P, then the
 //   built map moved into P's world frame with the similarity (--rigid: the rigid) alignment and
 //   the frames of F2 (poses P2, moved by --truth-offset) relocalized against it, scored like
 //   bench-reloc. The scale is there because the ground truth of Wild_V01/V02 is 0.12% larger
@@ -19,13 +19,12 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
-
 #include <nlohmann/json.hpp>
 
-#include "algorithms/mapping/map_builder.h"
 #include "algorithms/evaluation/map_evaluation.h"
-#include "algorithms/merging/merged_map.h"
 #include "algorithms/evaluation/reloc_evaluation.h"
+#include "algorithms/mapping/map_builder.h"
+#include "algorithms/merging/merged_map.h"
 #include "algorithms/relocalization/relocalizer.h"
 #include "client/cli_commands.h"
 #include "client/io/tree_csv.h"
@@ -52,7 +51,8 @@ double Seconds(std::chrono::steady_clock::time_point start) {
 }
 
 void Progress(std::ostream& err, size_t done, size_t total, const std::string& what) {
-  if (done % 100 == 0 || done == total) err << "bench-mapping: " << what << " " << done << "/" << total << "\r";
+  if (done % 100 == 0 || done == total)
+    err << "bench-mapping: " << what << " " << done << "/" << total << "\r";
   if (done == total) err << "\n";
 }
 
@@ -95,11 +95,16 @@ void WriteTrees(const std::string& path, const std::vector<algorithms::MapTree>&
 }
 
 nlohmann::ordered_json CompareJson(const algorithms::TreeMapComparison& c) {
-  return {{"reference_trees", c.reference_trees}, {"confirmed_trees", c.built_trees},
-          {"found", c.found},                     {"found_fraction", c.found_fraction},
-          {"distance_p50_m", c.distance_p50},     {"distance_p95_m", c.distance_p95},
-          {"dbh_abs_diff_p50_m", c.dbh_abs_diff_p50}, {"close_pairs", c.close_pairs},
-          {"duplicates", c.duplicates},           {"unmatched_confirmed", c.unmatched_built}};
+  return {{"reference_trees", c.reference_trees},
+          {"confirmed_trees", c.built_trees},
+          {"found", c.found},
+          {"found_fraction", c.found_fraction},
+          {"distance_p50_m", c.distance_p50},
+          {"distance_p95_m", c.distance_p95},
+          {"dbh_abs_diff_p50_m", c.dbh_abs_diff_p50},
+          {"close_pairs", c.close_pairs},
+          {"duplicates", c.duplicates},
+          {"unmatched_confirmed", c.unmatched_built}};
 }
 
 nlohmann::ordered_json SurveyMerge(const BenchMappingOptions& o, std::ostream& err) {
@@ -190,24 +195,23 @@ nlohmann::ordered_json BuildMap(const BenchMappingOptions& o, std::ostream& err)
   const algorithms::TrajectoryError& alignment = o.rigid ? planar : similar;
   std::vector<algorithms::MapTree> aligned = builder.ConfirmedTrees();
   for (algorithms::MapTree& tree : aligned) tree.position = alignment.ToTruth(tree.position);
-  nlohmann::ordered_json report = {
-      {"mode", "build"},
-      {"frames", sequence.frames.size()},
-      {"fixes_tracked", fixes[1]},
-      {"fixes_relocalized", fixes[2]},
-      {"fixes_global", fixes[3]},
-      {"dead_reckoned", fixes[4]},
-      {"loop_closures", builder.loop_closures()},
-      {"confirmed_trees", aligned.size()},
-      {"ate_xy_rmse_m", planar.ate_rmse},
-      {"ate_xy_p50_m", planar.ate_p50},
-      {"ate_xy_max_m", planar.ate_max},
-      {"ate_xy_similarity_rmse_m", similar.ate_rmse},
-      {"ate_xy_similarity_max_m", similar.ate_max},
-      {"truth_scale", similar.scale},
-      {"ate_3d_rmse_m", full.ate_rmse},
-      {"eval_alignment", o.rigid ? "planar" : "planar_similarity"},
-      {"build_s", build_s}};
+  nlohmann::ordered_json report = {{"mode", "build"},
+                                   {"frames", sequence.frames.size()},
+                                   {"fixes_tracked", fixes[1]},
+                                   {"fixes_relocalized", fixes[2]},
+                                   {"fixes_global", fixes[3]},
+                                   {"dead_reckoned", fixes[4]},
+                                   {"loop_closures", builder.loop_closures()},
+                                   {"confirmed_trees", aligned.size()},
+                                   {"ate_xy_rmse_m", planar.ate_rmse},
+                                   {"ate_xy_p50_m", planar.ate_p50},
+                                   {"ate_xy_max_m", planar.ate_max},
+                                   {"ate_xy_similarity_rmse_m", similar.ate_rmse},
+                                   {"ate_xy_similarity_max_m", similar.ate_max},
+                                   {"truth_scale", similar.scale},
+                                   {"ate_3d_rmse_m", full.ate_rmse},
+                                   {"eval_alignment", o.rigid ? "planar" : "planar_similarity"},
+                                   {"build_s", build_s}};
   if (!o.map_path.empty()) {
     const auto reference = ToMapTrees(ReadMapTreesCsv(o.map_path));
     report["map_vs_reference"] = CompareJson(algorithms::CompareTreeMaps(aligned, reference));
@@ -266,9 +270,10 @@ void AddBenchMappingCommand(CLI::App& app, CliContext& context) {
   cmd->add_option("--eval-step", options->eval_step, "Relocalize every N-th evaluation frame")
       ->check(CLI::PositiveNumber);
   cmd->add_flag("--no-loops", options->no_loops, "Build without loop closure");
-  cmd->add_flag("--rigid", options->rigid,
-                "Move the built map into the truth's frame without a scale (default: with the "
-                "trajectory's horizontal scale, as the truth's scale may differ from the sensor's)");
+  cmd->add_flag(
+      "--rigid", options->rigid,
+      "Move the built map into the truth's frame without a scale (default: with the "
+      "trajectory's horizontal scale, as the truth's scale may differ from the sensor's)");
   cmd->add_option("--out", options->out_path, "Write the confirmed trees to this map CSV");
   cmd->add_option("--trajectory-out", options->trajectory_path,
                   "Write each frame's estimated (aligned) and true pose to this CSV");
@@ -283,9 +288,8 @@ void AddBenchMappingCommand(CLI::App& app, CliContext& context) {
       throw CLI::ValidationError("--eval-frames", "is for mapping without --use-poses");
     }
     context.run = [options, &context] {
-      const nlohmann::ordered_json report = options->use_poses
-                                                ? SurveyMerge(*options, *context.err)
-                                                : BuildMap(*options, *context.err);
+      const nlohmann::ordered_json report = options->use_poses ? SurveyMerge(*options, *context.err)
+                                                               : BuildMap(*options, *context.err);
       if (options->json) {
         *context.out << report.dump() << "\n";
         return;

@@ -6,7 +6,8 @@
 //                  DIR/scan_NNN.pcd): each scan goes through the client's trunk detection
 //                  (client/scan_trees.h) and is relocalized, as `relocalize --scan` does
 // Tracking:        --track with real frames: frames in order through one tracking session
-//                  (algorithms/relocalization/tracking.h), each frame's answer scored like a relocalization
+//                  (algorithms/relocalization/tracking.h), each frame's answer scored like a
+//                  relocalization
 // Generated maps:  --generate N --like STEMMAP.csv --simulate N (a forest with the real map's
 //                  spatial statistics, e.g. 1,000,000 trees)
 // District cases:  --mosaic A.csv,B.csv,... or --plantation SX,SY,ERROR,MORTALITY with
@@ -34,8 +35,8 @@
 #include "algorithms/simulation/view_simulator.h"
 #include "client/cli_bench_reloc_maps.h"
 #include "client/cli_commands.h"
-#include "client/scan_trees.h"
 #include "client/io/tree_csv.h"
+#include "client/scan_trees.h"
 
 namespace forestmap::client {
 namespace {
@@ -45,7 +46,7 @@ using algorithms::Pose3;
 struct BenchOptions {
   BenchMapOptions maps;  // --map, --generate, --mosaic, --plantation, --foreign..., --seed
   std::string frames_path, poses_path, scans_dir;
-  double within = 0.3;  // m, also report the share of all frames localized this close
+  double within = 0.3;               // m, also report the share of all frames localized this close
   std::vector<double> truth_offset;  // x, y, z (m), yaw (deg): map_from_world of the poses
   std::string truth_map_path;        // the frames' own session map, for local truth alignment
   int step = 1, limit = 0;
@@ -92,7 +93,8 @@ class Runner {
       per_frame_.open(options.per_frame_path);
       if (!per_frame_) throw CommandError("cannot write " + options.per_frame_path);
       per_frame_ << "query,answerable,status,x,y,yaw_deg,true_x,true_y,true_yaw_deg,error_xy_m,"
-                    "error_yaw_deg,inliers,confidence,ms,cpu_ms,hypotheses,triangles,poses_checked,detail\n";
+                    "error_yaw_deg,inliers,confidence,ms,cpu_ms,hypotheses,triangles,poses_checked,"
+                    "detail\n";
     }
     const size_t resident_before = ResidentBytes();
     const auto start = std::chrono::steady_clock::now();
@@ -211,7 +213,8 @@ class Runner {
     const algorithms::PoseError error = algorithms::ComparePoses(result.map_from_sensor, truth);
     const Eigen::Vector3d t = result.map_from_sensor.translation(), u = truth.translation();
     char row[400];
-    std::snprintf(row, sizeof row, "%d,%d,%s,%.3f,%.3f,%.2f,%.3f,%.3f,%.2f,%.3f,%.3f,%d,%.3f,%.3f,%.3f,%d,%d,%lld,",
+    std::snprintf(row, sizeof row,
+                  "%d,%d,%s,%.3f,%.3f,%.2f,%.3f,%.3f,%.2f,%.3f,%.3f,%d,%.3f,%.3f,%.3f,%d,%d,%lld,",
                   frames_, answerable ? 1 : 0, algorithms::ToString(result.status),
                   localized ? t.x() : NAN, localized ? t.y() : NAN,
                   localized ? algorithms::YawOf(result.map_from_sensor.linear()) * 180 / M_PI : NAN,
@@ -385,7 +388,8 @@ void AddBenchRelocCommand(CLI::App& app, CliContext& context) {
   AddBenchMapOptions(cmd, options->maps);
   cmd->add_option("--frames", options->frames_path, "Frames CSV (frame,x,y,z,...), sensor frame")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--poses", options->poses_path, "Ground-truth poses CSV (frame,timestamp,x,y,z,qx,qy,qz,qw)")
+  cmd->add_option("--poses", options->poses_path,
+                  "Ground-truth poses CSV (frame,timestamp,x,y,z,qx,qy,qz,qw)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--truth-offset", options->truth_offset,
                   "X,Y,Z,YAW_DEG: map_from_world applied to the poses (session offset)")
@@ -397,7 +401,8 @@ void AddBenchRelocCommand(CLI::App& app, CliContext& context) {
                   "apart")
       ->check(CLI::ExistingFile);
   cmd->add_option("--step", options->step, "Use every N-th frame")->check(CLI::PositiveNumber);
-  cmd->add_option("--limit", options->limit, "At most N frames (0 = all)")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--limit", options->limit, "At most N frames (0 = all)")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--prior-noise", options->prior_noise,
                   "Give a prior: the true position plus Gaussian noise of this RMS (m)")
       ->check(CLI::NonNegativeNumber);
@@ -422,16 +427,16 @@ void AddBenchRelocCommand(CLI::App& app, CliContext& context) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   cmd->add_flag("--track", options->track,
-               "Track the frames in order (one tracking session) instead of relocalizing each");
+                "Track the frames in order (one tracking session) instead of relocalizing each");
   cmd->add_flag("--json", options->json, "Print one JSON object");
   cmd->add_option("--per-frame", options->per_frame_path,
                   "Also write every answer with its error and time to this CSV");
   cmd->callback([options, &context] {
     const BenchOptions& o = *options;
     CheckBenchMapOptions(o.maps, o.simulate > 0);
-    if (o.simulate == 0 && o.scans_dir.empty() &&
-        (o.frames_path.empty() || o.poses_path.empty())) {
-      throw CLI::ValidationError("--frames", "real frames need --frames and --poses (or use --simulate N or --scans DIR)");
+    if (o.simulate == 0 && o.scans_dir.empty() && (o.frames_path.empty() || o.poses_path.empty())) {
+      throw CLI::ValidationError(
+          "--frames", "real frames need --frames and --poses (or use --simulate N or --scans DIR)");
     }
     context.run = [options, &context] { Run(*options, context); };
   });

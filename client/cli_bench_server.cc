@@ -4,12 +4,11 @@
 
 #include <algorithm>
 #include <atomic>
-#include <mutex>
 #include <chrono>
+#include <mutex>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <thread>
-
-#include <nlohmann/json.hpp>
 
 #include "algorithms/evaluation/reloc_evaluation.h"
 #include "client/cli_commands.h"
@@ -56,9 +55,11 @@ void Run(const ServerBenchOptions& o, CliContext& context) {
         for (int i = next++; i < o.requests; i = next++) {
           const Frame& frame = frames[i % frames.size()];
           const auto sent = std::chrono::steady_clock::now();
-          const auto response = client.Relocalize(o.map_name, frame.trees, std::nullopt, std::nullopt);
-          latencies[t].push_back(std::chrono::duration<double, std::milli>(
-                                     std::chrono::steady_clock::now() - sent).count());
+          const auto response =
+              client.Relocalize(o.map_name, frame.trees, std::nullopt, std::nullopt);
+          latencies[t].push_back(
+              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - sent)
+                  .count());
           localized += response.status() == v1::RelocalizeResponse::LOCALIZED;
         }
         retries += client.retries();
@@ -75,12 +76,15 @@ void Run(const ServerBenchOptions& o, CliContext& context) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::vector<double> all;
   for (const auto& l : latencies) all.insert(all.end(), l.begin(), l.end());
-  nlohmann::ordered_json report = {
-      {"requests", all.size()},         {"concurrency", o.concurrency},
-      {"seconds", seconds},             {"requests_per_second", all.size() / seconds},
-      {"localized", localized.load()},  {"latency_p50_ms", algorithms::Percentile(all, 0.5)},
-      {"latency_p95_ms", algorithms::Percentile(all, 0.95)}, {"latency_p99_ms", algorithms::Percentile(all, 0.99)},
-      {"retried_on_another_replica", retries.load()}};
+  nlohmann::ordered_json report = {{"requests", all.size()},
+                                   {"concurrency", o.concurrency},
+                                   {"seconds", seconds},
+                                   {"requests_per_second", all.size() / seconds},
+                                   {"localized", localized.load()},
+                                   {"latency_p50_ms", algorithms::Percentile(all, 0.5)},
+                                   {"latency_p95_ms", algorithms::Percentile(all, 0.95)},
+                                   {"latency_p99_ms", algorithms::Percentile(all, 0.99)},
+                                   {"retried_on_another_replica", retries.load()}};
   *context.out << report.dump() << "\n";
 }
 
@@ -88,9 +92,10 @@ void Run(const ServerBenchOptions& o, CliContext& context) {
 
 void AddBenchServerCommand(CLI::App& app, CliContext& context) {
   auto options = std::make_shared<ServerBenchOptions>();
-  CLI::App* cmd = app.add_subcommand(
-      "bench-server", "Measure a running forestmapd's relocalization throughput with concurrent "
-                      "requests (frames of a file, round-robin)");
+  CLI::App* cmd =
+      app.add_subcommand("bench-server",
+                         "Measure a running forestmapd's relocalization throughput with concurrent "
+                         "requests (frames of a file, round-robin)");
   cmd->add_option("NAME", options->map_name, "Map to relocalize in")->required();
   cmd->add_option("--frames", options->frames_path, "Frames CSV (frame,x,y,z,...)")
       ->required()
@@ -101,7 +106,8 @@ void AddBenchServerCommand(CLI::App& app, CliContext& context) {
   cmd->add_option("--requests", options->requests, "Requests in all")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  cmd->callback([options, &context] { context.run = [options, &context] { Run(*options, context); }; });
+  cmd->callback(
+      [options, &context] { context.run = [options, &context] { Run(*options, context); }; });
 }
 
 }  // namespace forestmap::client

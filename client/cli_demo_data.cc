@@ -5,7 +5,6 @@
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
-
 #include <nlohmann/json.hpp>
 
 #include "algorithms/simulation/forest_generator.h"
@@ -78,16 +77,18 @@ void Run(const DemoOptions& o, CliContext& context) {
   const Eigen::Quaterniond q(v.map_from_sensor.linear());
   const Eigen::Vector3d t = v.map_from_sensor.translation();
   const nlohmann::json truth = {
-      {"x", t.x()}, {"y", t.y()}, {"z", t.z()}, {"qx", q.x()}, {"qy", q.y()}, {"qz", q.z()},
+      {"x", t.x()},  {"y", t.y()},
+      {"z", t.z()},  {"qx", q.x()},
+      {"qy", q.y()}, {"qz", q.z()},
       {"qw", q.w()}, {"yaw_deg", algorithms::YawOf(v.map_from_sensor.linear()) * 180 / M_PI}};
   std::ofstream(o.out_dir + "/truth.json") << truth.dump() << "\n";
   int false_stems = 0;
   for (int64_t id : v.truth_ids) false_stems += id < 0;
-  *context.err << "demo-data: " << source << ": " << forest.size() << " trees -> "
-               << o.out_dir << "/map.csv\n"
-               << "demo-data: drone view: " << v.trees.size() << " detected trees ("
-               << false_stems << " false stems) within " << o.range << " m, tilted -> "
-               << o.out_dir << "/query.csv; true pose -> " << o.out_dir << "/truth.json\n";
+  *context.err << "demo-data: " << source << ": " << forest.size() << " trees -> " << o.out_dir
+               << "/map.csv\n"
+               << "demo-data: drone view: " << v.trees.size() << " detected trees (" << false_stems
+               << " false stems) within " << o.range << " m, tilted -> " << o.out_dir
+               << "/query.csv; true pose -> " << o.out_dir << "/truth.json\n";
 }
 
 }  // namespace
@@ -103,7 +104,8 @@ void AddDemoDataCommand(CLI::App& app, CliContext& context) {
       ->check(CLI::Range(5.0, 100.0))
       ->capture_default_str();
   cmd->add_option("--seed", options->seed, "Random seed")->capture_default_str();
-  cmd->callback([options, &context] { context.run = [options, &context] { Run(*options, context); }; });
+  cmd->callback(
+      [options, &context] { context.run = [options, &context] { Run(*options, context); }; });
 }
 
 }  // namespace forestmap::client

@@ -1,7 +1,5 @@
 #include "client/cli_format.h"
 
-#include "client/io/csv_columns.h"
-
 #include <algorithm>
 #include <array>
 #include <cctype>
@@ -11,6 +9,7 @@
 #include <ctime>
 #include <stdexcept>
 
+#include "client/io/csv_columns.h"
 #include "client/proto_convert.h"
 
 namespace forestmap::client {

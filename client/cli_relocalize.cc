@@ -12,8 +12,8 @@
 
 #include "client/cli_commands.h"
 #include "client/cli_format.h"
-#include "client/scan_trees.h"
 #include "client/io/tree_csv.h"
+#include "client/scan_trees.h"
 
 namespace forestmap::client {
 namespace {
@@ -62,8 +62,8 @@ void RunScan(const RelocalizeOptions& options, const CliContext& context) {
   *context.err << "relocalize: " << options.scan_file << ": " << scan.stats.input_points
                << " points, " << scan.trees.size() << " trees detected in " << ms << " ms"
                << std::endl;
-  PrintLine(context, context.Connect().Relocalize(options.map, scan.trees, options.prior,
-                                                  options.gravity),
+  PrintLine(context,
+            context.Connect().Relocalize(options.map, scan.trees, options.prior, options.gravity),
             {});
 }
 
@@ -149,10 +149,11 @@ void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
       "Prior pose X,Y,YAW_DEG,RADIUS_M: the sensor is within RADIUS_M of (X,Y) (map frame, m) "
       "(YAW_DEG, deg counter-clockwise from map x, is accepted but not used: only the position "
       "bounds the search)");
-  CLI::Option* scan = sub->add_option(
-      "--scan", options->scan_file,
-      "LiDAR scan in the sensor frame (.pcd .ply .las .csv .xyz): trunks are detected here and "
-      "only the tree list is sent")->check(CLI::ExistingFile);
+  CLI::Option* scan = sub->add_option("--scan", options->scan_file,
+                                      "LiDAR scan in the sensor frame (.pcd .ply .las .csv .xyz): "
+                                      "trunks are detected here and "
+                                      "only the tree list is sent")
+                          ->check(CLI::ExistingFile);
   CLI::Option* gravity =
       sub->add_option("--gravity", options->gravity_values,
                       "GX,GY,GZ: direction of gravity (down) in the sensor frame, e.g. from the "

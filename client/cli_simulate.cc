@@ -22,8 +22,8 @@
 #include <sstream>
 #include <thread>
 
-#include "algorithms/simulation/scan_simulation.h"
 #include "algorithms/simulation/forest_generator.h"
+#include "algorithms/simulation/scan_simulation.h"
 #include "algorithms/simulation/view_simulator.h"
 #include "client/cli_commands.h"
 #include "client/io/scan_io.h"

@@ -26,19 +26,27 @@ struct TrackOptions {
 
 const char* StateName(v1::TrackResponse::State state) {
   switch (state) {
-    case v1::TrackResponse::TRACKING: return "tracking";
-    case v1::TrackResponse::RECOVERED: return "recovered";
-    case v1::TrackResponse::LOST: return "lost";
-    default: return "unspecified";
+    case v1::TrackResponse::TRACKING:
+      return "tracking";
+    case v1::TrackResponse::RECOVERED:
+      return "recovered";
+    case v1::TrackResponse::LOST:
+      return "lost";
+    default:
+      return "unspecified";
   }
 }
 
 const char* MethodName(v1::TrackResponse::Method method) {
   switch (method) {
-    case v1::TrackResponse::LOCAL: return "local";
-    case v1::TrackResponse::PRIOR: return "prior";
-    case v1::TrackResponse::GLOBAL: return "global";
-    default: return "unspecified";
+    case v1::TrackResponse::LOCAL:
+      return "local";
+    case v1::TrackResponse::PRIOR:
+      return "prior";
+    case v1::TrackResponse::GLOBAL:
+      return "global";
+    default:
+      return "unspecified";
   }
 }
 
@@ -99,9 +107,8 @@ void AddTrackCommand(CLI::App& app, CliContext& context) {
                   "Poses CSV (frame,timestamp,x,y,z,qx,qy,qz,qw) in any world frame: the motion "
                   "between consecutive frames is sent as odometry")
       ->check(CLI::ExistingFile);
-  sub->callback([options, &context] {
-    context.run = [options, &context] { Run(*options, context); };
-  });
+  sub->callback(
+      [options, &context] { context.run = [options, &context] { Run(*options, context); }; });
 }
 
 }  // namespace forestmap::client

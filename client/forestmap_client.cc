@@ -72,8 +72,7 @@ ForestMapClient::ForestMapClient(std::string address, const ClientOptions& optio
   for (std::string one; std::getline(list, one, ',');) {
     if (one.empty()) continue;
     addresses_.push_back(one);
-    channels_.push_back(
-        grpc::CreateCustomChannel(one, ChannelCredentialsFor(options_), arguments));
+    channels_.push_back(grpc::CreateCustomChannel(one, ChannelCredentialsFor(options_), arguments));
     stubs_.push_back(v1::ForestMap::NewStub(channels_.back()));
   }
   if (addresses_.empty()) {

@@ -12,9 +12,9 @@
 #include <memory>
 #include <string>
 
-#include "server/http_page.h"
 #include "server/auth.h"
 #include "server/daemon.h"
+#include "server/http_page.h"
 #include "server/logging.h"
 #include "server/metrics.h"
 #include "server/metrics_http.h"
@@ -38,8 +38,8 @@ struct Config {
   std::string db = "./forestmap.db";
   std::string listen = "127.0.0.1:50051";
   int max_message_mb = 64;
-  std::string http;  // --http ADDR: the read-only web page; empty: none
-  int64_t keep_versions = 0;  // versions of each map kept readable (0: all)
+  std::string http;                 // --http ADDR: the read-only web page; empty: none
+  int64_t keep_versions = 0;        // versions of each map kept readable (0: all)
   forestmap::server::TlsFiles tls;  // --tls-cert, --tls-key, --tls-client-ca
   std::string log_format = "text";
   std::string log_level = "info";

@@ -43,9 +43,9 @@ class MapIndexCache {
   };
 
   struct Stats {
-    int64_t builds = 0;  // indexes built (one per map version seen)
-    int64_t hits = 0;    // Get answered from a ready entry
-    int64_t waits = 0;   // Get that waited for another caller's build
+    int64_t builds = 0;        // indexes built (one per map version seen)
+    int64_t hits = 0;          // Get answered from a ready entry
+    int64_t waits = 0;         // Get that waited for another caller's build
     double build_seconds = 0;  // s, wall time of all builds (snapshot read + index), summed
   };
 

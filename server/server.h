@@ -24,7 +24,7 @@ struct ServerOptions {
   // One log line per RPC and the RPC metrics (server/rpc_observer.h).
   bool observe_rpcs = true;
   Metrics* metrics = nullptr;  // RPC counts and latencies go here when set; must outlive the server
-  void Check() const;                        // throws std::invalid_argument
+  void Check() const;          // throws std::invalid_argument
 };
 
 class ServerRunner {

@@ -8,8 +8,8 @@
 #include "algorithms/core/check.h"
 #include "server/auth.h"
 #include "server/convert.h"
-#include "server/geo_convert.h"
 #include "server/exactly_once.h"
+#include "server/geo_convert.h"
 #include "server/status.h"
 #include "server/streams.h"
 #include "server/validation.h"
@@ -51,8 +51,7 @@ void ServiceOptions::Check() const {
   relocalizer.Check();
   Require(observe.max_frames >= 1, "ServiceOptions.observe.max_frames must be >= 1");
   Require(observe.max_frame_trees >= 1, "ServiceOptions.observe.max_frame_trees must be >= 1");
-  Require(observe.max_request_trees >= 1,
-          "ServiceOptions.observe.max_request_trees must be >= 1");
+  Require(observe.max_request_trees >= 1, "ServiceOptions.observe.max_request_trees must be >= 1");
   merge.Check();
   tracking.Check();
   Require(keep_versions >= 0, "ServiceOptions.keep_versions must be >= 0 (0 keeps all)");
@@ -74,8 +73,8 @@ grpc::ServerUnaryReactor* ForestMapService::CreateMap(grpc::CallbackServerContex
     const auto encode =
         Encoder<v1::Map>([](const storage::MapInfo& info, v1::Map& map) { map = ToProto(info); });
     RunExactlyOnce(store_, context, request->request_id(), "CreateMap", *response, encode, [&] {
-      *response =
-          ToProto(store_.CreateMap(request->name(), request->description(), CanonicalCrs(request->crs())));
+      *response = ToProto(
+          store_.CreateMap(request->name(), request->description(), CanonicalCrs(request->crs())));
     });
   });
 }
@@ -174,9 +173,9 @@ grpc::ServerUnaryReactor* ForestMapService::ListVersions(grpc::CallbackServerCon
   });
 }
 
-grpc::ServerUnaryReactor* ForestMapService::RestoreVersion(
-    grpc::CallbackServerContext* context, const v1::RestoreVersionRequest* request,
-    v1::RestoreVersionResponse* response) {
+grpc::ServerUnaryReactor* ForestMapService::RestoreVersion(grpc::CallbackServerContext* context,
+                                                           const v1::RestoreVersionRequest* request,
+                                                           v1::RestoreVersionResponse* response) {
   return AnswerOn(work_pool_, context, "RestoreVersion", [this, context, request, response] {
     Authorize(options_.authorizer, *context, "RestoreVersion", request->map_name());
     Validate(*request);

@@ -73,8 +73,8 @@ struct ServiceOptions {
   algorithms::RelocalizerOptions relocalizer;
   // Track sessions; their relocalizer options are `relocalizer` above.
   algorithms::TrackingOptions tracking;
-  ObserveLimits observe;            // frames / trees per Observe request
-  algorithms::MergeOptions merge;   // how Observe merges frames into a shared map
+  ObserveLimits observe;           // frames / trees per Observe request
+  algorithms::MergeOptions merge;  // how Observe merges frames into a shared map
   // Observe rebuilds the connected components of observations its frames join after merging
   // them (algorithms::RebuildTrees, server/merge_region.h): the map is then a function of the
   // set of observations, and concurrent drones give the map a sequential upload gives. False

@@ -16,13 +16,14 @@
 //   (no exception) work queue full       -> RESOURCE_EXHAUSTED "server busy ..." (ServerBusy)
 // Every non-OK status is logged (server/logging.h); server faults with their real cause.
 
-#include "proto/status_code_name.h"
 #include <grpcpp/support/status.h>
 
 #include <stdexcept>
 #include <string>
 #include <string_view>
 #include <utility>
+
+#include "proto/status_code_name.h"
 
 namespace forestmap::server {
 

@@ -6,8 +6,8 @@
 
 #include "server/auth.h"
 #include "server/convert.h"
-#include "server/geo_convert.h"
 #include "server/exactly_once.h"
+#include "server/geo_convert.h"
 #include "server/service.h"
 #include "server/status.h"
 

@@ -87,9 +87,9 @@ class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTrees
 };
 
 // Track: one frame at a time, in order: read a frame, answer it on `work_pool` (the session's
-// Tracker, algorithms/relocalization/tracking.h), write the answer, read the next. The index comes from the
-// cache for every frame, so a session moves on to a new map version as soon as there is one.
-// A bad frame, an unknown map or a map without trees ends the stream with its status, the
+// Tracker, algorithms/relocalization/tracking.h), write the answer, read the next. The index comes
+// from the cache for every frame, so a session moves on to a new map version as soon as there is
+// one. A bad frame, an unknown map or a map without trees ends the stream with its status, the
 // message prefixed with the frame ("frame 12: trees[3].position.x is NaN").
 class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse> {
  public:

@@ -204,8 +204,7 @@ void Validate(const v1::ListVersionsRequest& request) {
 void Validate(const v1::RestoreVersionRequest& request) {
   ValidateMapName(request.map_name(), "map_name");
   if (request.version() < 1) {
-    throw ValidationError("version is " + std::to_string(request.version()) +
-                          "; it must be >= 1");
+    throw ValidationError("version is " + std::to_string(request.version()) + "; it must be >= 1");
   }
 }
 

@@ -32,7 +32,7 @@ inline constexpr int kMinQueryTrees = 3;
 inline constexpr double kMaxHorizontalCoordinate = 1e7;   // m, |x| and |y|
 inline constexpr double kMaxVerticalCoordinate = 1e5;     // m, |z|
 inline constexpr size_t kMaxDescriptionLength = 4096;     // bytes
-inline constexpr size_t kMaxCrsLength = 16384;              // bytes
+inline constexpr size_t kMaxCrsLength = 16384;            // bytes
 inline constexpr size_t kMaxAttributes = 64;              // per tree
 inline constexpr size_t kMaxAttributeKeyLength = 128;     // bytes
 inline constexpr size_t kMaxAttributeValueLength = 4096;  // bytes
@@ -47,15 +47,14 @@ void Validate(const v1::ExportTreesRequest& request);
 void Validate(const v1::RelocalizeRequest& request, int max_query_trees);
 // One frame of a Track stream. `session_map` is the map named by the stream's first message
 // (empty for the first message itself, which must name one); any number of trees up to the limit.
-void Validate(const v1::TrackRequest& request, const std::string& session_map,
-              int max_query_trees);
+void Validate(const v1::TrackRequest& request, const std::string& session_map, int max_query_trees);
 
 // Shared maps (observations.proto).
-inline constexpr size_t kMaxSourceLength = 128;  // bytes
+inline constexpr size_t kMaxSourceLength = 128;         // bytes
 inline constexpr const char* kSurveySource = "survey";  // reserved for survey priors
 struct ObserveLimits {
-  int max_frames = 200;           // frames per Observe request
-  int max_frame_trees = 2'000;    // detected trees per frame
+  int max_frames = 200;             // frames per Observe request
+  int max_frame_trees = 2'000;      // detected trees per frame
   int max_request_trees = 100'000;  // detected trees per request
 };
 // A source id: 1..128 characters of [A-Za-z0-9_.:-], not "survey". `field` names it.

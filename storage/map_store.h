@@ -39,8 +39,8 @@ struct Extent {
 struct MapInfo {
   std::string name;
   std::string description;
-  std::string crs;  // empty when unknown
-  int64_t version = 0;  // 1 at creation, +1 on every change
+  std::string crs;               // empty when unknown
+  int64_t version = 0;           // 1 at creation, +1 on every change
   int64_t tree_count = 0;        // candidates and confirmed trees
   int64_t confirmed_count = 0;   // confirmed trees (surveyed or seen often enough)
   std::optional<Extent> extent;  // unset for an empty map
@@ -54,7 +54,7 @@ enum class TreeStatus { kCandidate = 0, kConfirmed = 1 };
 // fields (status .. dbh_sigma) are those of a surveyed tree that no drone has observed yet.
 struct TreeRecord {
   std::optional<int64_t> id;  // always set when read; on write, nullopt asks the store for one
-  double x = 0, y = 0;  // m
+  double x = 0, y = 0;        // m
   std::optional<double> z;    // m
   std::optional<double> dbh;  // m
   std::map<std::string, std::string> attributes;
@@ -80,8 +80,8 @@ struct ObservationRecord {
   double weight_xy = 0;         // 1/m^2
   double weight_dbh = 0;        // 1/m^2
   double sensor_x = 0, sensor_y = 0, sensor_z = 0;  // m, map frame
-  bool prior = false;           // a survey prior
-  int64_t version = 0;          // map version that added the row; set by the store
+  bool prior = false;                               // a survey prior
+  int64_t version = 0;  // map version that added the row; set by the store
 
   bool operator==(const ObservationRecord&) const = default;
 };
@@ -89,12 +89,12 @@ struct ObservationRecord {
 // What made a map version.
 enum class VersionKind {
   kCreate = 1,
-  kUpload = 2,        // WriteTrees kAppend
-  kReplace = 3,       // WriteTrees kReplace
+  kUpload = 2,   // WriteTrees kAppend
+  kReplace = 3,  // WriteTrees kReplace
   kObserve = 4,
   kRestore = 5,
   kRemoveSource = 6,
-  kMigrated = 7,      // state found when the database was upgraded; older versions are gone
+  kMigrated = 7,  // state found when the database was upgraded; older versions are gone
 };
 
 // One entry of a map's history, with counts of what changed.
@@ -194,7 +194,7 @@ class MapStore {
   // Throws kAlreadyExists if the name is taken, kInvalidArgument for an invalid name.
   virtual MapInfo CreateMap(const std::string& name, const std::string& description,
                             const std::string& crs) = 0;
-  virtual std::vector<MapInfo> ListMaps() = 0;  // sorted by name
+  virtual std::vector<MapInfo> ListMaps() = 0;          // sorted by name
   virtual MapInfo GetMap(const std::string& name) = 0;  // kNotFound
   virtual void DeleteMap(const std::string& name) = 0;  // kNotFound
 

@@ -106,8 +106,7 @@ PruneResult PostgresMapStore::PruneVersions(const std::string& name, int64_t kee
         conn.Exec("DELETE FROM observations WHERE map_id = $1 AND valid_to <= $2", params)
             .affected();
     result.versions_removed =
-        conn.Exec("DELETE FROM map_versions WHERE map_id = $1 AND version < $2", params)
-            .affected();
+        conn.Exec("DELETE FROM map_versions WHERE map_id = $1 AND version < $2", params).affected();
     pg_internal::CommitWrite(conn, transaction, map.info);
   });
   return result;

@@ -15,10 +15,10 @@
 namespace forestmap::storage {
 namespace {
 
+using internal::MapRow;
 using sqlite::Database;
 using sqlite::Statement;
 using sqlite::Transaction;
-using internal::MapRow;
 
 // Tree rows: copies of those valid at `version` and no longer current, current rows newer than
 // it closed at `next`; counts into `record`.

@@ -261,12 +261,13 @@ ObservationRecord ReadObservationRow(const Statement& row) {
 
 void InsertObservations(Database& db, int64_t map_id,
                         const std::vector<ObservationRecord>& observations, int64_t valid_from) {
-  Statement insert(db,
-                   "INSERT INTO observations (map_id, tree_id, valid_from, valid_to, source, "
-                   "frame_id, detection_index, x, y, z, dbh, weight_xy, weight_dbh, sensor_x, "
-                   "sensor_y, sensor_z, prior, cell_x, cell_y) VALUES (?1, ?2, ?3, "
-                   FORESTMAP_CURRENT ", ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, "
-                   "?17, ?18)");
+  Statement insert(
+      db,
+      "INSERT INTO observations (map_id, tree_id, valid_from, valid_to, source, "
+      "frame_id, detection_index, x, y, z, dbh, weight_xy, weight_dbh, sensor_x, "
+      "sensor_y, sensor_z, prior, cell_x, cell_y) VALUES (?1, ?2, ?3, " FORESTMAP_CURRENT
+      ", ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, "
+      "?17, ?18)");
   insert.BindInt64(1, map_id);
   insert.BindInt64(3, valid_from);
   for (const ObservationRecord& o : observations) {

@@ -19,7 +19,8 @@ inline bool RunningInCi() {
 }  // namespace forestmap::test
 
 // Use as `if (!exists(path)) FORESTMAP_SKIP_WITHOUT_DATA() << "missing " << path;`.
-#define FORESTMAP_SKIP_WITHOUT_DATA()                                                            \
-  return GTEST_MESSAGE_("real data missing (CI=true requires ../shared/data)",                   \
-                        ::forestmap::test::RunningInCi() ? ::testing::TestPartResult::kFatalFailure \
-                                                          : ::testing::TestPartResult::kSkip)
+#define FORESTMAP_SKIP_WITHOUT_DATA()                                          \
+  return GTEST_MESSAGE_("real data missing (CI=true requires ../shared/data)", \
+                        ::forestmap::test::RunningInCi()                       \
+                            ? ::testing::TestPartResult::kFatalFailure         \
+                            : ::testing::TestPartResult::kSkip)

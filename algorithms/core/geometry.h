@@ -6,13 +6,12 @@
 // A transform named `a_from_b` maps points in frame b to frame a: p_a = a_from_b * p_b.
 // Unknown scalar values (a 2-D survey's z, a missing DBH) are NaN.
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 namespace forestmap::algorithms {
 

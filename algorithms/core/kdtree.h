@@ -5,10 +5,9 @@
 #include <array>
 #include <cstdint>
 #include <limits>
+#include <nanoflann.hpp>
 #include <utility>
 #include <vector>
-
-#include <nanoflann.hpp>
 
 namespace forestmap::algorithms {
 
@@ -61,7 +60,8 @@ class KdTree {
   }
 
   size_t MemoryBytes() const {
-    return points_.points.capacity() * sizeof(Point) + const_cast<Index&>(index_).usedMemory(const_cast<Index&>(index_));
+    return points_.points.capacity() * sizeof(Point) +
+           const_cast<Index&>(index_).usedMemory(const_cast<Index&>(index_));
   }
 
  private:

@@ -1,9 +1,8 @@
 #include "algorithms/core/leveling.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <stdexcept>
-
-#include <Eigen/Eigenvalues>
 
 namespace forestmap::algorithms {
 namespace {

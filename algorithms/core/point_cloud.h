@@ -6,17 +6,16 @@
 // Organised scans (width x height, e.g. 2048 x 64) keep their NaN returns so that the beam and
 // column of every point stay known; unorganised scans have height 1.
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace forestmap::algorithms {
 
 struct PointCloud {
-  std::vector<Eigen::Vector3f> points;  // m, relative to `origin`; NaN = no return
-  std::vector<float> intensity;         // empty or one per point (sensor units)
-  std::vector<uint16_t> ring;           // empty or one per point: beam (laser) index
+  std::vector<Eigen::Vector3f> points;               // m, relative to `origin`; NaN = no return
+  std::vector<float> intensity;                      // empty or one per point (sensor units)
+  std::vector<uint16_t> ring;                        // empty or one per point: beam (laser) index
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();  // m; a point's full position = origin + p
   uint32_t width = 0;   // organised: columns; unorganised: points.size()
   uint32_t height = 1;  // organised: rows (beams); unorganised: 1

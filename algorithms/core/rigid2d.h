@@ -1,15 +1,14 @@
 #pragma once
 // Closed-form weighted least-squares rigid fit in the plane (2-D Kabsch / Umeyama, no scale).
 
+#include <Eigen/Core>
 #include <cmath>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace forestmap::algorithms {
 
 struct Rigid2 {
-  double yaw = 0;                               // rad
+  double yaw = 0;                                         // rad
   Eigen::Vector2d translation = Eigen::Vector2d::Zero();  // m
 
   Eigen::Vector2d operator()(const Eigen::Vector2d& p) const {

@@ -3,16 +3,16 @@
 //
 // Per-slice circles need a few points per slice; a far stem gives two to four returns per beam
 // ring, too few for a circle per slice but plenty for one cylinder through all of them (Zmeškalová
-// 2023, sec. 4.2.1: cylinder fits to the stem points). The model has five parameters: the axis point at a
-// fixed reference height (x0, y0), the axis slopes (sx, sy) (direction (sx, sy, 1), normalised)
-// and the radius r. A point's residual is its perpendicular distance to the axis minus r.
-// Levenberg-Marquardt with analytic derivatives inside iteratively reweighted least squares, with
-// sigma = max(huber_scale, 1.4826 MAD of the residuals): Huber weights (1.5 sigma) in the first
-// round, from a rough seed, then Tukey's biweight (4.685 sigma), so that a branch, a shrub or a
-// neighbouring stem beside the stem does not pull it. An optional prior on the
-// radius (RadiusPrior) keeps short, flat arcs from running away to huge radii, and optional
-// tangent rays (TangentRay: the silhouette edges a sensor at the origin saw) measure the radius
-// where the arc cannot: a far stem's arc bulges less than the range noise, its width does not.
+// 2023, sec. 4.2.1: cylinder fits to the stem points). The model has five parameters: the axis
+// point at a fixed reference height (x0, y0), the axis slopes (sx, sy) (direction (sx, sy, 1),
+// normalised) and the radius r. A point's residual is its perpendicular distance to the axis minus
+// r. Levenberg-Marquardt with analytic derivatives inside iteratively reweighted least squares,
+// with sigma = max(huber_scale, 1.4826 MAD of the residuals): Huber weights (1.5 sigma) in the
+// first round, from a rough seed, then Tukey's biweight (4.685 sigma), so that a branch, a shrub or
+// a neighbouring stem beside the stem does not pull it. An optional prior on the radius
+// (RadiusPrior) keeps short, flat arcs from running away to huge radii, and optional tangent rays
+// (TangentRay: the silhouette edges a sensor at the origin saw) measure the radius where the arc
+// cannot: a far stem's arc bulges less than the range noise, its width does not.
 
 #include <Eigen/Core>
 #include <span>

@@ -9,9 +9,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "algorithms/detection/circle_fit.h"
 #include "algorithms/core/geometry.h"
 #include "algorithms/core/point_cloud.h"
+#include "algorithms/detection/circle_fit.h"
 
 namespace forestmap::algorithms {
 

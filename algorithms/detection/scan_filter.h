@@ -2,8 +2,8 @@
 // First detection stage: the valid returns of a scan, without the drone's own body.
 //
 // A drone-borne LiDAR sees its own arms and landing gear, and many drivers report "no return" as
-// a point at the sensor origin; both sit inside a small sphere around the origin (Zmeškalová 2023, sec. 2.2:
-// duplicates at the origin first, then every point with |p| <= threshold, 0.35 m there).
+// a point at the sensor origin; both sit inside a small sphere around the origin (Zmeškalová 2023,
+// sec. 2.2: duplicates at the origin first, then every point with |p| <= threshold, 0.35 m there).
 
 #include <Eigen/Core>
 #include <cstdint>

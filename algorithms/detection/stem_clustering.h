@@ -3,12 +3,12 @@
 //
 // The stem layer (by default 0.5-3 m above ground) holds stems and little else: below it are
 // ground and litter, above it crowns and branches. Projected onto the horizontal plane, each stem
-// is a dense ring or arc, which DBSCAN (Ester et al. 1996) separates with a small radius (Zmeškalová
-// 2023, sec. 3.1.1: the 2-D projection is faster and more correct than 3-D clustering, eps 0.12 m).
-// DBSCAN runs on a fine grid: points are binned into cells of eps * cell_fraction, a cell is core
-// when the points of the cells within eps of it (cell means) reach min_points, and clusters are
-// the connected core cells plus their border cells. That is exact DBSCAN up to the cell size and
-// costs O(cells), not O(points * neighbours), on dense mobile-scanner clouds.
+// is a dense ring or arc, which DBSCAN (Ester et al. 1996) separates with a small radius
+// (Zmeškalová 2023, sec. 3.1.1: the 2-D projection is faster and more correct than 3-D clustering,
+// eps 0.12 m). DBSCAN runs on a fine grid: points are binned into cells of eps * cell_fraction, a
+// cell is core when the points of the cells within eps of it (cell means) reach min_points, and
+// clusters are the connected core cells plus their border cells. That is exact DBSCAN up to the
+// cell size and costs O(cells), not O(points * neighbours), on dense mobile-scanner clouds.
 // Clusters that hold several trunks (touching stems, a stem in a shrub) are split later, by the
 // per-slice circle extraction of stem_model.h.
 

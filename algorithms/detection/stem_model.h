@@ -4,10 +4,13 @@
 // 1. The cluster is cut into horizontal slices (slice_height). Each slice may hold several stems
 //    (touching trunks, a stem in a shrub), so circles are extracted one after the other by RANSAC
 //    (circle_fit.h), each removing its inliers, up to max_circles_per_slice: the per-slice circle
-//    count is what splits clusters that DBSCAN merged (the weakness of Zmeškalová 2023, sec. 3.1.1).
+//    count is what splits clusters that DBSCAN merged (the weakness of Zmeškalová 2023,
+//    sec. 3.1.1).
 // 2. Circles of successive slices are linked into stems when their centres agree (allowing for
-//    the stem's tilt), like the stem sections of the backpack paper (Holmgren et al. 2017, sec. 2.4).
-// 3. Each chain seeds one cylinder (cylinder_fit.h, Zmeškalová 2023, sec. 4.2.1): the chain's axis (the
+//    the stem's tilt), like the stem sections of the backpack paper (Holmgren et al. 2017,
+//    sec. 2.4).
+// 3. Each chain seeds one cylinder (cylinder_fit.h, Zmeškalová 2023, sec. 4.2.1): the chain's axis
+// (the
 //    weighted principal direction of its consistent slice centres) and median radius, or for a
 //    chain of too few consistent slices (and, in a single view, for a small cluster without any
 //    stem: a circle through all its points) a vertical axis through its circle. The stem's points
@@ -22,7 +25,8 @@
 //    axis = r), the visible width only as a lower bound. Without a grid, the width of the points
 //    seen from the sensor (less a column, plus the footprint's edge returns) is a prior on r.
 // 4. Position: where the cylinder's axis (or the slice axis, when no cylinder fits) meets the
-//    ground model (Zmeškalová 2023, sec. 5.3), or, without ground, the axis point at the lowest stem point.
+//    ground model (Zmeškalová 2023, sec. 5.3), or, without ground, the axis point at the lowest
+//    stem point.
 // 5. DBH: a weighted, outlier-resistant fit of diameter against distance along the stem, the
 //    cubic of Holmgren et al. 2017, eq. 1, d(h) = p1 h^3 + p2 h^2 + p3 h + p4, lowered to a smaller
 //    degree when the samples span too little of the stem to carry a cubic, evaluated at
@@ -53,8 +57,8 @@
 #include <span>
 #include <vector>
 
-#include "algorithms/detection/circle_fit.h"
 #include "algorithms/core/geometry.h"
+#include "algorithms/detection/circle_fit.h"
 #include "algorithms/detection/ground_model.h"
 
 namespace forestmap::algorithms {

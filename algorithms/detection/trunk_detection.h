@@ -17,8 +17,8 @@
 #include <span>
 #include <vector>
 
-#include "algorithms/detection/ground_model.h"
 #include "algorithms/core/point_cloud.h"
+#include "algorithms/detection/ground_model.h"
 #include "algorithms/detection/scan_filter.h"
 #include "algorithms/detection/stem_clustering.h"
 #include "algorithms/detection/stem_model.h"

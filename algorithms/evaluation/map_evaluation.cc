@@ -1,9 +1,8 @@
 #include "algorithms/evaluation/map_evaluation.h"
 
+#include <Eigen/Geometry>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Geometry>
 
 #include "algorithms/core/kdtree.h"
 #include "algorithms/evaluation/reloc_evaluation.h"

@@ -17,14 +17,14 @@ struct TreeMapComparisonOptions {
 
 struct TreeMapComparison {
   int reference_trees = 0, built_trees = 0;
-  int found = 0;                 // reference trees with a built tree within match_distance
-  double found_fraction = 0;     // found / reference_trees
-  double distance_p50 = 0;       // m, median horizontal distance of the found pairs
-  double distance_p95 = 0;       // m
-  double dbh_abs_diff_p50 = 0;   // m, median |DBH difference| of found pairs with both DBHs
-  int close_pairs = 0;           // built tree pairs closer than duplicate_distance
-  int duplicates = 0;            // close pairs that are one stem (see options)
-  int unmatched_built = 0;       // built trees with no reference tree within match_distance
+  int found = 0;                // reference trees with a built tree within match_distance
+  double found_fraction = 0;    // found / reference_trees
+  double distance_p50 = 0;      // m, median horizontal distance of the found pairs
+  double distance_p95 = 0;      // m
+  double dbh_abs_diff_p50 = 0;  // m, median |DBH difference| of found pairs with both DBHs
+  int close_pairs = 0;          // built tree pairs closer than duplicate_distance
+  int duplicates = 0;           // close pairs that are one stem (see options)
+  int unmatched_built = 0;      // built trees with no reference tree within match_distance
 };
 
 // Horizontal comparison of a built map with a reference map (both in one frame).
@@ -43,13 +43,13 @@ enum class Alignment {
 struct TrajectoryError {
   // truth = truth_from_estimate * (scale x, scale y, z) of an estimated point (ToTruth).
   Pose3 truth_from_estimate = Pose3::Identity();
-  double scale = 1;      // horizontal, kPlanarSimilarity only
+  double scale = 1;  // horizontal, kPlanarSimilarity only
   Eigen::Vector3d ToTruth(const Eigen::Vector3d& p) const {
     return truth_from_estimate * Eigen::Vector3d(scale * p.x(), scale * p.y(), p.z());
   }
-  double ate_rmse = 0;   // m, RMS position error after the alignment (3-D, or 2-D if planar)
-  double ate_max = 0;    // m
-  double ate_p50 = 0;    // m
+  double ate_rmse = 0;  // m, RMS position error after the alignment (3-D, or 2-D if planar)
+  double ate_max = 0;   // m
+  double ate_p50 = 0;   // m
   int poses = 0;
 };
 

@@ -48,8 +48,12 @@ bool RelocEvaluator::Add(bool answerable, const Pose3& truth, const RelocalizeRe
   times_.push_back(time_ms);
   bool wrong = false;
   switch (result.status) {
-    case RelocalizeStatus::kAmbiguous: ++c.ambiguous; break;
-    case RelocalizeStatus::kNotFound: ++c.not_found; break;
+    case RelocalizeStatus::kAmbiguous:
+      ++c.ambiguous;
+      break;
+    case RelocalizeStatus::kNotFound:
+      ++c.not_found;
+      break;
     case RelocalizeStatus::kLocalized: {
       ++c.localized;
       const PoseError e = ComparePoses(result.map_from_sensor, truth);

@@ -15,8 +15,8 @@ namespace forestmap::algorithms {
 
 struct RelocCriteria {
   int answerable_min_trees = 8;
-  double answerable_range = 20.0;     // m, horizontal, from the sensor
-  double answerable_distance = 0.5;   // m, query tree to map tree
+  double answerable_range = 20.0;    // m, horizontal, from the sensor
+  double answerable_distance = 0.5;  // m, query tree to map tree
   double correct_xy = 0.5, correct_yaw_deg = 5.0;
   double strict_xy = 0.2, strict_yaw_deg = 1.0;
   double wrong_xy = 1.0, wrong_yaw_deg = 5.0;
@@ -25,9 +25,9 @@ struct RelocCriteria {
 struct RelocSummary {
   int frames = 0, answerable = 0;
   int localized = 0, ambiguous = 0, not_found = 0;
-  int correct = 0, strict = 0, wrong = 0;  // correct and strict count answerable frames only
-  double recall = 0, strict_recall = 0;    // of answerable frames, in [0, 1]
-  double wrong_rate = 0;                   // of all frames
+  int correct = 0, strict = 0, wrong = 0;     // correct and strict count answerable frames only
+  double recall = 0, strict_recall = 0;       // of answerable frames, in [0, 1]
+  double wrong_rate = 0;                      // of all frames
   double error_xy_p50 = 0, error_xy_p95 = 0;  // m, of correct answers
   double error_yaw_p50 = 0;                   // deg, of correct answers
   double time_p50 = 0, time_p95 = 0, time_p99 = 0, time_max = 0;  // ms

@@ -11,11 +11,16 @@ namespace forestmap::algorithms {
 
 const char* ToString(FrameFix fix) {
   switch (fix) {
-    case FrameFix::kFirst: return "first";
-    case FrameFix::kTracked: return "tracked";
-    case FrameFix::kRelocalized: return "relocalized";
-    case FrameFix::kGlobal: return "global";
-    case FrameFix::kDeadReckoned: return "dead_reckoned";
+    case FrameFix::kFirst:
+      return "first";
+    case FrameFix::kTracked:
+      return "tracked";
+    case FrameFix::kRelocalized:
+      return "relocalized";
+    case FrameFix::kGlobal:
+      return "global";
+    case FrameFix::kDeadReckoned:
+      return "dead_reckoned";
   }
   return "?";
 }
@@ -106,9 +111,9 @@ BuilderStep MapBuilder::Impl::AddFrame(const BuilderFrame& input) {
   // under the sensor jumps from -2 to -15 m within 4 frames of 2 m), so the tree-map height
   // fix may move the sensor at most max_height_step per frame.
   const double z_predicted = frames_.back().pose.translation.z();
-  frame.pose = ekf_.Pose(z_predicted + std::clamp(fix.pose.translation.z() - z_predicted,
-                                                  -options_.max_height_step,
-                                                  options_.max_height_step));
+  frame.pose =
+      ekf_.Pose(z_predicted + std::clamp(fix.pose.translation.z() - z_predicted,
+                                         -options_.max_height_step, options_.max_height_step));
   step.fix = fix.how;
   step.inliers = fix.inliers;
   step.rmse = fix.rmse;
@@ -202,8 +207,8 @@ MapBuilder::Impl::StoredFrame MapBuilder::Impl::Prepare(const BuilderFrame& inpu
     const double range = moved.position.head<2>().norm();
     if (range <= options_.icp_range) {
       frame.query.push_back(moved.position);
-      const double sigma = std::hypot(options_.merge.sigma_xy_base,
-                                      options_.merge.sigma_xy_per_m * range);
+      const double sigma =
+          std::hypot(options_.merge.sigma_xy_base, options_.merge.sigma_xy_per_m * range);
       frame.query_weights.push_back(1.0 / (sigma * sigma));
       frame.query_index.push_back(static_cast<int>(frame.level_trees.size()));
     }
@@ -269,8 +274,7 @@ void MapBuilder::Impl::Remerge(const MergeOptions& merge) {
   }
 }
 
-MapBuilder::MapBuilder(const MapBuilderOptions& options)
-    : impl_(std::make_unique<Impl>(options)) {}
+MapBuilder::MapBuilder(const MapBuilderOptions& options) : impl_(std::make_unique<Impl>(options)) {}
 MapBuilder::~MapBuilder() = default;
 BuilderStep MapBuilder::AddFrame(const BuilderFrame& frame) { return impl_->AddFrame(frame); }
 void MapBuilder::Finish() { impl_->Finish(); }

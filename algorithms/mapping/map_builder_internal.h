@@ -41,12 +41,12 @@ class MapBuilder::Impl {
   struct StoredFrame {
     int64_t frame_id = 0;
     Eigen::Matrix3d level_from_sensor = Eigen::Matrix3d::Identity();
-    std::vector<DetectedTree> level_trees;    // levelled sensor frame
-    std::vector<Eigen::Vector3d> query;       // levelled positions within icp_range
+    std::vector<DetectedTree> level_trees;  // levelled sensor frame
+    std::vector<Eigen::Vector3d> query;     // levelled positions within icp_range
     std::vector<double> query_weights;
-    std::vector<int> query_index;             // into level_trees
-    Pose4 pose;                  // map_from_level; z is the apparent height (where the stems put it)
-    double height_offset = 0;    // m, apparent minus sensor height (this frame's stems' height bias)
+    std::vector<int> query_index;  // into level_trees
+    Pose4 pose;                // map_from_level; z is the apparent height (where the stems put it)
+    double height_offset = 0;  // m, apparent minus sensor height (this frame's stems' height bias)
     bool merged = false;
   };
 

@@ -39,10 +39,9 @@ std::vector<TreeEstimate> MapBuilder::Impl::OldTreesNear(const StoredFrame& fram
 MapBuilder::Impl::Fix MapBuilder::Impl::FindLoopFix(const StoredFrame& frame, int index,
                                                     const LocalMap& local,
                                                     const std::vector<TreeEstimate>& old) const {
-  const TreeIcpResult icp =
-      TreeIcp(frame.query, frame.query_weights, local.points, *local.xy, frame.pose,
-              options_.icp_gates, options_.icp_iterations, options_.loop_yaw_search,
-              local.variances);
+  const TreeIcpResult icp = TreeIcp(frame.query, frame.query_weights, local.points, *local.xy,
+                                    frame.pose, options_.icp_gates, options_.icp_iterations,
+                                    options_.loop_yaw_search, local.variances);
   Fix fix = FromIcp(icp, frame, FrameFix::kTracked);
   fix.ok = fix.ok && icp.inliers >= options_.loop_min_inliers;
   if (!fix.ok && index % options_.loop_search_every == 0) {
@@ -64,10 +63,9 @@ bool MapBuilder::Impl::ConfirmLoop(const StoredFrame& frame, int index, const Lo
   // The old trees must fit the corrected pose clearly better than the tracked one (a wrong
   // match elsewhere would only equal it; on Oxford_Stein one such wrongly "closed" the last
   // frame and tore the map apart).
-  const int tracked_inliers =
-      TreeIcp(frame.query, frame.query_weights, local.points, *local.xy, frame.pose,
-              {options_.icp_gates.back()}, 0, 0.0)
-          .inliers;
+  const int tracked_inliers = TreeIcp(frame.query, frame.query_weights, local.points, *local.xy,
+                                      frame.pose, {options_.icp_gates.back()}, 0, 0.0)
+                                  .inliers;
   if (fix.inliers < options_.loop_min_gain * tracked_inliers) return false;
   // A single frame can be mis-tracked itself, and a false closure bends the whole trajectory.
   const Eigen::Vector2d shift = (fix.pose.translation - frame.pose.translation).head<2>();

@@ -28,7 +28,8 @@ Pose4 MapBuilder::Impl::Predict(const BuilderFrame& input, const StoredFrame& pr
   return ekf_.Pose(previous.pose.translation.z() + relative.translation.z());
 }
 
-MapBuilder::Impl::Fix MapBuilder::Impl::FromIcp(const TreeIcpResult& icp, const StoredFrame& frame, FrameFix how) const {
+MapBuilder::Impl::Fix MapBuilder::Impl::FromIcp(const TreeIcpResult& icp, const StoredFrame& frame,
+                                                FrameFix how) const {
   Fix fix;
   fix.how = how;
   fix.pose = icp.map_from_level;
@@ -46,18 +47,15 @@ MapBuilder::Impl::Fix MapBuilder::Impl::FromIcp(const TreeIcpResult& icp, const 
 }
 
 MapBuilder::Impl::Fix MapBuilder::Impl::Localize(const StoredFrame& frame, const Pose4& predicted) {
-  const LocalMap local = MakeLocalMap(map_->TreesNear(
-      predicted.translation.head<2>(),
-      options_.icp_range + options_.max_correction + options_.prior_radius));
+  const LocalMap local = MakeLocalMap(
+      map_->TreesNear(predicted.translation.head<2>(),
+                      options_.icp_range + options_.max_correction + options_.prior_radius));
   if (local.points.size() >= 3 && failures_ < options_.global_after) {
-    const TreeIcpResult icp = TreeIcp(frame.query, frame.query_weights, local.points,
-                                      *local.xy, predicted, options_.icp_gates,
-                                      options_.icp_iterations, options_.yaw_search,
-                                      local.variances);
+    const TreeIcpResult icp =
+        TreeIcp(frame.query, frame.query_weights, local.points, *local.xy, predicted,
+                options_.icp_gates, options_.icp_iterations, options_.yaw_search, local.variances);
     Fix fix = FromIcp(icp, frame, FrameFix::kTracked);
-    const double moved = (icp.map_from_level.translation - predicted.translation)
-                             .head<2>()
-                             .norm();
+    const double moved = (icp.map_from_level.translation - predicted.translation).head<2>().norm();
     if (fix.ok && moved <= options_.max_correction) return fix;
   }
   const bool global = failures_ >= options_.global_after;
@@ -74,7 +72,8 @@ MapBuilder::Impl::Fix MapBuilder::Impl::Localize(const StoredFrame& frame, const
 }
 
 MapBuilder::Impl::Fix MapBuilder::Impl::Search(const StoredFrame& frame, std::vector<MapTree> trees,
-           const std::optional<Pose4>& prior, double radius, FrameFix how) const {
+                                               const std::optional<Pose4>& prior, double radius,
+                                               FrameFix how) const {
   Fix none;
   if (trees.size() < 10) return none;
   const LocalMap local = [&] {
@@ -93,9 +92,8 @@ MapBuilder::Impl::Fix MapBuilder::Impl::Search(const StoredFrame& frame, std::ve
   const RelocalizeResult answer = Relocalize(index, query, options_.relocalizer);
   if (answer.status != RelocalizeStatus::kLocalized) return none;
   const std::vector<double> fine(options_.icp_gates.end() - 2, options_.icp_gates.end());
-  const TreeIcpResult icp =
-      TreeIcp(frame.query, frame.query_weights, local.points, *local.xy,
-              ToPose4(answer.map_from_sensor), fine, options_.icp_iterations);
+  const TreeIcpResult icp = TreeIcp(frame.query, frame.query_weights, local.points, *local.xy,
+                                    ToPose4(answer.map_from_sensor), fine, options_.icp_iterations);
   return FromIcp(icp, frame, how);
 }
 

@@ -1,10 +1,9 @@
 #include "algorithms/mapping/pose_graph.h"
 
-#include <stdexcept>
-#include <string>
-
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
+#include <stdexcept>
+#include <string>
 
 namespace forestmap::algorithms {
 
@@ -21,13 +20,15 @@ Pose4 Compose(const Pose4& a, const Pose4& relative) {
   const double c = std::cos(a.yaw), s = std::sin(a.yaw);
   const Eigen::Vector3d& r = relative.translation;
   Pose4 out;
-  out.translation = a.translation + Eigen::Vector3d(c * r.x() - s * r.y(), s * r.x() + c * r.y(), r.z());
+  out.translation =
+      a.translation + Eigen::Vector3d(c * r.x() - s * r.y(), s * r.x() + c * r.y(), r.z());
   out.yaw = WrapAngle(a.yaw + relative.yaw);
   return out;
 }
 
 void PoseGraphOptions::Check() const {
-  if (max_iterations < 1) throw std::invalid_argument("PoseGraphOptions.max_iterations must be >= 1");
+  if (max_iterations < 1)
+    throw std::invalid_argument("PoseGraphOptions.max_iterations must be >= 1");
   if (!(tolerance >= 0)) throw std::invalid_argument("PoseGraphOptions.tolerance must be >= 0");
   if (!(huber > 0)) throw std::invalid_argument("PoseGraphOptions.huber must be > 0");
 }
@@ -41,7 +42,7 @@ LinearizedEdge LinearizeEdge(const Pose4& a, const Pose4& b, const PoseGraphEdge
   Eigen::Matrix4d jb = Eigen::Matrix4d::Zero();
   jb << c, s, 0, 0, -s, c, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
   Eigen::Matrix4d ja = -jb;
-  ja(0, 3) = predicted.translation.y();   // d(R^T d)/d yaw_a = (r_y, -r_x)
+  ja(0, 3) = predicted.translation.y();  // d(R^T d)/d yaw_a = (r_y, -r_x)
   ja(1, 3) = -predicted.translation.x();
   const Eigen::Vector4d inv_sigma = edge.sigma.cwiseInverse();
   out.residual = out.residual.cwiseProduct(inv_sigma);
@@ -91,7 +92,8 @@ PoseGraphResult OptimizePoseGraph(std::vector<Pose4> initial,
     std::vector<Eigen::Triplet<double>> triplets;
     Eigen::VectorXd gradient = Eigen::VectorXd::Zero(4 * n);
     for (const PoseGraphEdge& edge : edges) {
-      const LinearizedEdge lin = LinearizeEdge(result.poses[edge.from], result.poses[edge.to], edge);
+      const LinearizedEdge lin =
+          LinearizeEdge(result.poses[edge.from], result.poses[edge.to], edge);
       const double w = edge.robust ? HuberWeight(lin.residual.norm(), options.huber) : 1.0;
       const int index[2] = {4 * edge.from, 4 * edge.to};
       const Eigen::Matrix4d* jac[2] = {&lin.jacobian_from, &lin.jacobian_to};
@@ -100,7 +102,8 @@ PoseGraphResult OptimizePoseGraph(std::vector<Pose4> initial,
         for (int q = 0; q < 2; ++q) {
           const Eigen::Matrix4d block = w * jac[p]->transpose() * *jac[q];
           for (int r = 0; r < 4; ++r) {
-            for (int c = 0; c < 4; ++c) triplets.emplace_back(index[p] + r, index[q] + c, block(r, c));
+            for (int c = 0; c < 4; ++c)
+              triplets.emplace_back(index[p] + r, index[q] + c, block(r, c));
           }
         }
       }

@@ -21,10 +21,10 @@ Pose4 Between(const Pose4& a, const Pose4& b);
 Pose4 Compose(const Pose4& a, const Pose4& relative);
 
 struct PoseGraphEdge {
-  int from = 0, to = 0;   // node indices
-  Pose4 measurement;      // Between(node from, node to) as measured
+  int from = 0, to = 0;  // node indices
+  Pose4 measurement;     // Between(node from, node to) as measured
   Eigen::Vector4d sigma = Eigen::Vector4d(0.05, 0.05, 0.05, 0.005);  // m, m, m, rad
-  bool robust = false;    // Huber kernel on this edge (loop closures)
+  bool robust = false;  // Huber kernel on this edge (loop closures)
 };
 
 struct PoseGraphOptions {

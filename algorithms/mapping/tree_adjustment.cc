@@ -1,14 +1,13 @@
 #include "algorithms/mapping/tree_adjustment.h"
 
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <array>
 #include <memory>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
-
-#include <Eigen/Sparse>
-#include <Eigen/SparseCholesky>
 
 namespace forestmap::algorithms {
 
@@ -19,7 +18,8 @@ void TreeAdjustmentOptions::Check() const {
   require(iterations >= 1, "iterations must be >= 1");
   require(cauchy_iterations >= 0 && cauchy_iterations <= iterations,
           "cauchy_iterations must be in [0, iterations]");
-  require(huber_xy > 0 && cauchy_xy > 0 && cauchy_z > 0, "huber_xy, cauchy_xy, cauchy_z must be > 0 m");
+  require(huber_xy > 0 && cauchy_xy > 0 && cauchy_z > 0,
+          "huber_xy, cauchy_xy, cauchy_z must be > 0 m");
   require(tolerance >= 0, "tolerance must be >= 0");
   require(max_tree_observations >= 2, "max_tree_observations must be >= 2");
 }
@@ -88,7 +88,8 @@ class BlockSystem {
     keys_ = std::move(pairs);
     std::vector<Eigen::Triplet<double>> triplets;
     for (size_t slot = 0; slot < keys_.size(); ++slot) {
-      const int a = static_cast<int>(keys_[slot] / frames_), b = static_cast<int>(keys_[slot] % frames_);
+      const int a = static_cast<int>(keys_[slot] / frames_),
+                b = static_cast<int>(keys_[slot] % frames_);
       for (int r = 0; r < 4; ++r) {
         for (int c = a == b ? r : 0; c < 4; ++c) {
           // Entry (r, c) of block (a, b) is stored transposed, at (4b + c, 4a + r).
@@ -150,8 +151,12 @@ class Adjuster {
   Adjuster(std::vector<Pose4> poses, std::vector<Eigen::Vector3d> trees,
            const std::vector<TreeAdjustmentObservation>& observations,
            const std::vector<PoseGraphEdge>& edges, const TreeAdjustmentOptions& options)
-      : options_(options), observations_(observations), edges_(edges), poses_(std::move(poses)),
-        trees_(std::move(trees)), by_tree_(trees_.size()) {
+      : options_(options),
+        observations_(observations),
+        edges_(edges),
+        poses_(std::move(poses)),
+        trees_(std::move(trees)),
+        by_tree_(trees_.size()) {
     const int n = static_cast<int>(poses_.size());
     for (size_t k = 0; k < observations.size(); ++k) {
       const auto& o = observations[k];
@@ -177,7 +182,9 @@ class Adjuster {
     }
     // The pattern of the reduced system, and where each tree's and edge's terms go in it.
     std::vector<int64_t> keys;
-    auto key = [n](int a, int b) { return static_cast<int64_t>(std::min(a, b)) * n + std::max(a, b); };
+    auto key = [n](int a, int b) {
+      return static_cast<int64_t>(std::min(a, b)) * n + std::max(a, b);
+    };
     for (const std::vector<int>& rows : by_tree_) {
       if (rows.size() < 2) continue;
       for (int ka : rows) {
@@ -200,8 +207,8 @@ class Adjuster {
     }
     for (const PoseGraphEdge& e : edges) {
       const int from = std::min(e.from, e.to), to = std::max(e.from, e.to);
-      edge_slots_.push_back({system_->Slot(from, from), system_->Slot(to, to),
-                             system_->Slot(from, to)});
+      edge_slots_.push_back(
+          {system_->Slot(from, from), system_->Slot(to, to), system_->Slot(from, to)});
     }
   }
 
@@ -313,8 +320,8 @@ class Adjuster {
       if (by_tree_[j].empty()) continue;
       Eigen::Vector3d sum = Eigen::Vector3d::Zero(), w = Eigen::Vector3d::Zero();
       for (int k : by_tree_[j]) {
-        const Term t = Evaluate(poses_[observations_[k].frame], trees_[j], observations_[k],
-                                kernel, options_);
+        const Term t =
+            Evaluate(poses_[observations_[k].frame], trees_[j], observations_[k], kernel, options_);
         sum += t.weight.cwiseProduct(t.residual + trees_[j]);
         w += t.weight;
       }
@@ -341,9 +348,9 @@ class Adjuster {
     double cost = 0;
     for (size_t j = 0; j < trees_.size(); ++j) {
       for (int k : by_tree_[j]) {
-        cost += Evaluate(poses_[observations_[k].frame], trees_[j], observations_[k], kernel,
-                         options_)
-                    .cost;
+        cost +=
+            Evaluate(poses_[observations_[k].frame], trees_[j], observations_[k], kernel, options_)
+                .cost;
       }
     }
     for (const PoseGraphEdge& edge : edges_) {
@@ -369,7 +376,7 @@ class Adjuster {
   std::vector<Eigen::Vector3d> trees_;
   std::vector<std::vector<int>> by_tree_;
   std::unique_ptr<BlockSystem> system_;
-  std::vector<int> slots_;                   // per tree, per observation pair (a, b >= a)
+  std::vector<int> slots_;                      // per tree, per observation pair (a, b >= a)
   std::vector<std::array<int, 3>> edge_slots_;  // per edge: (from, from), (to, to), (from, to)
 };
 

@@ -6,8 +6,7 @@
 namespace forestmap::algorithms {
 
 Pose3 ToPose3(const Pose4& pose) {
-  return PoseFromXyzYaw(pose.translation.x(), pose.translation.y(), pose.translation.z(),
-                        pose.yaw);
+  return PoseFromXyzYaw(pose.translation.x(), pose.translation.y(), pose.translation.z(), pose.yaw);
 }
 
 Pose4 ToPose4(const Pose3& pose) {
@@ -100,7 +99,8 @@ TreeIcpResult TreeIcp(const std::vector<Eigen::Vector3d>& query,
     const double yaw_offset = yaw_search / 3.0 * ((k + 1) / 2) * (k % 2 == 0 ? -1 : 1);
     Pose4 start = initial;
     start.yaw = WrapAngle(initial.yaw + yaw_offset);
-    if (!gates.empty()) Refine(query, query_weights, map, map_variances, map_xy, gates.front(), iterations, start);
+    if (!gates.empty())
+      Refine(query, query_weights, map, map_variances, map_xy, gates.front(), iterations, start);
     const size_t inliers =
         Associate(query, map_xy, start, gates.empty() ? 0.5 : gates.front()).size();
     if (inliers > best_inliers) {
@@ -119,9 +119,9 @@ TreeIcpResult TreeIcp(const std::vector<Eigen::Vector3d>& query,
   double sum2 = 0;
   const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
   for (const auto& [q, m] : result.matches) {
-    const Eigen::Vector2d moved = pose.translation.head<2>() +
-                                  Eigen::Vector2d(c * query[q].x() - s * query[q].y(),
-                                                  s * query[q].x() + c * query[q].y());
+    const Eigen::Vector2d moved =
+        pose.translation.head<2>() +
+        Eigen::Vector2d(c * query[q].x() - s * query[q].y(), s * query[q].x() + c * query[q].y());
     sum2 += (moved - map[m].head<2>()).squaredNorm();
     // Near trees only: a levelling error of 1 deg moves a tree 30 m away by 0.5 m in height.
     if (std::isfinite(map[m].z()) && std::isfinite(query[q].z()) &&

@@ -12,9 +12,9 @@
 namespace forestmap::algorithms {
 
 struct TreeIcpResult {
-  Pose4 map_from_level;                   // refined pose
-  int inliers = 0;                        // matches within the last gate
-  double rmse = 0;                        // m, horizontal
+  Pose4 map_from_level;                      // refined pose
+  int inliers = 0;                           // matches within the last gate
+  double rmse = 0;                           // m, horizontal
   std::vector<std::pair<int, int>> matches;  // (query index, map index)
 };
 

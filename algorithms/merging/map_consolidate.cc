@@ -361,7 +361,7 @@ class Consolidator {
   std::vector<TreeObservation> rows_;
   std::vector<int64_t> ids_;  // sorted
   std::unordered_map<int64_t, int> index_of_;
-  std::vector<int> owner_;  // per row, index into ids_
+  std::vector<int> owner_;             // per row, index into ids_
   std::vector<int64_t> original_ids_;  // per row, its tree before
   std::vector<TreeEstimate> estimates_;
 };
@@ -385,8 +385,8 @@ ConsolidateResult ConsolidateTrees(std::span<const TreeEstimate> trees,
 }
 
 ConsolidateResult RebuildTrees(std::span<const TreeEstimate> trees,
-                               std::span<const TreeObservation> observations,
-                               int64_t next_free_id, const MergeOptions& options) {
+                               std::span<const TreeObservation> observations, int64_t next_free_id,
+                               const MergeOptions& options) {
   options.Check();
   const std::vector<int64_t> given = IdsOf(trees);
   const std::unordered_set<int64_t> known(given.begin(), given.end());

@@ -126,16 +126,16 @@ PairCost AssociationCost(const TreeEstimate& tree, const TreeObservation& observ
   if (d2 > options.gate_distance * options.gate_distance) return out;
   const double tree_sigma = IsKnown(tree.position_sigma) ? tree.position_sigma : 0.0;
   const double obs_sigma = ObservationSigma(observation);
-  const double var = tree_sigma * tree_sigma + obs_sigma * obs_sigma +
-                     options.pose_sigma * options.pose_sigma;
+  const double var =
+      tree_sigma * tree_sigma + obs_sigma * obs_sigma + options.pose_sigma * options.pose_sigma;
   const double mahalanobis2 = d2 / var;
   if (mahalanobis2 > options.gate_sigmas * options.gate_sigmas) return out;
   out.cost = mahalanobis2;
   out.distance = std::sqrt(d2);
   if (IsKnown(tree.dbh) && IsKnown(observation.dbh) && observation.weight_dbh > 0) {
     const double diff = std::abs(tree.dbh - observation.dbh);
-    const double gate = std::max(options.dbh_gate_abs,
-                                 options.dbh_gate_rel * std::max(tree.dbh, observation.dbh));
+    const double gate =
+        std::max(options.dbh_gate_abs, options.dbh_gate_rel * std::max(tree.dbh, observation.dbh));
     out.dbh_ok = diff <= gate;
     out.cost += options.dbh_cost * std::min(1.0, (diff / gate) * (diff / gate));
   }
@@ -181,9 +181,8 @@ Association AssociateGreedy(std::span<const TreeEstimate> trees, const KdTree<do
       // The row's DBH is then averaged with its weight like any other (rows are never
       // rewritten, so that the map depends on the set of rows, not on their order; Wild_V01
       // survey merge: median DBH difference to map.csv 4.4 -> 2.6 mm).
-      if (!pair.dbh_ok &&
-          pair.distance > std::max(options.dbh_outlier_distance,
-                                   0.5 * (trees[t].dbh + observations[o].dbh))) {
+      if (!pair.dbh_ok && pair.distance > std::max(options.dbh_outlier_distance,
+                                                   0.5 * (trees[t].dbh + observations[o].dbh))) {
         continue;
       }
       pairs.emplace_back(!pair.dbh_ok, pair.cost, trees[t].id, static_cast<int>(o), t);
@@ -205,8 +204,8 @@ std::vector<TreeObservation> ObserveFrame(const FrameObservations& frame,
                                           const MergeOptions& options) {
   options.Check();
   if (!frame.map_from_sensor.matrix().allFinite()) {
-    throw std::invalid_argument("frame " + std::to_string(frame.frame_id) + " of '" +
-                                frame.source + "': non-finite map_from_sensor");
+    throw std::invalid_argument("frame " + std::to_string(frame.frame_id) + " of '" + frame.source +
+                                "': non-finite map_from_sensor");
   }
   std::vector<TreeObservation> rows;
   rows.reserve(frame.trees.size());
@@ -223,8 +222,8 @@ std::vector<TreeObservation> ObserveFrame(const FrameObservations& frame,
     if (range > options.max_range) continue;
     const double score = std::isfinite(tree.score) ? std::clamp(tree.score, 0.0, 1.0) : 0.5;
     const double quality = options.score_floor + (1 - options.score_floor) * score;
-    const double sigma_xy = std::hypot(options.sigma_xy_base, options.sigma_xy_per_m * range) /
-                            quality;
+    const double sigma_xy =
+        std::hypot(options.sigma_xy_base, options.sigma_xy_per_m * range) / quality;
     TreeObservation row;
     row.source = frame.source;
     row.frame_id = frame.frame_id;
@@ -338,9 +337,8 @@ MergeResult MergeFrame(std::span<const TreeEstimate> nearby_map_trees,
 
 void ResolveNewIds(MergeResult& result, std::span<const int64_t> new_ids) {
   if (new_ids.size() != result.new_trees.size()) {
-    throw std::invalid_argument("ResolveNewIds: " + std::to_string(new_ids.size()) +
-                                " ids for " + std::to_string(result.new_trees.size()) +
-                                " new trees");
+    throw std::invalid_argument("ResolveNewIds: " + std::to_string(new_ids.size()) + " ids for " +
+                                std::to_string(result.new_trees.size()) + " new trees");
   }
   auto resolve = [&](int64_t& id) {
     if (id < 0) id = new_ids[static_cast<size_t>(-id - 1)];

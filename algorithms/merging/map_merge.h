@@ -36,7 +36,7 @@ struct WeightedMoments1 {
   double weight = 0;  // sum of weights
   double mean = 0;
   double m2 = 0;
-  int count = 0;      // observations with a positive weight
+  int count = 0;  // observations with a positive weight
   void Add(double value, double w);
   void Merge(const WeightedMoments1& other);
 };
@@ -56,13 +56,13 @@ struct WeightedMoments2 {
 struct TreeEstimate {
   int64_t id = 0;
   Eigen::Vector3d position = Eigen::Vector3d::Zero();  // m; z NaN when no observation had one
-  double dbh = kUnknown;                                // m, NaN unknown
+  double dbh = kUnknown;                               // m, NaN unknown
   double position_sigma = kUnknown;  // m, 1-sigma horizontal uncertainty of the mean
   double dbh_sigma = kUnknown;       // m, 1-sigma uncertainty of the DBH mean
   int observations = 0;              // rows, including a survey prior
   int distinct_views = 0;            // sensor positions >= min_view_separation apart (capped)
   TreeStatus status = TreeStatus::kCandidate;
-  bool surveyed = false;             // has a survey prior observation (always confirmed)
+  bool surveyed = false;  // has a survey prior observation (always confirmed)
 
   // Sufficient statistics.
   WeightedMoments2 xy;         // horizontal position, weights weight_xy
@@ -80,10 +80,10 @@ struct TreeObservation {
   int detection_index = 0;  // index in FrameObservations::trees (-1 for a survey prior)
   Eigen::Vector3d position = Eigen::Vector3d::Zero();  // m, map frame; z NaN unknown
   double dbh = kUnknown;                               // m
-  double weight_xy = 0;     // 1/m^2, inverse variance of the horizontal position (per axis)
-  double weight_dbh = 0;    // 1/m^2, inverse variance of the DBH; 0 = DBH not used
+  double weight_xy = 0;   // 1/m^2, inverse variance of the horizontal position (per axis)
+  double weight_dbh = 0;  // 1/m^2, inverse variance of the DBH; 0 = DBH not used
   Eigen::Vector3d sensor_position = Eigen::Vector3d::Zero();  // m, map frame
-  bool prior = false;       // a surveyed tree: confirms the tree on its own
+  bool prior = false;  // a surveyed tree: confirms the tree on its own
 };
 
 struct FrameObservations {
@@ -96,33 +96,33 @@ struct FrameObservations {
 struct MergeOptions {
   // Observation model: sigma_xy = hypot(base, per_m * range) / (score_floor + (1 - score_floor)
   // * score); a missing score counts as 0.5.
-  double sigma_xy_base = 0.05;       // m
-  double sigma_xy_per_m = 0.004;     // m of sigma per m of horizontal range
-  double score_floor = 0.5;          // [0, 1], weight share kept by a zero-score fit
-  double sigma_dbh_base = 0.03;      // m
-  double sigma_dbh_per_m = 0.0;      // m of DBH sigma per m of range
-  double max_range = 20.0;           // m, horizontal; farther detections are not merged
-  double min_dbh = 0.02;             // m, smaller (or non-positive) DBH counts as unknown
+  double sigma_xy_base = 0.05;    // m
+  double sigma_xy_per_m = 0.004;  // m of sigma per m of horizontal range
+  double score_floor = 0.5;       // [0, 1], weight share kept by a zero-score fit
+  double sigma_dbh_base = 0.03;   // m
+  double sigma_dbh_per_m = 0.0;   // m of DBH sigma per m of range
+  double max_range = 20.0;        // m, horizontal; farther detections are not merged
+  double min_dbh = 0.02;          // m, smaller (or non-positive) DBH counts as unknown
   // Association.
-  double gate_distance = 0.6;        // m, hard horizontal gate
-  double gate_sigmas = 4.0;          // Mahalanobis gate (combined tree + observation sigma)
-  double pose_sigma = 0.10;          // m, added in quadrature: pose / map registration error
-  double dbh_gate_abs = 0.15;        // m, DBH difference always accepted
-  double dbh_gate_rel = 0.5;         // of the larger DBH, DBH difference also accepted
-  double dbh_cost = 1.0;             // association cost per (DBH difference / gate)^2
+  double gate_distance = 0.6;         // m, hard horizontal gate
+  double gate_sigmas = 4.0;           // Mahalanobis gate (combined tree + observation sigma)
+  double pose_sigma = 0.10;           // m, added in quadrature: pose / map registration error
+  double dbh_gate_abs = 0.15;         // m, DBH difference always accepted
+  double dbh_gate_rel = 0.5;          // of the larger DBH, DBH difference also accepted
+  double dbh_cost = 1.0;              // association cost per (DBH difference / gate)^2
   double dbh_outlier_distance = 0.2;  // m, a DBH outside the gate still joins a tree this near
   // Promotion.
   int promotion_views = 3;           // distinct views that confirm a candidate
   double min_view_separation = 1.0;  // m, sensor positions closer than this are one view
   // Survey prior.
-  double survey_sigma_xy = 0.05;     // m
-  double survey_sigma_dbh = 0.01;    // m
+  double survey_sigma_xy = 0.05;   // m
+  double survey_sigma_dbh = 0.01;  // m
   // Consolidation.
-  double duplicate_distance = 0.3;   // m, closer trees may be one stem (MergeDuplicates)
-  double max_shared_frames = 0.4;    // share of the fewer frames of two trees that see both
-  int min_shared_frames = 3;         // frames; fewer seeing both do not make two trees
-  int consolidate_iterations = 6;    // re-association sweeps
-  void Check() const;                // throws std::invalid_argument naming the field
+  double duplicate_distance = 0.3;  // m, closer trees may be one stem (MergeDuplicates)
+  double max_shared_frames = 0.4;   // share of the fewer frames of two trees that see both
+  int min_shared_frames = 3;        // frames; fewer seeing both do not make two trees
+  int consolidate_iterations = 6;   // re-association sweeps
+  void Check() const;               // throws std::invalid_argument naming the field
 };
 
 struct MergeResult {
@@ -195,7 +195,7 @@ ConsolidateResult ConsolidateTrees(std::span<const TreeEstimate> trees,
 // `trees` must hold every tree that the observations refer to; given trees that keep no row are
 // in removed_ids.
 ConsolidateResult RebuildTrees(std::span<const TreeEstimate> trees,
-                               std::span<const TreeObservation> observations,
-                               int64_t next_free_id, const MergeOptions& options = {});
+                               std::span<const TreeObservation> observations, int64_t next_free_id,
+                               const MergeOptions& options = {});
 
 }  // namespace forestmap::algorithms

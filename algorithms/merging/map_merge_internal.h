@@ -31,13 +31,12 @@ struct Association {
 // averaged with its weight: a stored row never changes, or the map would depend on the order
 // in which rows arrived).
 Association AssociateGreedy(std::span<const TreeEstimate> trees,
-                                 std::span<const TreeObservation> observations,
-                                 const MergeOptions& options);
+                            std::span<const TreeObservation> observations,
+                            const MergeOptions& options);
 // As above with a prebuilt k-d tree over the trees' xy (same order).
-Association AssociateGreedy(std::span<const TreeEstimate> trees,
-                                 const KdTree<double, 2>& trees_xy,
-                                 std::span<const TreeObservation> observations,
-                                 const MergeOptions& options);
+Association AssociateGreedy(std::span<const TreeEstimate> trees, const KdTree<double, 2>& trees_xy,
+                            std::span<const TreeObservation> observations,
+                            const MergeOptions& options);
 
 // A k-d tree over the trees' horizontal positions.
 std::unique_ptr<KdTree<double, 2>> BuildTreeIndex(std::span<const TreeEstimate> trees);

@@ -42,8 +42,7 @@ void MergedMap::AddSurvey(const std::vector<MapTree>& trees) {
   }
 }
 
-std::vector<TreeEstimate> MergedMap::TreesNear(const Eigen::Vector2d& center,
-                                               double radius) const {
+std::vector<TreeEstimate> MergedMap::TreesNear(const Eigen::Vector2d& center, double radius) const {
   std::vector<TreeEstimate> out;
   const int64_t x0 = static_cast<int64_t>(std::floor((center.x() - radius) / cell_size_));
   const int64_t x1 = static_cast<int64_t>(std::floor((center.x() + radius) / cell_size_));
@@ -73,8 +72,7 @@ MergeResult MergedMap::Merge(const FrameObservations& frame) {
   ResolveNewIds(result, ids);
   for (const TreeEstimate& tree : result.updated_trees) Put(tree);
   for (const TreeEstimate& tree : result.new_trees) Put(tree);
-  observations_.insert(observations_.end(), result.observations.begin(),
-                       result.observations.end());
+  observations_.insert(observations_.end(), result.observations.begin(), result.observations.end());
   return result;
 }
 

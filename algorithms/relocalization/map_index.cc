@@ -7,8 +7,8 @@
 #include <string>
 #include <thread>
 
-#include "algorithms/relocalization/map_index_internal.h"
 #include "algorithms/core/parallel.h"
+#include "algorithms/relocalization/map_index_internal.h"
 
 namespace forestmap::algorithms {
 
@@ -50,18 +50,19 @@ double TrianglesPerTree(const KdTree<float, 2>& kd, const std::vector<Eigen::Vec
 double ChooseTriangleSide(const KdTree<float, 2>& kd, const std::vector<Eigen::Vector2d>& local,
                           const MapIndexOptions& options) {
   TriangleOptions tri;
-  tri.max_side = std::max(options.min_triangle_side,
-                          TriangleSideForDensity(MedianNearestNeighbourDistance(kd),
-                                                 options.target_neighbours));
-  const double budget = kd.size() > options.large_map_trees
-                            ? options.max_triangles_per_tree
-                            : options.small_map_triangles_per_tree;
-  const double wanted = std::min(budget, options.min_index_triangles / std::max<size_t>(1, kd.size()));
+  tri.max_side = std::max(
+      options.min_triangle_side,
+      TriangleSideForDensity(MedianNearestNeighbourDistance(kd), options.target_neighbours));
+  const double budget = kd.size() > options.large_map_trees ? options.max_triangles_per_tree
+                                                            : options.small_map_triangles_per_tree;
+  const double wanted =
+      std::min(budget, options.min_index_triangles / std::max<size_t>(1, kd.size()));
   for (int i = 0; i < 4; ++i) {
     const double per_tree = std::max(0.1, TrianglesPerTree(kd, local, tri));
     double target = per_tree > budget ? budget : (per_tree < 0.8 * wanted ? wanted : per_tree);
     if (target == per_tree) break;
-    tri.max_side = std::min(options.max_triangle_side, tri.max_side * std::pow(target / per_tree, 0.25));
+    tri.max_side =
+        std::min(options.max_triangle_side, tri.max_side * std::pow(target / per_tree, 0.25));
   }
   // Keep room above the shortest side allowed (maps in odd units can be very dense).
   return std::clamp(tri.max_side, tri.min_side + 0.5, options.max_triangle_side);
@@ -92,12 +93,13 @@ void MapIndexOptions::Check() const {
   if (!(max_triangle_side > min_triangle_side + 0.5 && max_triangle_side < 60)) {
     throw std::invalid_argument("MapIndexOptions: max_triangle_side must be in (min + 0.5, 60) m");
   }
-  if (!(min_triangle_side >= 0 && max_triangles_per_tree > 0 &&
-        small_map_triangles_per_tree > 0 && min_index_triangles >= 0)) {
+  if (!(min_triangle_side >= 0 && max_triangles_per_tree > 0 && small_map_triangles_per_tree > 0 &&
+        min_index_triangles >= 0)) {
     throw std::invalid_argument("MapIndexOptions: min_triangle_side and triangle budget invalid");
   }
   if (!(occupancy_resolution > 0 && occupancy_radius >= occupancy_resolution)) {
-    throw std::invalid_argument("MapIndexOptions: need 0 < occupancy_resolution <= occupancy_radius");
+    throw std::invalid_argument(
+        "MapIndexOptions: need 0 < occupancy_resolution <= occupancy_radius");
   }
   if (threads < 0) throw std::invalid_argument("MapIndexOptions: threads must be >= 0");
 }
@@ -166,8 +168,7 @@ double MapIndex::triangle_side() const { return impl_->triangle_options.max_side
 size_t MapIndex::triangle_count() const { return impl_->triangles->size(); }
 size_t MapIndex::MemoryBytes() const {
   const MapIndexImpl& m = *impl_;
-  return sizeof(MapIndexImpl) + m.trees.capacity() * sizeof(MapTree) +
-         m.positions->MemoryBytes() +
+  return sizeof(MapIndexImpl) + m.trees.capacity() * sizeof(MapTree) + m.positions->MemoryBytes() +
          m.triangles->MemoryBytes() + m.occupancy->MemoryBytes();
 }
 

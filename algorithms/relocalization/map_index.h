@@ -14,7 +14,7 @@ struct MapIndexOptions {
   double target_neighbours = 6.0;
   // A drone sees fewer trees than a dense map holds (occlusion, misses): its triangles need at
   // least this side length to exist at all. Bounded by the triangle budget below.
-  double min_triangle_side = 3.5;   // m
+  double min_triangle_side = 3.5;  // m
   // Index size bound (20 bytes a triangle): tight for huge maps, generous for small ones.
   double max_triangles_per_tree = 12.0;          // maps of more than large_map_trees trees
   double small_map_triangles_per_tree = 1000.0;  // smaller maps
@@ -50,9 +50,9 @@ class MapIndex {
 
   size_t size() const;
   const std::vector<MapTree>& trees() const;
-  bool has_z() const;    // every tree has a z
-  bool has_dbh() const;  // most trees have a DBH
-  size_t MemoryBytes() const;  // approximate resident size of the index
+  bool has_z() const;            // every tree has a z
+  bool has_dbh() const;          // most trees have a DBH
+  size_t MemoryBytes() const;    // approximate resident size of the index
   double triangle_side() const;  // m, longest triangle side indexed
   size_t triangle_count() const;
   const MapIndexImpl& impl() const { return *impl_; }

@@ -68,7 +68,8 @@ void OccupancyGrid::Index(const std::vector<uint64_t>& keys) {
   int64_t max_tx = INT64_MIN, max_ty = INT64_MIN;
   min_tx_ = min_ty_ = INT64_MAX;
   for (uint64_t key : keys) {
-    const int64_t tx = static_cast<int32_t>(key >> 32), ty = static_cast<int32_t>(key & 0xFFFFFFFFu);
+    const int64_t tx = static_cast<int32_t>(key >> 32),
+                  ty = static_cast<int32_t>(key & 0xFFFFFFFFu);
     min_tx_ = std::min(min_tx_, tx), max_tx = std::max(max_tx, tx);
     min_ty_ = std::min(min_ty_, ty), max_ty = std::max(max_ty, ty);
   }
@@ -80,7 +81,8 @@ void OccupancyGrid::Index(const std::vector<uint64_t>& keys) {
     height_ = max_ty - min_ty_ + 1;
     directory_.assign(static_cast<size_t>(box), -1);
     for (size_t i = 0; i < keys.size(); ++i) {
-      const int64_t tx = static_cast<int32_t>(keys[i] >> 32), ty = static_cast<int32_t>(keys[i] & 0xFFFFFFFFu);
+      const int64_t tx = static_cast<int32_t>(keys[i] >> 32),
+                    ty = static_cast<int32_t>(keys[i] & 0xFFFFFFFFu);
       directory_[(ty - min_ty_) * width_ + (tx - min_tx_)] = static_cast<int32_t>(i);
     }
     return;

@@ -6,11 +6,10 @@
 // to half a cell diagonal; the relocalizer uses it to reject wrong pose hypotheses before any
 // exact nearest-neighbour search.
 
+#include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace forestmap::algorithms {
 
@@ -44,7 +43,7 @@ class OccupancyGrid {
   }
 
  private:
-  static constexpr int kTileBits = 6;  // 64 x 64 cells a tile
+  static constexpr int kTileBits = 6;                // 64 x 64 cells a tile
   static constexpr double kMaxCell = 68719476736.0;  // 2^36: |cell index| bound, tiles fit int32
   static constexpr int64_t kTileMask = (1 << kTileBits) - 1;
   struct Tile {
@@ -52,8 +51,7 @@ class OccupancyGrid {
     int occupied = 0;  // cells set
   };
   static uint64_t TileKey(int64_t tx, int64_t ty) {
-    return (static_cast<uint64_t>(static_cast<uint32_t>(tx)) << 32) |
-           static_cast<uint32_t>(ty);
+    return (static_cast<uint64_t>(static_cast<uint32_t>(tx)) << 32) | static_cast<uint32_t>(ty);
   }
   int32_t Find(uint64_t key) const {
     if (!directory_.empty()) {

@@ -24,7 +24,9 @@ std::vector<Triangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy
   }
   std::vector<Triangle> triangles = EnumerateTriangles(seed_xy, neighbours, tri);
   // Seeds are sorted by range, so the largest vertex index is the farthest vertex.
-  auto farthest = [](const Triangle& t) { return std::max({t.vertex[0], t.vertex[1], t.vertex[2]}); };
+  auto farthest = [](const Triangle& t) {
+    return std::max({t.vertex[0], t.vertex[1], t.vertex[2]});
+  };
   std::stable_sort(triangles.begin(), triangles.end(),
                    [&](const Triangle& a, const Triangle& b) { return farthest(a) < farthest(b); });
   return triangles;
@@ -54,7 +56,8 @@ class QuickCheck {
   // the triangle first (a triangle's pose is most accurate around it), without its vertices.
   void SetTriangle(const Triangle& t) {
     const uint32_t n = static_cast<uint32_t>(std::min<size_t>(q_.xy.size(), kMaxChecks));
-    const Eigen::Vector2d centroid = (q_.xy[t.vertex[0]] + q_.xy[t.vertex[1]] + q_.xy[t.vertex[2]]) / 3;
+    const Eigen::Vector2d centroid =
+        (q_.xy[t.vertex[0]] + q_.xy[t.vertex[1]] + q_.xy[t.vertex[2]]) / 3;
     by_distance_.clear();
     for (uint32_t i = 0; i < n; ++i) {
       if (i != t.vertex[0] && i != t.vertex[1] && i != t.vertex[2]) {
@@ -166,9 +169,9 @@ void Score(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptio
 
 void Refine(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
             Hypothesis* h) {
-  for (double gate : {1.5 * options.inlier_distance, options.inlier_distance,
-                      options.inlier_distance, 0.7 * options.inlier_distance,
-                      0.7 * options.inlier_distance}) {
+  for (double gate :
+       {1.5 * options.inlier_distance, options.inlier_distance, options.inlier_distance,
+        0.7 * options.inlier_distance, 0.7 * options.inlier_distance}) {
     const std::vector<Association> matches = Associate(m, q, h->pose, options, gate);
     if (matches.size() < 3) break;
     Rigid2Accumulator acc;
@@ -182,8 +185,10 @@ void Refine(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOpti
 }
 
 int RatioTrees(const LevelledQuery& q, const RelocalizerOptions& options) {
-  const int in_range = static_cast<int>(std::count_if(
-      q.xy.begin(), q.xy.end(), [&](const Eigen::Vector2d& p) { return p.norm() <= options.ratio_range; }));
+  const int in_range =
+      static_cast<int>(std::count_if(q.xy.begin(), q.xy.end(), [&](const Eigen::Vector2d& p) {
+        return p.norm() <= options.ratio_range;
+      }));
   return std::max(in_range, std::min<int>(q.xy.size(), options.min_ratio_trees));
 }
 
@@ -397,14 +402,14 @@ class Searcher {
 }  // namespace
 
 PoseSearchResult SearchPoses(const MapIndexImpl& m, const LevelledQuery& q,
-                             const std::optional<PriorPose>& prior,
-                             const Eigen::Vector2d& prior_xy, const RelocalizerOptions& options) {
+                             const std::optional<PriorPose>& prior, const Eigen::Vector2d& prior_xy,
+                             const RelocalizerOptions& options) {
   Searcher search(m, q, prior, prior_xy, options);
   // A first pass with a tight tolerance costs an eighth per triangle (the key box is a cube)
   // and finds most poses; the full tolerance follows only when it did not.
-  const bool decided = options.first_pass_tolerance > 0 &&
-                       search.Pass(static_cast<float>(options.first_pass_tolerance),
-                                   options.first_pass_triangles);
+  const bool decided =
+      options.first_pass_tolerance > 0 &&
+      search.Pass(static_cast<float>(options.first_pass_tolerance), options.first_pass_triangles);
   if (!decided && !search.OverBudget()) {
     search.Pass(static_cast<float>(options.triangle_tolerance), SIZE_MAX);
   }

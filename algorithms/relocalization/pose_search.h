@@ -7,9 +7,9 @@
 #include <utility>
 #include <vector>
 
+#include "algorithms/core/rigid2d.h"
 #include "algorithms/relocalization/map_index_internal.h"
 #include "algorithms/relocalization/relocalizer.h"
-#include "algorithms/core/rigid2d.h"
 
 namespace forestmap::algorithms {
 
@@ -19,12 +19,12 @@ struct LevelledQuery {
   std::vector<Eigen::Vector2d> xy;  // levelled horizontal positions (sensor at the origin)
   std::vector<double> z;            // levelled heights relative to the sensor
   std::vector<double> dbh;
-  std::vector<uint32_t> used;       // indices into the request's trees
+  std::vector<uint32_t> used;  // indices into the request's trees
 };
 
 // A candidate pose of the levelled sensor in the map's kd coordinates.
 struct Hypothesis {
-  Rigid2 pose;       // kd coordinates from levelled sensor coordinates
+  Rigid2 pose;  // kd coordinates from levelled sensor coordinates
   int inliers = 0;
   double score = 0;  // sum over inliers of (1 - (d / inlier_distance)^2)
   double rmse = 0;   // m
@@ -92,8 +92,8 @@ struct PoseSearchResult {
   std::vector<Hypothesis> hypotheses;  // scored on the nearest trees, best first
   // The last refined pose whose decoys the search tested, and the test (reused by the decision).
   std::optional<std::pair<Rigid2, DecoyTest>> tested;
-  int triangles = 0;                   // query triangles looked up
-  int64_t matches = 0;                 // triangle matches turned into poses
+  int triangles = 0;    // query triangles looked up
+  int64_t matches = 0;  // triangle matches turned into poses
 };
 
 // Hypothesize and verify: every map triangle matching a query triangle (nearest first) implies
@@ -102,7 +102,7 @@ struct PoseSearchResult {
 // search ends once a pose explains most nearby trees and a few more triangles found no rival,
 // or when the query's triangles run out. With a prior, poses outside its radius are skipped.
 PoseSearchResult SearchPoses(const MapIndexImpl& m, const LevelledQuery& q,
-                             const std::optional<PriorPose>& prior,
-                             const Eigen::Vector2d& prior_xy, const RelocalizerOptions& options);
+                             const std::optional<PriorPose>& prior, const Eigen::Vector2d& prior_xy,
+                             const RelocalizerOptions& options);
 
 }  // namespace forestmap::algorithms

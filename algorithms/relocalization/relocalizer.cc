@@ -100,8 +100,8 @@ RelocalizeResult FinishWithTilt(const MapIndexImpl& m, const LevelledQuery& q,
 // puts one on the other; returns the centres of the `count` strongest separated bins.
 std::vector<double> HeadingPeaks(const MapIndexImpl& m, const LevelledQuery& q,
                                  const Eigen::Vector2d& at, int count) {
-  constexpr int kBins = 72;              // 5 deg
-  constexpr double kMinRange = 2.0;      // m, nearer bearings swing with a small position error
+  constexpr int kBins = 72;                // 5 deg
+  constexpr double kMinRange = 2.0;        // m, nearer bearings swing with a small position error
   constexpr double kRangeTolerance = 1.0;  // m
   double max_range = 0;
   std::vector<std::pair<double, double>> query;  // range, bearing
@@ -174,15 +174,15 @@ void Ambiguous(const MapIndexImpl& m, const LevelledQuery& q, const Hypothesis& 
 // The answer for the best hypothesis, given the best distinct rival (none: null): LOCALIZED
 // only when it is far above chance (a random forest's or the local pattern's), explains enough
 // of the nearby trees and beats the rival and its decoys (decoys.h).
-RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q,
-                        const RelocalizeQuery& query, const Hypothesis& best,
-                        const Hypothesis* best_rival, int64_t trials,
+RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizeQuery& query,
+                        const Hypothesis& best, const Hypothesis* best_rival, int64_t trials,
                         const RelocalizerOptions& options, const DecoyTest* decoys = nullptr) {
   const double rival = best_rival ? best_rival->score : 0.0;
   const int nearest = RatioTrees(q, options);
   const double ratio =
-      nearest > 0 ? static_cast<double>(InliersAmongNearest(m, q, best.pose, nearest, options)) / nearest
-                  : 0.0;
+      nearest > 0
+          ? static_cast<double>(InliersAmongNearest(m, q, best.pose, nearest, options)) / nearest
+          : 0.0;
 
   RelocalizeResult result = FinishWithTilt(m, q, query, best, options);
   result.confidence = best.score > 0 ? std::clamp(1.0 - rival / best.score, 0.0, 1.0) : 0.0;
@@ -260,9 +260,9 @@ void RelocalizerOptions::Check() const {
           "first pass: need 0 <= first_pass_tolerance <= triangle_tolerance, triangles >= 0");
   require(max_query_triangles >= 1 && rival_triangles >= 0,
           "max_query_triangles must be >= 1 and rival_triangles >= 0");
-  require(quick_check_true_rate > 0 && quick_check_true_rate < 1 &&
-              quick_check_false_accept > 0 && quick_check_false_accept < 1 &&
-              quick_check_false_reject > 0 && quick_check_false_reject < 1,
+  require(quick_check_true_rate > 0 && quick_check_true_rate < 1 && quick_check_false_accept > 0 &&
+              quick_check_false_accept < 1 && quick_check_false_reject > 0 &&
+              quick_check_false_reject < 1,
           "quick check rates must be in (0, 1)");
   tilt.Check();
   leveling.Check();
@@ -313,9 +313,12 @@ static RelocalizeResult ExplainPriorMiss(const MapIndex& index, const Relocalize
 
 const char* ToString(RelocalizeStatus status) {
   switch (status) {
-    case RelocalizeStatus::kLocalized: return "localized";
-    case RelocalizeStatus::kAmbiguous: return "ambiguous";
-    case RelocalizeStatus::kNotFound: return "not_found";
+    case RelocalizeStatus::kLocalized:
+      return "localized";
+    case RelocalizeStatus::kAmbiguous:
+      return "ambiguous";
+    case RelocalizeStatus::kNotFound:
+      return "not_found";
   }
   return "unknown";
 }
@@ -326,9 +329,8 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   const MapIndexImpl& m = index.impl();
   RelocalizeResult result;
   if (query.trees.size() < 3 || m.trees.size() < 3) return TooFewTrees(query, m);
-  const LevelledQuery q =
-      Level(query, LevelSensor(query.trees, query.gravity, options.leveling).level_from_sensor,
-            options);
+  const LevelledQuery q = Level(
+      query, LevelSensor(query.trees, query.gravity, options.leveling).level_from_sensor, options);
   Eigen::Vector2d prior_xy = Eigen::Vector2d::Zero();
   if (query.prior) prior_xy = query.prior->map_from_sensor.translation().head<2>() - m.origin;
 
@@ -380,9 +382,8 @@ RelocalizeResult RefineNear(const MapIndex& index, const RelocalizeQuery& query,
   options.Check();
   const MapIndexImpl& m = index.impl();
   if (query.trees.size() < 3 || m.trees.size() < 3) return TooFewTrees(query, m);
-  const LevelledQuery q =
-      Level(query, LevelSensor(query.trees, query.gravity, options.leveling).level_from_sensor,
-            options);
+  const LevelledQuery q = Level(
+      query, LevelSensor(query.trees, query.gravity, options.leveling).level_from_sensor, options);
   // The guess's heading in the levelled frame (its tilt is replaced by this frame's levelling).
   const double guess_yaw = YawOf(map_from_sensor_guess.linear() * q.level_from_sensor.transpose());
   const Eigen::Vector2d guess_xy = map_from_sensor_guess.translation().head<2>() - m.origin;
@@ -413,8 +414,8 @@ RelocalizeResult RefineNear(const MapIndex& index, const RelocalizeQuery& query,
   seeds.resize(std::min<size_t>(seeds.size(), 3));
   for (Hypothesis& h : seeds) Refine(m, q, options, &h);
   std::sort(seeds.begin(), seeds.end(), by_score);
-  RelocalizeResult result = Decide(m, q, query, seeds.front(), /*best_rival=*/nullptr,
-                                   seeds_tried, options);
+  RelocalizeResult result =
+      Decide(m, q, query, seeds.front(), /*best_rival=*/nullptr, seeds_tried, options);
   result.hypotheses = static_cast<int>(seeds.size());
   return result;
 }

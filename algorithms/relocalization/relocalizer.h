@@ -30,8 +30,8 @@ struct PriorPose {
 };
 
 struct RelocalizeQuery {
-  std::vector<DetectedTree> trees;               // sensor frame
-  std::optional<Eigen::Vector3d> gravity;        // gravity (down) in the sensor frame
+  std::vector<DetectedTree> trees;         // sensor frame
+  std::optional<Eigen::Vector3d> gravity;  // gravity (down) in the sensor frame
   std::optional<PriorPose> prior;
 };
 
@@ -64,18 +64,18 @@ struct RelocalizerOptions {
   // strict recall where map heights are noisy (Venman).
   bool refine_tilt = false;
   TiltRefinementOptions tilt;
-  LevelingOptions leveling;          // roll and pitch from stem axes when no gravity is given
-  int quick_score_trees = 30;        // hypotheses are ranked on this many nearest query trees
-  int refine_hypotheses = 8;         // best distinct hypotheses refined by ICP
+  LevelingOptions leveling;            // roll and pitch from stem axes when no gravity is given
+  int quick_score_trees = 30;          // hypotheses are ranked on this many nearest query trees
+  int refine_hypotheses = 8;           // best distinct hypotheses refined by ICP
   double refine_score_fraction = 0.3;  // ... if they score at least this share of the best
-  double inlier_distance = 0.4;      // m, a query tree within this of a map tree is an inlier
+  double inlier_distance = 0.4;        // m, a query tree within this of a map tree is an inlier
   // ... unless both DBH are known and differ by more than this factor (0 = DBH not used). Real
   // detections are noisy: 10% of true matches differ by 1.8x (Stein) to 2.4x (Venman).
   double dbh_ratio_gate = 3.0;
-  int min_inliers = 6;               // fewer inliers -> NOT_FOUND
-  double ratio_range = 20.0;         // m, query trees within this range count for the ratio
-  double min_inlier_ratio = 0.2;     // inliers / query trees within ratio_range; less -> NOT_FOUND
-  int min_ratio_trees = 10;          // ... counting at least this many nearest query trees
+  int min_inliers = 6;            // fewer inliers -> NOT_FOUND
+  double ratio_range = 20.0;      // m, query trees within this range count for the ratio
+  double min_inlier_ratio = 0.2;  // inliers / query trees within ratio_range; less -> NOT_FOUND
+  int min_ratio_trees = 10;       // ... counting at least this many nearest query trees
   // Inliers must exceed chance by this many Poisson sigmas. Above 5: refinement lifts the best
   // of many wrong poses over the Poisson expectation (Wild_V02 frames in the Stein map reach
   // 5.3 sigma, true answers on the real sequences 6.6 and more).
@@ -83,12 +83,12 @@ struct RelocalizerOptions {
   // ... and the best of all the poses tried must reach them by chance with at most this
   // probability (Poisson tail times the number of poses: what decides in sparse maps).
   double false_alarm = 0.01;
-  double ambiguity_ratio = 1.5;      // best score must be >= this x the best distinct pose
+  double ambiguity_ratio = 1.5;  // best score must be >= this x the best distinct pose
   // ... and >= this x its best decoy (the query shifted or turned onto the same local pattern,
   // decoys.h), both scored at a gate from the pose's own residuals: regular stands.
   double decoy_ratio = 1.5;
-  double distinct_distance = 2.0;    // m, poses farther apart than this are distinct
-  double distinct_yaw = 0.17;        // rad (~10 deg), or whose yaws differ more than this
+  double distinct_distance = 2.0;  // m, poses farther apart than this are distinct
+  double distinct_yaw = 0.17;      // rad (~10 deg), or whose yaws differ more than this
   void Check() const;
 };
 
@@ -124,8 +124,8 @@ struct RelocalizeResult {
   // Pose uncertainty, map frame, (x, y, z, roll, pitch, yaw) in m and rad about the map axes
   // (ROS order): meaningful when kLocalized (zero otherwise).
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
-  int hypotheses = 0;     // pose hypotheses that passed the quick check
-  int triangles = 0;      // query triangles looked up
+  int hypotheses = 0;         // pose hypotheses that passed the quick check
+  int triangles = 0;          // query triangles looked up
   int64_t poses_checked = 0;  // triangle matches whose pose was checked
 };
 

@@ -1,8 +1,7 @@
 #include "algorithms/relocalization/tilt_refinement.h"
 
-#include <stdexcept>
-
 #include <Eigen/Cholesky>
+#include <stdexcept>
 
 namespace forestmap::algorithms {
 

@@ -24,8 +24,8 @@ std::optional<TrackingStep> Tracker::TryLocal(const MapIndex& index,
                                               const TrackingFrame& frame) const {
   TrackingStep step;
   step.method = TrackMethod::kLocal;
-  step.result = RefineNear(index, frame.query, *predicted_, options_.yaw_window,
-                           options_.relocalizer);
+  step.result =
+      RefineNear(index, frame.query, *predicted_, options_.yaw_window, options_.relocalizer);
   if (step.result.status != RelocalizeStatus::kLocalized) return std::nullopt;
   // A loose or partial local fix, or one far from the prediction, may be a neighbouring
   // constellation: let a search (which checks for distinct alternatives) decide instead.
@@ -33,9 +33,8 @@ std::optional<TrackingStep> Tracker::TryLocal(const MapIndex& index,
       frame.query.trees.begin(), frame.query.trees.end(), [&](const DetectedTree& tree) {
         return tree.position.head<2>().norm() <= options_.relocalizer.max_query_range;
       }));
-  const double moved = (step.result.map_from_sensor.translation() - predicted_->translation())
-                           .head<2>()
-                           .norm();
+  const double moved =
+      (step.result.map_from_sensor.translation() - predicted_->translation()).head<2>().norm();
   if (step.result.rmse > options_.local_max_rmse ||
       step.result.inliers < options_.local_min_matched * in_range ||
       moved > options_.max_correction) {
@@ -56,8 +55,8 @@ TrackingStep Tracker::Step(const MapIndex& index, const TrackingFrame& frame) {
   if (predicted_ && frames_lost_ == 0) step = TryLocal(index, frame);
   if (!step && predicted_ && frames_lost_ < options_.global_after) {
     RelocalizeQuery query = frame.query;
-    query.prior = PriorPose{*predicted_, options_.prior_radius +
-                                             options_.radius_growth * frames_lost_};
+    query.prior =
+        PriorPose{*predicted_, options_.prior_radius + options_.radius_growth * frames_lost_};
     step = TrackingStep{TrackState::kRecovered, TrackMethod::kPrior,
                         Relocalize(index, query, options_.relocalizer), 0};
     if (step->result.status != RelocalizeStatus::kLocalized) step.reset();
@@ -86,18 +85,24 @@ TrackingStep Tracker::Step(const MapIndex& index, const TrackingFrame& frame) {
 
 const char* ToString(TrackState state) {
   switch (state) {
-    case TrackState::kTracking: return "tracking";
-    case TrackState::kRecovered: return "recovered";
-    case TrackState::kLost: return "lost";
+    case TrackState::kTracking:
+      return "tracking";
+    case TrackState::kRecovered:
+      return "recovered";
+    case TrackState::kLost:
+      return "lost";
   }
   return "unknown";
 }
 
 const char* ToString(TrackMethod method) {
   switch (method) {
-    case TrackMethod::kLocal: return "local";
-    case TrackMethod::kPrior: return "prior";
-    case TrackMethod::kGlobal: return "global";
+    case TrackMethod::kLocal:
+      return "local";
+    case TrackMethod::kPrior:
+      return "prior";
+    case TrackMethod::kGlobal:
+      return "global";
   }
   return "unknown";
 }

@@ -17,14 +17,14 @@ namespace forestmap::algorithms {
 
 struct TrackingOptions {
   RelocalizerOptions relocalizer;
-  double max_correction = 1.5;   // m, a local fix may move the prediction at most this far
-  double yaw_window = 0.15;      // rad, headings tried around the predicted one (plus the
-                                 // bearing-alignment peaks, see RefineNear)
-  double local_max_rmse = 0.2;   // m, a local fix must fit this well ...
+  double max_correction = 1.5;      // m, a local fix may move the prediction at most this far
+  double yaw_window = 0.15;         // rad, headings tried around the predicted one (plus the
+                                    // bearing-alignment peaks, see RefineNear)
+  double local_max_rmse = 0.2;      // m, a local fix must fit this well ...
   double local_min_matched = 0.33;  // ... and match this share of the frame's trees in range
-  double prior_radius = 10.0;    // m, search radius around the prediction after a local miss
-  double radius_growth = 5.0;    // m, added to the radius per frame without a fix
-  int global_after = 2;          // frames without a fix before the whole map is searched
+  double prior_radius = 10.0;       // m, search radius around the prediction after a local miss
+  double radius_growth = 5.0;       // m, added to the radius per frame without a fix
+  int global_after = 2;             // frames without a fix before the whole map is searched
   // Without odometry, predict the position with the last frame-to-frame displacement (the
   // heading with the last fix's: a carried sensor's heading wobbles, its path does not).
   bool constant_velocity = true;
@@ -48,7 +48,7 @@ enum class TrackMethod { kLocal, kPrior, kGlobal };
 struct TrackingStep {
   TrackState state = TrackState::kLost;
   TrackMethod method = TrackMethod::kGlobal;  // how the answer (or the last attempt) was found
-  RelocalizeResult result;                     // pose, inliers, matches of this frame
+  RelocalizeResult result;                    // pose, inliers, matches of this frame
   int frames_lost = 0;  // consecutive frames without a fix, this one included (0 when localized)
 };
 
@@ -67,8 +67,8 @@ class Tracker {
   std::optional<TrackingStep> TryLocal(const MapIndex& index, const TrackingFrame& frame) const;
 
   TrackingOptions options_;
-  std::optional<Pose3> last_fix_;   // map_from_sensor of the last localized frame
-  std::optional<Pose3> predicted_;  // map_from_sensor expected for the next frame's sensor
+  std::optional<Pose3> last_fix_;            // map_from_sensor of the last localized frame
+  std::optional<Pose3> predicted_;           // map_from_sensor expected for the next frame's sensor
   std::optional<Eigen::Vector3d> velocity_;  // m per frame, map frame, of the last two fixes
   int frames_lost_ = 0;
 };

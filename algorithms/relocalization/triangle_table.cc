@@ -43,7 +43,8 @@ TriangleTable::TriangleTable(const std::vector<Triangle>& triangles,
   triangles_.resize(triangles.size());
   for (const Triangle& t : triangles) {
     IndexedTriangle& out = triangles_[next[cell_of(t)]++];
-    const TriangleFrame frame = FrameOf(points[t.vertex[0]], points[t.vertex[1]], points[t.vertex[2]]);
+    const TriangleFrame frame =
+        FrameOf(points[t.vertex[0]], points[t.vertex[1]], points[t.vertex[2]]);
     out.cx = frame.cx;
     out.cy = frame.cy;
     out.cos_heading = static_cast<int16_t>(std::lround(frame.cos_heading * 32767.f));

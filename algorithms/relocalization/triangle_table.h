@@ -3,13 +3,12 @@
 // compressed-row form), so that every map triangle whose sides each lie within a tolerance of a
 // query triangle's is found by scanning a few contiguous runs of memory. 20 bytes a triangle.
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "algorithms/relocalization/triangles.h"
 
@@ -18,7 +17,7 @@ namespace forestmap::algorithms {
 // Where a triangle sits (kd coordinates): enough to turn a key match into a sensor pose
 // without touching the vertices again.
 struct TriangleFrame {
-  float cx = 0, cy = 0;  // m, centroid
+  float cx = 0, cy = 0;                    // m, centroid
   float cos_heading = 1, sin_heading = 0;  // direction of the longest side, from vertex A to B
   int turn = 0;  // orientation of A, B, C: +1 counter-clockwise, -1 clockwise, 0 nearly collinear
 };
@@ -98,9 +97,9 @@ class TriangleTable {
     return (static_cast<size_t>(a) * cells_ + b) * cells_ + c;
   }
 
-  int cells_ = 1;                          // key-space cells per dimension
-  float inverse_cell_ = 1;                 // 1 / cell edge (m)
-  std::vector<uint32_t> start_;            // cells_^3 + 1 offsets into triangles_
+  int cells_ = 1;                           // key-space cells per dimension
+  float inverse_cell_ = 1;                  // 1 / cell edge (m)
+  std::vector<uint32_t> start_;             // cells_^3 + 1 offsets into triangles_
   std::vector<IndexedTriangle> triangles_;  // ordered by key cell
 };
 

@@ -31,8 +31,7 @@ Triangle MakeTriangle(const std::vector<Eigen::Vector2d>& points, uint32_t i, ui
 
 std::vector<Triangle> EnumerateTriangles(const std::vector<Eigen::Vector2d>& points,
                                          const std::vector<std::vector<uint32_t>>& neighbours,
-                                         const TriangleOptions& options, size_t begin,
-                                         size_t end) {
+                                         const TriangleOptions& options, size_t begin, size_t end) {
   options.Check();
   const double max2 = options.max_side * options.max_side;
   const double min2 = options.min_side * options.min_side;

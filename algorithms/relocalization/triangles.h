@@ -3,18 +3,17 @@
 // lengths. A triangle of three detected true trees exists in the map whatever else was missed or
 // falsely detected, so its key is robust to misses and false stems (unlike a fixed k-NN list).
 
+#include <Eigen/Core>
 #include <array>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace forestmap::algorithms {
 
 // Vertices ordered canonically: a = |BC| <= b = |CA| <= c = |AB| (A is opposite the shortest
 // side). Indices refer to the caller's point list.
 struct Triangle {
-  std::array<float, 3> sides;     // m, a <= b <= c
+  std::array<float, 3> sides;      // m, a <= b <= c
   std::array<uint32_t, 3> vertex;  // A, B, C
 };
 

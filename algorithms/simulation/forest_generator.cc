@@ -191,11 +191,13 @@ void ForestOptions::Check() const {
 
 StemMapStatistics EstimateStemMapStatistics(const std::vector<MapTree>& trees) {
   if (trees.size() < 10) {
-    Require(false, "EstimateStemMapStatistics needs >= 10 trees", static_cast<double>(trees.size()));
+    Require(false, "EstimateStemMapStatistics needs >= 10 trees",
+            static_cast<double>(trees.size()));
   }
   const TreeGrid grid(trees);
   const Eigen::Vector2d extent = grid.max_corner() - grid.min_corner();
-  if (extent.minCoeff() <= 0) Require(false, "EstimateStemMapStatistics: degenerate extent, m", 0.0);
+  if (extent.minCoeff() <= 0)
+    Require(false, "EstimateStemMapStatistics: degenerate extent, m", 0.0);
   // Unbiased window of n uniform points: the bounding box grown by (n+1)/(n-1) per axis.
   const double n = static_cast<double>(trees.size());
   const Eigen::Vector2d margin = extent * (1.0 / (n - 1));

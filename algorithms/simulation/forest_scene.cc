@@ -7,9 +7,9 @@
 #include <string>
 #include <utility>
 
-#include "algorithms/simulation/tree_grid.h"
 #include "algorithms/core/check.h"
 #include "algorithms/core/random.h"
+#include "algorithms/simulation/tree_grid.h"
 
 namespace forestmap::algorithms {
 namespace {

@@ -1,5 +1,6 @@
 #pragma once
-// A 3-D forest for the LiDAR scan simulator (algorithms/simulation/scan_simulation.h), built from a stem map.
+// A 3-D forest for the LiDAR scan simulator (algorithms/simulation/scan_simulation.h), built from a
+// stem map.
 //
 // Map frame, z up, metres (geometry.h). The scene holds:
 //  - terrain: a height field (cell_size grid, bilinear between nodes) sampled from a plane of

@@ -1,6 +1,6 @@
 #pragma once
-// A LiDAR scan simulator with exact truth, for testing trunk detection (Zmeškalová 2023, ch. 2-5) against
-// known stems. A scanner (scanner_model.h) placed at `map_from_sensor` in a ForestScene
+// A LiDAR scan simulator with exact truth, for testing trunk detection (Zmeškalová 2023, ch. 2-5)
+// against known stems. A scanner (scanner_model.h) placed at `map_from_sensor` in a ForestScene
 // (forest_scene.h) casts every beam x column; each beam returns its nearest hit plus Gaussian
 // range noise, or NaN.
 //
@@ -22,12 +22,13 @@
 // kLabelBranch, kLabelBody, kLabelMixed, kLabelNoReturn), and truth for every scene tree.
 //
 // Truth (SimulatedTreeTruth): `position` is where the stem axis meets the ground, `dbh` at 1.3 m
-// along the stem, `axis` the unit stem direction, all in the sensor frame (the frames of trunk_detection.h).
-// `range` is the horizontal (map frame) distance from the sensor to the stem axis at breast
-// height. `stem_points` counts the returns labelled with the tree, `breast_points` those between
-// 0.5 and 3 m along the stem. A tree is `visible` when breast_points >= kMinVisibleStemPoints (10)
-// and range <= the scanner's max range: enough of the stem near breast height was seen for a
-// circle/cylinder fit. (Planar scans: >= kMinVisiblePlanarPoints (3) returns on the stem.)
+// along the stem, `axis` the unit stem direction, all in the sensor frame (the frames of
+// trunk_detection.h). `range` is the horizontal (map frame) distance from the sensor to the stem
+// axis at breast height. `stem_points` counts the returns labelled with the tree, `breast_points`
+// those between 0.5 and 3 m along the stem. A tree is `visible` when breast_points >=
+// kMinVisibleStemPoints (10) and range <= the scanner's max range: enough of the stem near breast
+// height was seen for a circle/cylinder fit. (Planar scans: >= kMinVisiblePlanarPoints (3) returns
+// on the stem.)
 //
 // Every random draw comes from a hash of (seed, beam): equal seeds give identical scans, and the
 // result does not depend on the number of threads.
@@ -35,9 +36,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "algorithms/simulation/forest_scene.h"
 #include "algorithms/core/geometry.h"
 #include "algorithms/core/point_cloud.h"
+#include "algorithms/simulation/forest_scene.h"
 #include "algorithms/simulation/scanner_model.h"
 
 namespace forestmap::algorithms {

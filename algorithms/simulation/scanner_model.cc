@@ -1,11 +1,12 @@
 #include "algorithms/simulation/scanner_model.h"
-#include "algorithms/core/check.h"
 
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
 #include <sstream>
 #include <stdexcept>
+
+#include "algorithms/core/check.h"
 
 namespace forestmap::algorithms {
 namespace {

@@ -1,5 +1,6 @@
 #pragma once
-// Beam patterns of the LiDAR scanners the scan simulator (algorithms/simulation/scan_simulation.h) models.
+// Beam patterns of the LiDAR scanners the scan simulator (algorithms/simulation/scan_simulation.h)
+// models.
 //
 // A scanner fires `rings` beams (one per elevation) in each of `columns` azimuth steps. In the
 // SENSOR frame (x forward, y left, z up; geometry.h) beam (ring, column) points along

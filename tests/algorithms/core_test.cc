@@ -1,14 +1,14 @@
 // algorithms/core: the k-d tree wrapper against brute force, WrapAngle at its boundaries, and the
 // shared helpers (Require, ParallelFor).
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <random>
 #include <stdexcept>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "algorithms/core/check.h"
 #include "algorithms/core/geometry.h"

@@ -1,14 +1,14 @@
 // Two real drone scans (sloam_uav_ouster: an Ouster 64-beam on a quadrotor over a forest, the
 // "moving" pair t0 and t1 with their odometry in poses.txt): the trunks detected in t1 relocalize
 // against the trunks detected in t0 with the relative pose the odometry measured.
+#include <gtest/gtest.h>
+
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 
-#include <gtest/gtest.h>
-
-#include "algorithms/relocalization/relocalizer.h"
 #include "algorithms/detection/trunk_detection.h"
+#include "algorithms/relocalization/relocalizer.h"
 #include "client/io/scan_io.h"
 #include "tests/shared_data.h"
 
@@ -53,7 +53,8 @@ std::vector<Pose3> OdometryPoses() {
 }
 
 TEST(DroneScanPair, TrunksOfTheSecondScanRelocalizeWithTheOdometrysRelativePose) {
-  if (!std::filesystem::exists(kDir + "poses.txt")) FORESTMAP_SKIP_WITHOUT_DATA() << "missing " << kDir;
+  if (!std::filesystem::exists(kDir + "poses.txt"))
+    FORESTMAP_SKIP_WITHOUT_DATA() << "missing " << kDir;
   const std::vector<Pose3> odometry = OdometryPoses();
   ASSERT_EQ(odometry.size(), 2u);
   const Pose3 t0_from_t1 = odometry[0].inverse() * odometry[1];
@@ -73,12 +74,12 @@ TEST(DroneScanPair, TrunksOfTheSecondScanRelocalizeWithTheOdometrysRelativePose)
 
   const Eigen::Vector2d error =
       (result.map_from_sensor.translation() - t0_from_t1.translation()).head<2>();
-  const double yaw_error = std::abs(WrapAngle(YawOf(result.map_from_sensor.linear()) -
-                                              YawOf(t0_from_t1.linear())));
+  const double yaw_error =
+      std::abs(WrapAngle(YawOf(result.map_from_sensor.linear()) - YawOf(t0_from_t1.linear())));
   std::cout << "t1 vs t0: " << t0.trees.size() << " / " << t1.trees.size() << " trunks, "
             << result.inliers << " matched; odometry moved "
-            << t0_from_t1.translation().head<2>().norm() << " m; error " << error.norm()
-            << " m, " << yaw_error * 180 / M_PI << " deg\n";
+            << t0_from_t1.translation().head<2>().norm() << " m; error " << error.norm() << " m, "
+            << yaw_error * 180 / M_PI << " deg\n";
   EXPECT_LE(error.norm(), 0.3);
   EXPECT_LE(yaw_error, 3 * M_PI / 180);
 }

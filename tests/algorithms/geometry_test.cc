@@ -1,7 +1,7 @@
 // Small geometric building blocks against known transforms and brute force.
-#include <random>
-
 #include <gtest/gtest.h>
+
+#include <random>
 
 #include "algorithms/core/leveling.h"
 #include "algorithms/core/rigid2d.h"
@@ -102,7 +102,8 @@ TEST(Leveling, GravityWinsAndNoAxesMeansLevel) {
 
 TEST(TiltRefinement, RecoversAResidualTiltFromTreeHeightsDespiteOutliers) {
   // The levelled frame is still tilted 2 deg about x: heights seen = true heights rotated.
-  const Eigen::Matrix3d residual = Eigen::AngleAxisd(-0.035, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  const Eigen::Matrix3d residual =
+      Eigen::AngleAxisd(-0.035, Eigen::Vector3d::UnitX()).toRotationMatrix();
   std::mt19937 rng(4);
   std::uniform_real_distribution<double> u(-20, 20);
   std::normal_distribution<double> noise(0, 0.05);
@@ -118,7 +119,8 @@ TEST(TiltRefinement, RecoversAResidualTiltFromTreeHeightsDespiteOutliers) {
   const Eigen::AngleAxisd left(*correction * residual);
   EXPECT_LT(left.angle(), 0.004);  // rad: the 0.035 rad tilt is removed to within 0.25 deg
   // Too few trees, or no tilt to speak of: no correction.
-  EXPECT_FALSE(RefineTilt({levelled.begin(), levelled.begin() + 5}, {map_z.begin(), map_z.begin() + 5}));
+  EXPECT_FALSE(
+      RefineTilt({levelled.begin(), levelled.begin() + 5}, {map_z.begin(), map_z.begin() + 5}));
 }
 
 }  // namespace

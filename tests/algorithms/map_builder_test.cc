@@ -1,11 +1,12 @@
 // Mapping without poses (algorithms/mapping/map_builder.h) and its pose graph (pose_graph.h): a
 // simulated loop through a generated forest and a stretch of the real Wild_V01 traversal.
 
+#include "algorithms/mapping/map_builder.h"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
 
-#include "algorithms/mapping/map_builder.h"
 #include "algorithms/evaluation/map_evaluation.h"
 #include "algorithms/mapping/pose_graph.h"
 #include "algorithms/simulation/forest_generator.h"

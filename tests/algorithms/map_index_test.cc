@@ -49,14 +49,17 @@ TEST(TriangleTable, FindsExactlyTheTrianglesWithinTheToleranceOfEachSide) {
       for (const Triangle& t : triangles) {
         float worst = 0;
         for (int d = 0; d < 3; ++d) worst = std::max(worst, std::abs(t.sides[d] - query[d]));
-        const TriangleFrame f = FrameOf(points[t.vertex[0]], points[t.vertex[1]], points[t.vertex[2]]);
+        const TriangleFrame f =
+            FrameOf(points[t.vertex[0]], points[t.vertex[1]], points[t.vertex[2]]);
         if (worst <= tolerance - 1e-3f) inside.insert({f.cx, f.cy});
         if (worst <= tolerance + 1e-3f) within_boundary.insert({f.cx, f.cy});
       }
-      table.ForEachMatch(query, tolerance,
-                         [&](const IndexedTriangle& t) { found.insert({t.cx, t.cy}); });
+      table.ForEachMatch(query, tolerance, [&](const IndexedTriangle& t) {
+        found.insert({t.cx, t.cy});
+      });
       for (const auto& c : inside) EXPECT_TRUE(found.count(c)) << "tolerance " << tolerance;
-      for (const auto& c : found) EXPECT_TRUE(within_boundary.count(c)) << "tolerance " << tolerance;
+      for (const auto& c : found)
+        EXPECT_TRUE(within_boundary.count(c)) << "tolerance " << tolerance;
       EXPECT_GE(table.CandidateCount(query, tolerance), found.size());
     }
   }
@@ -77,10 +80,12 @@ TEST(TriangleTable, FrameKeepsCentroidHeadingAndOrientation) {
 TEST(OccupancyGrid, AgreesWithBruteForceAwayFromTheBoundary) {
   // Two clusters 5 km apart: the tiles are found through the sparse hash, not a directory.
   std::vector<Eigen::Vector2d> points = RandomPoints(300, 20.0, 3);
-  for (const Eigen::Vector2d& p : RandomPoints(300, 20.0, 4)) points.push_back(p + Eigen::Vector2d(5000, -3000));
+  for (const Eigen::Vector2d& p : RandomPoints(300, 20.0, 4))
+    points.push_back(p + Eigen::Vector2d(5000, -3000));
   constexpr double kRadius = 0.4, kResolution = 0.2;
   const double fuzz = kResolution * std::sqrt(0.5);  // half a cell diagonal
-  for (const auto& cloud : {std::vector<Eigen::Vector2d>(points.begin(), points.begin() + 300), points}) {
+  for (const auto& cloud :
+       {std::vector<Eigen::Vector2d>(points.begin(), points.begin() + 300), points}) {
     const OccupancyGrid grid(cloud, kRadius, kResolution);
     std::mt19937 rng(5);
     std::uniform_real_distribution<double> u(-22.0, 22.0);
@@ -143,7 +148,8 @@ TEST(PoissonTail, MatchesDirectSums) {
   for (double lambda : {0.05, 0.7, 3.0, 20.0}) {
     double cdf = 0, term = std::exp(-lambda);
     for (int k = 0; k < 60; ++k) {
-      EXPECT_NEAR(PoissonTail(k, lambda), 1.0 - cdf, 1e-9 + 1e-6 * (1.0 - cdf)) << k << " " << lambda;
+      EXPECT_NEAR(PoissonTail(k, lambda), 1.0 - cdf, 1e-9 + 1e-6 * (1.0 - cdf))
+          << k << " " << lambda;
       cdf += term;
       term *= lambda / (k + 1);
     }

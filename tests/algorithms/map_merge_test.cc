@@ -1,5 +1,7 @@
-// Map merging (algorithms/merging/map_merge.h, merged_map.h): association, DBH awareness, promotion,
-// removal, order robustness on a simulated forest and the survey merge on real frames.
+// Map merging (algorithms/merging/map_merge.h, merged_map.h): association, DBH awareness,
+// promotion, removal, order robustness on a simulated forest and the survey merge on real frames.
+
+#include "algorithms/merging/map_merge.h"
 
 #include <gtest/gtest.h>
 
@@ -12,7 +14,6 @@
 
 #include "algorithms/core/kdtree.h"
 #include "algorithms/evaluation/map_evaluation.h"
-#include "algorithms/merging/map_merge.h"
 #include "algorithms/merging/merged_map.h"
 #include "algorithms/merging/observation_components.h"
 #include "algorithms/simulation/forest_generator.h"
@@ -316,7 +317,8 @@ TEST(MapMergeRealData, WildV01SubsetMatchesTheReferenceMap) {
     frame.map_from_sensor = poses.at(frames[i].frame);
     frame.trees = frames[i].trees;
     map.Merge(frame);
-    path.push_back({frame.map_from_sensor.translation().x(), frame.map_from_sensor.translation().y()});
+    path.push_back(
+        {frame.map_from_sensor.translation().x(), frame.map_from_sensor.translation().y()});
   }
   map.Consolidate();
   const KdTree<double, 2> path_xy(std::move(path));

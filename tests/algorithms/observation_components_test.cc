@@ -1,5 +1,7 @@
 // Connected components of observation rows (algorithms/merging/observation_components.h) against a
 // brute-force union of every pair closer than the link distance, in any insertion order.
+#include "algorithms/merging/observation_components.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -10,8 +12,6 @@
 #include <set>
 #include <stdexcept>
 #include <vector>
-
-#include "algorithms/merging/observation_components.h"
 
 namespace forestmap::algorithms {
 namespace {

@@ -1,10 +1,10 @@
 // The relocalizer on real forest data: a few hundred real frames of the Venman and Stein am
 // Rhein traversals against their surveyed maps, with the ground-truth poses of
 // ../shared/data/sequences, and frames of one forest against the map of another.
+#include <gtest/gtest.h>
+
 #include <filesystem>
 #include <optional>
-
-#include <gtest/gtest.h>
 
 #include "algorithms/evaluation/reloc_evaluation.h"
 #include "algorithms/relocalization/relocalizer.h"

@@ -1,11 +1,12 @@
 // The relocalizer against simulator truth: simulated drone views of real stem maps, tilted
 // sensors, 2-D maps, the prior path and honest refusals.
-#include <filesystem>
+#include "algorithms/relocalization/relocalizer.h"
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
+
 #include "algorithms/evaluation/reloc_evaluation.h"
-#include "algorithms/relocalization/relocalizer.h"
 #include "algorithms/simulation/view_simulator.h"
 #include "client/io/tree_csv.h"
 #include "tests/shared_data.h"
@@ -48,7 +49,8 @@ class SimulatedViews : public ::testing::Test {
  protected:
   void SetUp() override {
     map_ = ReadStemMap("spatstat_longleaf.csv");
-    if (map_.empty()) FORESTMAP_SKIP_WITHOUT_DATA() << "real stem maps missing under " FORESTMAP_SHARED_DATA;
+    if (map_.empty())
+      FORESTMAP_SKIP_WITHOUT_DATA() << "real stem maps missing under " FORESTMAP_SHARED_DATA;
     index_ = std::make_unique<MapIndex>(map_);
   }
   std::vector<MapTree> map_;
@@ -56,7 +58,7 @@ class SimulatedViews : public ::testing::Test {
 };
 
 TEST_F(SimulatedViews, LocalizesNoisyOccludedViewsOfARealStemMap) {
-  ViewOptions view;  // 15 m range, occlusion, 30% misses, 20% false stems, 5 cm noise
+  ViewOptions view;   // 15 m range, occlusion, 30% misses, 20% false stems, 5 cm noise
   view.range = 25.0;  // longleaf is sparse (0.015 trees/m^2): a wider view sees enough trees
   const RelocSummary s = RunViews(map_, *index_, 150, view, false, 11);
   EXPECT_GT(s.answerable, 100);
@@ -101,7 +103,8 @@ TEST_F(SimulatedViews, PriorPathFindsThePoseAndIgnoresTheRestOfTheMap) {
 
 TEST(Relocalizer, TwoDimensionalMapWithoutDbhWorksInThreeDof) {
   std::vector<MapTree> map = ReadStemMap("spatstat_hyytiala.csv");  // x, y only
-  if (map.empty()) FORESTMAP_SKIP_WITHOUT_DATA() << "real stem maps missing under " FORESTMAP_SHARED_DATA;
+  if (map.empty())
+    FORESTMAP_SKIP_WITHOUT_DATA() << "real stem maps missing under " FORESTMAP_SHARED_DATA;
   MapIndex index(map);
   EXPECT_FALSE(index.has_z());
   EXPECT_FALSE(index.has_dbh());

@@ -459,8 +459,8 @@ TEST(ScanSimulationTest, UnknownDbhIsDrawnAndInvalidInputThrows) {
 // What `forestmap simulate` writes reads back as the same organised scan (client/scan_io.h).
 TEST(ScanSimulationTest, ScansRoundTripThroughPcd) {
   const ForestScene scene(SmallForest(30, 8), SceneOptions{});
-  const ScanSimulationResult scan = SimulateScan(scene, DronePose(scene, 15, 15, 5, 0.2),
-                                                 ScannerPreset("os1-32-512"), {}, 6);
+  const ScanSimulationResult scan =
+      SimulateScan(scene, DronePose(scene, 15, 15, 5, 0.2), ScannerPreset("os1-32-512"), {}, 6);
   const std::string path =
       (std::filesystem::temp_directory_path() / "scan_simulation_test_roundtrip.pcd").string();
   client::WriteScan(path, scan.cloud);
@@ -482,7 +482,8 @@ TEST(ScanSimulationTest, ScansRoundTripThroughPcd) {
 // 3 m above the ground are seen, trees beyond the scanner's range never are.
 TEST(ScanSimulationRealDataTest, LongleafNearTreesVisibleFarOnesNot) {
   const std::string path = std::string(FORESTMAP_SHARED_DATA) + "/stemmaps/spatstat_longleaf.csv";
-  if (!std::filesystem::exists(path)) FORESTMAP_SKIP_WITHOUT_DATA() << "real data missing: " << path;
+  if (!std::filesystem::exists(path))
+    FORESTMAP_SKIP_WITHOUT_DATA() << "real data missing: " << path;
   const std::vector<MapTree> map = client::ToMapTrees(client::ReadMapTreesCsv(path));
   ASSERT_EQ(map.size(), 584u);
   const ForestScene scene(map, SceneOptions{});

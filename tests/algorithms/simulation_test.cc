@@ -1,6 +1,3 @@
-#include "algorithms/simulation/forest_generator.h"
-#include "algorithms/simulation/view_simulator.h"
-
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -12,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "algorithms/simulation/forest_generator.h"
+#include "algorithms/simulation/view_simulator.h"
 #include "client/io/tree_csv.h"
 #include "tests/shared_data.h"
 
@@ -148,7 +147,8 @@ TEST(EstimateStatisticsTest, DetectsClustering) {
 TEST(EstimateStatisticsTest, RealLongleafStemMap) {
   const std::vector<MapTree> trees = LoadLongleaf();
   if (trees.empty())
-    FORESTMAP_SKIP_WITHOUT_DATA() << "missing " FORESTMAP_SHARED_DATA "/stemmaps/spatstat_longleaf.csv";
+    FORESTMAP_SKIP_WITHOUT_DATA() << "missing " FORESTMAP_SHARED_DATA
+                                     "/stemmaps/spatstat_longleaf.csv";
   ASSERT_EQ(trees.size(), 584u);
   const StemMapStatistics stats = EstimateStemMapStatistics(trees);
   constexpr double kTrueDensity = 584.0 / (200.0 * 200.0);  // trees/m^2

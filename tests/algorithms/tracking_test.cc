@@ -1,14 +1,15 @@
-// Tracking sessions (algorithms/relocalization/tracking.h) on the real Venman traversals: the second visit
-// (Wild_V02) tracked frame by frame against the first visit's map (Wild_V01), and sessions that
-// start lost, lose the track and turn faster than the prediction.
-#include <filesystem>
+// Tracking sessions (algorithms/relocalization/tracking.h) on the real Venman traversals: the
+// second visit (Wild_V02) tracked frame by frame against the first visit's map (Wild_V01), and
+// sessions that start lost, lose the track and turn faster than the prediction.
+#include "algorithms/relocalization/tracking.h"
 
 #include <gtest/gtest.h>
+
+#include <filesystem>
 
 #include "algorithms/evaluation/reloc_evaluation.h"
 #include "algorithms/simulation/forest_generator.h"
 #include "algorithms/simulation/view_simulator.h"
-#include "algorithms/relocalization/tracking.h"
 #include "client/io/tree_csv.h"
 #include "tests/shared_data.h"
 
@@ -26,7 +27,8 @@ class Venman : public ::testing::Test {
     map_ = new std::vector<MapTree>(
         client::ToMapTrees(client::ReadMapTreesCsv(kSequences + "Wild_V01/map.csv")));
     index_ = new MapIndex(*map_);
-    frames_ = new std::vector<client::Frame>(client::ReadFramesCsv(kSequences + "Wild_V02/trees.csv"));
+    frames_ =
+        new std::vector<client::Frame>(client::ReadFramesCsv(kSequences + "Wild_V02/trees.csv"));
     poses_ = new std::map<int64_t, Pose3>(client::ReadPosesCsv(kSequences + "Wild_V02/poses.csv"));
     stein_ = new std::vector<client::Frame>(
         client::ReadFramesCsv(kSequences + "Oxford_Stein/trees.csv"));
@@ -156,8 +158,8 @@ TEST(Tracking, AFastTurnWithoutOdometryStaysLocal) {
     const TrackingStep step = tracker.Step(index, {{v.trees, {}, {}}, std::nullopt});
     local += step.state == TrackState::kTracking;
     const PoseError error = ComparePoses(step.result.map_from_sensor, v.map_from_sensor);
-    correct += step.result.status == RelocalizeStatus::kLocalized && error.xy <= 0.5 &&
-               error.yaw <= 5;
+    correct +=
+        step.result.status == RelocalizeStatus::kLocalized && error.xy <= 0.5 && error.yaw <= 5;
   }
   EXPECT_EQ(correct, n);
   EXPECT_GE(local, n - 3);

@@ -1,19 +1,19 @@
-// Landmark bundle adjustment (algorithms/mapping/tree_adjustment.h) against a known trajectory and forest:
-// drifted starting poses, noisy detections, wrong associations and frames whose stem heights are
-// off by metres.
+// Landmark bundle adjustment (algorithms/mapping/tree_adjustment.h) against a known trajectory and
+// forest: drifted starting poses, noisy detections, wrong associations and frames whose stem
+// heights are off by metres.
+
+#include "algorithms/mapping/tree_adjustment.h"
 
 #include <gtest/gtest.h>
 
 #include <random>
 
-#include "algorithms/mapping/tree_adjustment.h"
-
 namespace forestmap::algorithms {
 namespace {
 
-constexpr double kRange = 25.0;       // m, detection range
-constexpr double kNoise = 0.05;       // m, detection noise (1-sigma per axis)
-constexpr double kPoseTolerance = 0.05;  // m, recovered horizontal positions vs truth
+constexpr double kRange = 25.0;           // m, detection range
+constexpr double kNoise = 0.05;           // m, detection noise (1-sigma per axis)
+constexpr double kPoseTolerance = 0.05;   // m, recovered horizontal positions vs truth
 constexpr double kHeightTolerance = 0.1;  // m, recovered heights (stem heights are 2x noisier)
 
 struct Scene {
@@ -22,8 +22,8 @@ struct Scene {
   std::vector<TreeAdjustmentObservation> observations;
 };
 
-// A 200 m walk with turns over rolling ground through 1500 trees (~110 within range), and a start that drifted
-// (heading 0.2 deg and height 3 cm per frame, like frame-to-map tracking).
+// A 200 m walk with turns over rolling ground through 1500 trees (~110 within range), and a start
+// that drifted (heading 0.2 deg and height 3 cm per frame, like frame-to-map tracking).
 Scene MakeScene(double outlier_fraction, int biased_frames) {
   std::mt19937 rng(7);
   std::normal_distribution<double> noise(0, kNoise);
@@ -32,7 +32,8 @@ Scene MakeScene(double outlier_fraction, int biased_frames) {
   Pose4 pose;
   for (int i = 0; i < 100; ++i) {
     pose.yaw = 0.4 * std::sin(i / 15.0);
-    if (i > 0) pose.translation += Eigen::Vector3d(2 * std::cos(pose.yaw), 2 * std::sin(pose.yaw), 0);
+    if (i > 0)
+      pose.translation += Eigen::Vector3d(2 * std::cos(pose.yaw), 2 * std::sin(pose.yaw), 0);
     pose.translation.z() = 3 * std::sin(i / 20.0);
     scene.truth.push_back(pose);
   }
@@ -54,7 +55,8 @@ Scene MakeScene(double outlier_fraction, int biased_frames) {
   for (size_t i = 0; i < scene.truth.size(); ++i) {
     const Pose4& p = scene.truth[i];
     const double bias = static_cast<int>(i) >= 40 && static_cast<int>(i) < 40 + biased_frames
-                            ? -8.0 : 0.0;  // m, this frame's stem heights are off
+                            ? -8.0
+                            : 0.0;  // m, this frame's stem heights are off
     for (size_t j = 0; j < scene.trees.size(); ++j) {
       const Eigen::Vector3d d = scene.trees[j] - p.translation;
       if (d.head<2>().norm() > kRange) continue;
@@ -62,9 +64,9 @@ Scene MakeScene(double outlier_fraction, int biased_frames) {
       o.frame = static_cast<int>(i);
       o.tree = static_cast<int>(j);
       const double c = std::cos(p.yaw), s = std::sin(p.yaw);
-      o.level_position = Eigen::Vector3d(c * d.x() + s * d.y() + noise(rng),
-                                         -s * d.x() + c * d.y() + noise(rng),
-                                         d.z() + 2 * noise(rng) + bias);
+      o.level_position =
+          Eigen::Vector3d(c * d.x() + s * d.y() + noise(rng), -s * d.x() + c * d.y() + noise(rng),
+                          d.z() + 2 * noise(rng) + bias);
       if (uniform(rng) < outlier_fraction) o.level_position.head<2>() += Eigen::Vector2d(1.5, -1);
       o.weight_xy = 1 / (kNoise * kNoise);
       o.weight_z = 1 / (4 * kNoise * kNoise);
@@ -126,7 +128,8 @@ TEST(TreeAdjustment, WrongAssociationsPullWithBoundedForceAndBiasedHeightsStayIn
   double worst_tree_height = 0;
   for (size_t j = 0; j < scene.trees.size(); ++j) {
     if (scene.tree_start[j].isZero()) continue;
-    worst_tree_height = std::max(worst_tree_height, std::abs(result.trees[j].z() - scene.trees[j].z()));
+    worst_tree_height =
+        std::max(worst_tree_height, std::abs(result.trees[j].z() - scene.trees[j].z()));
   }
   EXPECT_LT(worst_tree_height, 2 * kHeightTolerance);
   std::vector<double> apparent;

@@ -125,7 +125,8 @@ TEST_F(TrunkSlicesTest, AllThirteenInOneCloudAndNoFalseStems) {
 // within 1 m, then requires agreement of the stems found in both.
 TEST(PonderosaClipsTest, MobileAndDroneStemsAgree) {
   const std::string dir = kScans + "spanner_ponderosa/";
-  if (!std::filesystem::exists(dir + "MLS_Clip.pcd")) FORESTMAP_SKIP_WITHOUT_DATA() << "no clips at " << dir;
+  if (!std::filesystem::exists(dir + "MLS_Clip.pcd"))
+    FORESTMAP_SKIP_WITHOUT_DATA() << "no clips at " << dir;
   const PointCloud mls = client::ReadScan(dir + "MLS_Clip.pcd");
   const PointCloud uas = client::ReadScan(dir + "UAS_Clip.pcd");
   ASSERT_EQ(mls.origin, uas.origin);

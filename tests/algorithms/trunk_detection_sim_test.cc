@@ -14,8 +14,8 @@
 #include <random>
 #include <set>
 
-#include "algorithms/simulation/scan_simulation.h"
 #include "algorithms/detection/trunk_detection.h"
+#include "algorithms/simulation/scan_simulation.h"
 #include "client/io/tree_csv.h"
 #include "tests/shared_data.h"
 
@@ -310,7 +310,8 @@ int PosesFromEnvironment(int fallback) {
 }
 
 TEST(TrunkDetectionSimTest, RecallPrecisionAndAccuracyOverDronePoses) {
-  if (!std::filesystem::exists(kStemMaps)) FORESTMAP_SKIP_WITHOUT_DATA() << "no stem maps at " << kStemMaps;
+  if (!std::filesystem::exists(kStemMaps))
+    FORESTMAP_SKIP_WITHOUT_DATA() << "no stem maps at " << kStemMaps;
   const int poses = PosesFromEnvironment(20);
   TrunkDetectionOptions options;
   options.stem.beam_divergence = 3.1e-3;  // the simulated Ouster beams

@@ -6,9 +6,9 @@
 
 #include <string>
 
-#include "algorithms/simulation/scan_simulation.h"
-#include "algorithms/simulation/forest_generator.h"
 #include "algorithms/detection/trunk_detection.h"
+#include "algorithms/simulation/forest_generator.h"
+#include "algorithms/simulation/scan_simulation.h"
 
 namespace forestmap::algorithms {
 namespace {

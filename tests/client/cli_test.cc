@@ -303,7 +303,8 @@ TEST_F(CliTest, RelocalizeScanSendsTheTrunksItDetects) {
 // Scan to pose, the whole thin-client path in process: simulated LiDAR scans of the real longleaf
 // stem map -> trunk detection -> relocalization, scored against the simulator's poses.
 TEST_F(CliTest, SimulatedScansOfARealStemMapRelocalize) {
-  const std::string stemmap = std::string(FORESTMAP_SHARED_DATA) + "/stemmaps/spatstat_longleaf.csv";
+  const std::string stemmap =
+      std::string(FORESTMAP_SHARED_DATA) + "/stemmaps/spatstat_longleaf.csv";
   if (!fs::exists(stemmap)) FORESTMAP_SKIP_WITHOUT_DATA() << "missing " << stemmap;
   const std::string dir = (dir_ / "scans").string();
   const Result simulated = Run("simulate --map '" + stemmap +

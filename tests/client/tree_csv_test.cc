@@ -9,9 +9,9 @@
 #include <random>
 #include <sstream>
 #include <string>
-#include "tests/shared_data.h"
 
 #include "client/io/utf8.h"
+#include "tests/shared_data.h"
 
 namespace forestmap::client {
 namespace {
@@ -346,7 +346,8 @@ TEST(TreeCsvRealDataTest, WildV02FramesAndPoses) {
   EXPECT_EQ(frames[0].frame, 0);
   EXPECT_EQ(frames[0].trees[0].position, Eigen::Vector3d(37.6557, 15.5165, -2.6048));
   // Axes are normalised on reading (the file's are unit to 4 decimals).
-  EXPECT_TRUE(frames[0].trees[0].axis.isApprox(Eigen::Vector3d(0.2008, 0.0854, 0.9759).normalized(), 1e-12));
+  EXPECT_TRUE(frames[0].trees[0].axis.isApprox(Eigen::Vector3d(0.2008, 0.0854, 0.9759).normalized(),
+                                               1e-12));
 
   const auto poses = ReadPosesCsv((dir / "poses.csv").string());
   ASSERT_EQ(poses.size(), 1375u);

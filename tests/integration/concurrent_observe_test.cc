@@ -4,13 +4,12 @@
 // of all frames builds, tree by tree: the map is a function of the set of observations
 // (server/merge_region.h, algorithms::RebuildTrees), not of the order in which they arrived.
 
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <filesystem>
 #include <thread>
-
-#include <gtest/gtest.h>
 
 #include "algorithms/core/kdtree.h"
 #include "client/forestmap_client.h"
@@ -49,8 +48,8 @@ int Upload(client::ForestMapClient& client, const std::string& map, const std::s
   options.source = source;
   int failures = 0;
   for (size_t begin = first; begin < last; begin += kBatch) {
-    const std::vector<client::ObservedFrame> batch(
-        frames.begin() + begin, frames.begin() + std::min(last, begin + kBatch));
+    const std::vector<client::ObservedFrame> batch(frames.begin() + begin,
+                                                   frames.begin() + std::min(last, begin + kBatch));
     try {
       client.Observe(map, batch, options);
     } catch (const std::exception&) {
@@ -94,8 +93,8 @@ TEST(ConcurrentObserve, FourDronesBuildTheMapOneSequentialUploadBuilds) {
   if (!std::filesystem::exists(kData + "/sequences/Wild_V01/trees.csv")) {
     FORESTMAP_SKIP_WITHOUT_DATA() << "real data missing under " << kData;
   }
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
-                                    ("forestmap_concurrent_" + std::to_string(getpid()));
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("forestmap_concurrent_" + std::to_string(getpid()));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   {
@@ -114,8 +113,8 @@ TEST(ConcurrentObserve, FourDronesBuildTheMapOneSequentialUploadBuilds) {
         client::ForestMapClient drone(runner.address());
         // Named against the frame order: the map must not depend on how sources are named.
         const char* source[kDrones] = {"drone-d", "drone-c", "drone-b", "drone-a"};
-        failures += Upload(drone, "concurrent", source[q], frames,
-                           frames.size() * q / kDrones, frames.size() * (q + 1) / kDrones);
+        failures += Upload(drone, "concurrent", source[q], frames, frames.size() * q / kDrones,
+                           frames.size() * (q + 1) / kDrones);
       });
     }
     for (std::thread& drone : drones) drone.join();

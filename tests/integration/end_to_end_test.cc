@@ -1,14 +1,14 @@
 // End to end through the real wire: a forestmapd service on a loopback port over SQLite, driven
 // by the client library as the `forestmap` command drives it. Real maps go up and come back
 // identical; real Wild_V02 frames relocalize against the uploaded Wild_V01 map.
-#include <filesystem>
-
 #include <gtest/gtest.h>
+
+#include <filesystem>
 
 #include "algorithms/evaluation/reloc_evaluation.h"
 #include "client/forestmap_client.h"
-#include "client/proto_convert.h"
 #include "client/io/tree_csv.h"
+#include "client/proto_convert.h"
 #include "server/server.h"
 #include "server/service.h"
 #include "storage/sqlite_map_store.h"
@@ -91,9 +91,9 @@ TEST_F(EndToEnd, SecondVisitFramesRelocalizeThroughTheServer) {
   }
   const algorithms::RelocSummary s = evaluator.Summary();
   std::cout << "Wild_V02 vs Wild_V01 through forestmapd: " << s.correct << "/" << s.answerable
-            << " correct (recall " << s.recall << ", strict " << s.strict_recall << "), "
-            << s.wrong << " wrong, median error " << s.error_xy_p50 << " m, server p50 "
-            << s.time_p50 << " ms\n";
+            << " correct (recall " << s.recall << ", strict " << s.strict_recall << "), " << s.wrong
+            << " wrong, median error " << s.error_xy_p50 << " m, server p50 " << s.time_p50
+            << " ms\n";
   EXPECT_GE(s.frames, 100);
   EXPECT_GE(s.recall, 0.97);
   EXPECT_EQ(s.wrong, 0);
@@ -161,7 +161,8 @@ TEST_F(EndToEnd, ABadFrameEndsTheSessionWithItsNumberAndTheServerKeepsServing) {
   nan[1].position.x() = std::nan("");
   expect_error("plot", nan, grpc::StatusCode::INVALID_ARGUMENT,
                "frame 2: trees[1].position.x is NaN");
-  expect_error("plot", std::vector<algorithms::DetectedTree>(20001), grpc::StatusCode::RESOURCE_EXHAUSTED,
+  expect_error("plot", std::vector<algorithms::DetectedTree>(20001),
+               grpc::StatusCode::RESOURCE_EXHAUSTED,
                "frame 2: trees: 20001 trees exceed the limit");
   try {
     client_->Track("no-such-map").Step({7, trees, {}, {}});

@@ -1,6 +1,7 @@
 #pragma once
-// Test helpers for the server's concurrency tests. GatedStore: a MapStore that forwards to another one, counts ReadMap and GetMap calls, and can
-// hold ReadMap of chosen maps at a gate, so tests can line up concurrent callers deterministically.
+// Test helpers for the server's concurrency tests. GatedStore: a MapStore that forwards to another
+// one, counts ReadMap and GetMap calls, and can hold ReadMap of chosen maps at a gate, so tests can
+// line up concurrent callers deterministically.
 
 #include <chrono>
 #include <condition_variable>
@@ -54,8 +55,7 @@ class GatedStore final : public storage::MapStore {
   // Waits (up to kSyncTimeout) until ReadMap(name) was entered `count` times.
   bool WaitForReads(const std::string& name, int count) {
     std::unique_lock<std::mutex> lock(mutex_);
-    return changed_.wait_for(lock, kSyncTimeout,
-                             [&] { return reads_[name] >= count; });
+    return changed_.wait_for(lock, kSyncTimeout, [&] { return reads_[name] >= count; });
   }
 
   storage::MapSnapshot ReadMap(const std::string& name) override {

@@ -19,8 +19,8 @@
 #include "server/convert.h"
 #include "server/server.h"
 #include "server/service.h"
-#include "tests/server/gated_store.h"
 #include "storage/sqlite_map_store.h"
+#include "tests/server/gated_store.h"
 
 namespace forestmap::server {
 namespace {
@@ -28,8 +28,8 @@ namespace {
 using ::testing::HasSubstr;
 
 constexpr auto kCallDeadline = std::chrono::seconds(20);  // turns a hang into a failure
-constexpr double kPositionTolerance = 0.05;  // m, noise-free query
-constexpr double kYawTolerance = 0.005;      // rad
+constexpr double kPositionTolerance = 0.05;               // m, noise-free query
+constexpr double kYawTolerance = 0.005;                   // rad
 
 std::unique_ptr<grpc::ClientContext> Context() {
   auto context = std::make_unique<grpc::ClientContext>();

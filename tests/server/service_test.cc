@@ -137,10 +137,9 @@ void ExpectSameTrees(const std::vector<v1::Tree>& actual, const std::vector<v1::
     v1::Tree want = expected[i];
     if (want.status() == v1::TREE_STATUS_UNSPECIFIED) want.set_status(v1::CONFIRMED);
     // Exact comparison of doubles: coordinates must come back bit-identical.
-    EXPECT_TRUE(MessageDifferencer::Equals(actual[i], want))
-        << "tree " << i << ":\n"
-        << actual[i].DebugString() << "vs\n"
-        << want.DebugString();
+    EXPECT_TRUE(MessageDifferencer::Equals(actual[i], want)) << "tree " << i << ":\n"
+                                                             << actual[i].DebugString() << "vs\n"
+                                                             << want.DebugString();
   }
 }
 
