@@ -26,7 +26,8 @@ def long_functions(path, limit):
         match = SIGNATURE.match(lines[first] if first < start else line)
         if first < start:
             match = re.match(r"^( *)[A-Za-z_~][\w:<>,&*~ ]*\(", lines[first])
-        if not match or re.match(r"^\s*(if|for|while|switch|else|do|return)\b", lines[first]):
+        if not match or re.match(r"^\s*(if|for|while|switch|else|do|return)\b", lines[first]) \
+                or re.search(r"&&|\|\|| [<>=!]=? ", lines[first]):  # a wrapped condition
             continue
         indent = match.group(1)
         for end in range(start + 1, len(lines)):
