@@ -1,6 +1,7 @@
 #include "algorithms/merging/map_merge.h"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 #include <tuple>
@@ -254,7 +255,10 @@ TreeObservation SurveyObservation(const MapTree& tree, const MergeOptions& optio
   row.detection_index = -1;
   row.position = tree.position;
   row.weight_xy = 1.0 / (options.survey_sigma_xy * options.survey_sigma_xy);
+  // A survey has no sensor: the tree itself stands in, at height 0 when its height is unknown
+  // (only the horizontal sensor position is ever used, and a stored row needs a finite one).
   row.sensor_position = tree.position;
+  if (!std::isfinite(row.sensor_position.z())) row.sensor_position.z() = 0;
   if (IsKnown(tree.dbh) && tree.dbh > options.min_dbh) {
     row.dbh = tree.dbh;
     row.weight_dbh = 1.0 / (options.survey_sigma_dbh * options.survey_sigma_dbh);

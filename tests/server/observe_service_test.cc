@@ -219,6 +219,35 @@ TEST_F(ObserveServiceTest, FramesWithPosesBuildAMapOfTheTrueTrees) {
   }
 }
 
+// A surveyed map of x, y and DBH only (no stem heights): drone observations merge into it. The
+// survey's prior rows have no sensor height (it used to reach the database as NULL and fail).
+TEST_F(ObserveServiceTest, FramesMergeIntoASurveyWithoutHeights) {
+  CreateMap("survey");
+  v1::UploadTreesRequest upload;
+  upload.set_map_name("survey");
+  const Forest& forest = TheForest();
+  for (size_t t = 0; t < forest.trees.size(); ++t) {
+    v1::Tree* tree = upload.add_trees();
+    tree->set_x(forest.trees[t].x());
+    tree->set_y(forest.trees[t].y());
+    tree->set_dbh(forest.dbh[t]);  // no z
+  }
+  v1::UploadTreesResponse uploaded;
+  auto context = Context();
+  auto writer = stub_->UploadTrees(context.get(), &uploaded);
+  ASSERT_TRUE(writer->Write(upload));
+  ASSERT_TRUE(writer->WritesDone());
+  const grpc::Status status = writer->Finish();
+  ASSERT_TRUE(status.ok()) << status.error_message();
+
+  const v1::ObserveResponse response = ObserveOk(Request("survey", "drone-1", 0, 20));
+  ASSERT_EQ(response.frames_size(), 20);
+  for (const v1::FrameResult& frame : response.frames()) {
+    EXPECT_EQ(frame.status(), v1::FrameResult::MERGED) << frame.detail();
+  }
+  EXPECT_GT(response.map_version(), uploaded.map().version());
+}
+
 TEST_F(ObserveServiceTest, FramesWithoutPosesAreRelocalizedFirst) {
   CreateMap("surveyed");
   // Without confirmed trees nothing can be relocalized: frames are skipped, with the reason.
