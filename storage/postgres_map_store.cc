@@ -7,6 +7,7 @@
 #include <string>
 #include <utility>
 
+#include "storage/batch_checks.h"
 #include "storage/postgres.h"
 #include "storage/postgres_map_store_internal.h"
 #include "storage/sqlite_map_store.h"
@@ -20,48 +21,6 @@ using pg::Connection;
 using pg::Params;
 using pg::Transaction;
 using pg_internal::MapRow;
-
-// What a batch needs before it touches the database, checked up front (as in SQLite).
-struct BatchSummary {
-  std::optional<int64_t> max_explicit_id;
-  size_t auto_id_count = 0;
-  std::optional<Extent> extent;
-};
-
-BatchSummary CheckBatch(const std::string& map_name, const std::vector<TreeRecord>& trees) {
-  BatchSummary summary;
-  std::vector<std::pair<int64_t, size_t>> ids;  // (id, index in batch)
-  for (size_t i = 0; i < trees.size(); ++i) {
-    const TreeRecord& tree = trees[i];
-    const auto reject = [&](const char* field, double value) {
-      throw StorageError(Code::kInvalidArgument,
-                         "map '" + map_name + "': " + internal::TreeLabel(trees, i) + ": " + field +
-                             " must be a finite number, got " + std::to_string(value));
-    };
-    if (!std::isfinite(tree.x)) reject("x", tree.x);
-    if (!std::isfinite(tree.y)) reject("y", tree.y);
-    if (tree.z && !std::isfinite(*tree.z)) reject("z", *tree.z);
-    if (tree.dbh && !std::isfinite(*tree.dbh)) reject("dbh", *tree.dbh);
-    summary.extent = internal::Union(summary.extent, Extent{tree.x, tree.y, tree.x, tree.y});
-    if (tree.id) {
-      ids.emplace_back(*tree.id, i);
-    } else {
-      ++summary.auto_id_count;
-    }
-  }
-  std::sort(ids.begin(), ids.end());
-  for (size_t k = 1; k < ids.size(); ++k) {
-    if (ids[k].first == ids[k - 1].first) {
-      throw StorageError(Code::kInvalidArgument, "map '" + map_name + "': duplicate tree id " +
-                                                     std::to_string(ids[k].first) + " at indices " +
-                                                     std::to_string(ids[k - 1].second) + " and " +
-                                                     std::to_string(ids[k].second) +
-                                                     " of the batch");
-    }
-  }
-  if (!ids.empty()) summary.max_explicit_id = ids.back().first;
-  return summary;
-}
 
 // Ids of the batch in batch order: explicit ones, then the next free ones above `max_id`.
 std::vector<int64_t> AssignIds(const std::string& map_name, const std::vector<TreeRecord>& trees,
@@ -178,7 +137,7 @@ void PostgresMapStore::DeleteMap(const std::string& name) {
 MapInfo PostgresMapStore::WriteTrees(const std::string& name, const std::vector<TreeRecord>& trees,
                                      WriteMode mode) {
   internal::CheckName(name);
-  const BatchSummary batch = CheckBatch(name, trees);
+  const internal::BatchSummary batch = internal::CheckBatch(name, trees);
   MapInfo result;
   With([&](Connection& conn) {
     Transaction transaction(conn, Transaction::Kind::kWrite);

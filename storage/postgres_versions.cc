@@ -8,6 +8,7 @@
 #include <string>
 #include <utility>
 
+#include "storage/batch_checks.h"
 #include "storage/postgres.h"
 #include "storage/postgres_map_store.h"
 #include "storage/postgres_map_store_internal.h"
@@ -111,31 +112,6 @@ class PostgresMergeReader final : public MergeReader {
   const MapRow& map_;
 };
 
-void CheckPutTrees(const MapRow& map, const MapChanges& changes) {
-  std::set<int64_t> ids;
-  for (size_t i = 0; i < changes.put_trees.size(); ++i) {
-    const TreeRecord& tree = changes.put_trees[i];
-    const auto fail = [&](const std::string& what) {
-      throw StorageError(Code::kInvalidArgument, "map '" + map.info.name + "': merge: " +
-                                                     internal::TreeLabel(changes.put_trees, i) +
-                                                     ": " + what);
-    };
-    if (!tree.id) fail("a merged tree needs an id");
-    if (!ids.insert(*tree.id).second) fail("the id is put twice");
-    if (!std::isfinite(tree.x) || !std::isfinite(tree.y) || (tree.z && !std::isfinite(*tree.z)) ||
-        (tree.dbh && !std::isfinite(*tree.dbh))) {
-      fail("coordinates and DBH must be finite");
-    }
-  }
-  for (const int64_t id : changes.removed_trees) {
-    if (ids.count(id) != 0) {
-      throw StorageError(Code::kInvalidArgument, "map '" + map.info.name + "': merge: tree " +
-                                                     std::to_string(id) +
-                                                     " is both put and removed");
-    }
-  }
-}
-
 // Closes the current rows of trees `ids` at `version`, adjusting the map's counts for the rows
 // that left; returns the ids that had a current row. Sets `boundary` when a closed tree lay on
 // the extent's border (the extent must then be rescanned).
@@ -162,7 +138,7 @@ std::set<int64_t> CloseTrees(Connection& conn, MapRow& map, const std::vector<in
 
 // Writes `changes` as version map.version + 1 and updates `map` (row and info).
 void ApplyChanges(Connection& conn, MapRow& map, const MergeNote& note, const MapChanges& changes) {
-  CheckPutTrees(map, changes);
+  internal::CheckPutTrees(map.info.name, changes);
   VersionRecord record;
   record.version = map.info.version + 1;
   record.kind = note.kind;

@@ -9,6 +9,7 @@
 #include <string>
 #include <utility>
 
+#include "storage/batch_checks.h"
 #include "storage/sqlite.h"
 #include "storage/sqlite_map_store_internal.h"
 
@@ -26,48 +27,6 @@ using internal::TreeLabel;
 using internal::Union;
 
 // ---- Writing trees ----
-
-// What a batch needs before it touches the database, checked up front.
-struct BatchSummary {
-  std::optional<int64_t> max_explicit_id;
-  size_t auto_id_count = 0;
-  std::optional<Extent> extent;
-};
-
-BatchSummary CheckBatch(const std::string& map_name, const std::vector<TreeRecord>& trees) {
-  BatchSummary summary;
-  std::vector<std::pair<int64_t, size_t>> ids;  // (id, index in batch)
-  for (size_t i = 0; i < trees.size(); ++i) {
-    const TreeRecord& tree = trees[i];
-    const auto reject = [&](const char* field, double value) {
-      throw StorageError(Code::kInvalidArgument,
-                         "map '" + map_name + "': " + TreeLabel(trees, i) + ": " + field +
-                             " must be a finite number, got " + std::to_string(value));
-    };
-    if (!std::isfinite(tree.x)) reject("x", tree.x);
-    if (!std::isfinite(tree.y)) reject("y", tree.y);
-    if (tree.z && !std::isfinite(*tree.z)) reject("z", *tree.z);
-    if (tree.dbh && !std::isfinite(*tree.dbh)) reject("dbh", *tree.dbh);
-    summary.extent = Union(summary.extent, Extent{tree.x, tree.y, tree.x, tree.y});
-    if (tree.id) {
-      ids.emplace_back(*tree.id, i);
-    } else {
-      ++summary.auto_id_count;
-    }
-  }
-  std::sort(ids.begin(), ids.end());
-  for (size_t k = 1; k < ids.size(); ++k) {
-    if (ids[k].first == ids[k - 1].first) {
-      throw StorageError(Code::kInvalidArgument, "map '" + map_name + "': duplicate tree id " +
-                                                     std::to_string(ids[k].first) + " at indices " +
-                                                     std::to_string(ids[k - 1].second) + " and " +
-                                                     std::to_string(ids[k].second) +
-                                                     " of the batch");
-    }
-  }
-  if (!ids.empty()) summary.max_explicit_id = ids.back().first;
-  return summary;
-}
 
 // First id handed to the `count` trees without one: above `max_id` (the largest id they must not
 // reuse), and at least 1. Unused (0) when count is 0.
@@ -251,7 +210,7 @@ int64_t CloseAllCurrentRows(Database& db, int64_t map_id, int64_t version) {
 MapInfo SqliteMapStore::WriteTrees(const std::string& name, const std::vector<TreeRecord>& trees,
                                    WriteMode mode) {
   internal::CheckName(name);
-  const BatchSummary batch = CheckBatch(name, trees);
+  const internal::BatchSummary batch = internal::CheckBatch(name, trees);
   MapInfo result;
   WithWriter([&](Database& db) {
     Transaction transaction(db, Transaction::Kind::kWrite);
