@@ -56,17 +56,9 @@ void CommitWrite(Connection& conn, Transaction& transaction, const MapInfo& info
               .Text(request->rpc)
               .Text(ToHex(request->encode ? request->encode(info) : std::string()))
               .Int64(now));
-      if (inserted.affected() == 0) {
-        throw StorageError(Code::kConflict, "request id '" + request->id +
-                                                "' was applied by a concurrent call; nothing "
-                                                "was written twice");
-      }
+      if (inserted.affected() == 0) ThrowAppliedConcurrently(*request);
     }
-    if (std::chrono::system_clock::now() > request->deadline) {
-      throw StorageError(Code::kDeadlineExceeded,
-                         "the call's deadline passed before its write was committed; nothing "
-                         "was written (retry with the same request id)");
-    }
+    CheckDeadlineBeforeCommit(*request);  // as close to COMMIT as possible
   }
   transaction.Commit();
 }

@@ -29,18 +29,9 @@ void CommitWrite(Database& db, sqlite::Transaction& transaction, const MapInfo& 
       insert.BindBlob(3, request->encode ? request->encode(info) : std::string());
       insert.BindInt64(4, now);
       insert.Run();
-      if (db.Changes() == 0) {
-        throw StorageError(Code::kConflict, "request id '" + request->id +
-                                                "' was applied by a concurrent call; nothing "
-                                                "was written twice");
-      }
+      if (db.Changes() == 0) ThrowAppliedConcurrently(*request);
     }
-    // Checked last, as close to COMMIT as possible.
-    if (std::chrono::system_clock::now() > request->deadline) {
-      throw StorageError(Code::kDeadlineExceeded,
-                         "the call's deadline passed before its write was committed; nothing "
-                         "was written (retry with the same request id)");
-    }
+    CheckDeadlineBeforeCommit(*request);  // as close to COMMIT as possible
   }
   transaction.Commit();
 }

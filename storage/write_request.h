@@ -52,4 +52,10 @@ class WriteRequestScope {
 // The current write request of this thread, or null.
 const WriteRequest* CurrentWriteRequest();
 
+// For the stores, inside a write's transaction: kConflict when the request log already held
+// `request`'s id (a concurrent call applied it), and kDeadlineExceeded when its deadline has
+// passed (checked last, as close to COMMIT as possible).
+[[noreturn]] void ThrowAppliedConcurrently(const WriteRequest& request);
+void CheckDeadlineBeforeCommit(const WriteRequest& request);
+
 }  // namespace forestmap::storage
