@@ -22,7 +22,7 @@ PACKAGES=(
   python3-grpcio python3-protobuf python3-numpy python3-pytest  # client/python and its tests
   systemd  # systemd-analyze verify of deploy/forestmapd.service (a test)
   libssl-dev openssl  # token hashes (libcrypto); tests make TLS certificates with the CLI
-  libspdlog-dev libcpp-httplib-dev  # forestmapd's structured logs and its --metrics endpoint
+  libspdlog-dev  # forestmapd's structured logs (--metrics uses libcpp-httplib-dev above)
   prometheus  # promtool, which checks the metrics exposition in a test
 )
 
