@@ -44,6 +44,7 @@ struct Config {
   std::string log_format = "text";
   std::string log_level = "info";
   std::string metrics;  // host:port of the Prometheus endpoint; empty: none
+  int64_t max_db_mb = 0;  // MiB the SQLite database may grow to; 0: no limit
 };
 
 // Blocks SIGINT and SIGTERM in this thread and in every thread started after it (gRPC's), so
@@ -66,7 +67,7 @@ int Serve(const Config& config, const sigset_t& shutdown_signals) {
           : config.db;
   std::unique_ptr<forestmap::storage::MapStore> store;
   try {
-    store = forestmap::storage::OpenMapStore(config.db);
+    store = forestmap::storage::OpenMapStore(config.db, config.max_db_mb);
   } catch (const std::exception& e) {
     LogError("cannot open database " + shown_db + ": " + e.what());
     return 1;
@@ -140,6 +141,7 @@ int main(int argc, char** argv) {
       "Usage: forestmapd [--db PATH] [--listen ADDR] [--tls-cert F --tls-key F [--tls-client-ca "
       "F]]\n"
       "                  [--metrics ADDR] [--log-format text|json] [--log-level L]\n"
+      "                  [--max-db-mb N]\n"
       "       forestmapd token create|list|revoke --db PATH [--map M] [--role R]\n"
       "       forestmapd backup --db PATH --out FILE"};
   app.add_option("--db", config.db,
@@ -169,6 +171,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--log-level", config.log_level, "debug, info, warn or error")
       ->check(CLI::IsMember({"debug", "info", "warn", "error"}))
+      ->capture_default_str();
+  app.add_option("--max-db-mb", config.max_db_mb,
+                 "largest size of the SQLite database file, MiB (0: no limit); writes beyond "
+                 "it answer RESOURCE_EXHAUSTED 'database full', as on a full disk")
+      ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   app.add_option("--metrics", config.metrics,
                  "serve Prometheus metrics on http://HOST:PORT/metrics (port 0: any)");

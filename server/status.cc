@@ -24,10 +24,46 @@ grpc::StatusCode CodeOf(storage::StorageError::Code code) {
       return grpc::StatusCode::ABORTED;
     case Code::kDeadlineExceeded:
       return grpc::StatusCode::DEADLINE_EXCEEDED;
+    case Code::kFull:
+      return grpc::StatusCode::RESOURCE_EXHAUSTED;
+    case Code::kReadOnly:
+      return grpc::StatusCode::FAILED_PRECONDITION;
+    case Code::kCorrupt:
+      return grpc::StatusCode::DATA_LOSS;
+    case Code::kUnavailable:
+      return grpc::StatusCode::UNAVAILABLE;
     case Code::kInternal:
       break;
   }
   return grpc::StatusCode::INTERNAL;
+}
+
+// What the client is told about a fault of the database (kFull .. kUnavailable): the cause, without
+// the server's paths or SQL; the log gets the store's full message. Empty for other codes.
+const char* FaultMessage(storage::StorageError::Code code) {
+  using Code = storage::StorageError::Code;
+  switch (code) {
+    case Code::kFull:
+      return "database full: the server's database has no room for this write (disk full, or its "
+             "size limit --max-db-mb reached); nothing was written";
+    case Code::kReadOnly:
+      return "database read-only: the server cannot write to its database (read-only file, "
+             "directory or file system, or the file was moved or deleted); nothing was written";
+    case Code::kCorrupt:
+      return "database corrupt: the server's database is damaged; see the server log";
+    case Code::kUnavailable:
+      return "database unavailable: it stayed locked by another writer, or its server could not "
+             "be reached; nothing was written, retry later";
+    default:
+      return "";
+  }
+}
+
+grpc::Status StorageFault(std::string_view rpc, const storage::StorageError& e) {
+  const grpc::StatusCode code = CodeOf(e.code());
+  Log(LogLevel::kError, "database fault",
+      {{"rpc", std::string(rpc)}, {"code", StatusCodeName(code)}, {"error", e.what()}});
+  return grpc::Status(code, FaultMessage(e.code()));
 }
 
 // A fault of the server: the client gets a generic message, the log gets the real one.
@@ -44,6 +80,7 @@ grpc::Status Classify(std::string_view rpc) {
     return grpc::Status(e.code(), e.what());
   } catch (const storage::StorageError& e) {
     if (e.code() == storage::StorageError::Code::kInternal) return InternalFault(rpc, e.what());
+    if (*FaultMessage(e.code()) != '\0') return StorageFault(rpc, e);
     return grpc::Status(CodeOf(e.code()), e.what());
   } catch (const std::invalid_argument& e) {
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, e.what());

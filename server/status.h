@@ -10,6 +10,11 @@
 //                         kConflict      -> ABORTED (the client may retry)
 //                         kDeadlineExceeded -> DEADLINE_EXCEEDED (nothing was committed)
 //                         kInternal      -> INTERNAL "internal error; see server log" (logged)
+//                         kFull          -> RESOURCE_EXHAUSTED "database full: ..." (logged)
+//                         kReadOnly      -> FAILED_PRECONDITION "database read-only: ..." (logged)
+//                         kCorrupt       -> DATA_LOSS "database corrupt: ..." (logged)
+//                         kUnavailable   -> UNAVAILABLE "database unavailable: ... retry later"
+//                         (the four faults: the client gets the cause, the log the details)
 //   std::invalid_argument                -> INVALID_ARGUMENT
 //   std::bad_alloc                       -> RESOURCE_EXHAUSTED "server out of memory" (logged)
 //   anything else                        -> INTERNAL "internal error; see server log" (logged)

@@ -18,8 +18,16 @@ using Code = StorageError::Code;
 // SQLSTATE classes and codes that callers act on (PostgreSQL manual, appendix A).
 Code CodeOfSqlState(const std::string& state) {
   if (state == "23505") return Code::kAlreadyExists;  // unique_violation
-  if (state == "40001" || state == "40P01" || state == "55P03") {
-    return Code::kConflict;  // serialization_failure, deadlock_detected, lock_not_available
+  if (state == "40001" || state == "40P01") {
+    return Code::kConflict;  // serialization_failure, deadlock_detected: retry the transaction
+  }
+  if (state == "53100") return Code::kFull;      // disk_full (ENOSPC on the server)
+  if (state == "25006") return Code::kReadOnly;  // read_only_sql_transaction (standby, setting)
+  if (state == "XX001" || state == "XX002") return Code::kCorrupt;  // data / index corrupted
+  // lock_not_available, too_many_connections, connection exceptions, server shutting down
+  if (state == "55P03" || state == "53300" || state.rfind("08", 0) == 0 ||
+      state.rfind("57P", 0) == 0) {
+    return Code::kUnavailable;
   }
   if (state.rfind("22", 0) == 0 || state.rfind("23", 0) == 0) return Code::kInvalidArgument;
   return Code::kInternal;
@@ -155,7 +163,7 @@ Connection::Connection(const std::string& conninfo) {
     const std::string why = conn_ != nullptr ? FirstLine(PQerrorMessage(conn_)) : "out of memory";
     if (conn_ != nullptr) PQfinish(conn_);
     conn_ = nullptr;
-    throw StorageError(Code::kInternal,
+    throw StorageError(Code::kUnavailable,
                        "postgresql: cannot connect to " + DescribeServer(conninfo) + ": " + why);
   }
   // Messages in English and UTC timestamps whatever the server's defaults; a server-side notice
@@ -195,7 +203,7 @@ void Connection::Check(pg_result* raw) const {
   const ExecStatusType status = raw != nullptr ? PQresultStatus(raw) : PGRES_FATAL_ERROR;
   if (status == PGRES_COMMAND_OK || status == PGRES_TUPLES_OK) return;
   if (!healthy()) {
-    throw StorageError(Code::kInternal,
+    throw StorageError(Code::kUnavailable,
                        "postgresql: connection lost: " + FirstLine(PQerrorMessage(conn_)));
   }
   const char* state = raw != nullptr ? PQresultErrorField(raw, PG_DIAG_SQLSTATE) : nullptr;

@@ -3,8 +3,9 @@
 // parameters in text form (never SQL built from values), array literals for bulk writes through
 // unnest(), a RAII transaction, a connection pool and the schema migration. Every libpq failure
 // becomes a StorageError whose code follows the SQLSTATE (unique violation -> kAlreadyExists,
-// serialization failure / deadlock / lock timeout -> kConflict, lost connection -> kUnavailable
-// semantics reported as kInternal with "connection" in the message).
+// serialization failure / deadlock -> kConflict, lock timeout / lost or refused connection /
+// server shutting down -> kUnavailable, disk_full -> kFull, read-only transaction -> kReadOnly,
+// data or index corrupted -> kCorrupt).
 //
 // Numbers travel as text: doubles are written with std::to_chars (shortest form that parses back
 // to the same bits) and PostgreSQL 12+ prints float8 the same way (extra_float_digits = 1), so

@@ -46,9 +46,18 @@ bool IsPostgresUri(const std::string& db) {
   return db.rfind("postgresql://", 0) == 0 || db.rfind("postgres://", 0) == 0;
 }
 
-std::unique_ptr<MapStore> OpenMapStore(const std::string& db) {
-  if (IsPostgresUri(db)) return std::make_unique<PostgresMapStore>(db);
-  return std::make_unique<SqliteMapStore>(db);
+std::unique_ptr<MapStore> OpenMapStore(const std::string& db, int64_t max_db_mib) {
+  if (IsPostgresUri(db)) {
+    if (max_db_mib != 0) {
+      throw StorageError(Code::kInvalidArgument,
+                         "a database size limit applies to SQLite only; limit a PostgreSQL "
+                         "database on its server (tablespace, quota)");
+    }
+    return std::make_unique<PostgresMapStore>(db);
+  }
+  SqliteMapStoreOptions options;
+  options.max_db_mib = max_db_mib;
+  return std::make_unique<SqliteMapStore>(db, options);
 }
 
 void PostgresMapStoreOptions::Check() const {

@@ -78,7 +78,8 @@ class PostgresMapStore final : public MapStore {
 };
 
 // Opens the store a `--db` value names: PostgresMapStore for a postgresql:// URI, else
-// SqliteMapStore on the file path (":memory:" too). Throws StorageError.
-std::unique_ptr<MapStore> OpenMapStore(const std::string& db);
+// SqliteMapStore on the file path (":memory:" too), limited to `max_db_mib` MiB (0: no limit;
+// SQLite only, kInvalidArgument for PostgreSQL). Throws StorageError.
+std::unique_ptr<MapStore> OpenMapStore(const std::string& db, int64_t max_db_mib = 0);
 
 }  // namespace forestmap::storage

@@ -34,7 +34,14 @@ StorageError::Code CodeForResult(int extended_result_code) {
       return StorageError::Code::kInvalidArgument;
     case SQLITE_BUSY:
     case SQLITE_LOCKED:
-      return StorageError::Code::kConflict;
+      return StorageError::Code::kUnavailable;
+    case SQLITE_FULL:  // also ENOSPC: the unix VFS reports a failed write for no space as FULL
+      return StorageError::Code::kFull;
+    case SQLITE_READONLY:
+      return StorageError::Code::kReadOnly;
+    case SQLITE_CORRUPT:
+    case SQLITE_NOTADB:
+      return StorageError::Code::kCorrupt;
     default:
       return StorageError::Code::kInternal;
   }

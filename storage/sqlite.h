@@ -22,7 +22,9 @@ namespace forestmap::storage::sqlite {
 
 // Error code for an (extended) sqlite3 result code: UNIQUE/PRIMARY KEY violations ->
 // kAlreadyExists, other constraint violations -> kInvalidArgument, SQLITE_BUSY/LOCKED (another
-// connection held the lock past the busy timeout: worth a retry) -> kConflict, else kInternal.
+// connection held the lock past the busy timeout: worth a retry) -> kUnavailable, SQLITE_FULL
+// (disk full, or PRAGMA max_page_count reached) -> kFull, SQLITE_READONLY (any reason) ->
+// kReadOnly, SQLITE_CORRUPT/NOTADB -> kCorrupt, else kInternal.
 StorageError::Code CodeForResult(int extended_result_code);
 
 // One connection. Not thread-safe: a connection is used by one thread at a time (the owner

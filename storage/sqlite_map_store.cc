@@ -67,11 +67,12 @@ void SqliteMapStoreOptions::Check() const {
   if (busy_timeout_ms < 0) fail("busy_timeout_ms must be >= 0");
   if (max_readers < 1) fail("max_readers must be >= 1");
   if (cache_mib < 1 || cache_mib > 1024 * 1024) fail("cache_mib must be in [1, 1048576]");
+  if (max_db_mib < 0) fail("max_db_mib must be >= 0 (0: no limit)");
 }
 
 // ---- Connections ----
 
-SqliteMapStore::SqliteMapStore(const std::string& path, const SqliteMapStoreOptions& options)
+SqliteMapStore::SqliteMapStore(const std::string& path, const SqliteMapStoreOptions& options) try
     : options_(options) {
   options_.Check();
   if (path.empty()) {
@@ -93,6 +94,7 @@ SqliteMapStore::SqliteMapStore(const std::string& path, const SqliteMapStoreOpti
   sqlite::MigrateSchema(*writer_, internal::SchemaSteps());
   if (path == ":memory:") return;  // the database exists on this one connection only
   writer_->EnableWal();
+  internal::RefuseReadOnlyDatabase(*writer_);
   const SqliteMapStoreOptions reader_options = options_;
   readers_ = std::make_unique<sqlite::ConnectionPool>(
       [path, reader_options] {
@@ -102,6 +104,9 @@ SqliteMapStore::SqliteMapStore(const std::string& path, const SqliteMapStoreOpti
         return reader;
       },
       options_.max_readers);
+} catch (const StorageError& e) {
+  // Any step that had to write (settings, migration, WAL, the probe) names the cause.
+  if (e.code() == Code::kReadOnly) internal::ThrowReadOnly(path, std::string(" [") + e.what() + "]");
 }
 
 SqliteMapStore::~SqliteMapStore() = default;

@@ -24,9 +24,12 @@ struct SqliteMapStoreOptions {
   int busy_timeout_ms = 5000;  // ms a statement waits for a lock held by another process
   int max_readers = 4;         // reader connections of a file database (count), opened lazily
   int cache_mib = 64;          // MiB of page cache per connection (SQLite's default is 2)
+  // MiB the database file may grow to (PRAGMA max_page_count; 0: no limit). A write that needs
+  // more fails with kFull, like a full disk. A file already larger cannot grow further.
+  int64_t max_db_mib = 0;
 
   // Throws StorageError(kInvalidArgument) naming the field for a negative timeout, fewer than
-  // one reader or a cache smaller than 1 MiB.
+  // one reader, a cache smaller than 1 MiB or a negative size limit.
   void Check() const;
 };
 
@@ -38,7 +41,7 @@ struct SqliteMapStoreOptions {
 // - ":memory:" database: an in-memory database lives on a single connection, so every call,
 //   read or write, takes the one mutex (reads are serialized too). Meant for tests.
 // Other processes may open the same file; SQLite's locks (with `busy_timeout_ms`) serialize them,
-// and a lock still held after the timeout is reported as StorageError::Code::kConflict.
+// and a lock still held after the timeout is reported as StorageError::Code::kUnavailable.
 //
 // Storage details: attributes are stored as JSON object text (NULL when empty). Doubles
 // round-trip bit for bit, except that -0.0 reads back as +0.0 (SQLite's REAL affinity stores
@@ -57,7 +60,9 @@ class SqliteMapStore final : public MapStore {
   static constexpr size_t kTreesPerBlock = 32;
 
   // Opens (creating if missing) the database at `path` and migrates its schema to
-  // kSchemaVersion. ":memory:" gives a private in-memory database. Throws StorageError.
+  // kSchemaVersion. ":memory:" gives a private in-memory database. Throws StorageError;
+  // kReadOnly, naming the cause, for a database this process cannot write (read-only file,
+  // directory or file system): a server that could only fail its writes refuses to start.
   explicit SqliteMapStore(const std::string& path, const SqliteMapStoreOptions& options = {});
   ~SqliteMapStore() override;
   SqliteMapStore(const SqliteMapStore&) = delete;

@@ -27,6 +27,14 @@ void ConfigureConnection(sqlite::Database& db, const SqliteMapStoreOptions& opti
 // that already holds tables: another program's file, which migrating would change.
 void RefuseForeignDatabase(sqlite::Database& db);
 
+// Throws kReadOnly naming the cause when `db` cannot be written: opened read-only by the OS, or
+// a probe commit (rewriting PRAGMA user_version with its value) fails (storage/sqlite_faults.cc).
+void RefuseReadOnlyDatabase(sqlite::Database& db);
+// Throws kReadOnly for database `path` with the cause the file system tells and `detail`.
+[[noreturn]] void ThrowReadOnly(const std::string& path, const std::string& detail);
+// PRAGMA max_page_count for a size limit of `max_mib` MiB (0: none) on this connection.
+void LimitDatabaseSize(sqlite::Database& db, int64_t max_mib);
+
 int64_t NowUnixMs();
 void CheckName(const std::string& name);
 

@@ -190,6 +190,7 @@ void ConfigureConnection(sqlite::Database& db, const SqliteMapStoreOptions& opti
   const std::string cache_sql = "PRAGMA cache_size = -" + std::to_string(options.cache_mib * 1024);
   db.Execute(cache_sql.c_str());
   if (read_only) db.Execute("PRAGMA query_only = ON");
+  LimitDatabaseSize(db, options.max_db_mib);
 }
 
 void RefuseForeignDatabase(sqlite::Database& db) {
