@@ -43,7 +43,7 @@ struct Config {
   forestmap::server::TlsFiles tls;  // --tls-cert, --tls-key, --tls-client-ca
   std::string log_format = "text";
   std::string log_level = "info";
-  std::string metrics;  // host:port of the Prometheus endpoint; empty: none
+  std::string metrics;    // host:port of the Prometheus endpoint; empty: none
   int64_t max_db_mb = 0;  // MiB the SQLite database may grow to; 0: no limit
 };
 

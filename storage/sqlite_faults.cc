@@ -27,7 +27,8 @@ std::string ReadOnlyCause(const std::string& path) {
   }
   if (access(file.c_str(), W_OK) != 0) return "the file is not writable by this user";
   if (access(dir.c_str(), W_OK) != 0) {
-    return "its directory " + dir + " is not writable by this user (SQLite needs it for the -wal "
+    return "its directory " + dir +
+           " is not writable by this user (SQLite needs it for the -wal "
            "and -shm files)";
   }
   return "the file cannot be written";
@@ -38,24 +39,27 @@ std::string ReadOnlyCause(const std::string& path) {
 void ThrowReadOnly(const std::string& path, const std::string& detail) {
   throw StorageError(StorageError::Code::kReadOnly,
                      "database '" + path + "' is read-only: " + ReadOnlyCause(path) + " (uid " +
-                         std::to_string(geteuid()) + ")" + detail +
-                         ". forestmapd writes its database: make the file and its directory "
-                         "writable for this user, or give --db a writable copy");
+                         std::to_string(geteuid()) +
+                         "). forestmapd writes its database: make the "
+                         "file and its directory writable for this user, or give --db a "
+                         "writable copy [" +
+                         detail + "]");
 }
 
 void RefuseReadOnlyDatabase(sqlite::Database& db) {
-  if (sqlite3_db_readonly(db.handle(), "main") == 1) ThrowReadOnly(db.path(), "");
+  if (sqlite3_db_readonly(db.handle(), "main") == 1) {
+    throw StorageError(StorageError::Code::kReadOnly, "opened read-only by the operating system");
+  }
   // Opened for writing does not mean writable (a read-only directory, a file system that fails
-  // writes): commit one real write, the schema version rewritten with its own value.
+  // writes): commit one real write, the schema version rewritten with its own value. A failure
+  // is thrown as it is (the caller names the cause for kReadOnly).
+  const std::string probe = "BEGIN IMMEDIATE; PRAGMA user_version = " +
+                            std::to_string(db.QueryInt64("PRAGMA user_version")) + "; COMMIT";
   try {
-    const std::string probe =
-        "BEGIN IMMEDIATE; PRAGMA user_version = " +
-        std::to_string(db.QueryInt64("PRAGMA user_version")) + "; COMMIT";
     db.Execute(probe.c_str());
-  } catch (const StorageError& e) {
+  } catch (const StorageError&) {
     if (!db.InAutocommit()) sqlite3_exec(db.handle(), "ROLLBACK", nullptr, nullptr, nullptr);
-    if (e.code() != StorageError::Code::kReadOnly) throw;
-    ThrowReadOnly(db.path(), std::string(" [") + e.what() + "]");
+    throw;
   }
 }
 

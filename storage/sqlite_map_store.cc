@@ -106,7 +106,7 @@ SqliteMapStore::SqliteMapStore(const std::string& path, const SqliteMapStoreOpti
       options_.max_readers);
 } catch (const StorageError& e) {
   // Any step that had to write (settings, migration, WAL, the probe) names the cause.
-  if (e.code() == Code::kReadOnly) internal::ThrowReadOnly(path, std::string(" [") + e.what() + "]");
+  if (e.code() == Code::kReadOnly) internal::ThrowReadOnly(path, e.what());
 }
 
 SqliteMapStore::~SqliteMapStore() = default;

@@ -27,8 +27,8 @@ void ConfigureConnection(sqlite::Database& db, const SqliteMapStoreOptions& opti
 // that already holds tables: another program's file, which migrating would change.
 void RefuseForeignDatabase(sqlite::Database& db);
 
-// Throws kReadOnly naming the cause when `db` cannot be written: opened read-only by the OS, or
-// a probe commit (rewriting PRAGMA user_version with its value) fails (storage/sqlite_faults.cc).
+// Throws kReadOnly when `db` cannot be written: opened read-only by the OS, or a probe commit
+// (rewriting PRAGMA user_version with its value) fails (storage/sqlite_faults.cc).
 void RefuseReadOnlyDatabase(sqlite::Database& db);
 // Throws kReadOnly for database `path` with the cause the file system tells and `detail`.
 [[noreturn]] void ThrowReadOnly(const std::string& path, const std::string& detail);

@@ -30,8 +30,8 @@ std::vector<TreeRecord> Trees(int count, int first_id) {
     trees[i].x = i % 1000;
     trees[i].y = i / 1000;
     trees[i].dbh = 0.3;
-    trees[i].attributes = {{"species", "Picea abies, a long attribute to take room " +
-                                           std::to_string(i)}};
+    trees[i].attributes = {
+        {"species", "Picea abies, a long attribute to take room " + std::to_string(i)}};
   }
   return trees;
 }

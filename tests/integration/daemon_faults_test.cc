@@ -1,0 +1,166 @@
+// Issue 15, finding 7, with the built binaries as an operator runs them: forestmapd on a read-only
+// database refuses to start and says why (it used to "serve" and fail every write as INTERNAL),
+// and a full database (--max-db-mb, as a full disk) answers RESOURCE_EXHAUSTED "database full"
+// while the maps already stored stay intact and the server keeps serving.
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <thread>
+
+namespace forestmap {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr auto kStartTimeout = std::chrono::seconds(20);
+
+struct Result {
+  int exit_code = -1;
+  std::string out;
+  std::string err;
+};
+
+std::string ReadFile(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// A CSV of `count` trees with an attribute each (x,y,dbh,species).
+void WriteTrees(const fs::path& path, int count) {
+  std::ofstream out(path);
+  out << "x,y,dbh,species\n";
+  for (int i = 0; i < count; ++i) {
+    out << (i % 1000) * 2.5 << "," << (i / 1000) * 2.5 << ",0.3,Picea abies " << i << "\n";
+  }
+}
+
+class DaemonFaultsTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("daemon_faults_test_" + std::to_string(getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    db_ = (dir_ / "maps.db").string();
+  }
+  void TearDown() override {
+    Stop();
+    fs::permissions(dir_, fs::perms::owner_all);
+    fs::remove_all(dir_);
+  }
+
+  // Runs a shell command line, capturing stdout and stderr (kept outside dir_, which a test may
+  // make read-only).
+  Result Run(const std::string& command) {
+    const fs::path out = fs::temp_directory_path() / ("daemon_faults_out_" + Pid());
+    const fs::path err = fs::temp_directory_path() / ("daemon_faults_err_" + Pid());
+    const int status =
+        std::system((command + " >'" + out.string() + "' 2>'" + err.string() + "'").c_str());
+    Result result{WIFEXITED(status) ? WEXITSTATUS(status) : -1, ReadFile(out), ReadFile(err)};
+    fs::remove(out);
+    fs::remove(err);
+    return result;
+  }
+  static std::string Pid() { return std::to_string(getpid()); }
+  Result Client(const std::string& args) {
+    return Run("env -u FORESTMAP_TOKEN -u FORESTMAP_SERVER '" FORESTMAP_CLI_PATH "' --server " +
+               address_ + " " + args);
+  }
+
+  // Starts forestmapd with `flags` on port 0 and waits for its "serving on" line.
+  void Serve(const std::string& flags) {
+    log_ = dir_ / "server.log";
+    const std::string command = "'" FORESTMAPD_PATH "' --db '" + db_ + "' --listen 127.0.0.1:0 " +
+                                flags + " 2>'" + log_.string() + "' & echo $! > '" +
+                                (dir_ / "pid").string() + "'";
+    ASSERT_EQ(std::system(command.c_str()), 0);
+    pid_ = std::stoi(ReadFile(dir_ / "pid"));
+    const std::regex serving(R"(serving on [^ ]*:(\d+))");
+    const auto deadline = std::chrono::steady_clock::now() + kStartTimeout;
+    std::smatch match;
+    std::string log;
+    while (std::chrono::steady_clock::now() < deadline) {
+      log = ReadFile(log_);
+      if (std::regex_search(log, match, serving)) {
+        address_ = "127.0.0.1:" + match[1].str();
+        return;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    FAIL() << "forestmapd did not start: " << log;
+  }
+  void Stop() {
+    if (pid_ <= 0) return;
+    kill(pid_, SIGTERM);
+    for (int i = 0; i < 200 && kill(pid_, 0) == 0; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(25));
+    }
+    pid_ = -1;
+  }
+
+  fs::path dir_;
+  fs::path log_;
+  std::string db_;
+  std::string address_;
+  int pid_ = -1;
+};
+
+TEST_F(DaemonFaultsTest, ReadOnlyDatabaseRefusesToStartAndSaysWhy) {
+  // A ForestMap database with a map, closed cleanly.
+  Serve("");
+  ASSERT_EQ(Client("map create plot").exit_code, 0);
+  Stop();
+  fs::permissions(dir_, fs::perms::all);
+  fs::permissions(db_, fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
+  // Root writes a file whatever its mode: then run the server as nobody, as a service user.
+  const std::string as_user = geteuid() == 0 ? "setpriv --reuid=65534 --regid=65534 "
+                                               "--clear-groups "
+                                             : "";
+  // `timeout`: a server that starts serving (the old behaviour) fails the test instead of hanging.
+  const Result result = Run("timeout 20 " + as_user + "'" FORESTMAPD_PATH "' --db '" + db_ +
+                            "' --listen 127.0.0.1:0");
+  EXPECT_EQ(result.exit_code, 1) << result.err;
+  EXPECT_NE(result.err.find("is read-only: the file is not writable by this user"),
+            std::string::npos)
+      << result.err;
+  EXPECT_EQ(result.err.find("serving on"), std::string::npos) << result.err;
+}
+
+TEST_F(DaemonFaultsTest, FullDatabaseAnswersResourceExhaustedAndKeepsServing) {
+  WriteTrees(dir_ / "small.csv", 100);
+  WriteTrees(dir_ / "big.csv", 30000);
+  Serve("--max-db-mb 1");
+  Result result = Client("map create small --trees '" + (dir_ / "small.csv").string() + "'");
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  result = Client("map create big --trees '" + (dir_ / "big.csv").string() + "'");
+  EXPECT_NE(result.exit_code, 0);
+  EXPECT_NE(result.err.find("RESOURCE_EXHAUSTED"), std::string::npos) << result.err;
+  EXPECT_NE(result.err.find("database full"), std::string::npos) << result.err;
+  // The server log names the real cause; the map stored before is intact and still served.
+  const std::string log = ReadFile(log_);
+  EXPECT_NE(log.find("database or disk is full"), std::string::npos) << log;
+  result = Client("map show small");
+  EXPECT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_NE(result.out.find("100"), std::string::npos) << result.out;
+  EXPECT_LE(fs::file_size(db_), 1u << 20);
+}
+
+TEST_F(DaemonFaultsTest, SizeLimitIsRefusedForPostgresql) {
+  const Result result = Run("timeout 20 '" FORESTMAPD_PATH
+                            "' --db postgresql://nobody@127.0.0.1:1/none --max-db-mb 5");
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_NE(result.err.find("size limit applies to SQLite only"), std::string::npos) << result.err;
+}
+
+}  // namespace
+}  // namespace forestmap
