@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "forestmap/v1/forestmap_service.grpc.pb.h"
+#include "server/decode_guard.h"
 #include "server/rpc_observer.h"
 
 namespace forestmap::server {
@@ -49,11 +50,13 @@ ServerRunner::ServerRunner(const std::string& address, grpc::Service& service,
   builder.AddListeningPort(
       address, options.credentials ? options.credentials : grpc::InsecureServerCredentials(),
       &port_);
+  // The decode guard first: the observer then logs the status it made.
+  std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> observers;
+  observers.push_back(std::make_unique<DecodeGuardFactory>());
   if (options.observe_rpcs) {
-    std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> observers;
     observers.push_back(std::make_unique<RpcObserverFactory>(options.metrics));
-    builder.experimental().SetInterceptorCreators(std::move(observers));
   }
+  builder.experimental().SetInterceptorCreators(std::move(observers));
   builder.RegisterService(&service);
   builder.SetMaxReceiveMessageSize(options.max_receive_message_bytes);
   // gRPC sets SO_REUSEPORT by default, which lets a second server bind the same port and

@@ -20,7 +20,10 @@
 //                unless OK.
 //   ExportTrees  INVALID_ARGUMENT (map_name, box), NOT_FOUND, ABORTED (box export: the map kept
 //                changing while being read), CANCELLED (client stopped reading)
-//   any RPC      RESOURCE_EXHAUSTED "server busy" when max_queued_requests calls are waiting
+//   any RPC      RESOURCE_EXHAUSTED "server busy" when max_queued_requests calls are waiting;
+//                INVALID_ARGUMENT for a request message that cannot be decoded
+//                (server/decode_guard.h); RESOURCE_EXHAUSTED "database full", FAILED_PRECONDITION
+//                "database read-only", DATA_LOSS, UNAVAILABLE for faults of the database
 //   Relocalize   INVALID_ARGUMENT (map_name, fewer than 3 trees, a bad tree / prior / gravity),
 //                RESOURCE_EXHAUSTED (more than max_query_trees), NOT_FOUND (map),
 //                FAILED_PRECONDITION (the map has no confirmed trees). "Not localized" is not an

@@ -114,6 +114,19 @@ grpc::Status ServerBusy(std::string_view rpc) noexcept {
   return busy;
 }
 
+grpc::Status UndecodableRequest(std::string_view method) noexcept {
+  try {
+    const size_t slash = method.rfind('/');
+    const std::string rpc(slash == std::string_view::npos ? method : method.substr(slash + 1));
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                        "the " + rpc +
+                            " request cannot be decoded (not a valid protobuf message of its "
+                            "type, or a string that is not UTF-8); nothing was done");
+  } catch (...) {
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "request cannot be decoded");
+  }
+}
+
 void LogLine(std::string_view line) noexcept { Log(LogLevel::kInfo, line); }
 
 void LogStatus(std::string_view rpc, const grpc::Status& status) noexcept {

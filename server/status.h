@@ -19,6 +19,7 @@
 //   std::bad_alloc                       -> RESOURCE_EXHAUSTED "server out of memory" (logged)
 //   anything else                        -> INTERNAL "internal error; see server log" (logged)
 //   (no exception) work queue full       -> RESOURCE_EXHAUSTED "server busy ..." (ServerBusy)
+//   (no handler) request bytes that do not parse -> INVALID_ARGUMENT (UndecodableRequest)
 // Every non-OK status is logged (server/logging.h); server faults with their real cause.
 
 #include <grpcpp/support/status.h>
@@ -74,6 +75,10 @@ grpc::Status StatusFromCurrentException(std::string_view rpc) noexcept;
 
 // RESOURCE_EXHAUSTED "server busy ..." for a call that found the work queue full (logged).
 grpc::Status ServerBusy(std::string_view rpc) noexcept;
+
+// INVALID_ARGUMENT for a request message of `method` ("/forestmap.v1.ForestMap/GetMap") that
+// cannot be decoded (server/decode_guard.h); gRPC itself would answer UNIMPLEMENTED.
+grpc::Status UndecodableRequest(std::string_view method) noexcept;
 
 // Log lines through server/logging.h (thread-safe, never throw): LogStatus at debug level (the
 // RPC's own line reports its status), LogLine at info level.
