@@ -81,7 +81,9 @@ void AddTokenCommands(CLI::App& app, std::function<int()>& run, std::ostream& ou
   CLI::App* list = token->add_subcommand("list", "list tokens (never their secrets)");
   CLI::App* revoke = token->add_subcommand("revoke", "revoke a token by id");
   for (CLI::App* command : {create, list, revoke}) {
-    command->add_option("--db", args->db, "SQLite database of the server")->capture_default_str();
+    command
+        ->add_option("--db", args->db, "database of the server: SQLite file or postgresql:// URI")
+        ->capture_default_str();
   }
   create->add_option("--map", args->map, "map name, glob ('plot-*') or '*' for every map")
       ->capture_default_str();

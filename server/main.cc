@@ -73,10 +73,13 @@ int Serve(const Config& config, const sigset_t& shutdown_signals) {
     return 1;
   }
   const size_t map_count = store->ListMaps().size();
-  // Tokens live in the SQLite file (table access_tokens); a PostgreSQL store has none yet (open).
+  // Tokens live in the same database (table access_tokens), SQLite file or PostgreSQL.
   std::unique_ptr<forestmap::storage::TokenStore> tokens;
-  if (!forestmap::storage::IsPostgresUri(config.db)) {
+  try {
     tokens = std::make_unique<forestmap::storage::TokenStore>(config.db);
+  } catch (const std::exception& e) {
+    LogError("cannot open the access tokens of " + shown_db + ": " + e.what());
+    return 1;
   }
   const forestmap::server::Authorizer authorizer(tokens.get());
 

@@ -7,9 +7,12 @@
 
 #include <array>
 #include <cstdio>
+#include <mutex>
 
+#include "storage/postgres_map_store.h"
 #include "storage/sqlite.h"
 #include "storage/sqlite_map_store_internal.h"
+#include "storage/token_backend.h"
 
 namespace forestmap::storage {
 namespace {
@@ -36,6 +39,8 @@ std::string RandomSecret() {
   return kSecretPrefix + Hex(bytes.data(), bytes.size());
 }
 
+#define FORESTMAP_TOKEN_COLUMNS "id, map_pattern, role, note, created_unix_ms, revoked_unix_ms"
+
 TokenRecord ReadToken(const sqlite::Statement& row) {
   TokenRecord record;
   record.id = row.ColumnInt64(0);
@@ -47,7 +52,69 @@ TokenRecord ReadToken(const sqlite::Statement& row) {
   return record;
 }
 
-#define FORESTMAP_TOKEN_COLUMNS "id, map_pattern, role, note, created_unix_ms, revoked_unix_ms"
+// Tokens in the server's SQLite file: one connection, one mutex.
+class SqliteTokens final : public TokenBackend {
+ public:
+  SqliteTokens(const std::string& path, int busy_timeout_ms) {
+    db_ = std::make_unique<sqlite::Database>(
+        path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, busy_timeout_ms);
+    sqlite::MigrateSchema(*db_, internal::SchemaSteps());
+    if (path != ":memory:") db_->EnableWal();
+  }
+
+  int64_t Insert(const std::string& secret_sha256, const TokenRecord& record) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    sqlite::Statement insert(*db_,
+                             "INSERT INTO access_tokens (secret_sha256, map_pattern, role, note, "
+                             "created_unix_ms) VALUES (?1, ?2, ?3, ?4, ?5)");
+    insert.BindText(1, secret_sha256);
+    insert.BindText(2, record.map_pattern);
+    insert.BindInt64(3, static_cast<int64_t>(record.role));
+    insert.BindText(4, record.note);
+    insert.BindInt64(5, record.created_unix_ms);
+    insert.Run();
+    return db_->LastInsertRowId();
+  }
+
+  std::vector<TokenRecord> List() override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    sqlite::Statement query(*db_,
+                            "SELECT " FORESTMAP_TOKEN_COLUMNS " FROM access_tokens ORDER BY id");
+    std::vector<TokenRecord> records;
+    while (query.Step()) records.push_back(ReadToken(query));
+    return records;
+  }
+
+  bool Revoke(int64_t id, int64_t now_unix_ms) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    sqlite::Statement update(*db_,
+                             "UPDATE access_tokens SET revoked_unix_ms = ?1 "
+                             "WHERE id = ?2 AND revoked_unix_ms IS NULL");
+    update.BindInt64(1, now_unix_ms);
+    update.BindInt64(2, id);
+    update.Run();
+    return sqlite3_changes(db_->handle()) == 1;
+  }
+
+  std::optional<TokenRecord> FindValid(const std::string& secret_sha256) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    sqlite::Statement query(*db_, "SELECT " FORESTMAP_TOKEN_COLUMNS
+                                  " FROM access_tokens WHERE secret_sha256 = ?1 AND "
+                                  "revoked_unix_ms IS NULL");
+    query.BindText(1, secret_sha256);
+    if (!query.Step()) return std::nullopt;
+    return ReadToken(query);
+  }
+
+  bool AnyToken() override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return db_->QueryInt64("SELECT EXISTS (SELECT 1 FROM access_tokens)") != 0;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::unique_ptr<sqlite::Database> db_;
+};
 
 }  // namespace
 
@@ -86,10 +153,11 @@ std::string Sha256Hex(std::string_view data) {
 }
 
 TokenStore::TokenStore(const std::string& path, int busy_timeout_ms) {
-  db_ = std::make_unique<sqlite::Database>(
-      path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, busy_timeout_ms);
-  sqlite::MigrateSchema(*db_, internal::SchemaSteps());
-  if (path != ":memory:") db_->EnableWal();
+  if (IsPostgresUri(path)) {
+    backend_ = OpenPostgresTokens(path);
+  } else {
+    backend_ = std::make_unique<SqliteTokens>(path, busy_timeout_ms);
+  }
 }
 
 TokenStore::~TokenStore() = default;
@@ -106,54 +174,18 @@ NewToken TokenStore::Create(const std::string& map_pattern, Role role, const std
   token.record.role = role;
   token.record.note = note;
   token.record.created_unix_ms = internal::NowUnixMs();
-  std::lock_guard<std::mutex> lock(mutex_);
-  sqlite::Statement insert(*db_,
-                           "INSERT INTO access_tokens (secret_sha256, map_pattern, role, note, "
-                           "created_unix_ms) VALUES (?1, ?2, ?3, ?4, ?5)");
-  insert.BindText(1, Sha256Hex(token.secret));
-  insert.BindText(2, map_pattern);
-  insert.BindInt64(3, static_cast<int64_t>(role));
-  insert.BindText(4, note);
-  insert.BindInt64(5, token.record.created_unix_ms);
-  insert.Run();
-  token.record.id = db_->LastInsertRowId();
+  token.record.id = backend_->Insert(Sha256Hex(token.secret), token.record);
   return token;
 }
 
-std::vector<TokenRecord> TokenStore::List() {
-  std::lock_guard<std::mutex> lock(mutex_);
-  sqlite::Statement query(*db_,
-                          "SELECT " FORESTMAP_TOKEN_COLUMNS " FROM access_tokens ORDER BY id");
-  std::vector<TokenRecord> records;
-  while (query.Step()) records.push_back(ReadToken(query));
-  return records;
-}
+std::vector<TokenRecord> TokenStore::List() { return backend_->List(); }
 
-bool TokenStore::Revoke(int64_t id) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  sqlite::Statement update(*db_,
-                           "UPDATE access_tokens SET revoked_unix_ms = ?1 "
-                           "WHERE id = ?2 AND revoked_unix_ms IS NULL");
-  update.BindInt64(1, internal::NowUnixMs());
-  update.BindInt64(2, id);
-  update.Run();
-  return sqlite3_changes(db_->handle()) == 1;
-}
+bool TokenStore::Revoke(int64_t id) { return backend_->Revoke(id, internal::NowUnixMs()); }
 
 std::optional<TokenRecord> TokenStore::Find(std::string_view secret) {
-  const std::string hash = Sha256Hex(secret);
-  std::lock_guard<std::mutex> lock(mutex_);
-  sqlite::Statement query(*db_, "SELECT " FORESTMAP_TOKEN_COLUMNS
-                                " FROM access_tokens WHERE secret_sha256 = ?1 AND "
-                                "revoked_unix_ms IS NULL");
-  query.BindText(1, hash);
-  if (!query.Step()) return std::nullopt;
-  return ReadToken(query);
+  return backend_->FindValid(Sha256Hex(secret));
 }
 
-bool TokenStore::AnyToken() {
-  std::lock_guard<std::mutex> lock(mutex_);
-  return db_->QueryInt64("SELECT EXISTS (SELECT 1 FROM access_tokens)") != 0;
-}
+bool TokenStore::AnyToken() { return backend_->AnyToken(); }
 
 }  // namespace forestmap::storage

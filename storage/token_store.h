@@ -1,20 +1,22 @@
 #pragma once
-// Access tokens of forestmapd, kept in the server's SQLite database (table access_tokens, see
-// storage/sqlite_schema.cc). A token grants one role on the maps matching a pattern: a map name,
-// a glob ("plot-*", fnmatch syntax) or "*" for every map. Roles are ordered: admin includes
-// write, write includes read. Only the SHA-256 of the secret is stored: the secret is shown once,
-// by Create, and cannot be recovered from the database.
+// Access tokens of forestmapd, kept in the server's database: the SQLite file (table
+// access_tokens, see storage/sqlite_schema.cc) or, for a postgresql:// --db, the PostgreSQL
+// database (table access_tokens, made on first use: storage/postgres_token_store.cc). A token
+// grants one role on the maps matching a pattern: a map name, a glob ("plot-*", fnmatch syntax) or
+// "*" for every map. Roles are ordered: admin includes write, write includes read. Only the SHA-256
+// of the secret is stored: the secret is shown once, by Create, and cannot be recovered from the
+// database.
 //
-// Separate from MapStore on purpose: the token table lives in the SQLite file of the server
-// whatever store holds the maps.
+// Separate from MapStore on purpose: tokens are not maps, and MapStore's interface stays
+// about maps.
 //
-// Thread-safety: every method may be called from many threads at once (one connection, one
-// mutex; each call is one short statement). Other processes (`forestmapd token ...`) may change
-// the table while a server reads it: changes are seen by the next call.
+// Thread-safety: every method may be called from many threads at once (SQLite: one connection,
+// one mutex; PostgreSQL: a small connection pool; each call is one short statement). Other
+// processes (`forestmapd token ...`, replicas) may change the table while a server reads it:
+// changes are seen by the next call.
 
 #include <cstdint>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -22,9 +24,7 @@
 
 namespace forestmap::storage {
 
-namespace sqlite {
-class Database;
-}  // namespace sqlite
+class TokenBackend;  // storage/token_backend.h
 
 enum class Role { kRead = 1, kWrite = 2, kAdmin = 3 };
 
@@ -54,7 +54,8 @@ std::string Sha256Hex(std::string_view data);
 class TokenStore {
  public:
   // Opens (creating and migrating if needed, like SqliteMapStore) the database at `path`;
-  // ":memory:" gives a private one for tests. Throws StorageError.
+  // ":memory:" gives a private one for tests; a postgresql:// URI the tokens of that PostgreSQL
+  // database. Throws StorageError.
   explicit TokenStore(const std::string& path, int busy_timeout_ms = 5000);
   ~TokenStore();
   TokenStore(const TokenStore&) = delete;
@@ -71,8 +72,7 @@ class TokenStore {
   bool AnyToken();
 
  private:
-  std::mutex mutex_;
-  std::unique_ptr<sqlite::Database> db_;
+  std::unique_ptr<TokenBackend> backend_;
 };
 
 }  // namespace forestmap::storage

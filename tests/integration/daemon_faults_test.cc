@@ -1,7 +1,9 @@
 // Issue 15, finding 7, with the built binaries as an operator runs them: forestmapd on a read-only
 // database refuses to start and says why (it used to "serve" and fail every write as INTERNAL),
 // and a full database (--max-db-mb, as a full disk) answers RESOURCE_EXHAUSTED "database full"
-// while the maps already stored stay intact and the server keeps serving.
+// while the maps already stored stay intact and the server keeps serving. And a server on
+// PostgreSQL takes tokens too (`forestmapd token create --db postgresql://...`): it used to stay
+// open whatever tokens were made.
 
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -16,6 +18,8 @@
 #include <sstream>
 #include <string>
 #include <thread>
+
+#include "tests/pg_fixture.h"
 
 namespace forestmap {
 namespace {
@@ -78,9 +82,10 @@ class DaemonFaultsTest : public ::testing::Test {
   }
 
   // Starts forestmapd with `flags` on port 0 and waits for its "serving on" line.
-  void Serve(const std::string& flags) {
+  void Serve(const std::string& flags) { Serve(db_, flags); }
+  void Serve(const std::string& db, const std::string& flags) {
     log_ = dir_ / "server.log";
-    const std::string command = "'" FORESTMAPD_PATH "' --db '" + db_ + "' --listen 127.0.0.1:0 " +
+    const std::string command = "'" FORESTMAPD_PATH "' --db '" + db + "' --listen 127.0.0.1:0 " +
                                 flags + " 2>'" + log_.string() + "' & echo $! > '" +
                                 (dir_ / "pid").string() + "'";
     ASSERT_EQ(std::system(command.c_str()), 0);
@@ -160,6 +165,41 @@ TEST_F(DaemonFaultsTest, SizeLimitIsRefusedForPostgresql) {
                             "' --db postgresql://nobody@127.0.0.1:1/none --max-db-mb 5");
   EXPECT_EQ(result.exit_code, 1);
   EXPECT_NE(result.err.find("size limit applies to SQLite only"), std::string::npos) << result.err;
+}
+
+TEST_F(DaemonFaultsTest, TokensOnPostgresqlDenyByDefault) {
+  testing::TestDatabase database;
+  Serve(database.url(), "");
+  ASSERT_EQ(Client("map create plot-1").exit_code, 0);  // open while no token exists
+  const auto create_token = [&](const std::string& role) {
+    const Result result = Run("'" FORESTMAPD_PATH "' token create --db '" + database.url() +
+                              "' --map 'plot-*' --role " + role);
+    EXPECT_EQ(result.exit_code, 0) << result.err;
+    std::string secret = result.out;
+    while (!secret.empty() && secret.back() == '\n') secret.pop_back();
+    return secret;
+  };
+  const std::string reader = create_token("read");
+  const std::string admin = create_token("admin");
+  // The running server sees the new tokens on its next call: closed now.
+  Result result = Client("map list");
+  EXPECT_NE(result.exit_code, 0);
+  EXPECT_NE(result.err.find("UNAUTHENTICATED"), std::string::npos) << result.err;
+  result = Client("--token " + reader + " map show plot-1");
+  EXPECT_EQ(result.exit_code, 0) << result.err;
+  result = Client("--token " + reader + " map delete plot-1");
+  EXPECT_NE(result.err.find("PERMISSION_DENIED"), std::string::npos) << result.err;
+  EXPECT_EQ(Client("--token " + admin + " map create plot-2").exit_code, 0);
+  result = Client("--token " + admin + "0 map list");
+  EXPECT_NE(result.err.find("UNAUTHENTICATED"), std::string::npos) << result.err;
+  result = Run("'" FORESTMAPD_PATH "' token list --db '" + database.url() + "'");
+  EXPECT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_NE(result.out.find("\tread\tplot-*\t"), std::string::npos) << result.out;
+  EXPECT_EQ(result.out.find(reader), std::string::npos);  // never the secret
+  EXPECT_EQ(Run("'" FORESTMAPD_PATH "' token revoke --db '" + database.url() + "' 1").exit_code, 0);
+  result = Client("--token " + reader + " map show plot-1");
+  EXPECT_NE(result.err.find("UNAUTHENTICATED"), std::string::npos) << result.err;
+  Stop();
 }
 
 }  // namespace
