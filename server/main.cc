@@ -116,7 +116,7 @@ int Serve(const Config& config, const sigset_t& shutdown_signals) {
   if (!config.http.empty()) {
     try {
       page = std::make_unique<forestmap::server::HttpPage>(*store, service.recent_answers(),
-                                                           config.http);
+                                                           config.http, tokens.get());
     } catch (const std::exception& e) {
       LogLine(e.what());
       return 1;

@@ -4,9 +4,12 @@
 
 namespace forestmap::test {
 
-HttpAnswer HttpGet(const std::string& host, int port, const std::string& path) {
+HttpAnswer HttpGet(const std::string& host, int port, const std::string& path,
+                   const std::string& bearer) {
   httplib::Client client(host, port);
-  const httplib::Result result = client.Get(path.c_str());
+  httplib::Headers headers;
+  if (!bearer.empty()) headers.emplace("Authorization", "Bearer " + bearer);
+  const httplib::Result result = client.Get(path.c_str(), headers);
   HttpAnswer answer;
   if (!result) return answer;
   answer.ok = true;

@@ -13,6 +13,8 @@ struct HttpAnswer {
   std::string body;
 };
 
-HttpAnswer HttpGet(const std::string& host, int port, const std::string& path);
+// `bearer` non-empty: sent as "Authorization: Bearer <bearer>".
+HttpAnswer HttpGet(const std::string& host, int port, const std::string& path,
+                   const std::string& bearer = "");
 
 }  // namespace forestmap::test
