@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Issue 15's crash bar: N (default 100) random kill -9 of forestmapd during uploads
 # (`map create NAME --trees`, 20,000 trees), merges (`observe`, 100 real Wild_V01 frames) and
-# prunes (`map prune --keep 2`). The kill lands at a random moment within the operation's
-# measured duration. After each kill:
+# prunes (`map prune --keep 2`). The kill lands at a random moment between 20 % and 100 % of the
+# operation's measured duration (client start-up included). After each kill:
 #   - `PRAGMA integrity_check` of the database is "ok" (sqlite3, before the restart);
 #   - the server restarts and the observed map's previous version is intact: same tree count
 #     and same checksum (SHA-256 of its sorted CSV export) as when it was last committed, read
@@ -24,7 +24,7 @@ work=$(mktemp -d)
 db=$work/maps.db
 port=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 server=
-trap '[ -n "$server" ] && kill -9 $server 2>/dev/null; rm -rf "$work"' EXIT
+trap '[ -n "$server" ] && { kill -9 $server; wait $server; } 2>/dev/null; rm -rf "$work"' EXIT
 C=("$F" --server 127.0.0.1:$port)
 
 start_server() {
@@ -58,15 +58,15 @@ frames=$(tail -n +2 "$D/trees.csv" | cut -d, -f1 | sort -un | wc -l)
 start_server
 "${C[@]}" map create m >/dev/null
 "${C[@]}" observe m --frames "$D/trees.csv" --poses "$D/poses.csv" --source base \
-  --to-frame 200 --batch 200 >/dev/null
+  --to-frame 200 --batch 200 >/dev/null 2>&1
 # Durations of each operation, untouched, to spread the kills over them.
 t0=$(date +%s%N)
-"${C[@]}" map create probe --trees "$work/upload.csv" >/dev/null
+"${C[@]}" map create probe --trees "$work/upload.csv" >/dev/null 2>&1
 t1=$(date +%s%N)
 "${C[@]}" observe m --frames "$D/trees.csv" --poses "$D/poses.csv" --source probe \
-  --from-frame 300 --to-frame $((300 + merge_frames - 1)) --batch $merge_frames >/dev/null
+  --from-frame 300 --to-frame $((300 + merge_frames - 1)) --batch $merge_frames >/dev/null 2>&1
 t2=$(date +%s%N)
-"${C[@]}" map prune m --keep 2 >/dev/null
+"${C[@]}" map prune m --keep 2 >/dev/null 2>&1
 t3=$(date +%s%N)
 ms_upload=$(((t1 - t0) / 1000000)) ms_merge=$(((t2 - t1) / 1000000)) ms_prune=$(((t3 - t2) / 1000000))
 echo "operation times untouched: upload ${ms_upload} ms, merge ${ms_merge} ms, prune ${ms_prune} ms;" \
@@ -88,7 +88,8 @@ for i in $(seq "$kills"); do
   esac
   "${cmd[@]}" >/dev/null 2>&1 &
   client=$!
-  sleep "$(python3 -c "import random; print(random.uniform(0, $limit) / 1000)")"
+  # From a fifth of the operation's time on: the client has started and the server is at work.
+  sleep "$(python3 -c "import random; print(random.uniform(0.2 * $limit, $limit) / 1000)")"
   kill -0 $client 2>/dev/null && mid_op=$((mid_op + 1)) still=1 || still=0
   kill -9 $server
   wait $server 2>/dev/null || true
