@@ -131,7 +131,10 @@ std::unique_ptr<grpc::ClientContext> ForestMapClient::NewContext(double timeout)
 void ForestMapClient::Check(const grpc::Status& status, const char* call) const {
   if (status.ok()) return;
   const grpc::StatusCode code = status.error_code();
-  if (code == grpc::StatusCode::UNAVAILABLE ||
+  // UNAVAILABLE "database unavailable: ..." comes from a server that was reached (its database
+  // was locked or unreachable): reported as the server's answer, not as an unreachable server.
+  const bool database_fault = status.error_message().starts_with("database unavailable");
+  if ((code == grpc::StatusCode::UNAVAILABLE && !database_fault) ||
       (code == grpc::StatusCode::DEADLINE_EXCEEDED && !connected_)) {
     std::ostringstream detail;
     if (code == grpc::StatusCode::DEADLINE_EXCEEDED) {
