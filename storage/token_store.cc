@@ -186,6 +186,12 @@ std::optional<TokenRecord> TokenStore::Find(std::string_view secret) {
   return backend_->FindValid(Sha256Hex(secret));
 }
 
-bool TokenStore::AnyToken() { return backend_->AnyToken(); }
+bool TokenStore::AnyToken() {
+  // Tokens are never deleted (revoked ones count): once true, always true, without a query.
+  if (any_token_.load(std::memory_order_relaxed)) return true;
+  const bool any = backend_->AnyToken();
+  if (any) any_token_.store(true, std::memory_order_relaxed);
+  return any;
+}
 
 }  // namespace forestmap::storage

@@ -15,6 +15,7 @@
 // processes (`forestmapd token ...`, replicas) may change the table while a server reads it:
 // changes are seen by the next call.
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -73,6 +74,7 @@ class TokenStore {
 
  private:
   std::unique_ptr<TokenBackend> backend_;
+  std::atomic<bool> any_token_{false};  // AnyToken() was true once
 };
 
 }  // namespace forestmap::storage

@@ -166,6 +166,24 @@ TEST_F(DbFaultsTest, SizeLimitFailsWritesAsFullAndKeepsThePreviousVersion) {
   EXPECT_LE(std::filesystem::file_size(path), 1u << 20);
 }
 
+TEST_F(DbFaultsTest, LockHeldPastTheBusyTimeoutIsUnavailable) {
+  const std::string path = Path("locked.db");
+  SqliteMapStoreOptions options;
+  options.busy_timeout_ms = 100;  // the store's retries end after 100 ms
+  SqliteMapStore store(path, options);
+  store.CreateMap("plot", "", "");
+  sqlite::Database other(path, SQLITE_OPEN_READWRITE, 0);  // another process, holding the lock
+  other.Execute("BEGIN IMMEDIATE");
+  try {
+    store.WriteTrees("plot", Trees(10, 1), WriteMode::kAppend);
+    ADD_FAILURE() << "a write went through a held lock";
+  } catch (const StorageError& e) {
+    EXPECT_EQ(e.code(), StorageError::Code::kUnavailable) << e.what();
+  }
+  other.Execute("ROLLBACK");
+  EXPECT_EQ(store.WriteTrees("plot", Trees(10, 1), WriteMode::kAppend).tree_count, 10);
+}
+
 TEST_F(DbFaultsTest, NegativeSizeLimitIsRefused) {
   SqliteMapStoreOptions options;
   options.max_db_mib = -1;
