@@ -7,6 +7,10 @@
 #include <string>
 #include <thread>
 
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
+
 #include "algorithms/core/parallel.h"
 #include "algorithms/relocalization/map_index_internal.h"
 
@@ -14,58 +18,79 @@ namespace forestmap::algorithms {
 
 namespace {
 
-double MedianNearestNeighbourDistance(const KdTree<float, 2>& kd) {
-  if (kd.size() < 2) return 1.0;
-  std::vector<double> d;
-  const size_t step = std::max<size_t>(1, kd.size() / 5000);
-  for (size_t i = 0; i < kd.size(); i += step) {
-    auto nn = kd.Knn(kd.point(i), 2);
-    if (nn.size() == 2) d.push_back(std::sqrt(nn[1].second));
-  }
-  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
-  return std::max(0.3, d[d.size() / 2]);
-}
-
-// Triangles anchored at a sample of trees, per tree, for a given maximum side.
+// Triangles per tree at these levels, from a sample of anchors (each triangle is counted at
+// its smallest index, so the sample's mean scales to the whole map).
 double TrianglesPerTree(const KdTree<float, 2>& kd, const std::vector<Eigen::Vector2d>& local,
-                        const TriangleOptions& options) {
+                        const std::vector<uint8_t>& level, const TriangleLevels& levels) {
   const size_t step = std::max<size_t>(1, kd.size() / 2000);
-  std::vector<std::vector<uint32_t>> neighbours(kd.size());
-  std::vector<std::pair<uint32_t, float>> found;
-  size_t anchors = 0;
+  size_t triangles = 0, anchors = 0;
   for (size_t i = 0; i < kd.size(); i += step, ++anchors) {
-    kd.Radius(kd.point(i), static_cast<float>(options.max_side), found);
-    for (auto& [j, d2] : found) neighbours[i].push_back(j);
-  }
-  // Each triangle is counted at its smallest index only: scale the sample to all anchors.
-  size_t triangles = 0;
-  for (size_t i = 0; i < kd.size(); i += step) {
-    triangles += EnumerateTriangles(local, neighbours, options, i, i + 1).size();
+    for (const auto& part : EnumerateLevelled(kd, local, level, levels, i, i + 1)) {
+      triangles += part.size();
+    }
   }
   return anchors ? static_cast<double>(triangles) / anchors : 0.0;
 }
 
-// Side length: what the map's density suggests, at least what a sparse query needs, and small
-// enough for the index budget (triangle count grows as side^4).
-double ChooseTriangleSide(const KdTree<float, 2>& kd, const std::vector<Eigen::Vector2d>& local,
-                          const MapIndexOptions& options) {
-  TriangleOptions tri;
-  tri.max_side = std::max(
-      options.min_triangle_side,
-      TriangleSideForDensity(MedianNearestNeighbourDistance(kd), options.target_neighbours));
-  const double budget = kd.size() > options.large_map_trees ? options.max_triangles_per_tree
-                                                            : options.small_map_triangles_per_tree;
+// The levels and every tree's level. A tree's side is what its local spacing suggests for
+// target_neighbours (Poisson: pi density d_k^2 ~ k - 1/2), at least what a sparse query needs,
+// lowered where its cell's trees would exceed the per-tree triangle budget (their count grows as
+// side^4); small maps grow every side until the index holds min_index_triangles.
+TriangleLevels ChooseLevels(const KdTree<float, 2>& kd, const std::vector<Eigen::Vector2d>& local,
+                            const SpacingCells& cells, const MapIndexOptions& options,
+                            std::vector<uint8_t>* level) {
+  TriangleLevels levels;
+  // Levels through min_triangle_side, down to 1 m (maps in odd units can be very dense).
+  levels.floor_side = options.min_triangle_side;
+  levels.ratio = options.level_ratio;
+  levels.base_side = std::max(levels.min_side + 0.5, options.min_triangle_side);
+  while (levels.base_side / levels.ratio >= levels.min_side + 0.5) levels.base_side /= levels.ratio;
+  levels.max_side = options.max_triangle_side;
+  levels.scale = std::sqrt(options.target_neighbours / (kSpacingNeighbour - 0.5));
+  const bool large = kd.size() > options.large_map_trees;
+  const double budget =
+      large ? options.max_triangles_per_tree : options.small_map_triangles_per_tree;
   const double wanted =
-      std::min(budget, options.min_index_triangles / std::max<size_t>(1, kd.size()));
-  for (int i = 0; i < 4; ++i) {
-    const double per_tree = std::max(0.1, TrianglesPerTree(kd, local, tri));
-    double target = per_tree > budget ? budget : (per_tree < 0.8 * wanted ? wanted : per_tree);
-    if (target == per_tree) break;
-    tri.max_side =
-        std::min(options.max_triangle_side, tri.max_side * std::pow(target / per_tree, 0.25));
+      large ? 0.0 : std::min(budget, options.min_index_triangles / std::max<size_t>(1, kd.size()));
+  constexpr int kIterations = 6;
+  constexpr double kMaxScale = 100;  // every tree at the top level long before
+  for (int i = 0; i < kIterations; ++i) {
+    *level = cells.Levels(kd, levels, budget);
+    const double per_tree = std::max(0.1, TrianglesPerTree(kd, local, *level, levels));
+    if (per_tree >= 0.8 * wanted || levels.scale > kMaxScale) break;
+    levels.scale *= std::pow(wanted / per_tree, 0.25);
   }
-  // Keep room above the shortest side allowed (maps in odd units can be very dense).
-  return std::clamp(tri.max_side, tri.min_side + 0.5, options.max_triangle_side);
+  return levels;
+}
+
+// The levels' triangles, enumerated in parallel over chunks of anchor trees (small maps on the
+// calling thread), one table per level.
+void BuildTriangles(const std::vector<Eigen::Vector2d>& local, const MapIndexOptions& options,
+                    MapIndexImpl& m) {
+  const size_t n = local.size();
+  const int chunks = n < 20000 ? 1 : ThreadCount(options.threads);
+  std::vector<uint8_t> level;
+  m.levels =
+      ChooseLevels(*m.positions, local, SpacingCells(*m.positions, options.spacing_cell, chunks),
+                   options, &level);
+  std::vector<std::vector<std::vector<Triangle>>> parts(chunks);
+  ParallelFor(n, chunks, [&](int chunk, size_t begin, size_t end) {
+    parts[chunk] = EnumerateLevelled(*m.positions, local, level, m.levels, begin, end);
+  });
+  m.tables.resize(m.levels.count());
+  std::vector<Triangle> all;
+  for (int l = 0; l < m.levels.count(); ++l) {
+    size_t total = 0;
+    for (const auto& part : parts) total += part[l].size();
+    if (total == 0) continue;
+    all.clear();
+    all.reserve(total);
+    for (auto& part : parts) {
+      all.insert(all.end(), part[l].begin(), part[l].end());
+      part[l] = {};
+    }
+    m.tables[l] = std::make_unique<TriangleTable>(all, local, m.levels.Side(l));
+  }
 }
 
 // Every coordinate finite and within kMaxIndexCoordinate (a z may be unknown, NaN): the float
@@ -90,8 +115,12 @@ void MapIndexOptions::Check() const {
   if (!(target_neighbours >= 2 && target_neighbours <= 50)) {
     throw std::invalid_argument("MapIndexOptions: target_neighbours must be in [2, 50]");
   }
-  if (!(max_triangle_side > min_triangle_side + 0.5 && max_triangle_side < 60)) {
-    throw std::invalid_argument("MapIndexOptions: max_triangle_side must be in (min + 0.5, 60) m");
+  if (!(max_triangle_side > min_triangle_side + 0.5 && max_triangle_side <= kMaxTableSide)) {
+    throw std::invalid_argument("MapIndexOptions: max_triangle_side must be in (min + 0.5, 32] m");
+  }
+  if (!(level_ratio >= 1.1 && level_ratio <= 4 && spacing_cell > 0)) {
+    throw std::invalid_argument(
+        "MapIndexOptions: level_ratio must be in [1.1, 4] and spacing_cell > 0");
   }
   if (!(min_triangle_side >= 0 && max_triangles_per_tree > 0 && small_map_triangles_per_tree > 0 &&
         min_index_triangles >= 0)) {
@@ -127,36 +156,15 @@ MapIndex::MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options)
     xy[i] = {static_cast<float>(local[i].x()), static_cast<float>(local[i].y())};
   }
   m.positions = std::make_unique<KdTree<float, 2>>(std::move(xy));
-  m.triangle_options.max_side = ChooseTriangleSide(*m.positions, local, options);
-
-  // Triangles, enumerated in parallel over chunks of anchor trees.
-  // Small maps are built on the calling thread.
-  const int chunks = n < 20000 ? 1 : ThreadCount(options.threads);
-  std::vector<std::vector<Triangle>> parts(chunks);
-  std::vector<std::vector<uint32_t>> neighbours(n);
-  ParallelFor(n, chunks, [&](int, size_t begin, size_t end) {
-    std::vector<std::pair<uint32_t, float>> found;
-    for (size_t i = begin; i < end; ++i) {
-      m.positions->Radius(m.positions->point(i), m.triangle_options.max_side, found);
-      for (auto& [j, d2] : found) neighbours[i].push_back(j);
-    }
-  });
-  ParallelFor(n, chunks, [&](int chunk, size_t begin, size_t end) {
-    parts[chunk] = EnumerateTriangles(local, neighbours, m.triangle_options, begin, end);
-  });
-  neighbours = {};
-  std::vector<Triangle> all;
-  size_t total = 0;
-  for (const auto& part : parts) total += part.size();
-  all.reserve(total);
-  for (auto& part : parts) {
-    all.insert(all.end(), part.begin(), part.end());
-    part = {};
-  }
-  m.triangles = std::make_unique<TriangleTable>(all, local, m.triangle_options.max_side);
-  all = {};
+  BuildTriangles(local, options, m);
   m.occupancy = std::make_unique<OccupancyGrid>(local, options.occupancy_radius,
                                                 options.occupancy_resolution);
+  std::vector<Eigen::Vector2d>().swap(local);
+#ifdef __GLIBC__
+  // The build's buffers (triangles before they are tabled: 28 bytes each) are freed by now;
+  // give their pages back rather than keep them in the heap.
+  malloc_trim(0);
+#endif
 }
 
 MapIndex::~MapIndex() = default;
@@ -164,12 +172,34 @@ size_t MapIndex::size() const { return impl_->trees.size(); }
 const std::vector<MapTree>& MapIndex::trees() const { return impl_->trees; }
 bool MapIndex::has_z() const { return impl_->has_z; }
 bool MapIndex::has_dbh() const { return impl_->has_dbh; }
-double MapIndex::triangle_side() const { return impl_->triangle_options.max_side; }
-size_t MapIndex::triangle_count() const { return impl_->triangles->size(); }
+double MapIndex::triangle_side() const {
+  double side = 0;
+  for (const auto& [level_side, count] : triangle_levels()) {
+    if (count > 0) side = level_side;
+  }
+  return side;
+}
+size_t MapIndex::triangle_count() const {
+  size_t count = 0;
+  for (const auto& table : impl_->tables) count += table ? table->size() : 0;
+  return count;
+}
+std::vector<std::pair<double, size_t>> MapIndex::triangle_levels() const {
+  std::vector<std::pair<double, size_t>> out;
+  for (size_t l = 0; l < impl_->tables.size(); ++l) {
+    out.push_back(
+        {impl_->levels.Side(static_cast<int>(l)), impl_->tables[l] ? impl_->tables[l]->size() : 0});
+  }
+  return out;
+}
 size_t MapIndex::MemoryBytes() const {
   const MapIndexImpl& m = *impl_;
   return sizeof(MapIndexImpl) + m.trees.capacity() * sizeof(MapTree) + m.positions->MemoryBytes() +
-         m.triangles->MemoryBytes() + m.occupancy->MemoryBytes();
+         m.occupancy->MemoryBytes() + [&] {
+           size_t bytes = 0;
+           for (const auto& table : m.tables) bytes += table ? table->MemoryBytes() : 0;
+           return bytes;
+         }();
 }
 
 }  // namespace forestmap::algorithms

@@ -1,6 +1,7 @@
 #pragma once
 // The immutable per-map search structure of the relocalizer.
 
+#include <cmath>
 #include <memory>
 #include <vector>
 
@@ -9,21 +10,24 @@
 namespace forestmap::algorithms {
 
 struct MapIndexOptions {
-  // Triangle keys use sides up to the length at which a tree has this many neighbours on
-  // average (from the map's nearest-neighbour statistics); more = more robust, bigger index.
-  double target_neighbours = 6.0;
+  // Triangle keys (triangle_levels.h): a tree's triangles use sides up to the length at which
+  // it has this many neighbours (from its local spacing), on levels of sides growing by
+  // level_ratio; more = more robust, bigger index.
+  double target_neighbours = 10.0;
+  double level_ratio = M_SQRT2;
+  double spacing_cell = 25.0;  // m, local spacing is the median over cells this wide
   // A drone sees fewer trees than a dense map holds (occlusion, misses): its triangles need at
-  // least this side length to exist at all. Bounded by the triangle budget below.
+  // least this side length to exist at all (the lowest level). Bounded by the budget below.
   double min_triangle_side = 3.5;  // m
-  // Index size bound (20 bytes a triangle): tight for huge maps, generous for small ones.
+  // Index size bound (16 bytes a triangle): tight for huge maps, generous for small ones.
   double max_triangles_per_tree = 12.0;          // maps of more than large_map_trees trees
   double small_map_triangles_per_tree = 1000.0;  // smaller maps
   size_t large_map_trees = 200000;
-  // Small or sparse maps: grow the side until the index holds this many triangles (3 MB), so
+  // Small or sparse maps: grow the sides until the index holds this many triangles (2.4 MB), so
   // that the few trees a sensor sees in a sparse forest, tens of metres apart, still form
   // indexed triangles; the search stays cheap on a small index.
   double min_index_triangles = 150000;
-  double max_triangle_side = 30.0;  // m
+  double max_triangle_side = 30.0;  // m, at most 32 (the table's key range)
   // The occupancy grid that rejects wrong poses quickly: cells within this radius of a tree
   // (about the relocalizer's inlier distance), at this resolution.
   double occupancy_radius = 0.4;      // m
@@ -53,8 +57,10 @@ class MapIndex {
   bool has_z() const;            // every tree has a z
   bool has_dbh() const;          // most trees have a DBH
   size_t MemoryBytes() const;    // approximate resident size of the index
-  double triangle_side() const;  // m, longest triangle side indexed
+  double triangle_side() const;  // m, longest triangle side indexed (in the sparsest level)
   size_t triangle_count() const;
+  // Triangles of each level (triangle_levels.h) and their longest side (m).
+  std::vector<std::pair<double, size_t>> triangle_levels() const;
   const MapIndexImpl& impl() const { return *impl_; }
 
  private:

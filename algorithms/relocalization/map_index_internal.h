@@ -8,6 +8,7 @@
 #include "algorithms/core/kdtree.h"
 #include "algorithms/relocalization/map_index.h"
 #include "algorithms/relocalization/occupancy_grid.h"
+#include "algorithms/relocalization/triangle_levels.h"
 #include "algorithms/relocalization/triangle_table.h"
 
 namespace forestmap::algorithms {
@@ -17,9 +18,11 @@ class MapIndexImpl {
   std::vector<MapTree> trees;
   Eigen::Vector2d origin = Eigen::Vector2d::Zero();  // map frame; kd coordinates are relative
   std::unique_ptr<KdTree<float, 2>> positions;       // tree i at positions->point(i) + origin
-  std::unique_ptr<TriangleTable> triangles;          // constellation keys (kd coordinates)
-  std::unique_ptr<OccupancyGrid> occupancy;          // kd coordinates: near a tree?
-  TriangleOptions triangle_options;
+  // Constellation keys (kd coordinates), one table per level (triangle_levels.h); null when a
+  // level has no triangles.
+  std::vector<std::unique_ptr<TriangleTable>> tables;
+  std::unique_ptr<OccupancyGrid> occupancy;  // kd coordinates: near a tree?
+  TriangleLevels levels;
   bool has_z = false;
   bool has_dbh = false;
 

@@ -9,13 +9,44 @@
 namespace forestmap::algorithms {
 namespace {
 
-// Query triangles among the seeds (the nearest query trees), with the index's side limits
-// widened by the matching tolerance, nearest first (by their farthest vertex).
-std::vector<Triangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy,
-                                     const MapIndexImpl& m, double tolerance) {
-  TriangleOptions tri = m.triangle_options;
+// A query triangle and the level whose table it is looked up in.
+struct QueryTriangle {
+  Triangle triangle;
+  int level = 0;
+};
+
+// The levels a query's triangles are looked up at, most likely first: of the map's levels
+// that hold triangles, the kQueryLevels nearest to the one the query's own spacing suggests,
+// counting from kQueryLevelBias levels below it (a drone misses trees and sees its spacing
+// wider than the map's; budget-capped dense cells sit lower still).
+std::vector<int> QueryLevels(const std::vector<Eigen::Vector2d>& seed_xy, const MapIndexImpl& m) {
+  constexpr size_t kSpacingTrees = 12;  // nearest query trees whose spacing is measured
+  constexpr size_t kQueryLevels = 4;
+  constexpr double kQueryLevelBias = 1.4;
+  const double own = m.levels.LevelFor(QuerySpacing(seed_xy, kSpacingTrees)) - kQueryLevelBias;
+  std::vector<std::pair<double, int>> by_distance;
+  for (int level = 0; level < static_cast<int>(m.tables.size()); ++level) {
+    if (m.tables[level]) by_distance.push_back({std::abs(level - own), level});
+  }
+  std::sort(by_distance.begin(), by_distance.end());
+  std::vector<int> out;
+  for (size_t i = 0; i < std::min(kQueryLevels, by_distance.size()); ++i) {
+    out.push_back(by_distance[i].second);
+  }
+  return out;
+}
+
+// Query triangles among the seeds (the nearest query trees), at each of `levels` whose side
+// limits (widened by the matching tolerance) they fit, nearest first (by their farthest
+// vertex), then in the order of `levels`.
+std::vector<QueryTriangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy,
+                                          const MapIndexImpl& m, const std::vector<int>& levels,
+                                          double tolerance) {
+  if (levels.empty()) return {};
+  TriangleOptions tri;
+  for (int level : levels) tri.max_side = std::max(tri.max_side, m.levels.Side(level));
   tri.max_side += tolerance;
-  tri.min_side = std::max(0.0, tri.min_side - tolerance);
+  tri.min_side = std::max(0.0, m.levels.min_side - tolerance);
   std::vector<std::vector<uint32_t>> neighbours(seed_xy.size());
   for (uint32_t i = 0; i < seed_xy.size(); ++i) {
     for (uint32_t j = 0; j < seed_xy.size(); ++j) {
@@ -29,7 +60,13 @@ std::vector<Triangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy
   };
   std::stable_sort(triangles.begin(), triangles.end(),
                    [&](const Triangle& a, const Triangle& b) { return farthest(a) < farthest(b); });
-  return triangles;
+  std::vector<QueryTriangle> out;
+  for (const Triangle& t : triangles) {
+    for (int level : levels) {
+      if (t.sides[2] <= m.levels.Side(level) + tolerance) out.push_back({t, level});
+    }
+  }
+  return out;
 }
 
 // Wald's sequential probability ratio test on query trees: does a pose put them on map trees
@@ -55,6 +92,8 @@ class QuickCheck {
   // The query trees checked for poses from triangle `t`: the nearest query trees, nearest to
   // the triangle first (a triangle's pose is most accurate around it), without its vertices.
   void SetTriangle(const Triangle& t) {
+    if (t.vertex == vertex_) return;  // the same triangle at another level
+    vertex_ = t.vertex;
     const uint32_t n = static_cast<uint32_t>(std::min<size_t>(q_.xy.size(), kMaxChecks));
     const Eigen::Vector2d centroid =
         (q_.xy[t.vertex[0]] + q_.xy[t.vertex[1]] + q_.xy[t.vertex[2]]) / 3;
@@ -102,7 +141,8 @@ class QuickCheck {
   const MapIndexImpl& m_;
   const LevelledQuery& q_;
   const size_t quick_score_trees_;
-  std::vector<std::pair<float, uint32_t>> by_distance_;  // the check order
+  std::vector<std::pair<float, uint32_t>> by_distance_;                    // the check order
+  std::array<uint32_t, 3> vertex_ = {UINT32_MAX, UINT32_MAX, UINT32_MAX};  // ... for this triangle
   static constexpr int kLevels = 64;
   static constexpr double kMinP0 = 0.005;
   double max_p0_ = 0.375;
@@ -248,10 +288,10 @@ class Searcher {
         strong_(std::max(2 * options.min_inliers,
                          static_cast<int>(options.decisive_fraction * RatioTrees(q, options)))),
         polish_hits_(std::max(3, static_cast<int>(kPolishShare * decisive_))) {
-    triangles_ = QueryTriangles(seed_xy_, m, options.triangle_tolerance);
-    if (triangles_.size() > static_cast<size_t>(options.max_query_triangles)) {
-      triangles_.resize(options.max_query_triangles);
-    }
+    const std::vector<int> levels = QueryLevels(seed_xy_, m);
+    triangles_ = QueryTriangles(seed_xy_, m, levels, options.triangle_tolerance);
+    const size_t cap = options.max_query_triangles * std::max<size_t>(1, levels.size());
+    if (triangles_.size() > cap) triangles_.resize(cap);
   }
 
   // Looks up at most `max_triangles` query triangles at `tolerance` (m), taking in turn the
@@ -261,7 +301,8 @@ class Searcher {
   bool Pass(float tolerance, size_t max_triangles) {
     std::vector<std::pair<size_t, size_t>> by_cost(triangles_.size());
     for (size_t i = 0; i < triangles_.size(); ++i) {
-      by_cost[i] = {m_.triangles->CandidateCount(triangles_[i].sides, tolerance), i};
+      const QueryTriangle& t = triangles_[i];
+      by_cost[i] = {m_.tables[t.level]->CandidateCount(t.triangle.sides, tolerance), i};
     }
     std::sort(by_cost.begin(), by_cost.end());
     std::vector<bool> taken(triangles_.size(), false);
@@ -317,7 +358,8 @@ class Searcher {
  private:
   // Every map triangle matching `qt` within `tolerance` implies a pose; those that pass the
   // quick check and were not found before become hypotheses.
-  void Lookup(const Triangle& qt, float tolerance) {
+  void Lookup(const QueryTriangle& unit, float tolerance) {
+    const Triangle& qt = unit.triangle;
     ++result_.triangles;
     const uint32_t a = qt.vertex[0], b = qt.vertex[1], c = qt.vertex[2];
     // The canonical labels come from sorted side lengths; where two sides are within the
@@ -332,7 +374,7 @@ class Searcher {
     }
     const double prior_radius2 = prior_ ? prior_->radius * prior_->radius : 0.0;
     check_.SetTriangle(qt);
-    m_.triangles->ForEachMatch(qt.sides, tolerance, [&](const IndexedTriangle& t) {
+    m_.tables[unit.level]->ForEachMatch(qt.sides, tolerance, [&](const IndexedTriangle& t) {
       const TriangleFrame mt = t.frame();
       for (int l = 0; l < labellings; ++l) {
         const TriangleFrame& qf = frames[l];
@@ -393,7 +435,7 @@ class Searcher {
   const int polish_hits_;
   int64_t polished_ = 0;  // hypotheses polished and scored
   bool over_budget_ = false;
-  std::vector<Triangle> triangles_;
+  std::vector<QueryTriangle> triangles_;
   double best_score_ = 0;
   std::unordered_set<uint64_t> found_cells_;
   PoseSearchResult result_;

@@ -1,9 +1,23 @@
 #include "algorithms/relocalization/triangle_table.h"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace forestmap::algorithms {
+
+HeadingTable::HeadingTable() {
+  for (int i = 0; i < 1024; ++i) {
+    const double a = 2 * M_PI * i / 1024.0;
+    cos_sin[i][0] = static_cast<float>(std::cos(a));
+    cos_sin[i][1] = static_cast<float>(std::sin(a));
+  }
+}
+
+const HeadingTable& Headings() {
+  static const HeadingTable table;
+  return table;
+}
 
 TriangleFrame FrameOf(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
                       const Eigen::Vector2d& c) {
@@ -24,8 +38,8 @@ TriangleFrame FrameOf(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
 
 TriangleTable::TriangleTable(const std::vector<Triangle>& triangles,
                              const std::vector<Eigen::Vector2d>& points, double max_side) {
-  if (!(max_side > 0 && max_side < 60)) {
-    throw std::invalid_argument("TriangleTable: max_side must be in (0, 60) m");
+  if (!(max_side > 0 && max_side <= kMaxTableSide)) {
+    throw std::invalid_argument("TriangleTable: max_side must be in (0, 32] m");
   }
   // About one triangle a cell (sorted keys fill a sixth of the cube), at most 64^3 cells.
   cells_ = std::clamp(static_cast<int>(std::cbrt(6.0 * triangles.size())), 8, 64);
@@ -47,12 +61,15 @@ TriangleTable::TriangleTable(const std::vector<Triangle>& triangles,
         FrameOf(points[t.vertex[0]], points[t.vertex[1]], points[t.vertex[2]]);
     out.cx = frame.cx;
     out.cy = frame.cy;
-    out.cos_heading = static_cast<int16_t>(std::lround(frame.cos_heading * 32767.f));
-    out.sin_heading = static_cast<int16_t>(std::lround(frame.sin_heading * 32767.f));
-    out.turn = static_cast<int8_t>(frame.turn);
+    const double turns = std::atan2(frame.sin_heading, frame.cos_heading) / (2 * M_PI);
+    out.heading =
+        static_cast<uint16_t>(std::lround((turns < 0 ? turns + 1 : turns) * 65536) & 0xFFFF);
     for (int d = 0; d < 3; ++d) {
-      out.side_mm[d] = static_cast<uint16_t>(std::lround(std::min(t.sides[d], 65.f) * 1000.f));
+      const double side = std::min<double>(t.sides[d], kMaxTableSide);
+      out.side_key[d] = static_cast<uint16_t>(std::lround(side * 1000.0));
     }
+    if (frame.turn != 0) out.side_key[0] |= 0x8000;
+    if (frame.turn > 0) out.side_key[1] |= 0x8000;
   }
 }
 

@@ -1,7 +1,7 @@
 #pragma once
 // The map's triangles, bucketed by their sorted side lengths (a dense grid over key space in
 // compressed-row form), so that every map triangle whose sides each lie within a tolerance of a
-// query triangle's is found by scanning a few contiguous runs of memory. 20 bytes a triangle.
+// query triangle's is found by scanning a few contiguous runs of memory. 16 bytes a triangle.
 
 #include <Eigen/Core>
 #include <algorithm>
@@ -24,22 +24,46 @@ struct TriangleFrame {
 
 TriangleFrame FrameOf(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c);
 
-// 20 bytes: the centroid, the heading as a unit vector in 1/32767ths, the orientation and the
-// sorted side lengths in millimetres.
-struct IndexedTriangle {
-  float cx = 0, cy = 0;
-  int16_t cos_heading = 0, sin_heading = 0;
-  std::array<uint16_t, 3> side_mm = {};
-  int8_t turn = 0;
+// Longest side a table key can hold (15 bits of millimetres; the top bits carry the turn).
+inline constexpr double kMaxTableSide = 32.0;  // m
 
-  TriangleFrame frame() const {
-    return {cx, cy, cos_heading / 32767.f, sin_heading / 32767.f, turn};
+// cos and sin of a heading stored as a 16-bit fraction of a turn: a 1,024-entry table and a
+// first-order step for the remaining 64ths of an entry (error under 2e-5).
+struct HeadingTable {
+  float cos_sin[1024][2];
+  HeadingTable();
+  void CosSin(uint16_t heading, float* c, float* s) const {
+    const float* e = cos_sin[heading >> 6];
+    const float delta = static_cast<float>(heading & 63) * static_cast<float>(2 * M_PI / 65536);
+    *c = e[0] - delta * e[1];
+    *s = e[1] + delta * e[0];
   }
 };
+const HeadingTable& Headings();
+
+// 16 bytes: the centroid, the heading as a 16-bit fraction of a turn, and the sorted side
+// lengths in millimetres (15 bits each; the top bits of the first two hold the orientation).
+struct IndexedTriangle {
+  float cx = 0, cy = 0;
+  std::array<uint16_t, 3> side_key = {};
+  uint16_t heading = 0;
+
+  int side_mm(int d) const { return side_key[d] & 0x7FFF; }
+  int turn() const {
+    return (side_key[0] & 0x8000) == 0 ? 0 : ((side_key[1] & 0x8000) != 0 ? 1 : -1);
+  }
+  TriangleFrame frame() const {
+    TriangleFrame f{cx, cy, 1, 0, turn()};
+    Headings().CosSin(heading, &f.cos_heading, &f.sin_heading);
+    return f;
+  }
+};
+static_assert(sizeof(IndexedTriangle) == 16);
 
 class TriangleTable {
  public:
-  // `triangles` index `points` (kd coordinates); sides must not exceed `max_side` (m).
+  // `triangles` index `points` (kd coordinates); sides must not exceed `max_side` (m, at most
+  // kMaxTableSide).
   TriangleTable(const std::vector<Triangle>& triangles, const std::vector<Eigen::Vector2d>& points,
                 double max_side);
 
@@ -57,9 +81,9 @@ class TriangleTable {
     ForEachRun(sides, tolerance, [&](size_t first, size_t last) {
       for (size_t t = first; t < last; ++t) {
         const IndexedTriangle& tri = triangles_[t];
-        if (std::abs(tri.side_mm[0] - q[0]) <= tol_mm &&
-            std::abs(tri.side_mm[1] - q[1]) <= tol_mm &&
-            std::abs(tri.side_mm[2] - q[2]) <= tol_mm) {
+        if (std::abs(tri.side_mm(0) - q[0]) <= tol_mm &&
+            std::abs(tri.side_mm(1) - q[1]) <= tol_mm &&
+            std::abs(tri.side_mm(2) - q[2]) <= tol_mm) {
           fn(tri);
         }
       }
