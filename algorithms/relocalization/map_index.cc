@@ -78,6 +78,10 @@ void BuildTriangles(const std::vector<Eigen::Vector2d>& local, const MapIndexOpt
     parts[chunk] = EnumerateLevelled(*m.positions, local, level, m.levels, begin, end);
   });
   m.tables.resize(m.levels.count());
+  m.band_share.assign(m.levels.count(), 0.0);
+  for (uint8_t l : level) {
+    for (int b = 0; b <= l; ++b) m.band_share[b] += 1.0 / static_cast<double>(n);
+  }
   std::vector<Triangle> all;
   for (int l = 0; l < m.levels.count(); ++l) {
     size_t total = 0;

@@ -20,7 +20,7 @@ struct MapIndexOptions {
   // least this side length to exist at all (the lowest level). Bounded by the budget below.
   double min_triangle_side = 3.5;  // m
   // Index size bound (16 bytes a triangle): tight for huge maps, generous for small ones.
-  double max_triangles_per_tree = 12.0;          // maps of more than large_map_trees trees
+  double max_triangles_per_tree = 8.0;           // maps of more than large_map_trees trees
   double small_map_triangles_per_tree = 1000.0;  // smaller maps
   size_t large_map_trees = 200000;
   // Small or sparse maps: grow the sides until the index holds this many triangles (2.4 MB), so

@@ -23,6 +23,9 @@ class MapIndexImpl {
   std::vector<std::unique_ptr<TriangleTable>> tables;
   std::unique_ptr<OccupancyGrid> occupancy;  // kd coordinates: near a tree?
   TriangleLevels levels;
+  // Share of the trees whose level is at least b, by band b: the chance that a query triangle
+  // of that band lies where the map indexes triangles that long.
+  std::vector<double> band_share;
   bool has_z = false;
   bool has_dbh = false;
 

@@ -9,43 +9,37 @@
 namespace forestmap::algorithms {
 namespace {
 
-// A query triangle and the level whose table it is looked up in.
+// A query triangle and the band (triangle_levels.h) whose table it is looked up in.
 struct QueryTriangle {
   Triangle triangle;
   int level = 0;
 };
 
-// The levels a query's triangles are looked up at, most likely first: of the map's levels
-// that hold triangles, the kQueryLevels nearest to the one the query's own spacing suggests,
-// counting from kQueryLevelBias levels below it (a drone misses trees and sees its spacing
-// wider than the map's; budget-capped dense cells sit lower still).
-std::vector<int> QueryLevels(const std::vector<Eigen::Vector2d>& seed_xy, const MapIndexImpl& m) {
+// The longest side a query's triangles may have: that of the level its own spacing suggests (a
+// drone misses trees, so it sees a wider spacing than the map's and errs on the long side),
+// within the levels the map holds triangles of.
+double QuerySide(const std::vector<Eigen::Vector2d>& seed_xy, const MapIndexImpl& m) {
   constexpr size_t kSpacingTrees = 12;  // nearest query trees whose spacing is measured
-  constexpr size_t kQueryLevels = 4;
-  constexpr double kQueryLevelBias = 1.4;
-  const double own = m.levels.LevelFor(QuerySpacing(seed_xy, kSpacingTrees)) - kQueryLevelBias;
-  std::vector<std::pair<double, int>> by_distance;
+  int lowest = -1, highest = -1;
   for (int level = 0; level < static_cast<int>(m.tables.size()); ++level) {
-    if (m.tables[level]) by_distance.push_back({std::abs(level - own), level});
+    if (!m.tables[level]) continue;
+    if (lowest < 0) lowest = level;
+    highest = level;
   }
-  std::sort(by_distance.begin(), by_distance.end());
-  std::vector<int> out;
-  for (size_t i = 0; i < std::min(kQueryLevels, by_distance.size()); ++i) {
-    out.push_back(by_distance[i].second);
-  }
-  return out;
+  if (lowest < 0) return 0.0;
+  const int own = m.levels.LevelFor(QuerySpacing(seed_xy, kSpacingTrees));
+  return m.levels.Side(std::clamp(own - 1, lowest, highest));
 }
 
-// Query triangles among the seeds (the nearest query trees), at each of `levels` whose side
-// limits (widened by the matching tolerance) they fit, nearest first (by their farthest
-// vertex), then in the order of `levels`.
+// Query triangles among the seeds (the nearest query trees) with sides up to `max_side` (m),
+// widened by the matching tolerance, nearest first (by their farthest vertex); each with the
+// bands its longest side may fall in on the map.
 std::vector<QueryTriangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy,
-                                          const MapIndexImpl& m, const std::vector<int>& levels,
+                                          const MapIndexImpl& m, double max_side,
                                           double tolerance) {
-  if (levels.empty()) return {};
+  if (!(max_side > 0)) return {};
   TriangleOptions tri;
-  for (int level : levels) tri.max_side = std::max(tri.max_side, m.levels.Side(level));
-  tri.max_side += tolerance;
+  tri.max_side = max_side + tolerance;
   tri.min_side = std::max(0.0, m.levels.min_side - tolerance);
   std::vector<std::vector<uint32_t>> neighbours(seed_xy.size());
   for (uint32_t i = 0; i < seed_xy.size(); ++i) {
@@ -61,9 +55,14 @@ std::vector<QueryTriangle> QueryTriangles(const std::vector<Eigen::Vector2d>& se
   std::stable_sort(triangles.begin(), triangles.end(),
                    [&](const Triangle& a, const Triangle& b) { return farthest(a) < farthest(b); });
   std::vector<QueryTriangle> out;
+  const int bands = static_cast<int>(m.tables.size());
   for (const Triangle& t : triangles) {
-    for (int level : levels) {
-      if (t.sides[2] <= m.levels.Side(level) + tolerance) out.push_back({t, level});
+    for (int band = 0; band < bands; ++band) {
+      const double below = band > 0 ? m.levels.Side(band - 1) : 0.0;
+      if (t.sides[2] + tolerance > below && t.sides[2] - tolerance <= m.levels.Side(band) &&
+          m.tables[band]) {
+        out.push_back({t, band});
+      }
     }
   }
   return out;
@@ -288,10 +287,10 @@ class Searcher {
         strong_(std::max(2 * options.min_inliers,
                          static_cast<int>(options.decisive_fraction * RatioTrees(q, options)))),
         polish_hits_(std::max(3, static_cast<int>(kPolishShare * decisive_))) {
-    const std::vector<int> levels = QueryLevels(seed_xy_, m);
-    triangles_ = QueryTriangles(seed_xy_, m, levels, options.triangle_tolerance);
-    const size_t cap = options.max_query_triangles * std::max<size_t>(1, levels.size());
-    if (triangles_.size() > cap) triangles_.resize(cap);
+    triangles_ = QueryTriangles(seed_xy_, m, QuerySide(seed_xy_, m), options.triangle_tolerance);
+    if (triangles_.size() > static_cast<size_t>(options.max_query_triangles)) {
+      triangles_.resize(options.max_query_triangles);
+    }
   }
 
   // Looks up at most `max_triangles` query triangles at `tolerance` (m), taking in turn the
@@ -299,10 +298,13 @@ class Searcher {
   // ones are the most reliable, cheap ones (rare shapes, the fewest map triangles in their key
   // box) cost least. Returns whether a decisive pose was found.
   bool Pass(float tolerance, size_t max_triangles) {
-    std::vector<std::pair<size_t, size_t>> by_cost(triangles_.size());
+    std::vector<std::pair<double, size_t>> by_cost(triangles_.size());
     for (size_t i = 0; i < triangles_.size(); ++i) {
+      // Cost per chance of finding the pose: the triangles scanned, over the share of the map
+      // where a triangle of this band is indexed at all.
       const QueryTriangle& t = triangles_[i];
-      by_cost[i] = {m_.tables[t.level]->CandidateCount(t.triangle.sides, tolerance), i};
+      const double share = std::max(kMinBandShare, m_.band_share[t.level]);
+      by_cost[i] = {m_.tables[t.level]->CandidateCount(t.triangle.sides, tolerance) / share, i};
     }
     std::sort(by_cost.begin(), by_cost.end());
     std::vector<bool> taken(triangles_.size(), false);
@@ -432,6 +434,7 @@ class Searcher {
   // A hypothesis is polished and scored only with this many bitmap hits among the nearest
   // trees: this share of decisive_ (a triangle's pose can be a few degrees off before polish).
   static constexpr double kPolishShare = 0.4;
+  static constexpr double kMinBandShare = 0.01;  // floor of a band's share in the cost order
   const int polish_hits_;
   int64_t polished_ = 0;  // hypotheses polished and scored
   bool over_budget_ = false;

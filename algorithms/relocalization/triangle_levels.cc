@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <unordered_map>
 
 #include "algorithms/core/parallel.h"
 
@@ -86,6 +87,30 @@ SpacingCells::SpacingCells(const KdTree<float, 2>& kd, double cell, int threads)
       spacing_[r] = d[d.size() / 2];
     }
   });
+  Smooth();
+}
+
+void SpacingCells::Smooth() {
+  // Each cell's spacing becomes the median over it and its 8 neighbours: one stand, one level
+  // (a patchwork of levels would keep only the triangles of the lower one across cells).
+  std::unordered_map<uint64_t, float> by_key;
+  for (size_t r = 0; r + 1 < runs_.size(); ++r) by_key[by_cell_[runs_[r]].first] = spacing_[r];
+  std::vector<float> around;
+  for (size_t r = 0; r + 1 < runs_.size(); ++r) {
+    const uint64_t key = by_cell_[runs_[r]].first;
+    const auto cx = static_cast<int32_t>(key >> 32), cy = static_cast<int32_t>(key & 0xFFFFFFFFu);
+    around.clear();
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        const uint64_t k = (static_cast<uint64_t>(static_cast<uint32_t>(cx + dx)) << 32) |
+                           static_cast<uint32_t>(cy + dy);
+        const auto found = by_key.find(k);
+        if (found != by_key.end()) around.push_back(found->second);
+      }
+    }
+    std::nth_element(around.begin(), around.begin() + around.size() / 2, around.end());
+    spacing_[r] = around[around.size() / 2];
+  }
 }
 
 std::vector<uint8_t> SpacingCells::Levels(const KdTree<float, 2>& kd, const TriangleLevels& levels,
@@ -152,8 +177,11 @@ std::vector<std::vector<Triangle>> EnumerateLevelled(const KdTree<float, 2>& kd,
         const auto [k, dik] = higher[b];
         const int l = std::min({level[i], level[j], level[k]});
         const double djk = (points[j] - points[k]).squaredNorm();
-        if (djk < min2 || std::max({dij, dik, djk}) > side2[l]) continue;
-        out[l].push_back(MakeTriangle(points, static_cast<uint32_t>(i), j, k));
+        const double longest2 = std::max({dij, dik, djk});
+        if (djk < min2 || longest2 > side2[l]) continue;
+        int band = 0;
+        while (longest2 > side2[band]) ++band;
+        out[band].push_back(MakeTriangle(points, static_cast<uint32_t>(i), j, k));
       }
     }
   }

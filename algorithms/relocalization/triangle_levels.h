@@ -4,9 +4,9 @@
 // or floods the search with the dense ones'. Every map tree gets a level from its local spacing
 // (the distance to its kSpacingNeighbour-th nearest tree, median over a square cell); the sides
 // of the levels grow geometrically; a triangle belongs to the lowest level of its three trees
-// and is indexed, in that level's own table, when its sides fit that level. A query estimates
-// its own spacing the same way and looks its triangles up at the level that suggests and the
-// levels beside it, so a sparse stand beside a dense one is searched as if it were alone.
+// and is indexed when its sides fit that level, in the table of its size band. A query
+// estimates its own spacing the same way and builds triangles up to the side that suggests, so
+// a sparse stand beside a dense one is indexed and searched as if it were alone.
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -43,6 +43,7 @@ class SpacingCells {
                               double cap) const;
 
  private:
+  void Smooth();
   std::vector<std::pair<uint64_t, uint32_t>> by_cell_;  // (cell key, tree), sorted
   std::vector<size_t> runs_;                            // start of each cell's run, and the end
   std::vector<float> spacing_;                          // m, by cell
@@ -54,8 +55,10 @@ class SpacingCells {
 double QuerySpacing(const std::vector<Eigen::Vector2d>& points, size_t count);
 
 // The triangles anchored at points [begin, end) (each triangle once, from its smallest index),
-// by level: a triangle's level is the lowest of its points' `level`, and it is kept when all its
-// sides lie within [levels.min_side, levels.Side(level)].
+// by band: a triangle is kept when all its sides lie within [levels.min_side,
+// levels.Side(level)], its level being the lowest of its points' `level`; its band is the
+// lowest level whose side its longest side fits (so a query triangle has one band to look in,
+// two near a band's edge, whatever the density where it lies).
 std::vector<std::vector<Triangle>> EnumerateLevelled(const KdTree<float, 2>& kd,
                                                      const std::vector<Eigen::Vector2d>& points,
                                                      const std::vector<uint8_t>& level,
