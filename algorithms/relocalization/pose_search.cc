@@ -351,6 +351,8 @@ class Searcher {
     return over_budget_;
   }
 
+  bool promising() const { return promising_; }
+
   PoseSearchResult Finish() {
     std::sort(result_.hypotheses.begin(), result_.hypotheses.end(),
               [](const Hypothesis& x, const Hypothesis& y) { return x.score > y.score; });
@@ -411,6 +413,7 @@ class Searcher {
       if (check_.Hits(h.pose) < polish_hits_) continue;
       ++polished_;
       Polish(m_, q_, options_, &h);
+      promising_ = promising_ || h.inliers >= decisive_;
       if (decisive || h.inliers < decisive_ || h.score <= best_score_) continue;
       best_score_ = h.score;
       Hypothesis refined = h;
@@ -436,7 +439,8 @@ class Searcher {
   static constexpr double kPolishShare = 0.4;
   static constexpr double kMinBandShare = 0.01;  // floor of a band's share in the cost order
   const int polish_hits_;
-  int64_t polished_ = 0;  // hypotheses polished and scored
+  int64_t polished_ = 0;    // hypotheses polished and scored
+  bool promising_ = false;  // a polished hypothesis explained decisive_ of the nearest trees
   bool over_budget_ = false;
   std::vector<QueryTriangle> triangles_;
   double best_score_ = 0;
@@ -455,8 +459,14 @@ PoseSearchResult SearchPoses(const MapIndexImpl& m, const LevelledQuery& q,
   const bool decided =
       options.first_pass_tolerance > 0 &&
       search.Pass(static_cast<float>(options.first_pass_tolerance), options.first_pass_triangles);
+  // The full tolerance costs 8 times as much a triangle: all of them only when the first pass
+  // saw a promising pose, else only the first few (a true pose found at the first pass's
+  // tolerance needs a median of 10-20 triangles: a query with nothing after 200 is most likely
+  // not in the map; its answer comes in about the time of a found one).
   if (!decided && !search.OverBudget()) {
-    search.Pass(static_cast<float>(options.triangle_tolerance), SIZE_MAX);
+    const bool all = search.promising() || options.first_pass_tolerance == 0;
+    search.Pass(static_cast<float>(options.triangle_tolerance),
+                all ? SIZE_MAX : static_cast<size_t>(options.unpromising_triangles));
   }
   return search.Finish();
 }

@@ -256,7 +256,7 @@ void RelocalizerOptions::Check() const {
   require(refine_hypotheses >= 1 && quick_score_trees >= 3,
           "refine_hypotheses must be >= 1 and quick_score_trees >= 3");
   require(first_pass_tolerance >= 0 && first_pass_tolerance <= triangle_tolerance &&
-              first_pass_triangles >= 0,
+              first_pass_triangles >= 0 && unpromising_triangles >= 0,
           "first pass: need 0 <= first_pass_tolerance <= triangle_tolerance, triangles >= 0");
   require(max_query_triangles >= 1 && rival_triangles >= 0,
           "max_query_triangles must be >= 1 and rival_triangles >= 0");

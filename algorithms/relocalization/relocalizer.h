@@ -47,6 +47,9 @@ struct RelocalizerOptions {
   // the matches per triangle, and enough for most queries.
   double first_pass_tolerance = 0.10;  // m
   int first_pass_triangles = 200;
+  // The full tolerance's pass looks up at most this many triangles when the first pass found no
+  // pose explaining decisive_fraction of the nearest trees (fast proof of absence).
+  int unpromising_triangles = 100;
   // Quick check of each triangle match's pose (a sequential test on the nearest query trees):
   // share of them a true pose puts on map trees, and the accepted error rates.
   double quick_check_true_rate = 0.75;
