@@ -112,7 +112,8 @@ PoseBelief Assess(const MapIndexImpl& m, const LevelledQuery& q, const Hypothesi
   const double regularity =
       random_near > 0 ? belief.decoys.pattern_rate * nearest / random_near : 1.0;
   const double random_chance = ChanceInliers(m, q, pose.pose);
-  belief.chance = regularity > kRegularFactor ? regularity * random_chance : random_chance;
+  belief.regular = regularity > kRegularFactor;
+  belief.chance = belief.regular ? regularity * random_chance : random_chance;
   belief.tight = belief.decoys.gate <= kTightGateShare * options.inlier_distance;
   belief.significant = Significant(pose.inliers, belief.chance, trials, options) ||
                        (belief.tight && Significant(pose.inliers, random_chance, trials, options));

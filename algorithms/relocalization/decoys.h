@@ -22,6 +22,7 @@ struct PoseBelief {
   DecoyTest decoys;
   double chance = 0;         // inliers expected by chance: random forest or local pattern
   bool tight = false;        // the pose fits much more tightly than the inlier gate
+  bool regular = false;      // the local pattern is regular (a plantation's grid, rows)
   bool significant = false;  // see Assess
   bool believable() const { return significant && decoys.passed; }
 };

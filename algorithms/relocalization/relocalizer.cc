@@ -171,6 +171,11 @@ void Ambiguous(const MapIndexImpl& m, const LevelledQuery& q, const Hypothesis& 
   result->detail = detail;
 }
 
+double MinInlierRatio(const PoseBelief& belief, const RelocalizerOptions& options) {
+  return belief.regular ? std::max(options.min_inlier_ratio, options.regular_min_inlier_ratio)
+                        : options.min_inlier_ratio;
+}
+
 // The answer for the best hypothesis, given the best distinct rival (none: null): LOCALIZED
 // only when it is far above chance (a random forest's or the local pattern's), explains enough
 // of the nearby trees and beats the rival and its decoys (decoys.h).
@@ -195,14 +200,14 @@ RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q, const Rel
                   "best pose matches %d trees, no better than chance here (%.1f expected at "
                   "random); is the drone in this map?",
                   best.inliers, belief.chance);
-  } else if (best.inliers < options.min_inliers || ratio < options.min_inlier_ratio) {
+  } else if (best.inliers < options.min_inliers || ratio < MinInlierRatio(belief, options)) {
     result.status = RelocalizeStatus::kNotFound;
     result.reason = RelocalizeReason::kTooFewInliers;
     std::snprintf(detail, sizeof detail,
                   "best pose explains only %d trees (%.0f%% of the nearest %d trees); need %d "
                   "and %.0f%%",
                   best.inliers, 100 * ratio, nearest, options.min_inliers,
-                  100 * options.min_inlier_ratio);
+                  100 * MinInlierRatio(belief, options));
   } else if (best_rival && !BeatsRival(m, q, best, *best_rival, belief, options)) {
     Ambiguous(m, q, best, *best_rival, "two distinct poses", &result);
   } else if (!belief.decoys.passed) {
@@ -243,7 +248,9 @@ void RelocalizerOptions::Check() const {
   require(inlier_distance > 0, "inlier_distance must be > 0");
   require(triangle_tolerance > 0, "triangle_tolerance must be > 0");
   require(min_inliers >= 3, "min_inliers must be >= 3");
-  require(min_inlier_ratio >= 0 && min_inlier_ratio <= 1, "min_inlier_ratio must be in [0, 1]");
+  require(min_inlier_ratio >= 0 && min_inlier_ratio <= 1 && regular_min_inlier_ratio >= 0 &&
+              regular_min_inlier_ratio <= 1,
+          "min_inlier_ratio and regular_min_inlier_ratio must be in [0, 1]");
   require(min_ratio_trees >= 1, "min_ratio_trees must be >= 1");
   require(dbh_ratio_gate == 0 || dbh_ratio_gate >= 1, "dbh_ratio_gate must be 0 (off) or >= 1");
   require(ambiguity_ratio >= 1 && decoy_ratio >= 1, "ambiguity_ratio, decoy_ratio must be >= 1");

@@ -4,12 +4,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <set>
 
 #include "algorithms/relocalization/occupancy_grid.h"
 #include "algorithms/relocalization/pose_search.h"
+#include "algorithms/relocalization/triangle_levels.h"
 #include "algorithms/relocalization/triangle_table.h"
 
 namespace forestmap::algorithms {
@@ -75,6 +77,64 @@ TEST(TriangleTable, FrameKeepsCentroidHeadingAndOrientation) {
   EXPECT_EQ(f.turn, 1);  // counter-clockwise
   EXPECT_EQ(FrameOf(points[0], points[2], points[1]).turn, -1);
   EXPECT_EQ(FrameOf({0, 0}, {4, 0}, {2, 0.01}).turn, 0);  // nearly collinear
+}
+
+TEST(TriangleLevels, SidesGrowGeometricallyAndSpacingPicksTheNearestLevel) {
+  TriangleLevels levels;
+  levels.base_side = 1.75;
+  levels.scale = 1.5;
+  ASSERT_EQ(levels.count(), 10);  // 1.75 m ... 28 m, then 30 m
+  EXPECT_DOUBLE_EQ(levels.Side(levels.count() - 1), 30.0);
+  for (int l = 1; l < levels.count(); ++l) EXPECT_GT(levels.Side(l), levels.Side(l - 1));
+  EXPECT_EQ(levels.LevelFor(0.1), levels.LevelFor(3.5 / 1.5));  // the floor: 3.5 m
+  EXPECT_NEAR(levels.Side(levels.LevelFor(10.0)), 15.0, 15.0 * 0.2);
+  EXPECT_EQ(levels.LevelFor(1000.0), levels.count() - 1);
+  // A square grid of 2 m: the 6th nearest neighbour is 2 sqrt(2) m away (inside the grid).
+  std::vector<Eigen::Vector2d> grid;
+  for (int i = -5; i <= 5; ++i) {
+    for (int j = -5; j <= 5; ++j) grid.push_back({2.0 * i, 2.0 * j});
+  }
+  std::sort(grid.begin(), grid.end(),
+            [](const auto& a, const auto& b) { return a.norm() < b.norm(); });
+  EXPECT_NEAR(QuerySpacing(grid, 9), 2 * std::sqrt(2.0), 1e-9);
+}
+
+TEST(TriangleLevels, EveryTriangleIsFiledOnceInTheBandOfItsLongestSide) {
+  std::vector<Eigen::Vector2d> points = RandomPoints(300, 40.0, 3);
+  std::vector<KdTree<float, 2>::Point> xy;
+  for (const auto& p : points) xy.push_back({static_cast<float>(p.x()), static_cast<float>(p.y())});
+  const KdTree<float, 2> kd(std::move(xy));
+  TriangleLevels levels;
+  levels.base_side = 2.0;
+  levels.max_side = 8.0;
+  std::vector<uint8_t> level(points.size());
+  for (size_t i = 0; i < points.size(); ++i) level[i] = points[i].x() < 0 ? 1 : 2;  // 2.8, 4 m
+  const auto bands = EnumerateLevelled(kd, points, level, levels, 0, points.size());
+  size_t total = 0;
+  for (size_t band = 0; band < bands.size(); ++band) {
+    for (const Triangle& t : bands[band]) {
+      const int lowest = std::min({level[t.vertex[0]], level[t.vertex[1]], level[t.vertex[2]]});
+      EXPECT_LE(t.sides[2], levels.Side(lowest) + 1e-4);
+      EXPECT_LE(t.sides[2], levels.Side(static_cast<int>(band)) + 1e-4);
+      if (band > 0) {
+        EXPECT_GT(t.sides[2], levels.Side(static_cast<int>(band) - 1) - 1e-4);
+      }
+      ++total;
+    }
+  }
+  // Brute force: every triple whose sides fit the lowest level of its points.
+  size_t brute = 0;
+  for (uint32_t i = 0; i < points.size(); ++i) {
+    for (uint32_t j = i + 1; j < points.size(); ++j) {
+      for (uint32_t k = j + 1; k < points.size(); ++k) {
+        const Triangle t = MakeTriangle(points, i, j, k);
+        const double side = levels.Side(std::min({level[i], level[j], level[k]}));
+        brute += t.sides[0] >= levels.min_side && t.sides[2] <= side;
+      }
+    }
+  }
+  EXPECT_EQ(total, brute);
+  EXPECT_GT(total, 100u);
 }
 
 TEST(OccupancyGrid, AgreesWithBruteForceAwayFromTheBoundary) {

@@ -13,10 +13,10 @@
 namespace forestmap::algorithms {
 namespace {
 
-std::vector<MapTree> Forest(unsigned seed, double size = 200) {
+std::vector<MapTree> Forest(unsigned seed, double size = 200, double density = 0.05) {
   StemMapStatistics stats;
-  stats.density = 0.05;
-  stats.min_spacing = 1.0;
+  stats.density = density;
+  stats.min_spacing = std::min(1.0, 0.5 / std::sqrt(density));
   ForestOptions forest;
   forest.width = forest.height = size;
   forest.seed = seed;
@@ -188,6 +188,30 @@ TEST(RelocalizerPlantation, OwnMapIsFoundAndAnotherPlantationIsNeverLocalized) {
     const RelocSummary foreign = RunViews(own, other_index, 60, 22);
     EXPECT_EQ(foreign.localized, 0) << design.spacing_x << " m";
   }
+}
+
+// A district of stands thirty times apart in density, indexed under the tight per-tree budget
+// of a large map: each stand gets triangles of its own scale, and views of both are found.
+TEST(RelocalizerMosaic, DenseAndSparseStandsAreEachIndexedAtTheirOwnScale) {
+  MosaicOptions mosaic;
+  mosaic.trees = 12000;
+  mosaic.seed = 5;
+  const std::vector<MapTree> district =
+      TileMosaic({Forest(1, 60, 0.45), Forest(2, 200, 0.015)}, mosaic);
+  MapIndexOptions options;
+  options.large_map_trees = 1000;  // the budget of a million-tree map
+  const MapIndex index(district, options);
+  size_t short_sides = 0, long_sides = 0;
+  for (const auto& [side, count] : index.triangle_levels()) {
+    if (side <= 3.5) short_sides += count;
+    if (side >= 9.0) long_sides += count;
+  }
+  EXPECT_GT(short_sides, 5 * district.size() / 10);  // the dense stands
+  EXPECT_GT(long_sides, district.size() / 10);       // the sparse ones: 10-30 m
+  EXPECT_LT(index.triangle_count(), 13 * district.size());
+  const RelocSummary s = RunViews(district, index, 120, 31);
+  EXPECT_GE(s.recall, 0.95) << s.correct << " of " << s.answerable;
+  EXPECT_EQ(s.wrong, 0);
 }
 
 TEST(RelocalizerCovariance, NormalisedErrorMatchesItsDegreesOfFreedom) {
