@@ -155,13 +155,6 @@ class Runner {
   }
   const std::vector<algorithms::MapTree>& map() const { return index_->trees(); }
 
-  // The index's triangle levels: [longest side (m), triangles] each.
-  nlohmann::json TriangleLevels() const {
-    nlohmann::json levels = nlohmann::json::array();
-    for (const auto& [side, count] : index_->triangle_levels()) levels.push_back({side, count});
-    return levels;
-  }
-
   nlohmann::ordered_json Report(size_t map_trees) const {
     algorithms::RelocSummary s = evaluator_.Summary();
     if (foreign_) {
@@ -171,7 +164,7 @@ class Runner {
     return {{"map_trees", map_trees},
             {"index_build_ms", build_ms_},
             {"index_triangle_side_m", index_->triangle_side()},
-            {"index_levels", TriangleLevels()},
+            {"index_levels", nlohmann::json(index_->triangle_levels())},  // [side m, count]
             {"index_bytes_per_tree", map_trees ? double(index_->MemoryBytes()) / map_trees : 0},
             {"index_resident_bytes_per_tree", map_trees ? index_resident_ / map_trees : 0},
             {"foreign_map", foreign_},

@@ -5,68 +5,10 @@
 #include <unordered_set>
 
 #include "algorithms/relocalization/decoys.h"
+#include "algorithms/relocalization/query_triangles.h"
 
 namespace forestmap::algorithms {
 namespace {
-
-// A query triangle and the band (triangle_levels.h) whose table it is looked up in.
-struct QueryTriangle {
-  Triangle triangle;
-  int level = 0;
-};
-
-// The longest side a query's triangles may have: that of the level its own spacing suggests (a
-// drone misses trees, so it sees a wider spacing than the map's and errs on the long side),
-// within the levels the map holds triangles of.
-double QuerySide(const std::vector<Eigen::Vector2d>& seed_xy, const MapIndexImpl& m) {
-  constexpr size_t kSpacingTrees = 12;  // nearest query trees whose spacing is measured
-  int lowest = -1, highest = -1;
-  for (int level = 0; level < static_cast<int>(m.tables.size()); ++level) {
-    if (!m.tables[level]) continue;
-    if (lowest < 0) lowest = level;
-    highest = level;
-  }
-  if (lowest < 0) return 0.0;
-  const int own = m.levels.LevelFor(QuerySpacing(seed_xy, kSpacingTrees));
-  return m.levels.Side(std::clamp(own - 1, lowest, highest));
-}
-
-// Query triangles among the seeds (the nearest query trees) with sides up to `max_side` (m),
-// widened by the matching tolerance, nearest first (by their farthest vertex); each with the
-// bands its longest side may fall in on the map.
-std::vector<QueryTriangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy,
-                                          const MapIndexImpl& m, double max_side,
-                                          double tolerance) {
-  if (!(max_side > 0)) return {};
-  TriangleOptions tri;
-  tri.max_side = max_side + tolerance;
-  tri.min_side = std::max(0.0, m.levels.min_side - tolerance);
-  std::vector<std::vector<uint32_t>> neighbours(seed_xy.size());
-  for (uint32_t i = 0; i < seed_xy.size(); ++i) {
-    for (uint32_t j = 0; j < seed_xy.size(); ++j) {
-      if (i != j && (seed_xy[i] - seed_xy[j]).norm() <= tri.max_side) neighbours[i].push_back(j);
-    }
-  }
-  std::vector<Triangle> triangles = EnumerateTriangles(seed_xy, neighbours, tri);
-  // Seeds are sorted by range, so the largest vertex index is the farthest vertex.
-  auto farthest = [](const Triangle& t) {
-    return std::max({t.vertex[0], t.vertex[1], t.vertex[2]});
-  };
-  std::stable_sort(triangles.begin(), triangles.end(),
-                   [&](const Triangle& a, const Triangle& b) { return farthest(a) < farthest(b); });
-  std::vector<QueryTriangle> out;
-  const int bands = static_cast<int>(m.tables.size());
-  for (const Triangle& t : triangles) {
-    for (int band = 0; band < bands; ++band) {
-      const double below = band > 0 ? m.levels.Side(band - 1) : 0.0;
-      if (t.sides[2] + tolerance > below && t.sides[2] - tolerance <= m.levels.Side(band) &&
-          m.tables[band]) {
-        out.push_back({t, band});
-      }
-    }
-  }
-  return out;
-}
 
 // Wald's sequential probability ratio test on query trees: does a pose put them on map trees
 // at the rate of a true pose (quick_check_true_rate) or only as often as chance (the occupancy
