@@ -24,7 +24,7 @@ work=$(mktemp -d)
 db=$work/maps.db
 port=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 server=
-trap '[ -n "$server" ] && { kill -9 $server; wait $server; } 2>/dev/null; rm -rf "$work"' EXIT
+trap '[ -n "$server" ] && { kill -9 $server; wait $server; } 2>/dev/null || true; rm -rf "$work"' EXIT
 C=("$F" --server 127.0.0.1:$port)
 
 start_server() {
@@ -73,7 +73,7 @@ echo "operation times untouched: upload ${ms_upload} ms, merge ${ms_merge} ms, p
   "Wild_V01 has $frames frames"
 
 version=$(map_field m version) sum=$(checksum m 0) trees=$(map_field m trees)
-passed=0 half_created=0 mid_op=0
+passed=0 half_created=0 mid_op=0 integrity_ok=0 version_ok=0 ops=(0 0 0)
 for i in $(seq "$kills"); do
   op=$((RANDOM % 3))
   case $op in
@@ -96,16 +96,20 @@ for i in $(seq "$kills"); do
   wait $client 2>/dev/null || true
   ok=1 notes=()
   integrity=$(sqlite3 "$db" 'PRAGMA integrity_check' 2>&1 | head -1)
-  [ "$integrity" = ok ] || { ok=0; notes+=("integrity: $integrity"); }
+  [ "$integrity" = ok ] && integrity_ok=$((integrity_ok + 1)) ||
+    { ok=0; notes+=("integrity: $integrity"); }
+  ops[op]=$((ops[op] + 1))
+  intact=1
   start_server
   now=$(map_field m version)
   if [ "$now" = "$version" ]; then
-    [ "$(checksum m 0)" = "$sum" ] || { ok=0; notes+=("version $version changed"); }
+    [ "$(checksum m 0)" = "$sum" ] || { intact=0 notes+=("version $version changed"); }
   elif [ "$now" -gt "$version" ] 2>/dev/null; then
-    [ "$(checksum m "$version")" = "$sum" ] || { ok=0; notes+=("version $version lost"); }
+    [ "$(checksum m "$version")" = "$sum" ] || { intact=0 notes+=("version $version lost"); }
   else
-    ok=0 notes+=("map m at version '$now', was $version")
+    intact=0 notes+=("map m at version '$now', was $version")
   fi
+  [ $intact = 1 ] && version_ok=$((version_ok + 1)) || ok=0
   if [ $op = 0 ] && "${C[@]}" map show "$name" >/dev/null 2>&1; then
     got=$(map_field "$name" trees)
     if [ "$got" != $upload_trees ]; then
@@ -117,6 +121,8 @@ for i in $(seq "$kills"); do
     "m v$version -> v$now: $([ $ok = 1 ] && echo ok || echo "FAILED ${notes[*]}")"
   version=$now sum=$(checksum m 0) trees=$(map_field m trees)
 done
-echo "$passed/$kills passed (kills during a running client call: $mid_op;" \
-  "half-created maps: $half_created; map m ends at version $version with $trees trees)"
-[ "$passed" = "$kills" ]
+echo "kills: ${ops[0]} during uploads, ${ops[1]} merges, ${ops[2]} prunes ($mid_op while the" \
+  "client call was running); integrity ok $integrity_ok/$kills, previous version intact" \
+  "$version_ok/$kills, half-created maps $half_created; map m ends at v$version, $trees trees"
+echo "$passed/$kills passed"
+if [ "$passed" = "$kills" ]; then exit 0; else exit 1; fi
