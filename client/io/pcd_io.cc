@@ -123,6 +123,11 @@ void CheckHeader(const PcdHeader& h, const std::string& path) {
                          " cannot have SIZE ", std::to_string(size)}));
     }
   }
+  for (size_t i = 0; i < h.counts.size(); ++i) {
+    // PCL drops a field with COUNT 0, so it would not be there to read.
+    if (h.counts[i] < 1)
+      Fail(path, StrCat({"field '", h.fields[i], "': COUNT must be at least 1"}));
+  }
   for (const char* axis : {"x", "y", "z"}) {
     bool found = false;
     for (size_t i = 0; i < n; ++i) found = found || h.fields[i] == axis;
@@ -154,8 +159,12 @@ PcdHeader ReadHeader(const std::string& path) {
     if (line.size() > 1 << 16)
       Fail(path, StrCat({"line ", std::to_string(line_number),
                          ": header line too long (not a PCD file?)"}));
-    if (!line.empty() && line.back() == '\r') line.pop_back();
     const std::string where = StrCat({path, ":", std::to_string(line_number)});
+    // PCL 1.13 dereferences null on a header line of only white space (" ", "\t", a CRLF "\r").
+    if (!line.empty() && line[0] != '#' && Tokens(line).empty()) {
+      Fail(where, "header line of only white space (PCL cannot read it; make it empty)");
+    }
+    if (!line.empty() && line.back() == '\r') line.pop_back();
     if (!line.empty() && line[0] == '#') {
       scan_io_internal::ParseOffsetComment(line, where, &header.offset);
       continue;
@@ -252,6 +261,15 @@ RawScan Convert(const pcl::PCLPointCloud2& cloud, const std::string& path) {
                                        FindField(cloud, "z")};
   const pcl::PCLPointField* intensity = FindField(cloud, "intensity");
   const pcl::PCLPointField* ring = FindField(cloud, "ring");
+  // The header was checked; these guard against PCL reading it differently.
+  if (axes[0] == nullptr || axes[1] == nullptr || axes[2] == nullptr) {
+    Fail(path, "PCL returned no x, y or z field");
+  }
+  for (const pcl::PCLPointField* field : {axes[0], axes[1], axes[2], intensity, ring}) {
+    if (field != nullptr && field->offset + pcl::getFieldSize(field->datatype) > cloud.point_step) {
+      Fail(path, StrCat({"field '", field->name, "' lies outside PCL's point record"}));
+    }
+  }
   const size_t n = static_cast<size_t>(cloud.width) * cloud.height;
   if (cloud.data.size() < n * cloud.point_step) Fail(path, "PCL returned too little data");
   RawScan raw;

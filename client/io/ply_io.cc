@@ -296,7 +296,10 @@ RawScan ReadPly(const std::string& path) {
   const PlyHeader header = ParseHeader(bytes, path);
   const PlyElement* vertex = nullptr;
   for (const PlyElement& element : header.elements) {
-    if (element.name == "vertex") vertex = &element;
+    if (element.name != "vertex") continue;
+    // The data readers use the first one: a second would describe other columns.
+    if (vertex != nullptr) Fail(path, "header has more than one 'element vertex'");
+    vertex = &element;
   }
   if (vertex == nullptr) Fail(path, "header has no 'element vertex'");
   bool has[5] = {false, false, false, false, false};

@@ -1,0 +1,72 @@
+// Inputs that crashed a reader under libFuzzer (tests/fuzz), minimized: each must now be a
+// ScanError naming the file and the problem. Run in the normal build, so the fixes cannot rot.
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "client/io/scan_io.h"
+#include "tests/client/scan_io_test_util.h"
+
+namespace forestmap::client {
+namespace {
+
+using testing_util::ErrorOf;
+
+class FuzzRegressionTest : public testing_util::ScanDirTest {
+ protected:
+  void ExpectError(const std::string& name, const std::string& content,
+                   const std::string& expected) {
+    SCOPED_TRACE(name + ": " + expected);
+    const std::string path = Write(name, content);
+    for (const bool keep_invalid : {false, true}) {
+      ScanReadOptions options;
+      options.keep_invalid_points = keep_invalid;
+      const std::string message = ErrorOf([&] { ReadScan(path, options); });
+      EXPECT_NE(message.find(path), std::string::npos) << message;
+      EXPECT_NE(message.find(expected), std::string::npos) << message;
+    }
+  }
+};
+
+// fuzz_pcd: PCL drops a field with COUNT 0, so x was missing from its cloud and the reader
+// dereferenced null (UBSan: member access within null pointer).
+TEST_F(FuzzRegressionTest, PcdFieldWithCountZero) {
+  ExpectError("count0.pcd",
+              "FIELDS x y z ring\nSIZE 4 4 4 2\nTYPE F F F U\nCOUNT 0 1 1 1\nWIDTH 2\nHEIGHT 1\n"
+              "POINTS 2\nDATA binary\n" +
+                  std::string(2 * 14, '\0'),
+              "field 'x': COUNT must be at least 1");
+}
+
+// fuzz_pcd: a header line of only white space (" ", "\t", or "\r" of a CRLF blank line) makes
+// PCL 1.13's PCDReader::read dereference null (SEGV inside libpcl_io), even in a valid file.
+TEST_F(FuzzRegressionTest, PcdWhiteSpaceHeaderLine) {
+  const std::string body =
+      "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nPOINTS 1\nDATA ascii\n1 2 3\n";
+  for (const std::string blank : {" ", "\t", "\r", "  \r"}) {
+    ExpectError("blank.pcd", blank + "\n" + body, ":1: header line of only white space");
+  }
+  ExpectError("inner.pcd", "FIELDS x y z\nSIZE 4 4 4\n \nTYPE F F F\nWIDTH 1\nDATA ascii\n1 2 3\n",
+              ":3: header line of only white space");
+  // An empty line stays allowed (PCL skips it), and so is a CRLF file without blank lines.
+  EXPECT_EQ(ReadScan(Write("empty_line.pcd", "\n" + body)).size(), 1u);
+  EXPECT_EQ(ReadScan(Write("crlf.pcd",
+                           "FIELDS x y z\r\nSIZE 4 4 4\r\nTYPE F F F\r\nWIDTH 1\r\nPOINTS 1\r\n"
+                           "DATA ascii\r\n1 2 3\r\n"))
+                .size(),
+            1u);
+}
+
+// fuzz_ply: two `element vertex`: the columns were taken from the last, the data read with the
+// first, so intensity and ring were written into arrays never sized (UBSan: null reference).
+TEST_F(FuzzRegressionTest, PlyTwoVertexElements) {
+  ExpectError("two_vertex.ply",
+              "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+              "property float z\nproperty uchar intensity\nelement vertex 1\nproperty float x\n"
+              "property float y\nproperty float z\nend_header\n1 2 3 4\n1 2 3\n",
+              "more than one 'element vertex'");
+}
+
+}  // namespace
+}  // namespace forestmap::client
