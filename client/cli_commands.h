@@ -40,6 +40,7 @@ void AddRelocalizeCommand(CLI::App& app, CliContext& context);    // cli_relocal
 void AddBenchRelocCommand(CLI::App& app, CliContext& context);    // cli_bench_reloc.cc
 void AddDemoDataCommand(CLI::App& app, CliContext& context);      // cli_demo_data.cc
 void AddBenchServerCommand(CLI::App& app, CliContext& context);   // cli_bench_server.cc
+void AddBenchLoadCommand(CLI::App& app, CliContext& context);     // cli_bench_load.cc
 void AddBenchMappingCommand(CLI::App& app, CliContext& context);  // cli_bench_mapping.cc
 void AddObserveCommand(CLI::App& app, CliContext& context);       // cli_observe.cc
 void AddDetectCommand(CLI::App& app, CliContext& context);        // cli_detect.cc

@@ -35,6 +35,7 @@ int main(int argc, char** argv) {
   forestmap::client::AddBenchRelocCommand(app, context);
   forestmap::client::AddDemoDataCommand(app, context);
   forestmap::client::AddBenchServerCommand(app, context);
+  forestmap::client::AddBenchLoadCommand(app, context);
   forestmap::client::AddBenchMappingCommand(app, context);
   forestmap::client::AddObserveCommand(app, context);
   forestmap::client::AddDetectCommand(app, context);
