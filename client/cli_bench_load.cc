@@ -61,6 +61,7 @@ struct KindStats {
   int64_t resource_exhausted = 0;
   std::map<std::string, int64_t> failed;  // by status name (not RESOURCE_EXHAUSTED)
   std::vector<double> latency_ms;         // successful calls
+  int64_t localized = 0;  // relocalize: LOCALIZED answers; track: TRACKING or RECOVERED frames
 };
 
 struct Input {
@@ -153,7 +154,10 @@ void Track(Client& c, ForestMapClient& rpc, const Input& input, const LoadBenchO
     }
     previous = pose != input.poses.end() ? &pose->second : nullptr;
     // A failed step ends the session (the server closed it; the destructor cancels ours).
-    if (!Measure(stats, [&] { session->Step(step); })) return;
+    v1::TrackResponse answer;
+    if (!Measure(stats, [&] { answer = session->Step(step); })) return;
+    stats.localized += answer.state() == v1::TrackResponse::TRACKING ||
+                       answer.state() == v1::TrackResponse::RECOVERED;
   }
   Attempt(stats, [&] { session->Finish(); });
 }
@@ -179,7 +183,11 @@ void OneCall(Client& c, ForestMapClient& rpc, const Input& input, const LoadBenc
   switch (pick(c.random)) {
     case kRelocalize: {
       const Frame& frame = input.frames[c.random() % input.frames.size()];
-      Measure(c.stats[kRelocalize], [&] { rpc.Relocalize(o.map_name, frame.trees); });
+      KindStats& stats = c.stats[kRelocalize];
+      Measure(stats, [&] {
+        stats.localized +=
+            rpc.Relocalize(o.map_name, frame.trees).status() == v1::RelocalizeResponse::LOCALIZED;
+      });
       break;
     }
     case kTrack:
@@ -299,17 +307,19 @@ nlohmann::ordered_json KindJson(const std::vector<Client>& clients, int kind, do
     const KindStats& s = c.stats[kind];
     all.calls += s.calls;
     all.resource_exhausted += s.resource_exhausted;
+    all.localized += s.localized;
     for (const auto& [status, n] : s.failed) all.failed[status] += n;
     all.latency_ms.insert(all.latency_ms.end(), s.latency_ms.begin(), s.latency_ms.end());
   }
-  return {{"calls", all.calls},
-          {"ok", all.latency_ms.size()},
-          {"calls_per_second", all.calls / seconds},
-          {"failed", all.failed},
-          {"resource_exhausted", all.resource_exhausted},
-          {"p50_ms", algorithms::Percentile(all.latency_ms, 0.5)},
-          {"p95_ms", algorithms::Percentile(all.latency_ms, 0.95)},
-          {"p99_ms", algorithms::Percentile(all.latency_ms, 0.99)}};
+  nlohmann::ordered_json json = {{"calls", all.calls}, {"ok", all.latency_ms.size()}};
+  if (kind == kRelocalize || kind == kTrack) json["localized"] = all.localized;
+  json.update(nlohmann::ordered_json{{"calls_per_second", all.calls / seconds},
+                                     {"failed", all.failed},
+                                     {"resource_exhausted", all.resource_exhausted},
+                                     {"p50_ms", algorithms::Percentile(all.latency_ms, 0.5)},
+                                     {"p95_ms", algorithms::Percentile(all.latency_ms, 0.95)},
+                                     {"p99_ms", algorithms::Percentile(all.latency_ms, 0.99)}});
+  return json;
 }
 
 nlohmann::ordered_json RssJson(const std::vector<std::pair<double, double>>& samples,
