@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Command 2 of the README: installs dependencies, builds everything and runs every test (CTest:
 # unit, real-data, integration, lint), then builds the threaded code with ThreadSanitizer and runs
-# those tests again (build-tsan). Tests read the real forest data from ../shared/data (CI always
-# has it; under CI=true a test that needs it fails instead of skipping).
+# those tests again (build-tsan), then runs every libFuzzer target for 30 s (build-fuzz). Tests
+# read the real forest data from ../shared/data (CI always has it; under CI=true a test that needs
+# it fails instead of skipping).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash deploy/build.sh
@@ -21,3 +22,10 @@ while read -r test; do
 done < build-tsan/threaded_tests.txt
 echo "ThreadSanitizer: $passed passed, $failed failed"
 [ "$failed" -eq 0 ]
+
+echo "test: libFuzzer targets, 30 s each (build-fuzz, clang; see tests/fuzz/run.sh)"
+# Only the fuzz targets and what they link (client/io, the protos, server/validation.cc).
+cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang \
+  -DCMAKE_CXX_COMPILER=clang++ -DFORESTMAP_FUZZ=ON -DFORESTMAP_BUILD_TESTS=OFF >/dev/null
+cmake --build build-fuzz -j"$(nproc)" --target fuzz_targets
+bash tests/fuzz/run.sh build-fuzz 30 "$(nproc)"

@@ -144,6 +144,34 @@ void CheckHeader(const PcdHeader& h, const std::string& path) {
   }
 }
 
+// PCL reads on after the DATA line while lines are empty, comments, or start with a header
+// keyword (prefix match; a later DATA wins). Data that begins like that would be read by PCL
+// differently from this header (a later "DATA binary_compressed" whose size word asks for a GB), so
+// it is refused.
+void CheckDataStart(std::istream& in, int line_number, const std::string& path) {
+  static constexpr const char* kKeywords[] = {"VERSION",   "FIELDS", "COLUMNS", "SIZE",
+                                              "TYPE",      "COUNT",  "WIDTH",   "HEIGHT",
+                                              "VIEWPOINT", "POINTS", "DATA"};
+  constexpr size_t kMaxLook = 4096;  // bytes of a data line looked at
+  for (int n = line_number + 1; in; ++n) {
+    std::string line;
+    for (int c; line.size() < kMaxLook && (c = in.get()) != EOF && c != '\n';) {
+      line += static_cast<char>(c);
+    }
+    const std::vector<std::string> tokens = Tokens(line);
+    if (tokens.empty() && !line.empty()) return;  // PCL stops at white space
+    if (tokens.empty() || tokens[0][0] == '#') continue;
+    for (const char* keyword : kKeywords) {
+      if (tokens[0].rfind(keyword, 0) == 0) {
+        Fail(StrCat({path, ":", std::to_string(n)}),
+             StrCat({"data after the DATA line starts with header keyword '", keyword,
+                     "' (PCL would read it as header; a second header?)"}));
+      }
+    }
+    return;
+  }
+}
+
 // Parses the header by hand (PCL skips comments, and we want the offset comment and our own
 // messages), and checks that binary data is long enough before PCL maps it.
 PcdHeader ReadHeader(const std::string& path) {
@@ -174,6 +202,7 @@ PcdHeader ReadHeader(const std::string& path) {
     ParseHeaderLine(tokens, where, &header);
   }
   if (line_number == 0) Fail(path, "empty file");
+  if (!header.data.empty()) CheckDataStart(in, line_number, path);
   header.data_offset = consumed;
   CheckHeader(header, path);
   if (!header.has_points) header.points = header.width * header.height;

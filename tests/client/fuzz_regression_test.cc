@@ -58,6 +58,24 @@ TEST_F(FuzzRegressionTest, PcdWhiteSpaceHeaderLine) {
             1u);
 }
 
+// fuzz_pcd (out of memory): PCL reads header lines on after DATA while they look like header, so
+// binary data starting "DATA binary_compressed" made PCL take size words from the points and
+// allocate 942 MB for a 600-byte file. Data that PCL would read as header is refused.
+TEST_F(FuzzRegressionTest, PcdDataThatLooksLikeHeader) {
+  const std::string head = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nPOINTS 2\nDATA binary\n";
+  ExpectError(
+      "second_data.pcd",
+      head + "\n# c\nDATA binary_compressed\n\x19\x00\x00\x00\x18 38" + std::string(24, '\0'),
+      ":9: data after the DATA line starts with header keyword 'DATA'");
+  ExpectError("fields.pcd", head + "FIELDSxyz" + std::string(24, '\0'),
+              ":7: data after the DATA line starts with header keyword 'FIELDS'");
+  // Binary data that merely starts with a newline, a '#' or white space still reads.
+  for (const std::string start : {"\n", "#", " \n", "\r\n"}) {
+    const std::string data = start + std::string(24 - start.size(), '\0');
+    EXPECT_EQ(ReadScan(Write("ok.pcd", head + data), {.keep_invalid_points = true}).size(), 2u);
+  }
+}
+
 // fuzz_ply: two `element vertex`: the columns were taken from the last, the data read with the
 // first, so intensity and ring were written into arrays never sized (UBSan: null reference).
 TEST_F(FuzzRegressionTest, PlyTwoVertexElements) {
