@@ -4,11 +4,11 @@
 // with ServiceError; any other exception or a sanitizer report is a crash. A request that passes
 // must keep every tree coordinate within the documented local-frame bounds (issue 15: a tree at
 // 1e308 used to reach the index).
+#include <google/protobuf/stubs/logging.h>
+
 #include <cmath>
 #include <cstdint>
 #include <string>
-
-#include <google/protobuf/stubs/logging.h>
 
 #include "server/validation.h"
 
