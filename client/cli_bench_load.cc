@@ -285,8 +285,8 @@ void RunClients(std::vector<Client>& clients, const Input& input, const LoadBenc
                 const CliContext& context) {
   const auto end = Clock::now() + std::chrono::duration<double>(o.duration_s);
   std::vector<std::thread> threads;
-  for (Client& c : clients) {
-    threads.emplace_back([&] {
+  for (Client& client : clients) {
+    threads.emplace_back([&, &c = client] {
       ClientOptions options = context.client;
       options.write_attempts = 1;  // every failure counts; no retries behind the figures
       ForestMapClient rpc(context.server, options);
@@ -356,8 +356,6 @@ void Run(const LoadBenchOptions& o, CliContext& context) {
   RunClients(clients, input, o, context);
   const double seconds = MsSince(start) / 1000.0;
   rss.Stop();
-  ForestMapClient admin = context.Connect();
-  for (const Client& c : clients) admin.DeleteMap(c.own_map);
   nlohmann::ordered_json report = {{"clients", o.clients}, {"seconds", seconds}};
   for (int kind = 0; kind < kKinds; ++kind) {
     report[kKindNames[kind]] = KindJson(clients, kind, seconds);
@@ -365,7 +363,16 @@ void Run(const LoadBenchOptions& o, CliContext& context) {
   if (o.server_pid > 0) {
     report["server_rss"] = RssJson(rss.samples(), o.warmup_s >= 0 ? o.warmup_s : o.duration_s / 4);
   }
-  *context.out << report.dump() << "\n";
+  *context.out << report.dump() << std::endl;
+  ForestMapClient admin = context.Connect();
+  for (const Client& c : clients) {
+    try {
+      admin.DeleteMap(c.own_map);
+    } catch (const RpcError& error) {
+      *context.err << "bench-load: warning: could not delete " << c.own_map << ": " << error.what()
+                   << std::endl;
+    }
+  }
 }
 
 }  // namespace
