@@ -83,9 +83,10 @@ TEST_F(CliTest, HelpExitsZeroForEveryCommand) {
   EXPECT_NE(top.out.find("--server"), std::string::npos);
   EXPECT_NE(top.out.find("relocalize"), std::string::npos);
   for (const char* command :
-       {"map", "map create", "map build", "map list", "map show", "map delete", "map export",
-        "map history", "map restore", "map remove-source", "relocalize", "track", "observe",
-        "detect", "simulate", "bench-reloc", "bench-mapping", "bench-server", "demo-data"}) {
+       {"map",         "map create",    "map build",    "map list",    "map show",
+        "map delete",  "map export",    "map history",  "map restore", "map remove-source",
+        "relocalize",  "track",         "observe",      "detect",      "simulate",
+        "bench-reloc", "bench-mapping", "bench-server", "bench-load",  "demo-data"}) {
     SCOPED_TRACE(command);
     const Result result = Run(std::string(command) + " --help");
     EXPECT_EQ(result.exit_code, 0);
