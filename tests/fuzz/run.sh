@@ -46,7 +46,7 @@ for t in "${targets[@]}"; do
     echo "FUZZ CRASH in $t (exit $rc) after $runs executions; report:"
     # From the sanitizer's or libFuzzer's first report line on (progress lines are noise).
     report="$(awk '/ERROR:|runtime error|DEADLYSIGNAL|deadly signal|Timeout|out-of-memory|uncaught/ {p=1} p' \
-      "$out/$t.log" | grep -v '^#[0-9]' | head -60)"
+      "$out/$t.log" | grep -v '^#[0-9]' | head -60 || true)"
     [ -n "$report" ] || report="$(tail -20 "$out/$t.log")"
     echo "$report"
     ls "$out/$t"-* 2>/dev/null | sed 's/^/  input: /' || true
