@@ -54,6 +54,7 @@ struct LoadBenchOptions {
   double warmup_s = -1;               // s excluded from the RSS range (<0: a quarter of the run)
   double pause_ms = 0;                // ms each client waits between calls
   std::string prefix = "bench-load";  // per-client maps are PREFIX-c<k>
+  bool keep_maps = false;             // leave the per-client maps (e.g. on a throwaway database)
 };
 
 struct KindStats {
@@ -364,6 +365,7 @@ void Run(const LoadBenchOptions& o, CliContext& context) {
     report["server_rss"] = RssJson(rss.samples(), o.warmup_s >= 0 ? o.warmup_s : o.duration_s / 4);
   }
   *context.out << report.dump() << std::endl;
+  if (o.keep_maps) return;
   ForestMapClient admin = context.Connect();
   for (const Client& c : clients) {
     try {
@@ -422,6 +424,8 @@ void AddBenchLoadCommand(CLI::App& app, CliContext& context) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--prefix", o->prefix, "Per-client maps are PREFIX-c<k>")->capture_default_str();
+  cmd->add_flag("--keep-maps", o->keep_maps,
+                "Leave the per-client maps afterwards (deleting maps with long histories is slow)");
   cmd->callback([o, &context] { context.run = [o, &context] { Run(*o, context); }; });
 }
 

@@ -33,10 +33,12 @@ echo "load.sh: forestmapd pid $server, $clients clients for $seconds s (nice ${L
 nice -n "${LOAD_NICE:-0}" "${F[@]}" bench-load load-shared --frames "$data/Wild_V02/trees.csv" \
   --poses "$data/Wild_V02/poses.csv" --trees "$data/Wild_V01/map.csv" --clients "$clients" \
   --duration "$seconds" --server-pid "$server" --rss-interval "$((seconds >= 120 ? 10 : 2))" \
-  >"$work/report.json"
+  --keep-maps >"$work/report.json"  # the database is thrown away
 [ -z "${LOAD_REPORT:-}" ] || cp "$work/report.json" "$LOAD_REPORT"
 cat "$work/report.json"
 kill -0 "$server" || { echo "load.sh: forestmapd died"; tail -20 "$work/server.log"; exit 1; }
+echo "load.sh: database $(du -m "$work/maps.db" | cut -f1) MiB after the run (history kept);" \
+  "server log: $(grep -c ' error ' "$work/server.log" || true) error lines"
 python3 - "$work/report.json" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1]))
