@@ -345,8 +345,9 @@ nlohmann::ordered_json RssJson(const std::vector<std::pair<double, double>>& sam
 
 void Run(const LoadBenchOptions& o, CliContext& context) {
   if (o.weights.size() != kKinds ||
+      std::any_of(o.weights.begin(), o.weights.end(), [](int w) { return w < 0; }) ||
       std::all_of(o.weights.begin(), o.weights.end(), [](int w) { return w == 0; })) {
-    throw CommandError("--mix needs 4 weights (relocalize,track,observe,upload), not all 0");
+    throw CommandError("--mix needs 4 weights >= 0 (relocalize,track,observe,upload), not all 0");
   }
   const Input input = LoadInput(o);
   std::vector<Client> clients = SetUp(input, o, context);
