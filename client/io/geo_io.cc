@@ -63,6 +63,7 @@ std::vector<std::string> AttributeNames(const std::vector<MapTreeRow>& rows) {
   std::set<std::string> names;
   for (const MapTreeRow& row : rows) {
     for (const auto& [name, value] : row.attributes) names.insert(name);
+    names.insert(row.null_attributes.begin(), row.null_attributes.end());
   }
   for (const char* field : kTreeFields) {
     if (names.count(field)) {
@@ -145,8 +146,10 @@ void WriteLayer(GDALDataset& dataset, const std::vector<MapTreeRow>& rows, OGRSp
 // Where the tree fields of a layer are; x and y come from the point unless named by --columns.
 struct FieldColumns {
   std::optional<int> id, x, y, z, dbh;
+  std::optional<int> dbh_fallback;  // read where dbh is unknown (TreeLoc++)
   std::vector<int> attributes;
   DbhUnit dbh_unit = DbhUnit::kMetre;
+  bool point_z = true;  // the point geometry's z is the stem base (not for lidR tree tops)
 };
 
 FieldColumns ResolveFields(const OGRFeatureDefn& definition, const TreeFileOptions& options,
@@ -158,6 +161,8 @@ FieldColumns ResolveFields(const OGRFeatureDefn& definition, const TreeFileOptio
   const ResolvedColumns resolved = ResolveMapColumns(names, options, path);
   FieldColumns fields;
   fields.dbh_unit = resolved.dbh_unit;
+  if (resolved.dbh_fallback) fields.dbh_fallback = static_cast<int>(*resolved.dbh_fallback);
+  fields.point_z = !resolved.z_is_tree_height;
   for (int i = 0; i < static_cast<int>(names.size()); ++i) {
     const std::string& canonical = resolved.canonical[i];
     if (canonical == "id")
@@ -222,7 +227,7 @@ MapTreeRow ReadFeature(OGRFeature& feature, const FieldColumns& fields, int64_t 
     const OGRPoint& p = *geometry->toPoint();
     row.x = p.getX();
     row.y = p.getY();
-    if (p.Is3D() && std::isfinite(p.getZ())) row.z = p.getZ();
+    if (fields.point_z && p.Is3D() && std::isfinite(p.getZ())) row.z = p.getZ();
   } else {
     throw CsvError(StrCat({path, ": feature ", std::to_string(number),
                            ": no point geometry (trees are points; or name x and y fields with "
@@ -230,8 +235,10 @@ MapTreeRow ReadFeature(OGRFeature& feature, const FieldColumns& fields, int64_t 
   }
   if (const std::optional<double> z = number_of(fields.z)) row.z = z;
   row.dbh = number_of(fields.dbh);
+  const std::optional<int> dbh_field = row.dbh ? fields.dbh : fields.dbh_fallback;
+  if (!row.dbh) row.dbh = number_of(fields.dbh_fallback);
   if (row.dbh && *row.dbh < 0) {
-    throw CsvError(FieldWhere(path, number, feature, *fields.dbh) + "is negative");
+    throw CsvError(FieldWhere(path, number, feature, *dbh_field) + "is negative");
   }
   if (row.dbh) *row.dbh *= MetresPer(fields.dbh_unit);
   if (const std::optional<double> id = number_of(fields.id)) {
@@ -241,9 +248,12 @@ MapTreeRow ReadFeature(OGRFeature& feature, const FieldColumns& fields, int64_t 
     row.id = static_cast<int64_t>(*id);
   }
   for (int field : fields.attributes) {
-    if (!feature.IsFieldSetAndNotNull(field)) continue;
-    row.attributes.emplace(feature.GetFieldDefnRef(field)->GetNameRef(),
-                           feature.GetFieldAsString(field));
+    const char* name = feature.GetFieldDefnRef(field)->GetNameRef();
+    if (feature.IsFieldSetAndNotNull(field)) {
+      row.attributes.emplace(name, feature.GetFieldAsString(field));
+    } else {
+      row.null_attributes.insert(name);  // the layer has the field; this feature no value
+    }
   }
   return row;
 }

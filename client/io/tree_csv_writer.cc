@@ -50,6 +50,7 @@ std::vector<std::string> AttributeColumns(const std::vector<MapTreeRow>& rows) {
   std::set<std::string> names;
   for (const MapTreeRow& row : rows) {
     for (const auto& [name, value] : row.attributes) names.insert(name);
+    names.insert(row.null_attributes.begin(), row.null_attributes.end());
   }
   for (const std::string& name : names) {
     const std::string canonical = CanonicalColumnName(name);
@@ -112,6 +113,11 @@ std::ostream& operator<<(std::ostream& out, const MapTreeRow& row) {
     AppendText(text, name);
     text += " ";
     AppendText(text, value);
+  }
+  for (const std::string& name : row.null_attributes) {
+    text += ", ";
+    AppendText(text, name);
+    text += " null";
   }
   return out << text << "}";
 }

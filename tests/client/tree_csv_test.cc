@@ -7,6 +7,7 @@
 #include <fstream>
 #include <limits>
 #include <random>
+#include <set>
 #include <sstream>
 #include <string>
 
@@ -92,10 +93,13 @@ TEST(TreeCsvTest, EmptyAndNaMeanUnknown) {
   EXPECT_FALSE(rows[0].z.has_value());
   EXPECT_FALSE(rows[0].dbh.has_value());
   EXPECT_TRUE(rows[0].attributes.empty());
+  EXPECT_EQ(rows[0].null_attributes, std::set<std::string>{"species"});  // empty: unknown
   EXPECT_FALSE(rows[1].z.has_value());
   EXPECT_FALSE(rows[1].dbh.has_value());
-  EXPECT_TRUE(rows[1].attributes.empty());            // unquoted NA: a missing string
+  EXPECT_TRUE(rows[1].attributes.empty());  // unquoted NA: an unknown string, a null attribute
+  EXPECT_EQ(rows[1].null_attributes, std::set<std::string>{"species"});
   EXPECT_EQ(rows[2].attributes.at("species"), "NA");  // quoted: the literal string
+  EXPECT_TRUE(rows[2].null_attributes.empty());
   EXPECT_FALSE(rows[3].id.has_value());
   EXPECT_EQ(rows[3].attributes.at("species"), "");
 }
@@ -250,12 +254,32 @@ TEST(TreeCsvTest, WriteThenReadIsExact) {
     row.y = i == 1 ? std::numeric_limits<double>::min() : coordinate(rng) * 1e-9;
     if (i % 3 != 0) row.z = unit(rng) * 300 - 10;
     if (i % 4 != 0) row.dbh = unit(rng) / 3;
-    if (i % 2 == 0) row.attributes["species"] = awkward[i % awkward.size()];
-    if (i % 5 == 0) row.attributes["Height m"] = std::to_string(unit(rng));
+    // A table: a row without a value in a column has it as a null attribute.
+    if (i % 2 == 0) {
+      row.attributes["species"] = awkward[i % awkward.size()];
+    } else {
+      row.null_attributes.insert("species");
+    }
+    if (i % 5 == 0) {
+      row.attributes["Height m"] = std::to_string(unit(rng));
+    } else {
+      row.null_attributes.insert("Height m");
+    }
+    row.null_attributes.insert("LI");  // unknown in every row: the column still round-trips
     rows.push_back(row);
   }
   EXPECT_EQ(RoundTrip(rows), rows);
   EXPECT_TRUE(RoundTrip({}).empty());
+}
+
+TEST(TreeCsvTest, AColumnUnknownInEveryRowIsKept) {
+  const auto rows = ParseMapTreesCsv("x,y,LI,Spp\n0,0,NA,41\n1,1,NA,\n", "prf.csv");
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0].null_attributes, std::set<std::string>{"LI"});
+  EXPECT_EQ(rows[1].null_attributes, (std::set<std::string>{"LI", "Spp"}));
+  std::ostringstream out;
+  WriteMapTreesCsv(out, rows);
+  EXPECT_EQ(out.str(), "id,x,y,z,dbh,LI,Spp\n,0,0,,,,41\n,1,1,,,,\n");
 }
 
 TEST(TreeCsvTest, WriteRejectsWhatWouldNotReadBack) {
