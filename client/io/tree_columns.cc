@@ -94,19 +94,54 @@ double MetresPer(DbhUnit unit) {
   }
 }
 
+namespace {
+
+// The tools whose column names differ from ours (see tree_columns.h), told apart by the header.
+struct Dialect {
+  bool fortls = false;     // FORTLS tree list: has h.dist
+  bool treeloc = false;    // TreeLoc++ tree state: has location_x and location_y
+  bool tree_tops = false;  // lidR locate_trees: treeID and Z, no DBH column: Z is the tree height
+
+  explicit Dialect(const std::vector<std::string>& header) {
+    const auto has = [&](std::string_view name) {
+      return std::any_of(header.begin(), header.end(),
+                         [&](const std::string& h) { return Lower(h) == name; });
+    };
+    fortls = has("h.dist");
+    treeloc = has("location_x") && has("location_y");
+    const bool dbh = std::any_of(header.begin(), header.end(), [](const std::string& h) {
+      const std::string lower = Lower(h);
+      return lower.starts_with("dbh") || lower == "diameter";
+    });
+    tree_tops = has("treeid") && has("z") && !dbh;
+  }
+
+  std::string Canonical(const std::string& name) const {
+    const std::string lower = Lower(name);
+    if (lower == "treeid") return "id";
+    if (lower == "dbh_cm" || lower == "dbh_mm") return "dbh";
+    if (fortls && lower == "id") return AsAttribute(name);
+    if (fortls && lower == "tree") return "id";
+    if (treeloc && lower.starts_with("location_") && lower.size() == 10) {
+      const std::string axis = lower.substr(9);  // location_x, location_y, location_z
+      if (axis == "x" || axis == "y" || axis == "z") return axis;
+    }
+    if (tree_tops && lower == "z") return AsAttribute(name);
+    return CanonicalColumnName(name);
+  }
+};
+
+}  // namespace
+
 ResolvedColumns ResolveMapColumns(const std::vector<std::string>& header,
                                   const TreeFileOptions& options, const std::string& where) {
   ResolvedColumns resolved;
-  const bool fortls = std::any_of(header.begin(), header.end(),
-                                  [](const std::string& h) { return Lower(h) == "h.dist"; });
-  for (const std::string& name : header) {
-    const std::string lower = Lower(name);
-    std::string canonical = CanonicalColumnName(name);
-    if (lower == "treeid") canonical = "id";
-    if (lower == "dbh_cm" || lower == "dbh_mm") canonical = "dbh";
-    if (fortls && lower == "id") canonical = AsAttribute(name);
-    if (fortls && lower == "tree") canonical = "id";
-    resolved.canonical.push_back(canonical);
+  const Dialect dialect(header);
+  const bool fortls = dialect.fortls;
+  resolved.z_is_tree_height = dialect.tree_tops && !options.columns.count("z");
+  for (size_t i = 0; i < header.size(); ++i) {
+    resolved.canonical.push_back(dialect.Canonical(header[i]));
+    if (dialect.treeloc && Lower(header[i]) == "dbh_approximation") resolved.dbh_fallback = i;
   }
   for (const auto& [column, header_name] : options.columns) {
     const std::string wanted = Lower(header_name);
