@@ -128,7 +128,7 @@ TEST_F(SurveyCliTest, GeoJsonShapefileAndCsvRoundTripWithTheirCrsAndNullFields) 
     const std::string path = (dir_ / name).string();
     const Result exported = Cli("map export prf025 --out '" + path + "'");
     ASSERT_EQ(exported.exit_code, 0) << exported.err;
-    const std::string copy = "copy" + std::to_string(name.size());
+    const std::string copy = "copy_" + fs::path(name).extension().string().substr(1);
     const Result created = Cli("map create " + copy + " --trees '" + path + "'");
     ASSERT_EQ(created.exit_code, 0) << created.err;
     const v1::Map map = client_.GetMap(copy);
@@ -307,6 +307,8 @@ constexpr double kMaxScanDbhRmse = 0.05;       // m
 constexpr double kScanYaw = 30.0;              // deg, the simulated pose's yaw
 constexpr double kMaxYawError = 0.1;           // deg
 
+std::string Quoted(const fs::path& path) { return std::string("'") + path.string() + "'"; }
+
 // A scan as the detections: its trunks are detected as `forestmap detect` finds them, then linked
 // to the simulator's truth (sensor frame) and, with --register, to the scene's map (map frame,
 // the sensor at (60, 60) turned by 30 degrees): the same trees either way.
@@ -315,7 +317,7 @@ TEST_F(SurveyCliTest, CompareScanWithItsTruthAndRegisteredWithTheMap) {
   const Result simulated =
       Cli("simulate --generate 2000 --pose 60,60,3,30 --no-body --out '" + sim.string() + "'");
   ASSERT_EQ(simulated.exit_code, 0) << simulated.err;
-  const std::string scan = "'" + (sim / "scan_000.pcd").string() + "'";
+  const std::string scan = Quoted(sim / "scan_000.pcd");
   const fs::path truth_links = dir_ / "truth_links.csv", map_links = dir_ / "map_links.csv";
   const Result truth =
       Cli("compare " + scan + " --reference '" + (sim / "scan_000_truth.csv").string() +
