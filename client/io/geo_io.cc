@@ -59,25 +59,13 @@ struct FeatureDeleter {
 };
 using FeaturePtr = std::unique_ptr<OGRFeature, FeatureDeleter>;
 
-std::vector<std::string> AttributeNames(const std::vector<MapTreeRow>& rows) {
-  std::set<std::string> names;
-  for (const MapTreeRow& row : rows) {
-    for (const auto& [name, value] : row.attributes) names.insert(name);
-    names.insert(row.null_attributes.begin(), row.null_attributes.end());
-  }
-  for (const char* field : kTreeFields) {
-    if (names.count(field)) {
-      throw CsvError(StrCat({"cannot write attribute '", field, "': it is a tree field's name"}));
-    }
-  }
-  return {names.begin(), names.end()};
-}
-
-void CreateFields(OGRLayer& layer, const std::vector<std::string>& attributes,
+void CreateFields(OGRLayer& layer, const std::vector<ExportedAttribute>& attributes,
                   const std::string& path) {
   std::vector<std::pair<std::string, OGRFieldType>> fields = {
       {"id", OFTInteger64}, {"x", OFTReal}, {"y", OFTReal}, {"z", OFTReal}, {"dbh", OFTReal}};
-  for (const std::string& name : attributes) fields.emplace_back(name, OFTString);
+  for (const ExportedAttribute& attribute : attributes) {
+    fields.emplace_back(attribute.column, OFTString);
+  }
   for (const auto& [name, type] : fields) {
     OGRFieldDefn field(name.c_str(), type);
     if (layer.CreateField(&field) != OGRERR_NONE) {
@@ -90,8 +78,9 @@ void CreateFields(OGRLayer& layer, const std::vector<std::string>& attributes,
 // are addressed by position, not name).
 constexpr int kTreeFieldCount = static_cast<int>(std::size(kTreeFields));
 
-void WriteFeature(OGRLayer& layer, const MapTreeRow& row, const std::vector<std::string>& names,
-                  size_t index, const std::string& path) {
+void WriteFeature(OGRLayer& layer, const MapTreeRow& row,
+                  const std::vector<ExportedAttribute>& names, size_t index,
+                  const std::string& path) {
   FeaturePtr feature(OGRFeature::CreateFeature(layer.GetLayerDefn()));
   if (row.id) feature->SetField(0, static_cast<GIntBig>(*row.id));
   feature->SetField(1, row.x);
@@ -103,7 +92,7 @@ void WriteFeature(OGRLayer& layer, const MapTreeRow& row, const std::vector<std:
   }
   for (size_t i = 0; i < names.size(); ++i) {
     const int field = kTreeFieldCount + static_cast<int>(i);
-    const auto it = row.attributes.find(names[i]);
+    const auto it = row.attributes.find(names[i].name);
     if (it == row.attributes.end()) {
       feature->SetFieldNull(field);
     } else {
@@ -131,7 +120,7 @@ std::unique_ptr<OGRSpatialReference> SpatialReference(const std::string& crs,
 
 void WriteLayer(GDALDataset& dataset, const std::vector<MapTreeRow>& rows, OGRSpatialReference* srs,
                 const std::string& path) {
-  const std::vector<std::string> names = AttributeNames(rows);
+  const std::vector<ExportedAttribute> names = ExportedAttributes(rows);
   OGRLayer* layer = dataset.CreateLayer(kLayerName, srs, wkbPoint, nullptr);
   if (!layer) throw CsvError(path + ": cannot create a layer: " + LastGdalError());
   CreateFields(*layer, names, path);

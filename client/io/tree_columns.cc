@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
+#include <map>
+#include <set>
 #include <stdexcept>
 
 #include "client/io/csv_columns.h"
@@ -165,6 +167,42 @@ ResolvedColumns ResolveMapColumns(const std::vector<std::string>& header,
   }
   resolved.dbh_unit = options.dbh_unit.value_or(header_unit.value_or(DbhUnit::kMetre));
   return resolved;
+}
+
+namespace {
+
+constexpr const char* kExportPrefix = "attr_";  // short: shapefile fields have 10 characters
+
+// Lower-case names a reader takes as a tree column or a dialect's marker (see Dialect).
+bool ReservedOnExport(const std::string& name) {
+  static const std::set<std::string> kReserved = {
+      "id",     "x",      "y",          "z",          "dbh",       "x_m",
+      "y_m",    "z_m",    "dbh_m",      "tree_id",    "treeid",    "dbh_cm",
+      "dbh_mm", "h.dist", "location_x", "location_y", "location_z"};
+  const std::string lower = Lower(name);
+  return lower.empty() || kReserved.count(lower) != 0 || CanonicalColumnName(name).empty();
+}
+
+}  // namespace
+
+std::vector<ExportedAttribute> ExportedAttributes(const std::vector<MapTreeRow>& rows) {
+  std::set<std::string> names;
+  for (const MapTreeRow& row : rows) {
+    for (const auto& [name, value] : row.attributes) names.insert(name);
+    names.insert(row.null_attributes.begin(), row.null_attributes.end());
+  }
+  std::vector<ExportedAttribute> exported;
+  std::map<std::string, std::string> attribute_of_column;  // lower-case column -> attribute
+  for (const std::string& name : names) {
+    const std::string column = ReservedOnExport(name) ? kExportPrefix + name : name;
+    const auto [it, inserted] = attribute_of_column.emplace(Lower(column), name);
+    if (!inserted) {
+      throw CsvError(StrCat({"cannot write attributes '", it->second, "' and '", name,
+                             "': both would be the column '", column, "'"}));
+    }
+    exported.push_back({name, column});
+  }
+  return exported;
 }
 
 void CheckDbhMedian(const std::vector<MapTreeRow>& rows, const std::string& file,

@@ -58,6 +58,18 @@ struct ResolvedColumns {
 ResolvedColumns ResolveMapColumns(const std::vector<std::string>& header,
                                   const TreeFileOptions& options, const std::string& where);
 
+// The attribute columns of an export (CSV and GIS files), in attribute-name order: each
+// attribute (or null attribute) of any row, with the name it is written under. Names that would
+// read back as a tree column (X_m, treeID, dbh_cm, location_x, Z, ...) or switch a dialect on
+// (h.dist) are written as "attr_NAME", so that reading the file back keeps the tree columns
+// and the DBH unit, and the value stays an attribute. Throws CsvError when two attributes would be
+// written under one name (compared case-insensitively, as GeoPackage does).
+struct ExportedAttribute {
+  std::string name;    // the attribute's name
+  std::string column;  // the column it is written as
+};
+std::vector<ExportedAttribute> ExportedAttributes(const std::vector<MapTreeRow>& rows);
+
 // A DBH column whose median (in metres, after the unit) is over 3 m holds centimetres or
 // millimetres read as metres (a 14.9 cm stem read as 14.9 m): throws CsvError naming the file
 // and column and suggesting --dbh-unit cm.
