@@ -168,10 +168,11 @@ void PrintTable(const CompareOptions& o, const algorithms::InventoryComparison& 
 }
 
 void Run(const CompareOptions& o, const CliContext& context) {
-  const std::vector<MapTreeRow> detected_rows = ReadDetections(o, context);
+  // The reference first: its errors come before a scan's detection work.
   const std::vector<MapTreeRow> reference_rows =
       ReadTreeFile(o.reference, TreeFileOptionsFrom(o.reference_columns, o.reference_dbh_unit))
           .rows;
+  const std::vector<MapTreeRow> detected_rows = ReadDetections(o, context);
   std::vector<algorithms::DetectedTree> detected = AsDetections(detected_rows);
   const std::vector<algorithms::MapTree> reference = ToMapTrees(reference_rows);
   if (o.register_first) {
