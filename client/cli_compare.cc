@@ -1,8 +1,12 @@
-// `forestmap compare DETECTIONS --reference INVENTORY`: detected trees against a reference
-// inventory (algorithms/inventory_comparison.h), optionally registered first.
+// `forestmap compare DETECTIONS --reference INVENTORY`: detected trees (a tree file, a map, or a
+// scan whose trunks are detected here) against a reference inventory
+// (algorithms/inventory_comparison.h), optionally registered first.
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -12,6 +16,7 @@
 #include "algorithms/evaluation/inventory_comparison.h"
 #include "client/cli_commands.h"
 #include "client/cli_tree_input.h"
+#include "client/scan_trees.h"
 
 namespace forestmap::client {
 namespace {
@@ -19,7 +24,9 @@ namespace {
 constexpr double kCm = 100.0;  // cm per m, for the table
 
 struct CompareOptions {
-  std::string detections;  // tree file, or map:NAME
+  std::string detections;   // tree file, map:NAME, or a scan (trunks detected here)
+  bool scan = false;        // DETECTIONS is a scan whatever its extension (.csv / .txt point lists)
+  bool multi_view = false;  // the scan is merged from many viewpoints (as detect --multi-view)
   std::string reference;
   std::string columns, dbh_unit;                      // of the detections
   std::string reference_columns, reference_dbh_unit;  // of the reference
@@ -29,11 +36,45 @@ struct CompareOptions {
   std::string links_out;
 };
 
+// Point clouds by extension; a .csv or .txt is a tree file unless --scan says it is a scan.
+bool IsScan(const CompareOptions& o) {
+  std::string extension = std::filesystem::path(o.detections).extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return o.scan || extension == ".pcd" || extension == ".ply" || extension == ".las" ||
+         extension == ".laz" || extension == ".xyz";
+}
+
+// The trunks of a scan, found as `forestmap detect` finds them, in the scan file's frame.
+std::vector<MapTreeRow> DetectInScan(const CompareOptions& o, const CliContext& context) {
+  ScanDetection scan;
+  try {
+    scan = DetectTrunksInScan(o.detections, {}, o.multi_view);
+  } catch (const std::invalid_argument& error) {
+    throw CommandError(error.what());
+  }
+  std::vector<MapTreeRow> rows;
+  for (const algorithms::DetectedTrunk& trunk : scan.result.trees) {
+    MapTreeRow& row = rows.emplace_back();
+    const Eigen::Vector3d position = trunk.tree.position + scan.origin;
+    row.x = position.x();
+    row.y = position.y();
+    row.z = position.z();
+    if (algorithms::IsKnown(trunk.tree.dbh)) row.dbh = trunk.tree.dbh;
+  }
+  char ms[32];
+  std::snprintf(ms, sizeof(ms), "%.1f", scan.result.stats.total_us / 1000.0);
+  *context.err << o.detections << ": " << scan.result.stats.input_points << " points, "
+               << rows.size() << " trunks detected in " << ms << " ms" << std::endl;
+  return rows;
+}
+
 std::vector<MapTreeRow> ReadDetections(const CompareOptions& o, const CliContext& context) {
   const std::string prefix = "map:";
   if (o.detections.rfind(prefix, 0) == 0) {
     return context.Connect().ExportTrees(o.detections.substr(prefix.size())).trees;
   }
+  if (IsScan(o)) return DetectInScan(o, context);
   return ReadTreeFile(o.detections, TreeFileOptionsFrom(o.columns, o.dbh_unit)).rows;
 }
 
@@ -127,10 +168,11 @@ void PrintTable(const CompareOptions& o, const algorithms::InventoryComparison& 
 }
 
 void Run(const CompareOptions& o, const CliContext& context) {
-  const std::vector<MapTreeRow> detected_rows = ReadDetections(o, context);
+  // The reference first: its errors come before a scan's detection work.
   const std::vector<MapTreeRow> reference_rows =
       ReadTreeFile(o.reference, TreeFileOptionsFrom(o.reference_columns, o.reference_dbh_unit))
           .rows;
+  const std::vector<MapTreeRow> detected_rows = ReadDetections(o, context);
   std::vector<algorithms::DetectedTree> detected = AsDetections(detected_rows);
   const std::vector<algorithms::MapTree> reference = ToMapTrees(reference_rows);
   if (o.register_first) {
@@ -170,8 +212,13 @@ void AddCompareCommand(CLI::App& app, CliContext& context) {
       "Compare detected trees with a reference inventory: one-to-one links, completeness, "
       "commission, position and DBH RMSE and bias, omission by DBH class");
   sub->add_option("DETECTIONS", o->detections,
-                  "Detected trees: a tree file (CSV, .gpkg, .geojson, .shp) or map:NAME")
+                  "Detected trees: a tree file (CSV, .gpkg, .geojson, .shp), map:NAME, or a scan "
+                  "(.pcd .ply .las .xyz; trunks detected here as `detect` does)")
       ->required();
+  sub->add_flag("--scan", o->scan,
+                "DETECTIONS is a scan even with a .csv / .txt extension (a point list)");
+  sub->add_flag("--multi-view", o->multi_view,
+                "The scan is merged from many viewpoints (as detect --multi-view)");
   sub->add_option("--reference", o->reference, "Reference inventory (a tree file)")->required();
   AddTreeFileOptions(*sub, o->columns, o->dbh_unit);
   sub->add_option("--reference-columns", o->reference_columns, "--columns of the reference");

@@ -18,6 +18,7 @@
 #include "client/cli_tree_input.h"
 #include "client/io/las_crs.h"
 #include "client/io/scan_io.h"
+#include "client/scan_trees.h"
 
 namespace forestmap::client {
 namespace {
@@ -111,33 +112,28 @@ std::string Summary(const std::string& scan, const algorithms::TrunkDetectionRes
 }
 
 void Run(const DetectCommandOptions& options, const CliContext& context) {
-  const algorithms::PointCloud cloud = ReadScan(options.scan);
   algorithms::TrunkDetectionOptions detection;
   detection.layer.min_height = options.min_height;
   detection.layer.max_height = options.max_height;
   detection.stem = options.stem;
   detection.stem.beam_divergence = options.beam_divergence;
   detection.stem.seed = options.seed;
-  // A georeferenced or merged cloud has no sensor at its origin: no drone body to remove and
-  // no single viewpoint for arcs to face.
-  if (options.multi_view || cloud.origin.squaredNorm() > 0) {
-    detection.filter.self_radius = 0;
-    detection.stem.sensor_at_origin = false;
-  }
+  ScanDetection scan;
   try {
-    detection.Check();
+    scan = DetectTrunksInScan(options.scan, detection, options.multi_view);
   } catch (const std::invalid_argument& error) {
     throw CommandError(error.what());
   }
-  const algorithms::TrunkDetectionResult result = algorithms::DetectTrunks(cloud, detection);
+  const algorithms::TrunkDetectionResult& result = scan.result;
+  const Eigen::Vector3d& origin = scan.origin;
   std::ostringstream text;
   const std::string crs = ReadLasCrs(options.scan);  // "" unless a LAS file declares one
   if (options.format == "json") {
-    nlohmann::json json = ToJson(result, cloud.origin);
+    nlohmann::json json = ToJson(result, origin);
     if (!crs.empty()) json["crs"] = crs;
     text << json.dump(2) << '\n';
   } else {
-    WriteCsv(text, result, cloud.origin);
+    WriteCsv(text, result, origin);
   }
   if (options.out.empty() || options.out == "-") {
     *context.out << text.str() << std::flush;

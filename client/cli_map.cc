@@ -264,11 +264,15 @@ void RunExport(const ExportOptions& options, const CliContext& context) {
   }
   const TreeFormat format =
       options.format.empty() ? TreeFormatOfPath(options.out_file) : ParseTreeFormat(options.format);
+  const v1::Map map = context.Connect().GetMap(options.name);
   if (format == TreeFormat::kCsv) {
     WriteMapTreesCsv(options.out_file, exported.trees);
+    // The CRS as WKT beside the CSV, as GIS tools keep it (map create --trees reads it back).
+    if (!map.crs().empty()) {
+      WriteCrsSidecar(options.out_file, map.crs_wkt().empty() ? map.crs() : map.crs_wkt());
+    }
   } else {
-    WriteGeoTrees(options.out_file, format, exported.trees,
-                  context.Connect().GetMap(options.name).crs());
+    WriteGeoTrees(options.out_file, format, exported.trees, map.crs());
   }
   *context.err << "exported " << exported.trees.size() << " trees of map '" << options.name
                << "' (version " << exported.map_version << ") to " << options.out_file << std::endl;

@@ -10,6 +10,7 @@ v1::Tree ToProto(const MapTreeRow& row) {
   if (row.z) tree.set_z(*row.z);
   if (row.dbh) tree.set_dbh(*row.dbh);
   tree.mutable_attributes()->insert(row.attributes.begin(), row.attributes.end());
+  for (const std::string& name : row.null_attributes) tree.add_null_attributes(name);
   return tree;
 }
 
@@ -21,6 +22,7 @@ MapTreeRow FromProto(const v1::Tree& tree) {
   if (tree.has_z()) row.z = tree.z();
   if (tree.has_dbh()) row.dbh = tree.dbh();
   row.attributes.insert(tree.attributes().begin(), tree.attributes().end());
+  row.null_attributes.insert(tree.null_attributes().begin(), tree.null_attributes().end());
   return row;
 }
 

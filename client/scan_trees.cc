@@ -23,4 +23,15 @@ ScanTrees DetectScanTrees(const std::string& path,
   return out;
 }
 
+ScanDetection DetectTrunksInScan(const std::string& path, algorithms::TrunkDetectionOptions options,
+                                 bool multi_view) {
+  const algorithms::PointCloud cloud = ReadScan(path);
+  if (multi_view || cloud.origin.squaredNorm() > 0) {
+    options.filter.self_radius = 0;
+    options.stem.sensor_at_origin = false;
+  }
+  options.Check();
+  return {algorithms::DetectTrunks(cloud, options), cloud.origin};
+}
+
 }  // namespace forestmap::client

@@ -19,4 +19,16 @@ struct ScanTrees {
 ScanTrees DetectScanTrees(const std::string& path,
                           const algorithms::TrunkDetectionOptions& options = {});
 
+// The trunks of any scan, as `forestmap detect` finds them: a georeferenced (offset) or merged
+// (`multi_view`) cloud has no sensor at its origin, so the drone-body filter and the
+// sensor-facing arc checks are off for it.
+struct ScanDetection {
+  algorithms::TrunkDetectionResult result;           // positions in the cloud's frame
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();  // m: add to positions for the file's frame
+};
+
+// Throws ScanError for an unreadable scan and std::invalid_argument for bad `options`.
+ScanDetection DetectTrunksInScan(const std::string& path, algorithms::TrunkDetectionOptions options,
+                                 bool multi_view);
+
 }  // namespace forestmap::client

@@ -38,6 +38,7 @@ v1::Tree ToProto(const storage::TreeRecord& tree) {
   if (tree.z) out.set_z(*tree.z);
   if (tree.dbh) out.set_dbh(*tree.dbh);
   out.mutable_attributes()->insert(tree.attributes.begin(), tree.attributes.end());
+  for (const std::string& name : tree.null_attributes) out.add_null_attributes(name);
   out.set_status(tree.status == storage::TreeStatus::kConfirmed ? v1::CONFIRMED : v1::CANDIDATE);
   out.set_observations(tree.observations);
   if (tree.position_sigma) out.set_position_sigma_m(*tree.position_sigma);
@@ -53,6 +54,7 @@ storage::TreeRecord FromProto(const v1::Tree& tree) {
   if (tree.has_z()) out.z = tree.z();
   if (tree.has_dbh()) out.dbh = tree.dbh();
   out.attributes.insert(tree.attributes().begin(), tree.attributes().end());
+  out.null_attributes.insert(tree.null_attributes().begin(), tree.null_attributes().end());
   return out;
 }
 
@@ -289,7 +291,8 @@ storage::ObservationRecord ToObservationRecord(const algorithms::TreeObservation
 }
 
 storage::TreeRecord ToTreeRecord(const algorithms::TreeEstimate& tree,
-                                 const std::map<std::string, std::string>& attributes) {
+                                 const std::map<std::string, std::string>& attributes,
+                                 const std::set<std::string>& null_attributes) {
   storage::TreeRecord out;
   out.id = tree.id;
   out.x = tree.position.x();
@@ -297,6 +300,7 @@ storage::TreeRecord ToTreeRecord(const algorithms::TreeEstimate& tree,
   out.z = Known(tree.position.z());
   out.dbh = Known(tree.dbh);
   out.attributes = attributes;
+  out.null_attributes = null_attributes;
   out.status = tree.status == algorithms::TreeStatus::kConfirmed ? storage::TreeStatus::kConfirmed
                                                                  : storage::TreeStatus::kCandidate;
   out.observations = tree.observations;

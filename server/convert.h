@@ -8,6 +8,9 @@
 // - Quaternions are normalised on the way in; an absent rotation is the identity and an absent
 //   translation is zero.
 
+#include <map>
+#include <set>
+#include <string>
 #include <vector>
 
 #include "algorithms/core/geometry.h"
@@ -58,9 +61,11 @@ v1::MapVersion::Kind ToProto(storage::VersionKind kind);
 // Observation rows: storage <-> algorithms (unknown z / dbh: nullopt <-> NaN).
 algorithms::TreeObservation ToTreeObservation(const storage::ObservationRecord& record);
 storage::ObservationRecord ToObservationRecord(const algorithms::TreeObservation& observation);
-// A merged tree as a stored row; `attributes` are the survey columns it keeps.
+// A merged tree as a stored row; `attributes` and `null_attributes` are the survey columns it
+// keeps.
 storage::TreeRecord ToTreeRecord(const algorithms::TreeEstimate& tree,
-                                 const std::map<std::string, std::string>& attributes);
+                                 const std::map<std::string, std::string>& attributes,
+                                 const std::set<std::string>& null_attributes = {});
 // A request frame (without its pose, which the service decides) for the merge.
 algorithms::FrameObservations FromProto(const v1::ObservationFrame& frame,
                                         const std::string& source);

@@ -20,6 +20,7 @@ constexpr double kBoxMargin = 1.0;
 struct WorkingTree {
   algorithms::TreeEstimate estimate;
   std::map<std::string, std::string> attributes;  // survey columns, kept
+  std::set<std::string> null_attributes;          // survey columns unknown for this tree, kept
   bool changed = false;
   bool is_new = false;  // created by this merge (not in the store yet)
   // A surveyed tree without observation rows: its prior becomes a row when it changes.
@@ -70,6 +71,7 @@ Loaded LoadTrees(storage::MergeReader& reader,
   for (auto& [id, record] : region.trees) {
     WorkingTree tree;
     tree.attributes = std::move(record.attributes);
+    tree.null_attributes = std::move(record.null_attributes);
     const auto rows = observations.find(id);
     const auto prior_of = priors.find(id);
     if (rows != observations.end()) {
@@ -147,9 +149,10 @@ storage::MapChanges Consolidate(Loaded& loaded,
   for (const algorithms::TreeEstimate& tree : result.trees) {
     if (changed.count(tree.id) == 0) continue;
     const auto it = loaded.working.find(tree.id);
-    changes.put_trees.push_back(ToTreeRecord(tree, it != loaded.working.end()
-                                                       ? it->second.attributes
-                                                       : std::map<std::string, std::string>{}));
+    changes.put_trees.push_back(
+        it != loaded.working.end()
+            ? ToTreeRecord(tree, it->second.attributes, it->second.null_attributes)
+            : ToTreeRecord(tree, {}));
   }
   for (const int64_t id : removed) {
     const auto it = loaded.working.find(id);
@@ -210,7 +213,8 @@ FramesMerge MergeFrames(storage::MergeReader& reader,
   }
   for (auto& [id, tree] : working) {
     if (!tree.changed) continue;
-    merge.changes.put_trees.push_back(ToTreeRecord(tree.estimate, tree.attributes));
+    merge.changes.put_trees.push_back(
+        ToTreeRecord(tree.estimate, tree.attributes, tree.null_attributes));
     if (tree.unsaved_prior) {
       merge.changes.added_observations.push_back(ToObservationRecord(*tree.unsaved_prior));
     }

@@ -84,6 +84,25 @@ void CheckLength(const std::string& s, size_t max_length, const std::string& pat
   }
 }
 
+// Columns unknown for this tree: keys as for attributes, none also a key of `attributes`, and
+// counted with them in the per-tree limit.
+void CheckNullAttributes(const v1::Tree& tree, const std::string& path) {
+  const std::string field = path + ".null_attributes";
+  const size_t count = static_cast<size_t>(tree.attributes_size() + tree.null_attributes_size());
+  if (count > kMaxAttributes) {
+    throw ValidationError(field + ": " + std::to_string(count) +
+                          " attributes and null attributes exceed the limit of " +
+                          std::to_string(kMaxAttributes));
+  }
+  for (const std::string& key : tree.null_attributes()) {
+    if (key.empty()) throw ValidationError(field + " has an empty key");
+    CheckLength(key, kMaxAttributeKeyLength, field + " key " + Quoted(key));
+    if (tree.attributes().count(key) != 0) {
+      throw ValidationError(field + ": " + Quoted(key) + " is also a key of attributes");
+    }
+  }
+}
+
 void CheckAttributes(const v1::Tree& tree, const std::string& path) {
   const std::string field = path + ".attributes";
   if (static_cast<size_t>(tree.attributes_size()) > kMaxAttributes) {
@@ -95,6 +114,7 @@ void CheckAttributes(const v1::Tree& tree, const std::string& path) {
     CheckLength(key, kMaxAttributeKeyLength, field + " key " + Quoted(key));
     CheckLength(value, kMaxAttributeValueLength, field + "[" + Quoted(key) + "]");
   }
+  CheckNullAttributes(tree, path);
 }
 
 }  // namespace

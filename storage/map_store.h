@@ -5,6 +5,7 @@
 #include <functional>
 #include <map>
 #include <optional>
+#include <set>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -63,6 +64,7 @@ struct TreeRecord {
   std::optional<double> z;    // m
   std::optional<double> dbh;  // m
   std::map<std::string, std::string> attributes;
+  std::set<std::string> null_attributes;  // survey columns unknown (NA) for this tree
   TreeStatus status = TreeStatus::kConfirmed;
   int64_t observations = 0;              // observation rows behind the tree (incl. a survey prior)
   std::optional<double> position_sigma;  // m, 1-sigma horizontal uncertainty

@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "storage/attribute_json.h"
 #include "storage/postgres_map_store_internal.h"
 #include "storage/sqlite_map_store_internal.h"  // backend-neutral helpers: Union, TreeLabel
 
@@ -11,6 +12,9 @@ namespace forestmap::storage::pg_internal {
 namespace {
 
 using Code = StorageError::Code;
+using internal::DecodeAttributes;
+using internal::EncodeAttributes;
+using internal::TreeAttributes;
 using pg::Params;
 
 // Step i takes the schema from version i to i + 1 (pg::MigrateSchema). Never edit a shipped
@@ -99,11 +103,6 @@ CREATE TABLE map_versions (
   PRIMARY KEY (map_id, version)
 );
 )sql";
-
-std::optional<std::string> EncodeAttributes(const std::map<std::string, std::string>& attributes) {
-  if (attributes.empty()) return std::nullopt;
-  return nlohmann::json(attributes).dump();  // throws json::type_error on invalid UTF-8
-}
 
 // The first tree of `trees` whose id is already current in the map, if any.
 std::optional<size_t> FirstTakenId(pg::Connection& conn, int64_t map_id,
@@ -216,13 +215,14 @@ std::vector<TreeRecord> ReadTreeRows(const pg::Result& result, const std::string
     tree.dbh = result.OptionalDouble(r, 4);
     if (!result.IsNull(r, 5)) {
       try {
-        tree.attributes =
-            nlohmann::json::parse(result.Text(r, 5)).get<std::map<std::string, std::string>>();
-      } catch (const nlohmann::json::exception& e) {
+        TreeAttributes stored = DecodeAttributes(result.Text(r, 5));
+        tree.attributes = std::move(stored.values);
+        tree.null_attributes = std::move(stored.nulls);
+      } catch (const std::invalid_argument& e) {
         throw StorageError(Code::kInternal, "map '" + map_name + "' tree " +
                                                 std::to_string(*tree.id) +
                                                 ": stored attributes are not a JSON object of "
-                                                "strings: " +
+                                                "strings and nulls: " +
                                                 e.what());
       }
     }
@@ -247,7 +247,7 @@ void InsertTrees(pg::Connection& conn, const MapRow& map, const std::vector<Tree
     for (size_t i = begin; i < end; ++i) {
       const TreeRecord& tree = trees[i];
       try {
-        attributes.OptionalText(EncodeAttributes(tree.attributes));
+        attributes.OptionalText(EncodeAttributes(tree.attributes, tree.null_attributes));
       } catch (const nlohmann::json::exception& e) {
         throw StorageError(Code::kInvalidArgument,
                            "map '" + map.info.name + "': " + internal::TreeLabel(trees, i) +

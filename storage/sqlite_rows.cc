@@ -12,6 +12,7 @@
 #include <string>
 #include <utility>
 
+#include "storage/attribute_json.h"
 #include "storage/sqlite_map_store_internal.h"
 
 namespace forestmap::storage::internal {
@@ -20,11 +21,6 @@ namespace {
 using sqlite::Database;
 using sqlite::Statement;
 using Code = StorageError::Code;
-
-std::optional<std::string> EncodeAttributes(const std::map<std::string, std::string>& attributes) {
-  if (attributes.empty()) return std::nullopt;
-  return nlohmann::json(attributes).dump();  // throws json::type_error on invalid UTF-8
-}
 
 // Sort-Tile-Recursive packing (Leutenegger, Lopez, Edgington 1997, "STR: A simple and efficient
 // algorithm for R-tree packing"): an order of the batch in which consecutive runs of
@@ -55,7 +51,7 @@ void InsertTree(Statement& insert, const std::string& map_name,
   const TreeRecord& tree = trees[index];
   std::optional<std::string> attributes;
   try {
-    attributes = EncodeAttributes(tree.attributes);
+    attributes = EncodeAttributes(tree.attributes, tree.null_attributes);
   } catch (const nlohmann::json::exception& e) {
     throw StorageError(Code::kInvalidArgument, "map '" + map_name +
                                                    "': " + TreeLabel(trees, index) +
@@ -177,13 +173,14 @@ TreeRecord ReadTreeRow(const Statement& row, const std::string& map_name) {
   tree.dbh = row.ColumnOptionalDouble(4);
   if (!row.ColumnIsNull(5)) {
     try {
-      tree.attributes =
-          nlohmann::json::parse(row.ColumnText(5)).get<std::map<std::string, std::string>>();
-    } catch (const nlohmann::json::exception& e) {
+      TreeAttributes stored = DecodeAttributes(row.ColumnText(5));
+      tree.attributes = std::move(stored.values);
+      tree.null_attributes = std::move(stored.nulls);
+    } catch (const std::invalid_argument& e) {
       throw StorageError(Code::kInternal, "map '" + map_name + "' tree " +
                                               std::to_string(*tree.id) +
                                               ": stored attributes are not a JSON object of "
-                                              "strings: " +
+                                              "strings and nulls: " +
                                               e.what());
     }
   }

@@ -59,24 +59,13 @@ struct FeatureDeleter {
 };
 using FeaturePtr = std::unique_ptr<OGRFeature, FeatureDeleter>;
 
-std::vector<std::string> AttributeNames(const std::vector<MapTreeRow>& rows) {
-  std::set<std::string> names;
-  for (const MapTreeRow& row : rows) {
-    for (const auto& [name, value] : row.attributes) names.insert(name);
-  }
-  for (const char* field : kTreeFields) {
-    if (names.count(field)) {
-      throw CsvError(StrCat({"cannot write attribute '", field, "': it is a tree field's name"}));
-    }
-  }
-  return {names.begin(), names.end()};
-}
-
-void CreateFields(OGRLayer& layer, const std::vector<std::string>& attributes,
+void CreateFields(OGRLayer& layer, const std::vector<ExportedAttribute>& attributes,
                   const std::string& path) {
   std::vector<std::pair<std::string, OGRFieldType>> fields = {
       {"id", OFTInteger64}, {"x", OFTReal}, {"y", OFTReal}, {"z", OFTReal}, {"dbh", OFTReal}};
-  for (const std::string& name : attributes) fields.emplace_back(name, OFTString);
+  for (const ExportedAttribute& attribute : attributes) {
+    fields.emplace_back(attribute.column, OFTString);
+  }
   for (const auto& [name, type] : fields) {
     OGRFieldDefn field(name.c_str(), type);
     if (layer.CreateField(&field) != OGRERR_NONE) {
@@ -89,8 +78,9 @@ void CreateFields(OGRLayer& layer, const std::vector<std::string>& attributes,
 // are addressed by position, not name).
 constexpr int kTreeFieldCount = static_cast<int>(std::size(kTreeFields));
 
-void WriteFeature(OGRLayer& layer, const MapTreeRow& row, const std::vector<std::string>& names,
-                  size_t index, const std::string& path) {
+void WriteFeature(OGRLayer& layer, const MapTreeRow& row,
+                  const std::vector<ExportedAttribute>& names, size_t index,
+                  const std::string& path) {
   FeaturePtr feature(OGRFeature::CreateFeature(layer.GetLayerDefn()));
   if (row.id) feature->SetField(0, static_cast<GIntBig>(*row.id));
   feature->SetField(1, row.x);
@@ -102,7 +92,7 @@ void WriteFeature(OGRLayer& layer, const MapTreeRow& row, const std::vector<std:
   }
   for (size_t i = 0; i < names.size(); ++i) {
     const int field = kTreeFieldCount + static_cast<int>(i);
-    const auto it = row.attributes.find(names[i]);
+    const auto it = row.attributes.find(names[i].name);
     if (it == row.attributes.end()) {
       feature->SetFieldNull(field);
     } else {
@@ -130,7 +120,7 @@ std::unique_ptr<OGRSpatialReference> SpatialReference(const std::string& crs,
 
 void WriteLayer(GDALDataset& dataset, const std::vector<MapTreeRow>& rows, OGRSpatialReference* srs,
                 const std::string& path) {
-  const std::vector<std::string> names = AttributeNames(rows);
+  const std::vector<ExportedAttribute> names = ExportedAttributes(rows);
   OGRLayer* layer = dataset.CreateLayer(kLayerName, srs, wkbPoint, nullptr);
   if (!layer) throw CsvError(path + ": cannot create a layer: " + LastGdalError());
   CreateFields(*layer, names, path);
@@ -145,8 +135,10 @@ void WriteLayer(GDALDataset& dataset, const std::vector<MapTreeRow>& rows, OGRSp
 // Where the tree fields of a layer are; x and y come from the point unless named by --columns.
 struct FieldColumns {
   std::optional<int> id, x, y, z, dbh;
+  std::optional<int> dbh_fallback;  // read where dbh is unknown (TreeLoc++)
   std::vector<int> attributes;
   DbhUnit dbh_unit = DbhUnit::kMetre;
+  bool point_z = true;  // the point geometry's z is the stem base (not for lidR tree tops)
 };
 
 FieldColumns ResolveFields(const OGRFeatureDefn& definition, const TreeFileOptions& options,
@@ -158,6 +150,8 @@ FieldColumns ResolveFields(const OGRFeatureDefn& definition, const TreeFileOptio
   const ResolvedColumns resolved = ResolveMapColumns(names, options, path);
   FieldColumns fields;
   fields.dbh_unit = resolved.dbh_unit;
+  if (resolved.dbh_fallback) fields.dbh_fallback = static_cast<int>(*resolved.dbh_fallback);
+  fields.point_z = !resolved.z_is_tree_height;
   for (int i = 0; i < static_cast<int>(names.size()); ++i) {
     const std::string& canonical = resolved.canonical[i];
     if (canonical == "id")
@@ -222,7 +216,7 @@ MapTreeRow ReadFeature(OGRFeature& feature, const FieldColumns& fields, int64_t 
     const OGRPoint& p = *geometry->toPoint();
     row.x = p.getX();
     row.y = p.getY();
-    if (p.Is3D() && std::isfinite(p.getZ())) row.z = p.getZ();
+    if (fields.point_z && p.Is3D() && std::isfinite(p.getZ())) row.z = p.getZ();
   } else {
     throw CsvError(StrCat({path, ": feature ", std::to_string(number),
                            ": no point geometry (trees are points; or name x and y fields with "
@@ -230,8 +224,10 @@ MapTreeRow ReadFeature(OGRFeature& feature, const FieldColumns& fields, int64_t 
   }
   if (const std::optional<double> z = number_of(fields.z)) row.z = z;
   row.dbh = number_of(fields.dbh);
+  const std::optional<int> dbh_field = row.dbh ? fields.dbh : fields.dbh_fallback;
+  if (!row.dbh) row.dbh = number_of(fields.dbh_fallback);
   if (row.dbh && *row.dbh < 0) {
-    throw CsvError(FieldWhere(path, number, feature, *fields.dbh) + "is negative");
+    throw CsvError(FieldWhere(path, number, feature, *dbh_field) + "is negative");
   }
   if (row.dbh) *row.dbh *= MetresPer(fields.dbh_unit);
   if (const std::optional<double> id = number_of(fields.id)) {
@@ -241,9 +237,12 @@ MapTreeRow ReadFeature(OGRFeature& feature, const FieldColumns& fields, int64_t 
     row.id = static_cast<int64_t>(*id);
   }
   for (int field : fields.attributes) {
-    if (!feature.IsFieldSetAndNotNull(field)) continue;
-    row.attributes.emplace(feature.GetFieldDefnRef(field)->GetNameRef(),
-                           feature.GetFieldAsString(field));
+    const char* name = feature.GetFieldDefnRef(field)->GetNameRef();
+    if (feature.IsFieldSetAndNotNull(field)) {
+      row.attributes.emplace(name, feature.GetFieldAsString(field));
+    } else {
+      row.null_attributes.insert(name);  // the layer has the field; this feature no value
+    }
   }
   return row;
 }

@@ -4,9 +4,12 @@
 // lidR) and ArcGIS open them as they are.
 //
 // Written layout: one point layer "trees"; point = (x, y) in the map CRS; fields id (integer),
-// x, y, z, dbh (real, metres; null when unknown), then one string field per attribute (in name
-// order). Reading takes the point's x and y (and z when the geometry has one) and the fields
-// by name as tree_columns.h resolves them (--columns and --dbh-unit apply to field names).
+// x, y, z, dbh (real, metres; null when unknown), then one string field per attribute name of
+// any row, null attributes included (in name order, named as ExportedAttributes in
+// tree_columns.h says; null where a row has no value). Reading
+// takes the point's x and y (and z when the geometry has one) and the fields by name as
+// tree_columns.h resolves them (--columns and --dbh-unit apply to field names); a null or unset
+// field is a null attribute.
 //
 // Errors are CsvError (the tree-file error type) naming the file and, where there is one, the
 // feature and field: "FILE: feature 3: field 'dbh': ...". A failed write removes what it made.

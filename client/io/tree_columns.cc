@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
+#include <map>
+#include <set>
 #include <stdexcept>
 
 #include "client/io/csv_columns.h"
@@ -94,19 +96,54 @@ double MetresPer(DbhUnit unit) {
   }
 }
 
+namespace {
+
+// The tools whose column names differ from ours (see tree_columns.h), told apart by the header.
+struct Dialect {
+  bool fortls = false;     // FORTLS tree list: has h.dist
+  bool treeloc = false;    // TreeLoc++ tree state: has location_x and location_y
+  bool tree_tops = false;  // lidR locate_trees: treeID and Z, no DBH column: Z is the tree height
+
+  explicit Dialect(const std::vector<std::string>& header) {
+    const auto has = [&](std::string_view name) {
+      return std::any_of(header.begin(), header.end(),
+                         [&](const std::string& h) { return Lower(h) == name; });
+    };
+    fortls = has("h.dist");
+    treeloc = has("location_x") && has("location_y");
+    const bool dbh = std::any_of(header.begin(), header.end(), [](const std::string& h) {
+      const std::string lower = Lower(h);
+      return lower.starts_with("dbh") || lower == "diameter";
+    });
+    tree_tops = has("treeid") && has("z") && !dbh;
+  }
+
+  std::string Canonical(const std::string& name) const {
+    const std::string lower = Lower(name);
+    if (lower == "treeid") return "id";
+    if (lower == "dbh_cm" || lower == "dbh_mm") return "dbh";
+    if (fortls && lower == "id") return AsAttribute(name);
+    if (fortls && lower == "tree") return "id";
+    if (treeloc && lower.starts_with("location_") && lower.size() == 10) {
+      const std::string axis = lower.substr(9);  // location_x, location_y, location_z
+      if (axis == "x" || axis == "y" || axis == "z") return axis;
+    }
+    if (tree_tops && lower == "z") return AsAttribute(name);
+    return CanonicalColumnName(name);
+  }
+};
+
+}  // namespace
+
 ResolvedColumns ResolveMapColumns(const std::vector<std::string>& header,
                                   const TreeFileOptions& options, const std::string& where) {
   ResolvedColumns resolved;
-  const bool fortls = std::any_of(header.begin(), header.end(),
-                                  [](const std::string& h) { return Lower(h) == "h.dist"; });
-  for (const std::string& name : header) {
-    const std::string lower = Lower(name);
-    std::string canonical = CanonicalColumnName(name);
-    if (lower == "treeid") canonical = "id";
-    if (lower == "dbh_cm" || lower == "dbh_mm") canonical = "dbh";
-    if (fortls && lower == "id") canonical = AsAttribute(name);
-    if (fortls && lower == "tree") canonical = "id";
-    resolved.canonical.push_back(canonical);
+  const Dialect dialect(header);
+  const bool fortls = dialect.fortls;
+  resolved.z_is_tree_height = dialect.tree_tops && !options.columns.count("z");
+  for (size_t i = 0; i < header.size(); ++i) {
+    resolved.canonical.push_back(dialect.Canonical(header[i]));
+    if (dialect.treeloc && Lower(header[i]) == "dbh_approximation") resolved.dbh_fallback = i;
   }
   for (const auto& [column, header_name] : options.columns) {
     const std::string wanted = Lower(header_name);
@@ -130,6 +167,42 @@ ResolvedColumns ResolveMapColumns(const std::vector<std::string>& header,
   }
   resolved.dbh_unit = options.dbh_unit.value_or(header_unit.value_or(DbhUnit::kMetre));
   return resolved;
+}
+
+namespace {
+
+constexpr const char* kExportPrefix = "attr_";  // short: shapefile fields have 10 characters
+
+// Lower-case names a reader takes as a tree column or a dialect's marker (see Dialect).
+bool ReservedOnExport(const std::string& name) {
+  static const std::set<std::string> kReserved = {
+      "id",     "x",      "y",          "z",          "dbh",       "x_m",
+      "y_m",    "z_m",    "dbh_m",      "tree_id",    "treeid",    "dbh_cm",
+      "dbh_mm", "h.dist", "location_x", "location_y", "location_z"};
+  const std::string lower = Lower(name);
+  return lower.empty() || kReserved.count(lower) != 0 || CanonicalColumnName(name).empty();
+}
+
+}  // namespace
+
+std::vector<ExportedAttribute> ExportedAttributes(const std::vector<MapTreeRow>& rows) {
+  std::set<std::string> names;
+  for (const MapTreeRow& row : rows) {
+    for (const auto& [name, value] : row.attributes) names.insert(name);
+    names.insert(row.null_attributes.begin(), row.null_attributes.end());
+  }
+  std::vector<ExportedAttribute> exported;
+  std::map<std::string, std::string> attribute_of_column;  // lower-case column -> attribute
+  for (const std::string& name : names) {
+    const std::string column = ReservedOnExport(name) ? kExportPrefix + name : name;
+    const auto [it, inserted] = attribute_of_column.emplace(Lower(column), name);
+    if (!inserted) {
+      throw CsvError(StrCat({"cannot write attributes '", it->second, "' and '", name,
+                             "': both would be the column '", column, "'"}));
+    }
+    exported.push_back({name, column});
+  }
+  return exported;
 }
 
 void CheckDbhMedian(const std::vector<MapTreeRow>& rows, const std::string& file,

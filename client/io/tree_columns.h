@@ -6,8 +6,17 @@
 // 1. By name, case-insensitively: x | x_m, y | y_m, z | z_m, dbh | dbh_m | dbh_cm | dbh_mm,
 //    id | tree_id | treeid. These cover lidR (treeID, X, Y, Z, DBH in m) and 3DFin (X, Y, Z,
 //    DBH in m) output.
-// 2. FORTLS tree lists (recognised by their `h.dist` column): `tree` is the tree id, `dbh` is in
-//    cm, and `id` (FORTLS's plot id) stays an attribute.
+// 2. Dialects, recognised by their header:
+//    - FORTLS tree lists (a `h.dist` column): `tree` is the tree id, `dbh` is in cm, and `id`
+//      (FORTLS's plot id) stays an attribute;
+//    - TreeLoc++ tree states (TreeManagerState_N.csv: `location_x`, `location_y`): location_x,
+//      location_y, location_z are x, y, z; `dbh` is in m and, where empty, `dbh_approximation`
+//      stands in for it (as TreeLoc++ reads it); the rotation axis_00..axis_22, score,
+//      reconstructed and number_clusters stay attributes;
+//    - lidR locate_trees output (`treeID` and `Z`, no DBH column): Z is the tree-top height, so it
+//      stays an attribute (and a point geometry's z is not read as the stem base).
+//    3DFin's tree tables (X, Y, DBH in m, TH; a first column of T1, T2, ... without a name) need
+//    nothing more than 1.
 // 3. `--columns x=Field_Xpj,y=Field_Ypj,dbh=DBH,id=Tree` (any subset) names the columns
 //    explicitly and wins over 1 and 2; a column that would otherwise have given the same tree
 //    column is kept as an attribute.
@@ -41,11 +50,25 @@ double MetresPer(DbhUnit unit);  // 1, 0.01 or 0.001
 struct ResolvedColumns {
   std::vector<std::string> canonical;  // per header column: x, y, z, dbh, id or another name
   DbhUnit dbh_unit = DbhUnit::kMetre;
+  std::optional<size_t> dbh_fallback;  // column read (same unit) where dbh is unknown: TreeLoc++
+  bool z_is_tree_height = false;       // lidR tree tops: a point geometry's z is no stem base
 };
 
 // Throws CsvError "FILE:LINE: --columns dbh=DBHX: no column 'DBHX' (columns: a,b,c)".
 ResolvedColumns ResolveMapColumns(const std::vector<std::string>& header,
                                   const TreeFileOptions& options, const std::string& where);
+
+// The attribute columns of an export (CSV and GIS files), in attribute-name order: each
+// attribute (or null attribute) of any row, with the name it is written under. Names that would
+// read back as a tree column (X_m, treeID, dbh_cm, location_x, Z, ...) or switch a dialect on
+// (h.dist) are written as "attr_NAME", so that reading the file back keeps the tree columns
+// and the DBH unit, and the value stays an attribute. Throws CsvError when two attributes would be
+// written under one name (compared case-insensitively, as GeoPackage does).
+struct ExportedAttribute {
+  std::string name;    // the attribute's name
+  std::string column;  // the column it is written as
+};
+std::vector<ExportedAttribute> ExportedAttributes(const std::vector<MapTreeRow>& rows);
 
 // A DBH column whose median (in metres, after the unit) is over 3 m holds centimetres or
 // millimetres read as metres (a 14.9 cm stem read as 14.9 m): throws CsvError naming the file

@@ -31,6 +31,7 @@ struct MapColumns {
         attributes(columns.OtherNamedColumns()) {}
   size_t x, y;
   std::optional<size_t> z, dbh, id;
+  std::optional<size_t> dbh_fallback;  // read where dbh is unknown (TreeLoc++)
   std::vector<size_t> attributes;
 };
 
@@ -51,12 +52,16 @@ MapTreeRow ReadMapRow(const CsvReader& reader, const MapColumns& columns, double
   row.y = RequiredNumber(reader, columns.y);
   if (columns.z) row.z = OptionalNumber(reader, *columns.z);
   if (columns.dbh) row.dbh = OptionalDiameter(reader, *columns.dbh);
+  if (!row.dbh && columns.dbh_fallback) row.dbh = OptionalDiameter(reader, *columns.dbh_fallback);
   if (row.dbh) *row.dbh *= dbh_scale;
   if (columns.id) row.id = OptionalInteger(reader, *columns.id);
   for (size_t column : columns.attributes) {
     const CsvField& field = reader.fields()[column];
-    if (!field.quoted && (field.text.empty() || field.text == "NA")) continue;
     CheckUtf8(reader, column, reader.header()[column], "the column name");
+    if (!field.quoted && (field.text.empty() || field.text == "NA")) {
+      row.null_attributes.insert(reader.header()[column]);
+      continue;
+    }
     CheckUtf8(reader, column, field.text, "the value");
     row.attributes.emplace(reader.header()[column], std::string(field.text));
   }
@@ -66,7 +71,8 @@ MapTreeRow ReadMapRow(const CsvReader& reader, const MapColumns& columns, double
 std::vector<MapTreeRow> ReadMapTrees(CsvReader reader, const TreeFileOptions& options) {
   const ResolvedColumns resolved = ResolveMapColumns(
       reader.header(), options, reader.name() + ":" + std::to_string(reader.header_line()));
-  const MapColumns columns(ColumnMap(reader, {"id", "x", "y", "z", "dbh"}, resolved.canonical));
+  MapColumns columns(ColumnMap(reader, {"id", "x", "y", "z", "dbh"}, resolved.canonical));
+  columns.dbh_fallback = resolved.dbh_fallback;
   const double dbh_scale = MetresPer(resolved.dbh_unit);
   std::vector<MapTreeRow> rows;
   std::unordered_map<int64_t, int> line_of_id;

@@ -10,8 +10,9 @@
 //   score, axis_x, axis_y, axis_z, frame   detections only
 // An empty field, NA or NaN in an optional numeric column means "unknown"; in x or y it is an
 // error, as is an infinite value anywhere. In map files every other column is kept as a string
-// attribute (species, height_m, ...); an unquoted empty field or NA there means "absent", while
-// a quoted "" or "NA" is the literal string (R's write.csv convention). Columns with an empty
+// attribute (species, height_m, ...); an unquoted empty field or NA there is an unknown value (a
+// null attribute: the column stays, as a null field of an export, even when no row has a value),
+// while a quoted "" or "NA" is the literal string (R's write.csv convention). Columns with an empty
 // name (R's row names) are ignored. A header without data rows gives an empty list: whether that
 // is acceptable is the caller's decision.
 //
@@ -21,6 +22,7 @@
 #include <map>
 #include <optional>
 #include <ostream>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -38,6 +40,7 @@ struct MapTreeRow {
   std::optional<double> z;                        // m
   std::optional<double> dbh;                      // m
   std::map<std::string, std::string> attributes;  // other columns, by header name
+  std::set<std::string> null_attributes;          // other columns unknown (NA) in this row
 
   bool operator==(const MapTreeRow&) const = default;
 };
@@ -71,9 +74,11 @@ std::vector<MapTreeRow> ParseMapTreesCsv(std::string content, const std::string&
                                          const TreeFileOptions& options = {});
 
 // Writes `id,x,y,z,dbh,<attributes in name order>` with every number in its shortest form that
-// reads back exactly, and empty fields for unknown values, so that reading the output gives the
-// same rows. Throws CsvError for an attribute whose name would read back as a tree column, and
-// (path form) when the file cannot be written.
+// reads back exactly, and empty fields for unknown values (null attributes, and attributes other
+// rows have), so that reading the output gives the same rows (a column a row lacks reads back as
+// a null attribute of that row); an attribute named like a tree column is written as attr_NAME
+// (ExportedAttributes, tree_columns.h). Throws CsvError for two attributes written under one
+// name, and (path form) when the file cannot be written.
 void WriteMapTreesCsv(std::ostream& out, const std::vector<MapTreeRow>& rows);
 void WriteMapTreesCsv(const std::string& path, const std::vector<MapTreeRow>& rows);
 

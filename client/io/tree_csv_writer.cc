@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "client/io/csv_columns.h"
+#include "client/io/tree_columns.h"
 #include "client/io/tree_csv.h"
 
 namespace forestmap::client {
@@ -46,24 +47,8 @@ std::string Describe(const MapTreeRow& row, size_t index) {
          (row.id ? " (id " + std::to_string(*row.id) + ")" : std::string());
 }
 
-std::vector<std::string> AttributeColumns(const std::vector<MapTreeRow>& rows) {
-  std::set<std::string> names;
-  for (const MapTreeRow& row : rows) {
-    for (const auto& [name, value] : row.attributes) names.insert(name);
-  }
-  for (const std::string& name : names) {
-    const std::string canonical = CanonicalColumnName(name);
-    if (canonical.empty() || canonical == "id" || canonical == "x" || canonical == "y" ||
-        canonical == "z" || canonical == "dbh") {
-      throw CsvError("cannot write attribute '" + name + "': the name would read back as " +
-                     (canonical.empty() ? "an ignored column" : "the column '" + canonical + "'"));
-    }
-  }
-  return {names.begin(), names.end()};
-}
-
 void AppendRow(std::string& out, const MapTreeRow& row, size_t index,
-               const std::vector<std::string>& attribute_columns) {
+               const std::vector<ExportedAttribute>& attribute_columns) {
   auto check = [&](double value, const char* what) {
     if (!std::isfinite(value)) {
       throw CsvError("cannot write " + Describe(row, index) + ": " + what + " is not finite");
@@ -82,9 +67,9 @@ void AppendRow(std::string& out, const MapTreeRow& row, size_t index,
   if (row.z) AppendNumber(out, *row.z);
   out.push_back(',');
   if (row.dbh) AppendNumber(out, *row.dbh);
-  for (const std::string& name : attribute_columns) {
+  for (const ExportedAttribute& attribute : attribute_columns) {
     out.push_back(',');
-    const auto it = row.attributes.find(name);
+    const auto it = row.attributes.find(attribute.name);
     if (it != row.attributes.end()) AppendText(out, it->second);
   }
   out.push_back('\n');
@@ -113,15 +98,20 @@ std::ostream& operator<<(std::ostream& out, const MapTreeRow& row) {
     text += " ";
     AppendText(text, value);
   }
+  for (const std::string& name : row.null_attributes) {
+    text += ", ";
+    AppendText(text, name);
+    text += " null";
+  }
   return out << text << "}";
 }
 
 void WriteMapTreesCsv(std::ostream& out, const std::vector<MapTreeRow>& rows) {
-  const std::vector<std::string> attribute_columns = AttributeColumns(rows);
+  const std::vector<ExportedAttribute> attribute_columns = ExportedAttributes(rows);
   std::string text = "id,x,y,z,dbh";
-  for (const std::string& name : attribute_columns) {
+  for (const ExportedAttribute& attribute : attribute_columns) {
     text.push_back(',');
-    AppendText(text, name);
+    AppendText(text, attribute.column);
   }
   text.push_back('\n');
   // Write in blocks so that a million-tree export does not hold its whole text twice.

@@ -47,11 +47,17 @@ TEST(TreeColumnsTest, FieldInventoryReadsAsDeliveredWithColumnsAndUnit) {
   EXPECT_NEAR(rows[0].y, 5096043.185, kTolerance);
   ASSERT_TRUE(rows[0].dbh.has_value());
   EXPECT_NEAR(*rows[0].dbh, 0.149, kTolerance);
-  // Every other column is an attribute, under its own name; NA is absent.
+  // Every other column is an attribute, under its own name; NA is a null attribute (LI, LO: NA
+  // in every row, BT in all but one), so the column is kept.
   EXPECT_EQ(rows[0].attributes.at("Spp"), "41");
   EXPECT_EQ(rows[0].attributes.at("Plot"), "PRF025");
   EXPECT_EQ(rows[0].attributes.at("Field_X"), "0.502574283");
   EXPECT_EQ(rows[0].attributes.count("LI"), 0u);
+  for (const auto& row : rows) {
+    EXPECT_EQ(row.null_attributes.count("LI"), 1u) << row;
+    EXPECT_EQ(row.null_attributes.count("LO"), 1u) << row;
+    EXPECT_EQ(row.attributes.size() + row.null_attributes.size(), 17u) << row;
+  }
   EXPECT_EQ(rows[0].attributes.count("DBH"), 0u);
   EXPECT_EQ(rows[0].attributes.count("Tree"), 0u);
 }
@@ -98,6 +104,64 @@ TEST(TreeColumnsTest, FortlsTreeListUsesTreeAsIdAndCentimetres) {
   EXPECT_EQ(rows[0].id, 3);
   EXPECT_NEAR(*rows[0].dbh, 0.234, kTolerance);
   EXPECT_EQ(rows[0].attributes.at("id"), "plot7");
+}
+
+// TreeLoc++'s TreeManagerState_N.csv (the header and two rows of its Oxford_Evo data, the
+// second tree not reconstructed: no dbh, only dbh_approximation).
+TEST(TreeColumnsTest, TreeLocTreeStateReadsWithoutMapping) {
+  const std::string header =
+      "axis_00,axis_01,axis_02,axis_10,axis_11,axis_12,axis_20,axis_21,axis_22,location_x,"
+      "location_y,location_z,dbh,dbh_approximation,score,reconstructed,number_clusters\n";
+  const auto rows = ParseMapTreesCsv(
+      header +
+          "-0.905,-0.424,-0.024,0.425,-0.904,-0.048,-0.001,-0.054,0.999,13.3553,-12.7387,-2.6658,"
+          "0.1653,0.1459,0.5946,True,4\n"
+          "-0.296,0.955,-0.005,-0.955,-0.296,-0.023,-0.023,-0.002,1.0,23.7208,1.2068,-1.4286,,"
+          "0.2218,1.0,False,1\n",
+      "TreeManagerState_0.csv");
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_FALSE(rows[0].id.has_value());  // no id column: the server assigns ids
+  EXPECT_NEAR(rows[0].x, 13.3553, kTolerance);
+  EXPECT_NEAR(rows[0].y, -12.7387, kTolerance);
+  EXPECT_NEAR(*rows[0].z, -2.6658, kTolerance);
+  EXPECT_NEAR(*rows[0].dbh, 0.1653, kTolerance);  // dbh, in m
+  EXPECT_NEAR(*rows[1].dbh, 0.2218, kTolerance);  // dbh_approximation where dbh is empty
+  EXPECT_EQ(rows[0].attributes.at("reconstructed"), "True");
+  EXPECT_EQ(rows[0].attributes.at("axis_22"), "0.999");
+  EXPECT_EQ(rows[0].attributes.count("location_x"), 0u);
+}
+
+// lidR's locate_trees: treeID, Z (the tree-top height) and the point; no DBH.
+TEST(TreeColumnsTest, LidrTreeTopsKeepTheirHeightAsAnAttribute) {
+  const auto rows = ParseMapTreesCsv("X,Y,treeID,Z\n481260.5,3812981.2,1,23.4\n", "ttops.csv");
+  ASSERT_EQ(rows.size(), 1u);
+  EXPECT_EQ(rows[0].id, 1);
+  EXPECT_NEAR(rows[0].x, 481260.5, kTolerance);
+  EXPECT_FALSE(rows[0].z.has_value());  // a tree top is no stem base
+  EXPECT_EQ(rows[0].attributes.at("Z"), "23.4");
+  EXPECT_FALSE(rows[0].dbh.has_value());
+  // --columns z=Z says otherwise.
+  TreeFileOptions options;
+  options.columns = {{"z", "Z"}};
+  EXPECT_NEAR(*ParseMapTreesCsv("X,Y,treeID,Z\n1,2,1,23.4\n", "t.csv", options)[0].z, 23.4,
+              kTolerance);
+}
+
+// 3DFin's tree table (Tree Analysis / dbh_and_heights saved as CSV: tree names in an unnamed
+// first column, DBH in m).
+TEST(TreeColumnsTest, ThreeDFinTreeTableReadsWithoutMapping) {
+  const auto rows = ParseMapTreesCsv(
+      ",DBH,Normal_Section_Area,Tree_Height,Crown_Height,Stem_Volume,X,Y\n"
+      "T1,0.254,0.0507,18.2,9.1,0.41,451203.12,4801122.85\n",
+      "3dfin.csv");
+  ASSERT_EQ(rows.size(), 1u);
+  EXPECT_NEAR(*rows[0].dbh, 0.254, kTolerance);
+  EXPECT_NEAR(rows[0].x, 451203.12, kTolerance);
+  EXPECT_EQ(rows[0].attributes.at("Tree_Height"), "18.2");
+  EXPECT_EQ(rows[0].attributes.count(""), 0u);  // the unnamed tree-name column is ignored
+  const auto legacy = ParseMapTreesCsv(",TH,DBH,X,Y\nT1,18.2,0.254,1.5,2.5\n", "3dfin.csv");
+  EXPECT_NEAR(*legacy[0].dbh, 0.254, kTolerance);
+  EXPECT_EQ(legacy[0].attributes.at("TH"), "18.2");
 }
 
 TEST(TreeColumnsTest, UnitSuffixAndExplicitUnit) {

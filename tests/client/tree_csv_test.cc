@@ -7,6 +7,7 @@
 #include <fstream>
 #include <limits>
 #include <random>
+#include <set>
 #include <sstream>
 #include <string>
 
@@ -92,10 +93,13 @@ TEST(TreeCsvTest, EmptyAndNaMeanUnknown) {
   EXPECT_FALSE(rows[0].z.has_value());
   EXPECT_FALSE(rows[0].dbh.has_value());
   EXPECT_TRUE(rows[0].attributes.empty());
+  EXPECT_EQ(rows[0].null_attributes, std::set<std::string>{"species"});  // empty: unknown
   EXPECT_FALSE(rows[1].z.has_value());
   EXPECT_FALSE(rows[1].dbh.has_value());
-  EXPECT_TRUE(rows[1].attributes.empty());            // unquoted NA: a missing string
+  EXPECT_TRUE(rows[1].attributes.empty());  // unquoted NA: an unknown string, a null attribute
+  EXPECT_EQ(rows[1].null_attributes, std::set<std::string>{"species"});
   EXPECT_EQ(rows[2].attributes.at("species"), "NA");  // quoted: the literal string
+  EXPECT_TRUE(rows[2].null_attributes.empty());
   EXPECT_FALSE(rows[3].id.has_value());
   EXPECT_EQ(rows[3].attributes.at("species"), "");
 }
@@ -250,20 +254,56 @@ TEST(TreeCsvTest, WriteThenReadIsExact) {
     row.y = i == 1 ? std::numeric_limits<double>::min() : coordinate(rng) * 1e-9;
     if (i % 3 != 0) row.z = unit(rng) * 300 - 10;
     if (i % 4 != 0) row.dbh = unit(rng) / 3;
-    if (i % 2 == 0) row.attributes["species"] = awkward[i % awkward.size()];
-    if (i % 5 == 0) row.attributes["Height m"] = std::to_string(unit(rng));
+    // A table: a row without a value in a column has it as a null attribute.
+    if (i % 2 == 0) {
+      row.attributes["species"] = awkward[i % awkward.size()];
+    } else {
+      row.null_attributes.insert("species");
+    }
+    if (i % 5 == 0) {
+      row.attributes["Height m"] = std::to_string(unit(rng));
+    } else {
+      row.null_attributes.insert("Height m");
+    }
+    row.null_attributes.insert("LI");  // unknown in every row: the column still round-trips
     rows.push_back(row);
   }
   EXPECT_EQ(RoundTrip(rows), rows);
   EXPECT_TRUE(RoundTrip({}).empty());
 }
 
+TEST(TreeCsvTest, AColumnUnknownInEveryRowIsKept) {
+  const auto rows = ParseMapTreesCsv("x,y,LI,Spp\n0,0,NA,41\n1,1,NA,\n", "prf.csv");
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0].null_attributes, std::set<std::string>{"LI"});
+  EXPECT_EQ(rows[1].null_attributes, (std::set<std::string>{"LI", "Spp"}));
+  std::ostringstream out;
+  WriteMapTreesCsv(out, rows);
+  EXPECT_EQ(out.str(), "id,x,y,z,dbh,LI,Spp\n,0,0,,,,41\n,1,1,,,,\n");
+}
+
+// Attributes named like a tree column or a dialect's marker (FORTLS keeps its plot `id`, lidR tree
+// tops their `Z`) are written as attr_NAME: the file reads back with its tree columns and metres.
+TEST(TreeCsvTest, AttributesNamedLikeTreeColumnsAreWrittenWithAPrefix) {
+  MapTreeRow row;
+  row.x = 1;
+  row.y = 2;
+  row.dbh = 0.3;
+  row.attributes = {{"X_m", "1"}, {"id", "plot7"}, {"h.dist", "2.9"}, {"Z", "23.4"}, {"h", "17"}};
+  std::ostringstream out;
+  WriteMapTreesCsv(out, {row});
+  EXPECT_EQ(out.str(),
+            "id,x,y,z,dbh,attr_X_m,attr_Z,h,attr_h.dist,attr_id\n,1,2,,0.3,1,23.4,17,2.9,plot7\n");
+  const MapTreeRow back = RoundTrip({row})[0];
+  EXPECT_EQ(back.dbh, 0.3);  // h.dist did not make it FORTLS centimetres
+  EXPECT_EQ(back.attributes.at("attr_id"), "plot7");
+  row.attributes = {{"id", "a"}, {"attr_ID", "b"}};
+  EXPECT_EQ(ErrorOf([&] { RoundTrip({row}); }),
+            "cannot write attributes 'attr_ID' and 'id': both would be the column 'attr_id'");
+}
+
 TEST(TreeCsvTest, WriteRejectsWhatWouldNotReadBack) {
   MapTreeRow row;
-  row.attributes["X_m"] = "1";
-  EXPECT_EQ(ErrorOf([&] { RoundTrip({row}); }),
-            "cannot write attribute 'X_m': the name would read back as the column 'x'");
-  row.attributes.clear();
   row.id = 4;
   row.y = std::nan("");
   EXPECT_EQ(ErrorOf([&] { RoundTrip({row}); }), "cannot write tree #1 (id 4): y is not finite");

@@ -31,11 +31,11 @@ namespace fs = std::filesystem;
 
 const std::string kPlot = std::string(FORESTMAP_SHARED_DATA) + "/survey_vs_lidar/PRF025/";
 const std::string kFieldColumns = "--columns x=Field_Xpj,y=Field_Ypj,dbh=DBH,id=Tree";
-// PRF025_Field.csv's columns other than the four mapped ones: each must reach the export. (LI and
-// LO are NA in all 62 rows: an unknown value is an absent attribute, so they have no field.)
-const char* kFieldAttributes[] = {"Plot",     "Spp",     "Status",  "Origin",  "Dist",
-                                  "Azim",     "DbhHt",   "Ht",      "BT",      "Plotsize",
-                                  "Dbh_meas", "Field_X", "Field_Y", "Easting", "Northing"};
+// PRF025_Field.csv's columns other than the four mapped ones: each must reach the export, LI and
+// LO too, which are NA in all 62 rows (null fields).
+const char* kFieldAttributes[] = {
+    "Plot", "Spp", "Status",   "Origin",   "Dist",    "Azim",    "DbhHt",   "Ht",      "LI",
+    "LO",   "BT",  "Plotsize", "Dbh_meas", "Field_X", "Field_Y", "Easting", "Northing"};
 
 struct Result {
   int exit_code = -1;
@@ -115,15 +115,20 @@ TEST_F(SurveyCliTest, FieldInventoryUploadsAndExportsToGeoPackageWithCrsAndAttri
   const Result tree1 = Shell("ogrinfo -al -where 'id = 1' '" + gpkg + "'");
   EXPECT_NE(tree1.out.find("dbh (Real) = 0.149"), std::string::npos) << tree1.out;
   EXPECT_NE(tree1.out.find("Spp (String) = 41"), std::string::npos) << tree1.out;
+  for (const char* unknown : {"LI", "LO", "BT"}) {  // NA in the file: null fields
+    EXPECT_NE(tree1.out.find(std::string(unknown) + " (String) = (null)"), std::string::npos)
+        << unknown << " in\n"
+        << tree1.out;
+  }
 }
 
-TEST_F(SurveyCliTest, GeoJsonAndShapefileRoundTripWithTheirCrs) {
+TEST_F(SurveyCliTest, GeoJsonShapefileAndCsvRoundTripWithTheirCrsAndNullFields) {
   ASSERT_EQ(CreateField("prf025", "--dbh-unit cm --crs EPSG:2959").exit_code, 0);
-  for (const std::string name : {"trees.geojson", "trees.shp"}) {
+  for (const std::string name : {"trees.geojson", "trees.shp", "trees.csv"}) {
     const std::string path = (dir_ / name).string();
     const Result exported = Cli("map export prf025 --out '" + path + "'");
     ASSERT_EQ(exported.exit_code, 0) << exported.err;
-    const std::string copy = "copy" + std::to_string(name.size());
+    const std::string copy = "copy_" + fs::path(name).extension().string().substr(1);
     const Result created = Cli("map create " + copy + " --trees '" + path + "'");
     ASSERT_EQ(created.exit_code, 0) << created.err;
     const v1::Map map = client_.GetMap(copy);
@@ -137,7 +142,10 @@ TEST_F(SurveyCliTest, GeoJsonAndShapefileRoundTripWithTheirCrs) {
       EXPECT_NEAR(read_back[i].x, original[i].x, 1e-6);
       EXPECT_NEAR(read_back[i].y, original[i].y, 1e-6);
       EXPECT_NEAR(read_back[i].dbh.value_or(-1), original[i].dbh.value_or(-1), 1e-9);
+      EXPECT_EQ(read_back[i].attributes, original[i].attributes) << name;
+      EXPECT_EQ(read_back[i].null_attributes, original[i].null_attributes) << name;
     }
+    EXPECT_EQ(original[0].null_attributes.count("LI"), 1u);
   }
 }
 
@@ -282,6 +290,63 @@ TEST_F(SurveyCliTest, CompareLidarWithFieldInventory) {
     EXPECT_EQ(a[i].reference, b[i].reference);
   }
   EXPECT_NEAR(RegisteredRotation(registered.err) - RegisteredRotation(moved.err), kRotation, 0.01);
+}
+
+}  // namespace
+}  // namespace forestmap
+
+namespace forestmap {
+namespace {
+
+// Measured on this scan: 181 trunks, 1 unlinked, position RMSE 0.065 m, DBH RMSE 3.8 cm,
+// registered rotation 29.996 deg. The bounds leave room for detector tuning.
+constexpr int kMinScanTrunks = 150;
+constexpr double kMaxScanCommission = 0.05;
+constexpr double kMaxScanPositionRmse = 0.10;  // m
+constexpr double kMaxScanDbhRmse = 0.05;       // m
+constexpr double kScanYaw = 30.0;              // deg, the simulated pose's yaw
+constexpr double kMaxYawError = 0.1;           // deg
+
+std::string Quoted(const fs::path& path) { return std::string("'") + path.string() + "'"; }
+
+// A scan as the detections: its trunks are detected as `forestmap detect` finds them, then linked
+// to the simulator's truth (sensor frame) and, with --register, to the scene's map (map frame,
+// the sensor at (60, 60) turned by 30 degrees): the same trees either way.
+TEST_F(SurveyCliTest, CompareScanWithItsTruthAndRegisteredWithTheMap) {
+  const fs::path sim = dir_ / "sim";
+  const Result simulated =
+      Cli("simulate --generate 2000 --pose 60,60,3,30 --no-body --out '" + sim.string() + "'");
+  ASSERT_EQ(simulated.exit_code, 0) << simulated.err;
+  const std::string scan = Quoted(sim / "scan_000.pcd");
+  const fs::path truth_links = dir_ / "truth_links.csv", map_links = dir_ / "map_links.csv";
+  const Result truth =
+      Cli("compare " + scan + " --reference '" + (sim / "scan_000_truth.csv").string() +
+          "' --json --out '" + truth_links.string() + "'");
+  ASSERT_EQ(truth.exit_code, 0) << truth.err;
+  EXPECT_NE(truth.err.find("trunks detected in"), std::string::npos) << truth.err;
+  const nlohmann::json result = nlohmann::json::parse(truth.out);
+  const int detected = result["detected_trees"];
+  EXPECT_GE(detected, kMinScanTrunks);
+  EXPECT_LE(result["commission"].get<double>(), kMaxScanCommission) << truth.out;
+  EXPECT_LE(result["position_rmse_m"].get<double>(), kMaxScanPositionRmse) << truth.out;
+  EXPECT_LE(result["dbh_rmse_m"].get<double>(), kMaxScanDbhRmse) << truth.out;
+
+  const Result registered =
+      Cli("compare " + scan + " --register --reference '" + (sim / "map.csv").string() +
+          "' --out '" + map_links.string() + "'");
+  ASSERT_EQ(registered.exit_code, 0) << registered.err;
+  EXPECT_NEAR(RegisteredRotation(registered.err), kScanYaw, kMaxYawError) << registered.err;
+  const std::vector<Link> a = ReadLinks(truth_links), b = ReadLinks(map_links);
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].detected, b[i].detected);
+    EXPECT_EQ(a[i].reference, b[i].reference);  // truth tree_id = the map's id
+  }
+
+  const Result laz = Cli("compare '" + (dir_ / "scan.laz").string() + "' --reference '" +
+                         (sim / "map.csv").string() + "'");
+  EXPECT_EQ(laz.exit_code, 1);
+  EXPECT_NE(laz.err.find("scan.laz"), std::string::npos) << laz.err;
 }
 
 }  // namespace

@@ -65,8 +65,12 @@ TEST(ConvertTest, TreeRoundTripKeepsOptionalFieldsAndBits) {
       Record(0, -3.5, 4.0, -12.75, std::nullopt),
       Record(9007199254740993, 5.0, 6.0, std::nullopt, 0.0),
   };
-  for (const storage::TreeRecord& tree : trees) {
+  std::vector<storage::TreeRecord> with_nulls = trees;
+  with_nulls[0].null_attributes = {"LI", "LO"};  // survey columns unknown for this tree
+  with_nulls[1].null_attributes = {"BT"};
+  for (const storage::TreeRecord& tree : with_nulls) {
     const v1::Tree proto = ToProto(tree);
+    EXPECT_EQ(static_cast<size_t>(proto.null_attributes_size()), tree.null_attributes.size());
     EXPECT_EQ(proto.has_id(), tree.id.has_value());
     EXPECT_EQ(proto.has_z(), tree.z.has_value());
     EXPECT_EQ(proto.has_dbh(), tree.dbh.has_value());

@@ -118,6 +118,26 @@ TEST(ValidationTest, TreeFields) {
               HasSubstr("trees[6].attributes"));
 }
 
+// Null attributes (survey columns unknown for a tree): key rules as for attributes.
+TEST(ValidationTest, NullAttributes) {
+  v1::Tree tree;
+  (*tree.mutable_attributes())["Spp"] = "41";
+  tree.add_null_attributes("LI");
+  EXPECT_NO_THROW(ValidateTree(tree, "trees[0]"));
+  v1::Tree both = tree;
+  both.add_null_attributes("Spp");
+  EXPECT_EQ(ErrorOf<ValidationError>([&] { ValidateTree(both, "trees[1]"); }),
+            "trees[1].null_attributes: \"Spp\" is also a key of attributes");
+  v1::Tree empty = tree;
+  empty.add_null_attributes("");
+  EXPECT_EQ(ErrorOf<ValidationError>([&] { ValidateTree(empty, "trees[2]"); }),
+            "trees[2].null_attributes has an empty key");
+  v1::Tree many = tree;
+  for (size_t i = 0; i < kMaxAttributes; ++i) many.add_null_attributes(std::to_string(i) + "c");
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { ValidateTree(many, "trees[3]"); }),
+              HasSubstr("trees[3].null_attributes: 66 attributes and null attributes exceed"));
+}
+
 // Issue 15: finite but huge coordinates crashed the index build; a map frame is a local frame.
 TEST(ValidationTest, CoordinatesMustLieInALocalFrame) {
   v1::Tree tree;

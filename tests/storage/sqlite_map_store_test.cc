@@ -293,6 +293,11 @@ TEST_P(MapStoreTest, ValuesRoundTripBitForBit) {
                          {"utf8", "\xc3\xa4\xe2\x82\xac"},
                          {"number", "12.5"}};
     }
+    if (i % 5 == 2) tree.null_attributes = {"LI", "species"};  // unknown survey columns
+    if (i % 5 == 3) {
+      tree.attributes = {{"species", "Pinus"}};
+      tree.null_attributes = {"LO"};
+    }
     trees.push_back(tree);
   }
   store_.CreateMap("m", "", "");
@@ -312,6 +317,7 @@ TEST_P(MapStoreTest, ValuesRoundTripBitForBit) {
     EXPECT_TRUE(same_bits(out.z, in.z)) << "tree " << i;
     EXPECT_TRUE(same_bits(out.dbh, in.dbh)) << "tree " << i;
     EXPECT_EQ(out.attributes, in.attributes) << "tree " << i;
+    EXPECT_EQ(out.null_attributes, in.null_attributes) << "tree " << i;
   }
   // The documented exception: SQLite's REAL affinity stores -0.0 as integer 0; PostgreSQL
   // keeps the sign.

@@ -33,7 +33,8 @@ class Tree:
     z: Optional[float] = None
     dbh: Optional[float] = None
     id: Optional[int] = None
-    attributes: Dict[str, str] = field(default_factory=dict)
+    # Survey columns; None is an unknown value (NA): the column is kept, as a null field.
+    attributes: Dict[str, Optional[str]] = field(default_factory=dict)
     confirmed: bool = True    # False: a candidate of a shared map
     observations: int = 0     # observations merged into the tree
 
@@ -123,7 +124,10 @@ def _map_trees(trees: Union[ArrayLike, Iterable[Tree]]) -> List[maps_pb2.Tree]:
                       dbh=r[3] if array.shape[1] > 3 else None) for r in array]
     out = []
     for tree in trees:
-        message = maps_pb2.Tree(x=float(tree.x), y=float(tree.y), attributes=tree.attributes)
+        message = maps_pb2.Tree(
+            x=float(tree.x), y=float(tree.y),
+            attributes={k: v for k, v in tree.attributes.items() if v is not None},
+            null_attributes=sorted(k for k, v in tree.attributes.items() if v is None))
         if tree.id is not None:
             message.id = int(tree.id)
         if tree.z is not None and not math.isnan(tree.z):
@@ -280,7 +284,8 @@ class Client:
                         trees.append(Tree(
                             x=t.x, y=t.y, z=t.z if t.HasField("z") else None,
                             dbh=t.dbh if t.HasField("dbh") else None, id=t.id,
-                            attributes=dict(t.attributes),
+                            attributes={**dict(t.attributes),
+                                        **{k: None for k in t.null_attributes}},
                             confirmed=t.status != maps_pb2.CANDIDATE,
                             observations=t.observations))
                 return trees

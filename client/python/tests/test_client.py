@@ -57,9 +57,10 @@ def test_trees_round_trip_bit_for_bit(server):
     exported = client.export("roundtrip")
     assert [(t.x, t.y, t.z, t.dbh) for t in exported] == [tuple(row) for row in trees]
     assert all(t.confirmed for t in exported)
-    client.upload("roundtrip", [Tree(x=1.5, y=2.5, id=1000, attributes={"species": "Picea"})])
+    client.upload("roundtrip", [Tree(x=1.5, y=2.5, id=1000,
+                                     attributes={"species": "Picea", "LI": None})])
     assert client.get_map("roundtrip").tree_count == 201
-    assert client.export("roundtrip")[-1].attributes == {"species": "Picea"}
+    assert client.export("roundtrip")[-1].attributes == {"species": "Picea", "LI": None}
     assert "roundtrip" in [m.name for m in client.list_maps()]
     client.delete_map("roundtrip")
 
