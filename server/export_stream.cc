@@ -11,8 +11,7 @@
 
 namespace forestmap::server {
 
-ExportTreesReactor::ExportTreesReactor(const StreamDeps& deps,
-                                       grpc::CallbackServerContext* context,
+ExportTreesReactor::ExportTreesReactor(const StreamDeps& deps, grpc::CallbackServerContext* context,
                                        const v1::ExportTreesRequest* request)
     : deps_(deps), context_(context), request_(request) {
   std::string refusal;
@@ -20,7 +19,7 @@ ExportTreesReactor::ExportTreesReactor(const StreamDeps& deps,
   if (!slot_) {
     const grpc::Status refused(grpc::StatusCode::RESOURCE_EXHAUSTED, refusal);
     LogStatus("ExportTrees", refused);
-    Finish(refused);
+    End(refused);
     return;
   }
   const bool queued = deps_.work_pool.TrySubmit([this] {
@@ -31,10 +30,10 @@ ExportTreesReactor::ExportTreesReactor(const StreamDeps& deps,
     if (status.ok()) {
       WriteNext();
     } else {
-      Finish(status);
+      End(status);
     }
   });
-  if (!queued) Finish(ServerBusy("ExportTrees"));
+  if (!queued) End(ServerBusy("ExportTrees"));
 }
 
 void ExportTreesReactor::Start() {
@@ -58,10 +57,10 @@ void ExportTreesReactor::LoadPage() {
   } catch (const storage::StorageError& e) {
     // After the first page, a missing map or version was deleted or pruned meanwhile.
     if (!after_id_ || e.code() != storage::StorageError::Code::kNotFound) throw;
-    throw ServiceError(grpc::StatusCode::ABORTED,
-                       "map \"" + request_->map_name() + "\" (version " +
-                           std::to_string(version_) + ") was deleted or pruned during the " +
-                           "export (" + e.what() + "); retry");
+    throw ServiceError(grpc::StatusCode::ABORTED, "map \"" + request_->map_name() + "\" (version " +
+                                                      std::to_string(version_) +
+                                                      ") was deleted or pruned during the " +
+                                                      "export (" + e.what() + "); retry");
   }
   next_ = 0;
   last_page_ = static_cast<int64_t>(page_.size()) < query.limit;
@@ -74,10 +73,10 @@ void ExportTreesReactor::ReadThenWrite() {
     if (status.ok()) {
       WriteNext();
     } else {
-      Finish(status);
+      End(status);
     }
   });
-  if (!queued) Finish(ServerBusy("ExportTrees"));
+  if (!queued) End(ServerBusy("ExportTrees"));
 }
 
 void ExportTreesReactor::WriteNext() {
@@ -88,7 +87,7 @@ void ExportTreesReactor::WriteNext() {
     }
     if (wrote_any_) {
       page_ = {};
-      Finish(grpc::Status::OK);
+      End(grpc::Status::OK);
       return;
     }
   }
@@ -110,10 +109,15 @@ void ExportTreesReactor::OnWriteDone(bool ok) {
   if (!ok) {
     const grpc::Status cancelled(grpc::StatusCode::CANCELLED, "the client stopped reading");
     LogStatus("ExportTrees", cancelled);
-    Finish(cancelled);
+    End(cancelled);
     return;
   }
   WriteNext();
+}
+
+void ExportTreesReactor::End(const grpc::Status& status) {
+  slot_.reset();  // before the client can learn the call ended and open the next one
+  Finish(status);
 }
 
 }  // namespace forestmap::server

@@ -69,10 +69,10 @@ struct ServiceOptions {
   int64_t max_upload_trees = 20'000'000;  // trees per UploadTrees stream (staged in the database)
   // Trees an upload stages per transaction: the most of an upload held in memory (count).
   int upload_stage_trees = 10'000;
-  StreamLimitOptions streams;             // open upload / export streams, in all and per client
-  int export_chunk_trees = 5'000;         // trees per ExportTrees message, at most
-  int64_t export_chunk_bytes = 1 << 20;   // bytes per ExportTrees message, about (below the
-                                          // clients' default 4 MiB receive limit)
+  StreamLimitOptions streams;            // open upload / export streams, in all and per client
+  int export_chunk_trees = 5'000;        // trees per ExportTrees message, at most
+  int64_t export_chunk_bytes = 1 << 20;  // bytes per ExportTrees message, about (below the
+                                         // clients' default 4 MiB receive limit)
   // Threads for work that may take long or wait: Relocalize (index builds, waits for another
   // call's build), UploadTrees commits, ExportTrees reads. Waiting calls hold a thread, so
   // this is more than the core count; CPU use is bounded by the cores anyway.
@@ -111,6 +111,7 @@ class ForestMapService final
   const ServiceOptions& options() const { return options_; }
   const MapIndexCache& index_cache() const { return index_cache_; }
   const RecentAnswers& recent_answers() const { return recent_answers_; }  // the web page's
+  const StreamLimits& stream_limits() const { return stream_limits_; }
 
   grpc::ServerUnaryReactor* CreateMap(grpc::CallbackServerContext* context,
                                       const v1::CreateMapRequest* request,

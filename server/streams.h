@@ -53,10 +53,11 @@ class UploadTreesReactor final : public grpc::ServerReadReactor<grpc::ByteBuffer
   void OnDone() override;  // an upload not committed is aborted (on a pool), then `delete this`
 
  private:
-  void Accept();         // the message in buffer_ -> chunk_; throws
-  bool Begin();          // first message: false when a replayed answer ends the call; throws
-  void StageChunk();     // chunk_ -> the database; throws
-  void Commit();         // throws
+  void End(const grpc::Status& status);  // frees the stream's place, then Finish
+  void Accept();                         // the message in buffer_ -> chunk_; throws
+  bool Begin();       // first message: false when a replayed answer ends the call; throws
+  void StageChunk();  // chunk_ -> the database; throws
+  void Commit();      // throws
   // Runs `body` on `pool`, then reads the next message, or finishes on error.
   void ThenReadNext(WorkerPool& pool, std::function<void()> body);
   void EncodeResponse(const v1::UploadTreesResponse& answer);
@@ -92,8 +93,9 @@ class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTrees
   void OnDone() override { delete this; }
 
  private:
-  void Start();     // authorizes, picks the version; throws
-  void LoadPage();  // the next page into page_; throws
+  void End(const grpc::Status& status);  // frees the stream's place, then Finish
+  void Start();                          // authorizes, picks the version; throws
+  void LoadPage();                       // the next page into page_; throws
   void ReadThenWrite();
   void WriteNext();
 

@@ -16,8 +16,7 @@
 
 namespace forestmap::server {
 
-UploadTreesReactor::UploadTreesReactor(const StreamDeps& deps,
-                                       grpc::CallbackServerContext* context,
+UploadTreesReactor::UploadTreesReactor(const StreamDeps& deps, grpc::CallbackServerContext* context,
                                        grpc::ByteBuffer* response)
     : deps_(deps),
       authorizer_(deps.options.authorizer),
@@ -29,7 +28,7 @@ UploadTreesReactor::UploadTreesReactor(const StreamDeps& deps,
   if (!slot_) {
     const grpc::Status refused(grpc::StatusCode::RESOURCE_EXHAUSTED, refusal);
     LogStatus("UploadTrees", refused);
-    Finish(refused);
+    End(refused);
     return;
   }
   StartRead(&buffer_);
@@ -51,12 +50,12 @@ void UploadTreesReactor::OnReadDone(bool ok) {
       const grpc::Status cancelled(grpc::StatusCode::CANCELLED,
                                    "upload cancelled; nothing was written");
       LogStatus("UploadTrees", cancelled);
-      Finish(cancelled);
+      End(cancelled);
       return;
     }
-    const bool queued = deps_.work_pool.TrySubmit(
-        [this] { Finish(RunGuarded("UploadTrees", [this] { Commit(); })); });
-    if (!queued) Finish(ServerBusy("UploadTrees"));
+    const bool queued =
+        deps_.work_pool.TrySubmit([this] { End(RunGuarded("UploadTrees", [this] { Commit(); })); });
+    if (!queued) End(ServerBusy("UploadTrees"));
     return;
   }
   const bool first = validator_.messages() == 0;
@@ -64,7 +63,7 @@ void UploadTreesReactor::OnReadDone(bool ok) {
     Accept();  // decodes and checks the message; the first one names the map
   });
   if (!status.ok()) {
-    Finish(status);  // the rest of the stream is dropped; nothing is committed
+    End(status);  // the rest of the stream is dropped; nothing is committed
     return;
   }
   if (first) {
@@ -74,14 +73,14 @@ void UploadTreesReactor::OnReadDone(bool ok) {
       bool more = true;
       const grpc::Status begun = RunGuarded("UploadTrees", [this, &more] { more = Begin(); });
       if (!begun.ok()) {
-        Finish(begun);
+        End(begun);
       } else if (more) {
         StartRead(&buffer_);
       } else {
-        Finish(grpc::Status::OK);
+        End(grpc::Status::OK);
       }
     });
-    if (!queued) Finish(ServerBusy("UploadTrees"));
+    if (!queued) End(ServerBusy("UploadTrees"));
     return;
   }
   if (static_cast<int64_t>(chunk_.size()) >= deps_.options.upload_stage_trees) {
@@ -97,10 +96,10 @@ void UploadTreesReactor::ThenReadNext(WorkerPool& pool, std::function<void()> bo
     if (status.ok()) {
       StartRead(&buffer_);
     } else {
-      Finish(status);
+      End(status);
     }
   });
-  if (!queued) Finish(ServerBusy("UploadTrees"));
+  if (!queued) End(ServerBusy("UploadTrees"));
 }
 
 void UploadTreesReactor::Accept() {
@@ -190,9 +189,14 @@ void UploadTreesReactor::Commit() {
 
 void UploadTreesReactor::EncodeResponse(const v1::UploadTreesResponse& answer) {
   bool own_buffer = false;
-  const grpc::Status encoded = grpc::SerializationTraits<v1::UploadTreesResponse>::Serialize(
-      answer, response_, &own_buffer);
+  const grpc::Status encoded =
+      grpc::SerializationTraits<v1::UploadTreesResponse>::Serialize(answer, response_, &own_buffer);
   if (!encoded.ok()) throw std::runtime_error("cannot encode the UploadTrees answer");
+}
+
+void UploadTreesReactor::End(const grpc::Status& status) {
+  slot_.reset();  // before the client can learn the call ended and open the next one
+  Finish(status);
 }
 
 }  // namespace forestmap::server

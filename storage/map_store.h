@@ -172,9 +172,9 @@ struct MergeNote {
 
 using MergeFunction = std::function<MapChanges(MergeReader&)>;
 
-class TreeUpload;     // storage/staged_writes.h
-struct UploadPlan;    // storage/staged_writes.h
-struct TreePageQuery; // storage/staged_writes.h
+class TreeUpload;      // storage/staged_writes.h
+struct UploadPlan;     // storage/staged_writes.h
+struct TreePageQuery;  // storage/staged_writes.h
 
 // A consistent snapshot of a map: its info and all its trees (sorted by id), read together.
 struct MapSnapshot {
@@ -252,8 +252,7 @@ class MapStore {
 
   // Starts an upload staged in the database. kNotFound for an unknown map (kAlreadyExists for an
   // existing one when plan.create_map). The default holds the trees in memory (MemoryUpload).
-  virtual std::unique_ptr<TreeUpload> BeginUpload(const std::string& name,
-                                                  const UploadPlan& plan);
+  virtual std::unique_ptr<TreeUpload> BeginUpload(const std::string& name, const UploadPlan& plan);
   // Trees of one readable version, by id, one page at a time: each page is its own short read,
   // and versions never change, so pages of one version fit together. kNotFound for an unknown
   // map or version; kConflict when the map was deleted (or created again: created_unix_ms

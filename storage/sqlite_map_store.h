@@ -91,8 +91,7 @@ class SqliteMapStore final : public MapStore {
   PruneResult PruneVersions(const std::string& name, int64_t keep) override;
   // Staged in table trees as pending rows (valid_to = -upload id) by short transactions; Commit
   // turns them current in one UPDATE (storage/sqlite_upload.cc).
-  std::unique_ptr<TreeUpload> BeginUpload(const std::string& name,
-                                          const UploadPlan& plan) override;
+  std::unique_ptr<TreeUpload> BeginUpload(const std::string& name, const UploadPlan& plan) override;
   // One short read transaction per page, through the index of current or closed rows.
   std::vector<TreeRecord> ReadTreesPage(const std::string& name,
                                         const TreePageQuery& query) override;

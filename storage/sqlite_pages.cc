@@ -67,8 +67,8 @@ std::vector<TreeRecord> SqliteMapStore::ReadTreesPage(const std::string& name,
                                                       const TreePageQuery& query) {
   internal::CheckName(name);
   if (query.version < 1 || query.limit < 1) {
-    throw StorageError(Code::kInvalidArgument, "map '" + name + "': a page needs version >= 1 " +
-                                                   "and limit >= 1");
+    throw StorageError(Code::kInvalidArgument,
+                       "map '" + name + "': a page needs version >= 1 " + "and limit >= 1");
   }
   if (query.box) internal::CheckBox(name, *query.box);
   std::vector<TreeRecord> trees;

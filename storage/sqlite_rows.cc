@@ -127,8 +127,8 @@ void CheckName(const std::string& name) {
 
 MapRow RequireMap(Database& db, const std::string& name) {
   // A map that an upload is still creating (creating_upload set) does not exist yet.
-  Statement select(db, "SELECT " FORESTMAP_MAP_COLUMNS
-                       " FROM maps WHERE name = ?1 AND creating_upload IS NULL");
+  Statement select(
+      db, "SELECT " FORESTMAP_MAP_COLUMNS " FROM maps WHERE name = ?1 AND creating_upload IS NULL");
   select.BindText(1, name);
   if (!select.Step()) {
     throw StorageError(Code::kNotFound, "map '" + name + "' does not exist");

@@ -18,6 +18,7 @@
 #include "storage/sqlite_map_store.h"
 #include "storage/sqlite_map_store_internal.h"
 #include "storage/staged_writes.h"
+#include "storage/upload_chunks.h"
 
 namespace forestmap::storage {
 namespace {
@@ -111,15 +112,14 @@ class SqliteTreeUpload final : public TreeUpload {
 
   void Append(const std::vector<TreeRecord>& trees) override;
   MapInfo Commit() override;
-  int64_t staged() const override { return staged_; }
+  int64_t staged() const override { return chunks_.staged(); }
 
  private:
   void Begin(Database& db);
   MapRow RequireOwnMap(Database& db) const;
-  std::vector<int64_t> AssignIds(Database& db, const std::vector<TreeRecord>& trees);
-  void CheckChunk(const std::vector<TreeRecord>& trees) const;
   [[noreturn]] void ThrowDuplicate(Database& db, const std::vector<TreeRecord>& trees,
                                    size_t index) const;
+  void Stage(const std::vector<TreeRecord>& trees);  // one transaction
   void Flip(Database& db, const MapRow& map, int64_t version);
   void Abort() noexcept;
 
@@ -127,15 +127,12 @@ class SqliteTreeUpload final : public TreeUpload {
   std::string name_;
   UploadPlan plan_;
   UploadRow row_;
-  int64_t staged_ = 0;
-  int64_t confirmed_ = 0;
-  int64_t next_auto_id_ = 1;  // the id of the next tree without one
-  std::optional<Extent> extent_;
+  internal::UploadChunks chunks_;
   bool done_ = false;  // committed or aborted
 };
 
 SqliteTreeUpload::SqliteTreeUpload(SqliteMapStore& store, std::string name, UploadPlan plan)
-    : store_(store), name_(std::move(name)), plan_(std::move(plan)) {
+    : store_(store), name_(std::move(name)), plan_(std::move(plan)), chunks_(name_, plan_.mode) {
   internal::CheckName(name_);
   store_.WithWriter([&](Database& db) { Begin(db); });
 }
@@ -166,8 +163,8 @@ void SqliteTreeUpload::Begin(Database& db) {
     const MapRow map = internal::RequireMap(db, name_);
     row_.map_id = map.id;
   }
-  Statement insert(db,
-                   "INSERT INTO uploads (map_id, creates_map, started_unix_ms) VALUES (?1, ?2, ?3)");
+  Statement insert(
+      db, "INSERT INTO uploads (map_id, creates_map, started_unix_ms) VALUES (?1, ?2, ?3)");
   insert.BindInt64(1, row_.map_id);
   insert.BindInt64(2, row_.creates_map ? 1 : 0);
   insert.BindInt64(3, internal::NowUnixMs());
@@ -186,65 +183,10 @@ MapRow SqliteTreeUpload::RequireOwnMap(Database& db) const {
   Statement select(db, "SELECT " FORESTMAP_MAP_COLUMNS " FROM maps WHERE id = ?1");
   select.BindInt64(1, row_.map_id);
   if (!select.Step()) {
-    throw StorageError(Code::kNotFound, "map '" + name_ +
-                                            "' was deleted during the upload; nothing was written");
+    throw StorageError(Code::kNotFound,
+                       "map '" + name_ + "' was deleted during the upload; nothing was written");
   }
   return internal::ReadMapRow(select);
-}
-
-void SqliteTreeUpload::CheckChunk(const std::vector<TreeRecord>& trees) const {
-  std::vector<std::pair<int64_t, int64_t>> ids;  // (id, index in the upload)
-  for (size_t i = 0; i < trees.size(); ++i) {
-    const TreeRecord& tree = trees[i];
-    const int64_t index = staged_ + static_cast<int64_t>(i);
-    if (!std::isfinite(tree.x) || !std::isfinite(tree.y) || (tree.z && !std::isfinite(*tree.z)) ||
-        (tree.dbh && !std::isfinite(*tree.dbh))) {
-      throw StorageError(Code::kInvalidArgument, "map '" + name_ + "': " + Label(index) +
-                                                     ": coordinates and DBH must be finite");
-    }
-    if (tree.id) ids.emplace_back(*tree.id, index);
-  }
-  std::sort(ids.begin(), ids.end());
-  for (size_t k = 1; k < ids.size(); ++k) {
-    if (ids[k].first != ids[k - 1].first) continue;
-    throw StorageError(Code::kInvalidArgument,
-                       "map '" + name_ + "': " + Label(ids[k].second) + ".id " +
-                           std::to_string(ids[k].first) + " duplicates " +
-                           Label(ids[k - 1].second) + ".id");
-  }
-}
-
-std::vector<int64_t> SqliteTreeUpload::AssignIds(Database& db,
-                                                 const std::vector<TreeRecord>& trees) {
-  constexpr int64_t kMax = std::numeric_limits<int64_t>::max();
-  std::optional<int64_t> above;  // the largest id new ids must not reuse
-  if (plan_.mode == WriteMode::kAppend) above = MaxCurrentId(db, row_.map_id);
-  size_t auto_count = 0;
-  for (const TreeRecord& tree : trees) {
-    if (tree.id) {
-      above = std::max(above.value_or(*tree.id), *tree.id);
-    } else {
-      ++auto_count;
-    }
-  }
-  if (auto_count > 0) {
-    if (above && *above == kMax) {
-      throw StorageError(Code::kInvalidArgument,
-                         "map '" + name_ + "': no free tree ids left for trees without an id");
-    }
-    if (above) next_auto_id_ = std::max(next_auto_id_, std::max<int64_t>(*above + 1, 1));
-    if (static_cast<uint64_t>(kMax - next_auto_id_) + 1 < auto_count) {
-      throw StorageError(Code::kInvalidArgument, "map '" + name_ + "': no free tree ids left for " +
-                                                     std::to_string(auto_count) +
-                                                     " trees without an id");
-    }
-  }
-  std::vector<int64_t> ids(trees.size());
-  for (size_t i = 0; i < trees.size(); ++i) {
-    ids[i] = trees[i].id ? *trees[i].id : next_auto_id_++;
-    if (next_auto_id_ < 1) next_auto_id_ = kMax;  // wrapped past INT64_MAX: no ids left
-  }
-  return ids;
 }
 
 void SqliteTreeUpload::ThrowDuplicate(Database& db, const std::vector<TreeRecord>& trees,
@@ -258,22 +200,33 @@ void SqliteTreeUpload::ThrowDuplicate(Database& db, const std::vector<TreeRecord
   earlier.BindInt64(2, id);
   const std::string other = earlier.Step() ? Label(earlier.ColumnInt64(0)) : "an earlier tree";
   throw StorageError(Code::kInvalidArgument,
-                     "map '" + name_ + "': " + Label(staged_ + static_cast<int64_t>(index)) +
-                         ".id " + std::to_string(id) + " duplicates " + other +
+                     chunks_.Label(chunks_.staged() + static_cast<int64_t>(index)) + ".id " +
+                         std::to_string(id) + " duplicates " + other +
                          ".id (an explicit id, or one the server gave a tree without id)");
 }
 
 void SqliteTreeUpload::Append(const std::vector<TreeRecord>& trees) {
   if (done_) throw StorageError(Code::kInternal, "upload to '" + name_ + "' already finished");
   if (trees.empty()) return;
-  CheckChunk(trees);
+  try {
+    chunks_.Check(trees);
+    Stage(trees);
+  } catch (...) {
+    Abort();  // a failed upload is over: its staged rows go now
+    throw;
+  }
+  chunks_.Staged(trees);
+}
+
+void SqliteTreeUpload::Stage(const std::vector<TreeRecord>& trees) {
   store_.WithWriter([&](Database& db) {
     Transaction transaction(db, Transaction::Kind::kWrite);
     const MapRow map = RequireOwnMap(db);
-    const std::vector<int64_t> ids = AssignIds(db, trees);
+    const std::vector<int64_t> ids = chunks_.Assign(
+        trees, plan_.mode == WriteMode::kAppend ? MaxCurrentId(db, row_.map_id) : std::nullopt);
     const int64_t before = MaxRowid(db).value_or(0);
     try {
-      internal::InsertTrees(db, map, trees, ids, 0, -row_.id, staged_);
+      internal::InsertTrees(db, map, trees, ids, 0, -row_.id, chunks_.staged());
     } catch (const StorageError& e) {
       if (e.code() != Code::kAlreadyExists) throw;
       ThrowDuplicate(db, trees, std::stoul(e.what()));
@@ -290,11 +243,6 @@ void SqliteTreeUpload::Append(const std::vector<TreeRecord>& trees) {
     if (!row_.first_rowid) row_.first_rowid = before + 1;
     row_.last_rowid = last;
   });
-  staged_ += static_cast<int64_t>(trees.size());
-  for (const TreeRecord& tree : trees) {
-    confirmed_ += tree.status == TreeStatus::kConfirmed ? 1 : 0;
-    extent_ = internal::Union(extent_, Extent{tree.x, tree.y, tree.x, tree.y});
-  }
 }
 
 void SqliteTreeUpload::Flip(Database& db, const MapRow& map, int64_t version) {
@@ -311,10 +259,11 @@ void SqliteTreeUpload::Flip(Database& db, const MapRow& map, int64_t version) {
   } catch (const StorageError& e) {
     if (e.code() != Code::kAlreadyExists) throw;  // UNIQUE trees_current: an id of the map
   }
-  Statement clash(db, "SELECT p.valid_from, p.tree_id FROM trees AS p WHERE p.rowid BETWEEN ?1 "
-                      "AND ?2 AND p.valid_to = ?3 AND EXISTS (SELECT 1 FROM trees AS c INDEXED BY "
-                      "trees_current WHERE c.map_id = ?4 AND c.tree_id = p.tree_id AND "
-                      "c.valid_to = " FORESTMAP_CURRENT ") LIMIT 1");
+  Statement clash(db,
+                  "SELECT p.valid_from, p.tree_id FROM trees AS p WHERE p.rowid BETWEEN ?1 "
+                  "AND ?2 AND p.valid_to = ?3 AND EXISTS (SELECT 1 FROM trees AS c INDEXED BY "
+                  "trees_current WHERE c.map_id = ?4 AND c.tree_id = p.tree_id AND "
+                  "c.valid_to = " FORESTMAP_CURRENT ") LIMIT 1");
   clash.BindInt64(1, *row_.first_rowid);
   clash.BindInt64(2, *row_.last_rowid);
   clash.BindInt64(3, -row_.id);
@@ -337,7 +286,8 @@ MapInfo SqliteTreeUpload::Commit() {
       MapRow map = RequireOwnMap(db);
       MapInfo& info = map.info;
       const bool replace = plan_.mode == WriteMode::kReplace;
-      const bool changes = staged_ > 0 || (replace && info.tree_count > 0);
+      const int64_t staged = chunks_.staged();
+      const bool changes = staged > 0 || (replace && info.tree_count > 0);
       if (row_.creates_map) {
         info.created_unix_ms = info.updated_unix_ms = internal::NowUnixMs();
         Statement reveal(db,
@@ -359,20 +309,20 @@ MapInfo SqliteTreeUpload::Commit() {
         record.kind = replace ? VersionKind::kReplace : VersionKind::kUpload;
         if (replace) {
           record.trees_removed = info.tree_count;
-          record.observations_removed =
-              internal::CloseAllCurrentRows(db, map.id, record.version);
+          record.observations_removed = internal::CloseAllCurrentRows(db, map.id, record.version);
         }
         Flip(db, map, record.version);
-        info.tree_count = replace ? staged_ : info.tree_count + staged_;
-        info.confirmed_count = replace ? confirmed_ : info.confirmed_count + confirmed_;
-        info.extent = replace ? extent_ : internal::Union(info.extent, extent_);
+        info.tree_count = replace ? staged : info.tree_count + staged;
+        const int64_t confirmed = chunks_.confirmed();
+        info.confirmed_count = replace ? confirmed : info.confirmed_count + confirmed;
+        info.extent = replace ? chunks_.extent() : internal::Union(info.extent, chunks_.extent());
         info.version = record.version;
         info.updated_unix_ms = internal::NowUnixMs();
         internal::UpdateMapRow(db, map);
         record.created_unix_ms = info.updated_unix_ms;
         record.tree_count = info.tree_count;
         record.confirmed_count = info.confirmed_count;
-        record.trees_added = staged_;
+        record.trees_added = staged;
         internal::InsertVersion(db, map.id, record);
       }
       Statement remove(db, "DELETE FROM uploads WHERE id = ?1");

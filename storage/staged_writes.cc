@@ -74,8 +74,7 @@ std::vector<TreeRecord> PageOfSnapshot(MapStore& store, const std::string& name,
   return page;
 }
 
-std::unique_ptr<TreeUpload> MapStore::BeginUpload(const std::string& name,
-                                                  const UploadPlan& plan) {
+std::unique_ptr<TreeUpload> MapStore::BeginUpload(const std::string& name, const UploadPlan& plan) {
   return MemoryUpload(*this, name, plan);
 }
 

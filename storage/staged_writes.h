@@ -39,15 +39,15 @@ class TreeUpload {
   // coordinate; kNotFound when the map was deleted meanwhile.
   virtual void Append(const std::vector<TreeRecord>& trees) = 0;
   // The map after the upload. kInvalidArgument for an appended id already in the map. After a
-  // failed Commit the upload is aborted.
+  // failed Append or Commit the upload is aborted (its staged rows are gone).
   virtual MapInfo Commit() = 0;
   virtual int64_t staged() const = 0;  // trees appended so far
 };
 
 // One page of an export (MapStore::ReadTreesPage).
 struct TreePageQuery {
-  int64_t version = 0;          // the version to read (>= 1)
-  int64_t created_unix_ms = 0;  // the map's creation time seen by the first page (0: any)
+  int64_t version = 0;              // the version to read (>= 1)
+  int64_t created_unix_ms = 0;      // the map's creation time seen by the first page (0: any)
   std::optional<int64_t> after_id;  // trees with a larger id only (unset: from the first)
   int64_t limit = 5000;             // trees at most (>= 1)
   std::optional<Extent> box;        // only trees inside (inclusive)
