@@ -53,8 +53,9 @@ class UploadTreesReactor final : public grpc::ServerReadReactor<grpc::ByteBuffer
   void OnDone() override;  // an upload not committed is aborted (on a pool), then `delete this`
 
  private:
-  void End(const grpc::Status& status);  // frees the stream's place, then Finish
-  void Accept();                         // the message in buffer_ -> chunk_; throws
+  // Frees the stream's place, aborts an upload not committed, then Finish.
+  void End(const grpc::Status& status);
+  void Accept();      // the message in buffer_ -> chunk_; throws
   bool Begin();       // first message: false when a replayed answer ends the call; throws
   void StageChunk();  // chunk_ -> the database; throws
   void Commit();      // throws

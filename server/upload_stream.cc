@@ -196,7 +196,21 @@ void UploadTreesReactor::EncodeResponse(const v1::UploadTreesResponse& answer) {
 
 void UploadTreesReactor::End(const grpc::Status& status) {
   slot_.reset();  // before the client can learn the call ended and open the next one
-  Finish(status);
+  if (!upload_) {
+    Finish(status);
+    return;
+  }
+  // Not committed: its staged rows (and the map it was creating) go before the client learns
+  // that the upload failed, so that a retry finds the name free. A write: on a pool.
+  std::shared_ptr<storage::TreeUpload> upload(std::move(upload_));
+  const bool queued = deps_.admin_pool.TrySubmit([this, upload, status]() mutable {
+    upload.reset();
+    Finish(status);
+  });
+  if (!queued) {
+    upload.reset();
+    Finish(status);
+  }
 }
 
 }  // namespace forestmap::server

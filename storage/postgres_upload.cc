@@ -221,21 +221,19 @@ MapInfo PostgresTreeUpload::Commit() {
     const int64_t staged = chunks_.staged();
     const bool changes = staged > 0 || (replace && info.tree_count > 0);
     if (changes) {
-      VersionRecord record;
-      record.version = info.version + 1;
-      record.kind = replace ? VersionKind::kReplace : VersionKind::kUpload;
-      const Params close = Params().Int64(map.id).Int64(record.version);
+      const int64_t version = info.version + 1;
+      const Params close = Params().Int64(map.id).Int64(version);
+      int64_t closed = 0;
       if (replace) {
-        record.trees_removed = info.tree_count;
         conn_->Exec(
             "UPDATE trees SET valid_to = $2 WHERE map_id = $1 AND valid_to = " FORESTMAP_PG_CURRENT,
             close);
-        record.observations_removed = conn_
-                                          ->Exec(
-                                              "UPDATE observations SET valid_to = $2 WHERE map_id "
-                                              "= $1 AND valid_to = " FORESTMAP_PG_CURRENT,
-                                              close)
-                                          .affected();
+        closed = conn_
+                     ->Exec(
+                         "UPDATE observations SET valid_to = $2 WHERE map_id = $1 AND "
+                         "valid_to = " FORESTMAP_PG_CURRENT,
+                         close)
+                     .affected();
       } else {
         CheckTakenIds(map);
       }
@@ -246,17 +244,8 @@ MapInfo PostgresTreeUpload::Commit() {
           ", tree_id, x, y, z, dbh, attributes, status, "
           "observations, position_sigma, dbh_sigma FROM upload_trees ORDER BY seq",
           close);
-      const int64_t confirmed = chunks_.confirmed();
-      info.tree_count = replace ? staged : info.tree_count + staged;
-      info.confirmed_count = replace ? confirmed : info.confirmed_count + confirmed;
-      info.extent = replace ? chunks_.extent() : internal::Union(info.extent, chunks_.extent());
-      info.version = record.version;
-      info.updated_unix_ms = internal::NowUnixMs();
+      const VersionRecord record = chunks_.Apply(info, closed);
       pg_internal::UpdateMapRow(*conn_, map);
-      record.created_unix_ms = info.updated_unix_ms;
-      record.tree_count = info.tree_count;
-      record.confirmed_count = info.confirmed_count;
-      record.trees_added = staged;
       pg_internal::InsertVersion(*conn_, map.id, record);
     }
     if (changes || plan_.create_map) {

@@ -120,6 +120,7 @@ class SqliteTreeUpload final : public TreeUpload {
   [[noreturn]] void ThrowDuplicate(Database& db, const std::vector<TreeRecord>& trees,
                                    size_t index) const;
   void Stage(const std::vector<TreeRecord>& trees);  // one transaction
+  void Reveal(Database& db, MapRow& map);  // the map it creates becomes visible, version 1
   void Flip(Database& db, const MapRow& map, int64_t version);
   void Abort() noexcept;
 
@@ -277,6 +278,24 @@ void SqliteTreeUpload::Flip(Database& db, const MapRow& map, int64_t version) {
                      "map '" + name_ + "': " + which + ": tree id already exists in the map");
 }
 
+void SqliteTreeUpload::Reveal(Database& db, MapRow& map) {
+  MapInfo& info = map.info;
+  info.created_unix_ms = info.updated_unix_ms = internal::NowUnixMs();
+  Statement reveal(db, "UPDATE maps SET creating_upload = NULL WHERE id = ?1");
+  reveal.BindInt64(1, map.id);
+  reveal.Run();
+  internal::UpdateMapRow(db, map);
+  Statement created_at(db, "UPDATE maps SET created_unix_ms = ?2 WHERE id = ?1");
+  created_at.BindInt64(1, map.id);
+  created_at.BindInt64(2, info.created_unix_ms);
+  created_at.Run();
+  VersionRecord created;
+  created.version = 1;
+  created.created_unix_ms = info.created_unix_ms;
+  created.kind = VersionKind::kCreate;
+  internal::InsertVersion(db, map.id, created);
+}
+
 MapInfo SqliteTreeUpload::Commit() {
   if (done_) throw StorageError(Code::kInternal, "upload to '" + name_ + "' already finished");
   MapInfo result;
@@ -284,56 +303,26 @@ MapInfo SqliteTreeUpload::Commit() {
     store_.WithWriter([&](Database& db) {
       Transaction transaction(db, Transaction::Kind::kWrite);
       MapRow map = RequireOwnMap(db);
-      MapInfo& info = map.info;
       const bool replace = plan_.mode == WriteMode::kReplace;
-      const int64_t staged = chunks_.staged();
-      const bool changes = staged > 0 || (replace && info.tree_count > 0);
-      if (row_.creates_map) {
-        info.created_unix_ms = info.updated_unix_ms = internal::NowUnixMs();
-        Statement reveal(db,
-                         "UPDATE maps SET creating_upload = NULL, created_unix_ms = ?2 WHERE "
-                         "id = ?1");
-        reveal.BindInt64(1, map.id);
-        reveal.BindInt64(2, info.created_unix_ms);
-        reveal.Run();
-        VersionRecord created;
-        created.version = 1;
-        created.created_unix_ms = info.created_unix_ms;
-        created.kind = VersionKind::kCreate;
-        internal::InsertVersion(db, map.id, created);
-        internal::UpdateMapRow(db, map);
-      }
+      const bool changes = chunks_.staged() > 0 || (replace && map.info.tree_count > 0);
+      if (row_.creates_map) Reveal(db, map);
       if (changes) {
-        VersionRecord record;
-        record.version = info.version + 1;
-        record.kind = replace ? VersionKind::kReplace : VersionKind::kUpload;
-        if (replace) {
-          record.trees_removed = info.tree_count;
-          record.observations_removed = internal::CloseAllCurrentRows(db, map.id, record.version);
-        }
-        Flip(db, map, record.version);
-        info.tree_count = replace ? staged : info.tree_count + staged;
-        const int64_t confirmed = chunks_.confirmed();
-        info.confirmed_count = replace ? confirmed : info.confirmed_count + confirmed;
-        info.extent = replace ? chunks_.extent() : internal::Union(info.extent, chunks_.extent());
-        info.version = record.version;
-        info.updated_unix_ms = internal::NowUnixMs();
+        const int64_t version = map.info.version + 1;
+        const int64_t closed = replace ? internal::CloseAllCurrentRows(db, map.id, version) : 0;
+        Flip(db, map, version);
+        const VersionRecord record = chunks_.Apply(map.info, closed);
         internal::UpdateMapRow(db, map);
-        record.created_unix_ms = info.updated_unix_ms;
-        record.tree_count = info.tree_count;
-        record.confirmed_count = info.confirmed_count;
-        record.trees_added = staged;
         internal::InsertVersion(db, map.id, record);
       }
       Statement remove(db, "DELETE FROM uploads WHERE id = ?1");
       remove.BindInt64(1, row_.id);
       remove.Run();
       if (changes || row_.creates_map) {
-        internal::CommitWrite(db, transaction, info);
+        internal::CommitWrite(db, transaction, map.info);
       } else {
         transaction.Commit();  // nothing changed: no version, no answer stored
       }
-      result = info;
+      result = map.info;
     });
   } catch (...) {
     Abort();

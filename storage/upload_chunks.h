@@ -26,6 +26,10 @@ class UploadChunks {
                               std::optional<int64_t> map_max_id);
   // Counts a chunk that was staged.
   void Staged(const std::vector<TreeRecord>& trees);
+  // Makes `info` the map after the staged trees were committed as its next version (counts,
+  // extent, version, time) and returns that version's history entry. `observations_removed`:
+  // the observation rows a replace closed.
+  VersionRecord Apply(MapInfo& info, int64_t observations_removed) const;
 
   // "map 'x': trees[k]" of the upload, for messages.
   std::string Label(int64_t index) const;
