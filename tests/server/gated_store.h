@@ -53,6 +53,10 @@ class GatedStore final : public storage::MapStore {
     std::lock_guard<std::mutex> lock(mutex_);
     return get_calls_;
   }
+  int uploads_begun() {  // BeginUpload calls
+    std::lock_guard<std::mutex> lock(mutex_);
+    return uploads_begun_;
+  }
   // Waits (up to kSyncTimeout) until ReadMap(name) was entered `count` times.
   bool WaitForReads(const std::string& name, int count) {
     std::unique_lock<std::mutex> lock(mutex_);
@@ -112,6 +116,10 @@ class GatedStore final : public storage::MapStore {
   }
   std::unique_ptr<storage::TreeUpload> BeginUpload(const std::string& name,
                                                    const storage::UploadPlan& plan) override {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++uploads_begun_;
+    }
     return inner_.BeginUpload(name, plan);
   }
   std::vector<storage::TreeRecord> ReadTreesPage(const std::string& name,
@@ -135,6 +143,7 @@ class GatedStore final : public storage::MapStore {
   std::set<std::string> closed_;
   std::map<std::string, int> reads_;
   int get_calls_ = 0;
+  int uploads_begun_ = 0;
 };
 
 }  // namespace forestmap::server
