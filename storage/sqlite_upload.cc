@@ -36,25 +36,31 @@ struct UploadRow {
   std::optional<int64_t> first_rowid, last_rowid;  // rowids holding its pending rows
 };
 
+// Rowids an abort removes per transaction: other writers go on between the slices.
+constexpr int64_t kAbortSliceRows = 20'000;
+
+// Removes the pending rows of an upload with rowids first..last, and their blocks.
+void RemovePendingRows(Database& db, const UploadRow& upload, int64_t first, int64_t last) {
+  Statement blocks(db,
+                   "DELETE FROM tree_blocks WHERE id IN (SELECT b.id FROM tree_blocks AS b "
+                   "WHERE b.min_map <= ?1 AND b.max_map >= ?1 AND b.map_id = ?1 AND "
+                   "b.first_rowid BETWEEN ?2 AND ?3 AND EXISTS (SELECT 1 FROM trees AS t "
+                   "WHERE t.rowid = b.first_rowid AND t.valid_to = ?4))");
+  blocks.BindInt64(1, upload.map_id);
+  blocks.BindInt64(2, first);
+  blocks.BindInt64(3, last);
+  blocks.BindInt64(4, -upload.id);
+  blocks.Run();
+  Statement rows(db, "DELETE FROM trees WHERE rowid BETWEEN ?1 AND ?2 AND valid_to = ?3");
+  rows.BindInt64(1, first);
+  rows.BindInt64(2, last);
+  rows.BindInt64(3, -upload.id);
+  rows.Run();
+}
+
 // Removes an upload's pending rows, their blocks, the map it was creating and its own row.
 void RemoveUpload(Database& db, const UploadRow& upload) {
-  if (upload.first_rowid) {
-    Statement blocks(db,
-                     "DELETE FROM tree_blocks WHERE id IN (SELECT b.id FROM tree_blocks AS b "
-                     "WHERE b.min_map <= ?1 AND b.max_map >= ?1 AND b.map_id = ?1 AND "
-                     "b.first_rowid BETWEEN ?2 AND ?3 AND EXISTS (SELECT 1 FROM trees AS t "
-                     "WHERE t.rowid = b.first_rowid AND t.valid_to = ?4))");
-    blocks.BindInt64(1, upload.map_id);
-    blocks.BindInt64(2, *upload.first_rowid);
-    blocks.BindInt64(3, *upload.last_rowid);
-    blocks.BindInt64(4, -upload.id);
-    blocks.Run();
-    Statement rows(db, "DELETE FROM trees WHERE rowid BETWEEN ?1 AND ?2 AND valid_to = ?3");
-    rows.BindInt64(1, *upload.first_rowid);
-    rows.BindInt64(2, *upload.last_rowid);
-    rows.BindInt64(3, -upload.id);
-    rows.Run();
-  }
+  if (upload.first_rowid) RemovePendingRows(db, upload, *upload.first_rowid, *upload.last_rowid);
   if (upload.creates_map) {
     Statement map(db, "DELETE FROM maps WHERE id = ?1 AND creating_upload = ?2");
     map.BindInt64(1, upload.map_id);
@@ -336,9 +342,21 @@ void SqliteTreeUpload::Abort() noexcept {
   if (done_) return;
   done_ = true;
   try {
+    // The staged rows slice by slice (no read sees them), then the rest in one transaction.
+    for (int64_t from = row_.first_rowid.value_or(1); row_.first_rowid && from <= *row_.last_rowid;
+         from += kAbortSliceRows) {
+      const int64_t to = std::min(*row_.last_rowid, from + kAbortSliceRows - 1);
+      store_.WithWriter([&](Database& db) {
+        Transaction transaction(db, Transaction::Kind::kWrite);
+        RemovePendingRows(db, row_, from, to);
+        transaction.Commit();
+      });
+    }
+    UploadRow rest = row_;
+    rest.first_rowid.reset();  // its rows are gone
     store_.WithWriter([&](Database& db) {
       Transaction transaction(db, Transaction::Kind::kWrite);
-      RemoveUpload(db, row_);
+      RemoveUpload(db, rest);
       transaction.Commit();
     });
   } catch (...) {
