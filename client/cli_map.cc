@@ -30,34 +30,30 @@ struct CreateOptions {
   std::string dbh_unit;  // --dbh-unit m|cm|mm; empty: from the header, else m
 };
 
-// Uploads in chunks; reports progress on stderr only when there is more than one chunk.
-v1::UploadTreesResponse UploadWithProgress(ForestMapClient& client, const std::string& name,
-                                           const std::vector<MapTreeRow>& rows, std::ostream& err) {
-  const int64_t chunk = ClientOptions().upload_chunk_trees;
-  const bool report = static_cast<int64_t>(rows.size()) > chunk;
-  return client.UploadTrees(name, rows, /*replace=*/false, [&](int64_t sent, int64_t total) {
-    if (report) err << "uploading: " << sent << "/" << total << " trees" << std::endl;
-  });
-}
-
-// Creates the map and uploads `rows` (from `source`); a failed upload deletes the new map again.
+// Creates the map with `rows` (from `source`) in one upload stream: the server creates the map
+// in the transaction that commits its trees, so a failed or killed upload leaves no map.
 void CreateWithTrees(const CreateOptions& options, const std::vector<MapTreeRow>& rows,
                      const std::string& source, const CliContext& context) {
   ForestMapClient client = context.Connect();
-  v1::Map map = client.CreateMap(options.name, options.description, options.crs);
-  if (!rows.empty()) {
+  v1::Map map;
+  if (rows.empty()) {
+    map = client.CreateMap(options.name, options.description, options.crs);
+  } else {
+    const int64_t chunk = ClientOptions().upload_chunk_trees;
+    const bool report = static_cast<int64_t>(rows.size()) > chunk;
     try {
-      map = UploadWithProgress(client, options.name, rows, *context.err).map();
+      map = client
+                .CreateMapWithTrees(options.name, options.description, options.crs, rows,
+                                    [&](int64_t sent, int64_t total) {
+                                      if (report) {
+                                        *context.err << "uploading: " << sent << "/" << total
+                                                     << " trees" << std::endl;
+                                      }
+                                    })
+                .map();
     } catch (const std::exception& upload_error) {
-      std::string outcome = "the new map '" + options.name + "' was deleted";
-      try {
-        client.DeleteMap(options.name);
-      } catch (const std::exception& delete_error) {
-        outcome = "deleting the new map also failed (" + std::string(delete_error.what()) +
-                  "); remove it with 'forestmap map delete " + options.name + "'";
-      }
-      throw CommandError("uploading " + source + " to map '" + options.name +
-                         "' failed: " + upload_error.what() + "; " + outcome);
+      throw CommandError("creating map '" + options.name + "' with the trees of " + source +
+                         " failed: " + upload_error.what() + "; no map was created");
     }
   }
   *context.out << "created map '" << map.name() << "' (" << map.tree_count() << " trees, version "

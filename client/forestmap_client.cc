@@ -216,17 +216,39 @@ void ForestMapClient::DeleteMap(const std::string& name) {
 v1::UploadTreesResponse ForestMapClient::UploadTrees(const std::string& name,
                                                      const std::vector<MapTreeRow>& rows,
                                                      bool replace, const UploadProgress& progress) {
+  v1::UploadTreesRequest head;
+  head.set_replace(replace);
+  return Upload(name, rows, head, progress);
+}
+
+v1::UploadTreesResponse ForestMapClient::CreateMapWithTrees(const std::string& name,
+                                                            const std::string& description,
+                                                            const std::string& crs,
+                                                            const std::vector<MapTreeRow>& rows,
+                                                            const UploadProgress& progress) {
+  v1::UploadTreesRequest head;
+  head.set_create_map(true);
+  head.set_description(description);
+  head.set_crs(crs);
+  return Upload(name, rows, head, progress);
+}
+
+v1::UploadTreesResponse ForestMapClient::Upload(const std::string& name,
+                                                const std::vector<MapTreeRow>& rows,
+                                                const v1::UploadTreesRequest& head,
+                                                const UploadProgress& progress) {
   v1::UploadTreesResponse response;
   WriteWithRetries(
       [&](const std::string& request_id) {
-        return UploadOnce(name, rows, replace, request_id, progress, response);
+        return UploadOnce(name, rows, head, request_id, progress, response);
       },
       "UploadTrees");
   return response;
 }
 
 grpc::Status ForestMapClient::UploadOnce(const std::string& name,
-                                         const std::vector<MapTreeRow>& rows, bool replace,
+                                         const std::vector<MapTreeRow>& rows,
+                                         const v1::UploadTreesRequest& head,
                                          const std::string& request_id,
                                          const UploadProgress& progress,
                                          v1::UploadTreesResponse& response) {
@@ -237,11 +259,11 @@ grpc::Status ForestMapClient::UploadOnce(const std::string& name,
   // At least one message, so that an empty upload with `replace` clears the map.
   do {
     v1::UploadTreesRequest request;
-    request.set_map_name(name);
     if (sent == 0) {
-      request.set_replace(replace);
+      request = head;
       request.set_request_id(request_id);
     }
+    request.set_map_name(name);
     const size_t end = std::min(rows.size(), sent + chunk);
     request.mutable_trees()->Reserve(static_cast<int>(end - sent));
     for (size_t i = sent; i < end; ++i) *request.add_trees() = ToProto(rows[i]);

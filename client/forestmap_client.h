@@ -159,6 +159,12 @@ class ForestMapClient {
   // Streams the rows in chunks; the server applies them in one transaction at the end.
   v1::UploadTreesResponse UploadTrees(const std::string& name, const std::vector<MapTreeRow>& rows,
                                       bool replace, const UploadProgress& progress = {});
+  // Creates the map and uploads its trees in one upload stream (create_map): the map exists only
+  // if the whole upload succeeds. ALREADY_EXISTS when the map exists.
+  v1::UploadTreesResponse CreateMapWithTrees(const std::string& name,
+                                             const std::string& description, const std::string& crs,
+                                             const std::vector<MapTreeRow>& rows,
+                                             const UploadProgress& progress = {});
 
   // `version` 0: the current version; else an older one (see ListVersions).
   ExportedTrees ExportTrees(const std::string& name, const std::optional<Box2>& box = {},
@@ -205,9 +211,13 @@ class ForestMapClient {
   template <typename Response, typename Method, typename Request>
   Response UnaryWrite(Method method, Request request, const char* call);
   // One try of an upload stream; the status of the call.
+  // `head`: the first message's fields besides map_name, request_id and trees.
   grpc::Status UploadOnce(const std::string& name, const std::vector<MapTreeRow>& rows,
-                          bool replace, const std::string& request_id,
+                          const v1::UploadTreesRequest& head, const std::string& request_id,
                           const UploadProgress& progress, v1::UploadTreesResponse& response);
+  v1::UploadTreesResponse Upload(const std::string& name, const std::vector<MapTreeRow>& rows,
+                                 const v1::UploadTreesRequest& head,
+                                 const UploadProgress& progress);
 
   std::string address_;
   ClientOptions options_;

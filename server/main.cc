@@ -45,6 +45,7 @@ struct Config {
   std::string log_level = "info";
   std::string metrics;    // host:port of the Prometheus endpoint; empty: none
   int64_t max_db_mb = 0;  // MiB the SQLite database may grow to; 0: no limit
+  forestmap::server::StreamLimitOptions streams;  // --max-streams, --max-streams-per-client
 };
 
 // Blocks SIGINT and SIGTERM in this thread and in every thread started after it (gRPC's), so
@@ -85,6 +86,7 @@ int Serve(const Config& config, const sigset_t& shutdown_signals) {
 
   forestmap::server::ServiceOptions service_options;
   service_options.keep_versions = config.keep_versions;
+  service_options.streams = config.streams;
   service_options.authorizer = &authorizer;
   forestmap::server::ForestMapService service(*store, service_options);
   forestmap::server::Metrics metrics;
@@ -182,6 +184,14 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--metrics", config.metrics,
                  "serve Prometheus metrics on http://HOST:PORT/metrics (port 0: any)");
+  app.add_option("--max-streams", config.streams.max_streams,
+                 "open UploadTrees + ExportTrees streams in all; more are RESOURCE_EXHAUSTED")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--max-streams-per-client", config.streams.max_streams_per_client,
+                 "open UploadTrees + ExportTrees streams per client connection")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   std::function<int()> offline;  // a subcommand instead of serving
   forestmap::server::AddTokenCommands(app, offline, std::cout);
   forestmap::server::AddBackupCommand(app, offline, std::cout);

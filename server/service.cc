@@ -55,12 +55,15 @@ void ServiceOptions::Check() const {
   merge.Check();
   tracking.Check();
   Require(keep_versions >= 0, "ServiceOptions.keep_versions must be >= 0 (0 keeps all)");
+  Require(upload_stage_trees >= 1, "ServiceOptions.upload_stage_trees must be >= 1");
+  streams.Check();
 }
 
 ForestMapService::ForestMapService(storage::MapStore& store, ServiceOptions options)
     : store_(store),
       options_(Checked(std::move(options))),
       index_cache_(store, options_.index_cache),
+      stream_limits_(options_.streams),
       admin_pool_(options_.admin_threads, options_.max_queued_requests),
       work_pool_(options_.worker_threads, options_.max_queued_requests) {}
 
@@ -115,12 +118,14 @@ grpc::ServerUnaryReactor* ForestMapService::DeleteMap(grpc::CallbackServerContex
 
 grpc::ServerReadReactor<grpc::ByteBuffer>* ForestMapService::UploadTrees(
     grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
-  return new UploadTreesReactor(store_, options_, admin_pool_, work_pool_, context, response);
+  return new UploadTreesReactor({store_, options_, admin_pool_, work_pool_, stream_limits_},
+                                context, response);
 }
 
 grpc::ServerWriteReactor<v1::ExportTreesResponse>* ForestMapService::ExportTrees(
     grpc::CallbackServerContext* context, const v1::ExportTreesRequest* request) {
-  return new ExportTreesReactor(store_, options_, work_pool_, context, request);
+  return new ExportTreesReactor({store_, options_, admin_pool_, work_pool_, stream_limits_},
+                                context, request);
 }
 
 grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerContext* context,

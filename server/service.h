@@ -18,8 +18,11 @@
 //                (client cancelled); ABORTED (write conflict); INVALID_ARGUMENT for a message
 //                that cannot be decoded (e.g. a string that is not UTF-8). Nothing is written
 //                unless OK.
-//   ExportTrees  INVALID_ARGUMENT (map_name, box), NOT_FOUND, ABORTED (box export: the map kept
-//                changing while being read), CANCELLED (client stopped reading)
+//                With create_map: ALREADY_EXISTS, and the map exists only if the upload is OK.
+//   ExportTrees  INVALID_ARGUMENT (map_name, box), NOT_FOUND, ABORTED (the map was deleted or the
+//                version pruned during the export), CANCELLED (client stopped reading)
+//   UploadTrees, ExportTrees: RESOURCE_EXHAUSTED when the client or the server has its limit of
+//                open streams (ServiceOptions::streams)
 //   any RPC      RESOURCE_EXHAUSTED "server busy" when max_queued_requests calls are waiting;
 //                INVALID_ARGUMENT for a request message that cannot be decoded
 //                (server/decode_guard.h); RESOURCE_EXHAUSTED "database full", FAILED_PRECONDITION
@@ -52,6 +55,7 @@
 #include "forestmap/v1/forestmap_service.grpc.pb.h"
 #include "server/map_index_cache.h"
 #include "server/recent_answers.h"
+#include "server/stream_limits.h"
 #include "server/validation.h"
 #include "server/worker_pool.h"
 #include "storage/map_store.h"
@@ -62,10 +66,13 @@ class Authorizer;
 
 struct ServiceOptions {
   int max_query_trees = 20'000;           // trees per Relocalize request
-  int64_t max_upload_trees = 20'000'000;  // trees per UploadTrees stream (held in memory)
-  int export_chunk_trees = 5'000;         // trees per ExportTrees message, at most
-  int64_t export_chunk_bytes = 1 << 20;   // bytes per ExportTrees message, about (below the
-                                          // clients' default 4 MiB receive limit)
+  int64_t max_upload_trees = 20'000'000;  // trees per UploadTrees stream (staged in the database)
+  // Trees an upload stages per transaction: the most of an upload held in memory (count).
+  int upload_stage_trees = 10'000;
+  StreamLimitOptions streams;            // open upload / export streams, in all and per client
+  int export_chunk_trees = 5'000;        // trees per ExportTrees message, at most
+  int64_t export_chunk_bytes = 1 << 20;  // bytes per ExportTrees message, about (below the
+                                         // clients' default 4 MiB receive limit)
   // Threads for work that may take long or wait: Relocalize (index builds, waits for another
   // call's build), UploadTrees commits, ExportTrees reads. Waiting calls hold a thread, so
   // this is more than the core count; CPU use is bounded by the cores anyway.
@@ -104,6 +111,7 @@ class ForestMapService final
   const ServiceOptions& options() const { return options_; }
   const MapIndexCache& index_cache() const { return index_cache_; }
   const RecentAnswers& recent_answers() const { return recent_answers_; }  // the web page's
+  const StreamLimits& stream_limits() const { return stream_limits_; }
 
   grpc::ServerUnaryReactor* CreateMap(grpc::CallbackServerContext* context,
                                       const v1::CreateMapRequest* request,
@@ -170,6 +178,7 @@ class ForestMapService final
   ServiceOptions options_;
   MapIndexCache index_cache_;
   RecentAnswers recent_answers_;
+  StreamLimits stream_limits_;
   // Declared last: destroyed (drained and joined) first, while what their jobs use is alive.
   WorkerPool admin_pool_;
   WorkerPool work_pool_;

@@ -350,6 +350,10 @@ void UploadValidator::Accept(const v1::UploadTreesRequest& message) {
     if (message.replace() && !replace_) {
       throw ValidationError("replace" + where + ": only the first message may set replace");
     }
+    if (message.create_map() || !message.description().empty() || !message.crs().empty()) {
+      throw ValidationError("create_map, description, crs" + where +
+                            ": only the first message may set them");
+    }
   }
   ++messages_;
   if (message.trees_size() > max_trees_ - trees_) {
@@ -360,12 +364,6 @@ void UploadValidator::Accept(const v1::UploadTreesRequest& message) {
     const int64_t index = trees_++;
     const std::string path = Indexed("trees", index);
     ValidateTree(tree, path);
-    if (!tree.has_id()) continue;
-    const auto [it, inserted] = index_of_id_.emplace(tree.id(), index);
-    if (!inserted) {
-      throw ValidationError(path + ".id " + std::to_string(tree.id()) + " duplicates " +
-                            Indexed("trees", it->second) + ".id" + where);
-    }
   }
 }
 

@@ -14,7 +14,6 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
-#include <unordered_map>
 
 #include "forestmap/v1/maps.pb.h"
 #include "forestmap/v1/observations.pb.h"
@@ -72,8 +71,9 @@ void ValidateBox(const v1::Box2& box, const std::string& path);
 
 // Checks the messages of one UploadTrees stream, in order: the first names a valid map, later
 // ones repeat that name or leave it empty and do not set `replace` on their own; every tree is
-// valid; explicit ids are unique across the whole stream; the tree total stays within the limit.
-// Tree indices in messages count across the whole stream ("trees[k]" = k-th tree uploaded).
+// valid; the tree total stays within the limit. Ids unique across the stream are checked by the
+// store as it stages the trees (in constant memory here). Tree indices in messages count across
+// the whole stream ("trees[k]" = k-th tree uploaded).
 class UploadValidator {
  public:
   explicit UploadValidator(int64_t max_trees) : max_trees_(max_trees) {}
@@ -93,7 +93,6 @@ class UploadValidator {
   bool replace_ = false;
   int64_t messages_ = 0;
   int64_t trees_ = 0;
-  std::unordered_map<int64_t, int64_t> index_of_id_;  // tree id -> its index in the stream
 };
 
 }  // namespace forestmap::server

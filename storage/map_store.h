@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
 #include <span>
@@ -173,6 +174,10 @@ struct MergeNote {
 
 using MergeFunction = std::function<MapChanges(MergeReader&)>;
 
+class TreeUpload;      // storage/staged_writes.h
+struct UploadPlan;     // storage/staged_writes.h
+struct TreePageQuery;  // storage/staged_writes.h
+
 // A consistent snapshot of a map: its info and all its trees (sorted by id), read together.
 struct MapSnapshot {
   MapInfo info;
@@ -244,6 +249,18 @@ class MapStore {
 
   // The answer stored for a request id by an earlier write, if any.
   virtual std::optional<StoredRequest> FindRequest(const std::string& request_id) = 0;
+
+  // ---- Bounded memory (storage/staged_writes.h) ----
+
+  // Starts an upload staged in the database. kNotFound for an unknown map (kAlreadyExists for an
+  // existing one when plan.create_map). The default holds the trees in memory (MemoryUpload).
+  virtual std::unique_ptr<TreeUpload> BeginUpload(const std::string& name, const UploadPlan& plan);
+  // Trees of one readable version, by id, one page at a time: each page is its own short read,
+  // and versions never change, so pages of one version fit together. kNotFound for an unknown
+  // map or version; kConflict when the map was deleted (or created again: created_unix_ms
+  // differs) or the version pruned since the first page. The default reads the whole version.
+  virtual std::vector<TreeRecord> ReadTreesPage(const std::string& name,
+                                                const TreePageQuery& query);
 };
 
 // Valid map names: 1..128 characters of [A-Za-z0-9_.-]. Returns an error message or "".

@@ -69,7 +69,7 @@ void PostgresMapStoreOptions::Check() const {
 
 PostgresMapStore::PostgresMapStore(const std::string& conninfo,
                                    const PostgresMapStoreOptions& options)
-    : options_(options) {
+    : options_(options), conninfo_(conninfo) {
   options_.Check();
   pool_ = std::make_unique<pg::ConnectionPool>(conninfo, options_.max_connections);
   if (static_cast<int64_t>(pg_internal::SchemaSteps().size()) != kSchemaVersion) {

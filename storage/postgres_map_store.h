@@ -68,12 +68,18 @@ class PostgresMapStore final : public MapStore {
                 const MergeFunction& merge) override;
   std::optional<StoredRequest> FindRequest(const std::string& request_id) override;
   PruneResult PruneVersions(const std::string& name, int64_t keep) override;
+  // Staged in a TEMP table of the upload's own session; copied into trees at Commit under the
+  // map's advisory lock (storage/postgres_upload.cc).
+  std::unique_ptr<TreeUpload> BeginUpload(const std::string& name, const UploadPlan& plan) override;
+  std::vector<TreeRecord> ReadTreesPage(const std::string& name,
+                                        const TreePageQuery& query) override;
 
  private:
   using Body = std::function<void(pg::Connection&)>;
   void With(const Body& body);
 
   PostgresMapStoreOptions options_;
+  std::string conninfo_;  // for the uploads' own sessions
   std::unique_ptr<pg::ConnectionPool> pool_;
 };
 

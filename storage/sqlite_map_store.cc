@@ -92,6 +92,7 @@ SqliteMapStore::SqliteMapStore(const std::string& path, const SqliteMapStoreOpti
   // Refuses a database of something else, and a newer schema, before any change.
   internal::RefuseForeignDatabase(*writer_);
   sqlite::MigrateSchema(*writer_, internal::SchemaSteps());
+  internal::RemoveAbandonedUploads(*writer_);
   if (path == ":memory:") return;  // the database exists on this one connection only
   writer_->EnableWal();
   internal::RefuseReadOnlyDatabase(*writer_);
@@ -163,7 +164,8 @@ MapInfo SqliteMapStore::CreateMap(const std::string& name, const std::string& de
 std::vector<MapInfo> SqliteMapStore::ListMaps() {
   std::vector<MapInfo> maps;
   WithReader([&](Database& db) {
-    Statement select(db, "SELECT " FORESTMAP_MAP_COLUMNS " FROM maps ORDER BY name");
+    Statement select(db, "SELECT " FORESTMAP_MAP_COLUMNS
+                         " FROM maps WHERE creating_upload IS NULL ORDER BY name");
     while (select.Step()) maps.push_back(internal::ReadMapRow(select).info);
   });
   return maps;
@@ -191,11 +193,7 @@ void SqliteMapStore::DeleteMap(const std::string& name) {
 
 // ---- Trees ----
 
-namespace {
-
-// Closes every current tree and observation row of a map at `version`; returns the number of
-// observation rows closed.
-int64_t CloseAllCurrentRows(Database& db, int64_t map_id, int64_t version) {
+int64_t internal::CloseAllCurrentRows(Database& db, int64_t map_id, int64_t version) {
   Statement trees(
       db, "UPDATE trees SET valid_to = ?2 WHERE map_id = ?1 AND valid_to = " FORESTMAP_CURRENT);
   trees.BindInt64(1, map_id);
@@ -209,8 +207,6 @@ int64_t CloseAllCurrentRows(Database& db, int64_t map_id, int64_t version) {
   observations.Run();
   return sqlite3_changes64(db.handle());
 }
-
-}  // namespace
 
 MapInfo SqliteMapStore::WriteTrees(const std::string& name, const std::vector<TreeRecord>& trees,
                                    WriteMode mode) {
@@ -232,7 +228,7 @@ MapInfo SqliteMapStore::WriteTrees(const std::string& name, const std::vector<Tr
     std::optional<int64_t> max_id = batch.max_explicit_id;
     if (replace) {
       record.trees_removed = info.tree_count;
-      record.observations_removed = CloseAllCurrentRows(db, map.id, record.version);
+      record.observations_removed = internal::CloseAllCurrentRows(db, map.id, record.version);
     } else {
       Statement max_existing(db,
                              "SELECT MAX(tree_id) FROM trees INDEXED BY trees_current WHERE "

@@ -56,7 +56,7 @@ struct SqliteMapStoreOptions {
 class SqliteMapStore final : public MapStore {
  public:
   // Schema version this code writes; a database with a newer PRAGMA user_version is refused.
-  static constexpr int64_t kSchemaVersion = 5;
+  static constexpr int64_t kSchemaVersion = 6;
   static constexpr size_t kTreesPerBlock = 32;
 
   // Opens (creating if missing) the database at `path` and migrates its schema to
@@ -89,8 +89,15 @@ class SqliteMapStore final : public MapStore {
   std::optional<StoredRequest> FindRequest(const std::string& request_id) override;
   // Deleted rows leave free pages that later writes reuse; the file does not shrink (VACUUM).
   PruneResult PruneVersions(const std::string& name, int64_t keep) override;
+  // Staged in table trees as pending rows (valid_to = -upload id) by short transactions; Commit
+  // turns them current in one UPDATE (storage/sqlite_upload.cc).
+  std::unique_ptr<TreeUpload> BeginUpload(const std::string& name, const UploadPlan& plan) override;
+  // One short read transaction per page, through the index of current or closed rows.
+  std::vector<TreeRecord> ReadTreesPage(const std::string& name,
+                                        const TreePageQuery& query) override;
 
  private:
+  friend class SqliteTreeUpload;
   using Body = std::function<void(sqlite::Database&)>;
   void WithWriter(const Body& body);
   void WithReader(const Body& body);

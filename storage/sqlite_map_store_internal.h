@@ -63,10 +63,18 @@ std::optional<Extent> ScanExtent(sqlite::Database& db, int64_t map_id);
   "t.dbh_sigma"
 TreeRecord ReadTreeRow(const sqlite::Statement& row, const std::string& map_name);
 
-// Inserts trees[i] with id ids[i], valid from `valid_from`, block by block with their R*Tree
-// rows. A current id of the map -> kInvalidArgument naming the tree.
+// Inserts trees[i] with id ids[i], valid from `valid_from` to `valid_to`, block by block with
+// their R*Tree rows. A current id of the map -> kInvalidArgument naming the tree. Pending rows of
+// an upload (valid_to < 0, sqlite_upload.cc) pass pending_base >= 0: see InsertTree.
 void InsertTrees(sqlite::Database& db, const MapRow& map, const std::vector<TreeRecord>& trees,
-                 const std::vector<int64_t>& ids, int64_t valid_from);
+                 const std::vector<int64_t>& ids, int64_t valid_from, int64_t valid_to = kForever,
+                 int64_t pending_base = -1);
+// Closes every current tree and observation row of a map at `version`; returns the number of
+// observation rows closed.
+int64_t CloseAllCurrentRows(sqlite::Database& db, int64_t map_id, int64_t version);
+// Removes the staged rows (and the map it was creating) of every upload left by a process that
+// stopped (sqlite_upload.cc); called when the store opens the database.
+void RemoveAbandonedUploads(sqlite::Database& db);
 // kInvalidArgument for a NaN bound or min > max.
 void CheckBox(const std::string& name, const Extent& box);
 // Current trees of the map inside the box (inclusive), by id, through the spatial index.

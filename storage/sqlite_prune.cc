@@ -37,9 +37,11 @@ PruneResult SqliteMapStore::PruneVersions(const std::string& name, int64_t keep)
     result.info = map.info;
     const int64_t first_kept = map.info.version - keep + 1;
     if (first_kept <= 1) return;  // nothing older than what is kept
-    // Rows no kept version holds: closed at or before the first kept version.
-    result.tree_rows_removed = DeleteBefore(
-        db, "DELETE FROM trees WHERE map_id = ?1 AND valid_to <= ?2", map.id, first_kept);
+    // Rows no kept version holds: closed at or before the first kept version (not the pending
+    // rows of an upload, whose valid_to is negative).
+    result.tree_rows_removed =
+        DeleteBefore(db, "DELETE FROM trees WHERE map_id = ?1 AND valid_to > 0 AND valid_to <= ?2",
+                     map.id, first_kept);
     result.observation_rows_removed = DeleteBefore(
         db, "DELETE FROM observations WHERE map_id = ?1 AND valid_to <= ?2", map.id, first_kept);
     result.versions_removed = DeleteBefore(

@@ -45,9 +45,12 @@ std::vector<size_t> PackingOrder(const std::vector<TreeRecord>& trees) {
   return order;
 }
 
-// Inserts trees[index] through `insert` (map id at parameter 1, valid_from at 8).
+// Inserts trees[index] through `insert` (map id at parameter 1, valid_from at 8, valid_to at
+// 13). A pending row (pending_base >= 0) keeps its index in the upload, pending_base + index, in
+// valid_from; its duplicate id is kAlreadyExists with `index` as the message (for the caller).
 void InsertTree(Statement& insert, const std::string& map_name,
-                const std::vector<TreeRecord>& trees, size_t index, int64_t id) {
+                const std::vector<TreeRecord>& trees, size_t index, int64_t id,
+                int64_t pending_base) {
   const TreeRecord& tree = trees[index];
   std::optional<std::string> attributes;
   try {
@@ -71,11 +74,13 @@ void InsertTree(Statement& insert, const std::string& map_name,
   insert.BindInt64(10, tree.observations);
   insert.BindOptionalDouble(11, tree.position_sigma);
   insert.BindOptionalDouble(12, tree.dbh_sigma);
+  if (pending_base >= 0) insert.BindInt64(8, pending_base + static_cast<int64_t>(index));
   try {
     insert.Run();
   } catch (const StorageError& e) {
     // Batches have no duplicates (checked before), so a UNIQUE violation is an id of the map.
     if (e.code() != Code::kAlreadyExists) throw;
+    if (pending_base >= 0) throw StorageError(Code::kAlreadyExists, std::to_string(index));
     throw StorageError(Code::kInvalidArgument, "map '" + map_name +
                                                    "': " + TreeLabel(trees, index) +
                                                    ": tree id already exists in the map");
@@ -117,7 +122,9 @@ void CheckName(const std::string& name) {
 }
 
 MapRow RequireMap(Database& db, const std::string& name) {
-  Statement select(db, "SELECT " FORESTMAP_MAP_COLUMNS " FROM maps WHERE name = ?1");
+  // A map that an upload is still creating (creating_upload set) does not exist yet.
+  Statement select(
+      db, "SELECT " FORESTMAP_MAP_COLUMNS " FROM maps WHERE name = ?1 AND creating_upload IS NULL");
   select.BindText(1, name);
   if (!select.Step()) {
     throw StorageError(Code::kNotFound, "map '" + name + "' does not exist");
@@ -198,18 +205,20 @@ std::string TreeLabel(const std::vector<TreeRecord>& trees, size_t index) {
 }
 
 void InsertTrees(Database& db, const MapRow& map, const std::vector<TreeRecord>& trees,
-                 const std::vector<int64_t>& ids, int64_t valid_from) {
+                 const std::vector<int64_t>& ids, int64_t valid_from, int64_t valid_to,
+                 int64_t pending_base) {
   const std::vector<size_t> order = PackingOrder(trees);
   Statement insert_tree(db,
                         "INSERT INTO trees (map_id, tree_id, x, y, z, dbh, attributes, valid_from, "
                         "valid_to, status, observations, position_sigma, dbh_sigma) VALUES (?1, "
-                        "?2, ?3, ?4, ?5, ?6, ?7, ?8, " FORESTMAP_CURRENT ", ?9, ?10, ?11, ?12)");
+                        "?2, ?3, ?4, ?5, ?6, ?7, ?8, ?13, ?9, ?10, ?11, ?12)");
   Statement insert_block(db,
                          "INSERT INTO tree_blocks (min_map, max_map, min_x, max_x, min_y, max_y, "
                          "map_id, first_rowid, last_rowid) VALUES (?1, ?1, ?2, ?3, ?4, ?5, ?1, "
                          "?6, ?7)");
   insert_tree.BindInt64(1, map.id);
   insert_tree.BindInt64(8, valid_from);
+  insert_tree.BindInt64(13, valid_to);
   insert_block.BindInt64(1, map.id);
   // Beyond the float range the R*Tree would round the inner bound to infinity and lose the point.
   constexpr double kFloatSafe = 3e38;
@@ -220,7 +229,7 @@ void InsertTrees(Database& db, const MapRow& map, const std::vector<TreeRecord>&
     int64_t last_rowid = std::numeric_limits<int64_t>::min();
     for (size_t k = begin; k < end; ++k) {
       const size_t i = order[k];
-      InsertTree(insert_tree, map.info.name, trees, i, ids[i]);
+      InsertTree(insert_tree, map.info.name, trees, i, ids[i], pending_base);
       first_rowid = std::min(first_rowid, db.LastInsertRowId());
       last_rowid = std::max(last_rowid, db.LastInsertRowId());
       box = Union(box, Extent{trees[i].x, trees[i].y, trees[i].x, trees[i].y});

@@ -173,10 +173,30 @@ CREATE TABLE access_tokens (
 PRAGMA user_version = 5;
 )sql";
 
+// Version 6: uploads staged in the database (storage/sqlite_upload.cc). An upload's trees are
+// written in short transactions as pending rows of `trees`: valid_to = -(upload id), so no read
+// sees them (every query asks for valid_to = 2^63-1 or valid_to > a version), and valid_from =
+// the tree's index in the upload (for error messages). Its commit turns them current in one
+// UPDATE. trees_pending keeps ids unique within an upload. A map created by an upload exists
+// hidden (creating_upload set) until the upload commits.
+constexpr const char* kStep6 = R"sql(
+CREATE TABLE uploads (
+  id INTEGER PRIMARY KEY,
+  map_id INTEGER NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
+  creates_map INTEGER NOT NULL,  -- 1: the map row is this upload's, hidden until it commits
+  first_rowid INTEGER,           -- rowids of trees holding its pending rows (NULL: none yet)
+  last_rowid INTEGER,
+  started_unix_ms INTEGER NOT NULL
+);
+ALTER TABLE maps ADD COLUMN creating_upload INTEGER;  -- NULL once the map exists
+CREATE UNIQUE INDEX trees_pending ON trees (valid_to, tree_id) WHERE valid_to < 0;
+PRAGMA user_version = 6;
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4, kStep5};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4, kStep5, kStep6};
   return steps;
 }
 

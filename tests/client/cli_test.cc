@@ -213,7 +213,7 @@ TEST_F(CliTest, MapCreateListShowExportDelete) {
   EXPECT_EQ(gone.err, "forestmap: error: GetMap: NOT_FOUND: no map named 'plot'\n");
 }
 
-TEST_F(CliTest, FailedUploadDeletesTheNewMap) {
+TEST_F(CliTest, FailedCreateWithTreesLeavesNoMap) {
   testing::FakeForestMapServer server;
   server.service().fail_uploads = true;
   const fs::path trees = Write("trees.csv", "x,y\n1,2\n3,4\n");
@@ -221,8 +221,11 @@ TEST_F(CliTest, FailedUploadDeletesTheNewMap) {
       Run("--server " + server.address() + " map create m --trees '" + trees.string() + "'");
   EXPECT_EQ(result.exit_code, 1);
   EXPECT_NE(result.err.find("INTERNAL: disk full"), std::string::npos) << result.err;
-  EXPECT_NE(result.err.find("the new map 'm' was deleted"), std::string::npos) << result.err;
+  EXPECT_NE(result.err.find("no map was created"), std::string::npos) << result.err;
   EXPECT_TRUE(server.service().maps.empty());
+  // One upload stream that creates the map: no CreateMap call that could leave a map behind.
+  ASSERT_FALSE(server.service().upload_messages.empty());
+  EXPECT_TRUE(server.service().upload_messages[0].create_map());
 }
 
 TEST_F(CliTest, RelocalizePrintsOneJsonLine) {

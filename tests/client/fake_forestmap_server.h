@@ -86,6 +86,17 @@ class FakeForestMapService final : public v1::ForestMap::Service {
     upload_messages = messages;
     if (fail_uploads) return {grpc::StatusCode::INTERNAL, "disk full"};
     if (messages.empty()) return {grpc::StatusCode::INVALID_ARGUMENT, "no messages"};
+    if (messages[0].create_map()) {  // created with its trees, as forestmapd does
+      const std::string& name = messages[0].map_name();
+      if (maps.count(name)) return {grpc::StatusCode::ALREADY_EXISTS, "map '" + name + "' exists"};
+      FakeMap& created = maps[name];
+      created.info.set_name(name);
+      created.info.set_description(messages[0].description());
+      created.info.set_crs(messages[0].crs());
+      created.info.set_version(1);
+      created.info.set_created_unix_ms(1700000000000);
+      created.info.set_updated_unix_ms(1700000000000);
+    }
     const auto it = maps.find(messages[0].map_name());
     if (it == maps.end()) return NotFound(messages[0].map_name());
     FakeMap& map = it->second;

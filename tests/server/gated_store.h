@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "storage/map_store.h"
+#include "storage/staged_writes.h"
 
 namespace forestmap::server {
 
@@ -34,7 +35,7 @@ class GatedStore final : public storage::MapStore {
  public:
   explicit GatedStore(storage::MapStore& inner) : inner_(inner) {}
 
-  // ReadMap(name) waits until Open().
+  // ReadMap(name), and ReadTreesPage(name) after an export's first page, wait until Open().
   void Close(const std::string& name) {
     std::lock_guard<std::mutex> lock(mutex_);
     closed_.insert(name);
@@ -51,6 +52,10 @@ class GatedStore final : public storage::MapStore {
   int get_calls() {
     std::lock_guard<std::mutex> lock(mutex_);
     return get_calls_;
+  }
+  int uploads_begun() {  // BeginUpload calls
+    std::lock_guard<std::mutex> lock(mutex_);
+    return uploads_begun_;
   }
   // Waits (up to kSyncTimeout) until ReadMap(name) was entered `count` times.
   bool WaitForReads(const std::string& name, int count) {
@@ -109,6 +114,22 @@ class GatedStore final : public storage::MapStore {
   storage::PruneResult PruneVersions(const std::string& name, int64_t keep) override {
     return inner_.PruneVersions(name, keep);
   }
+  std::unique_ptr<storage::TreeUpload> BeginUpload(const std::string& name,
+                                                   const storage::UploadPlan& plan) override {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++uploads_begun_;
+    }
+    return inner_.BeginUpload(name, plan);
+  }
+  std::vector<storage::TreeRecord> ReadTreesPage(const std::string& name,
+                                                 const storage::TreePageQuery& query) override {
+    if (query.after_id) {  // pages after an export's first wait at the gate, as ReadMap
+      std::unique_lock<std::mutex> lock(mutex_);
+      changed_.wait(lock, [&] { return closed_.count(name) == 0; });
+    }
+    return inner_.ReadTreesPage(name, query);
+  }
   std::optional<storage::StoredRequest> FindRequest(const std::string& request_id) override {
     return inner_.FindRequest(request_id);
   }
@@ -122,6 +143,7 @@ class GatedStore final : public storage::MapStore {
   std::set<std::string> closed_;
   std::map<std::string, int> reads_;
   int get_calls_ = 0;
+  int uploads_begun_ = 0;
 };
 
 }  // namespace forestmap::server

@@ -294,7 +294,7 @@ TEST_F(ServiceConcurrencyTest, RelocalizeRejectsBadQueries) {
 TEST_F(ServiceConcurrencyTest, CancelledUploadChangesNothing) {
   AddMap("plot", Forest(10, 7));
   const storage::MapInfo before = store_.GetMap("plot");
-  const int get_calls = store_.get_calls();
+  const int uploads_begun = store_.uploads_begun();
 
   grpc::ClientContext context;
   v1::UploadTreesResponse response;
@@ -307,8 +307,8 @@ TEST_F(ServiceConcurrencyTest, CancelledUploadChangesNothing) {
     tree->set_y(i);
   }
   ASSERT_TRUE(writer->Write(message));
-  // The server has taken the first message once it checked that the map exists.
-  ASSERT_TRUE(Eventually([&] { return store_.get_calls() > get_calls; }));
+  // The server has taken the first message once it began the upload (the map exists).
+  ASSERT_TRUE(Eventually([&] { return store_.uploads_begun() > uploads_begun; }));
   message.clear_map_name();
   writer->Write(message);
   context.TryCancel();
