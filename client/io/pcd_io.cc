@@ -226,7 +226,9 @@ void CheckDataLength(const PcdHeader& h, const std::string& path) {
                        std::to_string(h.points), " points need ", std::to_string(needed),
                        " bytes, the file has ", std::to_string(available)}));
   }
-  if (h.data == "binary_compressed" && h.points > 0) {
+  // Size words are checked whenever they are there: with no points the uncompressed size must be
+  // 0 too, or PCL allocates what the word says (2.4 GB for a 217-byte file).
+  if (h.data == "binary_compressed" && (h.points > 0 || available >= 8)) {
     uint32_t sizes[2] = {0, 0};
     std::ifstream in(path, std::ios::binary);
     in.seekg(static_cast<std::streamoff>(h.data_offset));

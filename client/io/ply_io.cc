@@ -207,6 +207,9 @@ void ReadBinary(const std::string& bytes, const PlyHeader& h, const std::string&
   size_t pos = h.data_offset;
   for (const PlyElement& element : h.elements) {
     const bool is_vertex = element.name == "vertex";
+    // An element without properties holds no bytes: skipped, not counted through (a count of
+    // 10^12 would loop for hours).
+    if (element.properties.empty()) continue;
     for (uint64_t i = 0; i < element.count; ++i) {
       for (const PlyProperty& property : element.properties) {
         size_t size = kTypeSize[property.type];

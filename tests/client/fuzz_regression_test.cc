@@ -86,5 +86,36 @@ TEST_F(FuzzRegressionTest, PlyTwoVertexElements) {
               "more than one 'element vertex'");
 }
 
+// fuzz_pcd (out of memory, found by the 30 s run of deploy/test.sh): no points (HEIGHT 0, the
+// POINTS line lost in a garbled VIEWPOINT line), but binary_compressed size words asking for
+// 2.4 GB, which PCL allocated. The size words are checked when there are no points too.
+TEST_F(FuzzRegressionTest, PcdCompressedSizeWordsWithoutPoints) {
+  std::string words(8, '\0');
+  words[0] = '\x19';
+  words[4] = '\x18';
+  words[7] = '\x91';
+  ExpectError("no_points.pcd",
+              "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nHEIGHT 0\n"
+              "DATA binary_compressed\n" +
+                  words + std::string(25, '\x40'),
+              "uncompressed 2432696344) do not fit 0 bytes of points");
+}
+
+// fuzz_ply (timeout, found by the 30 s run of deploy/test.sh): an element without properties and
+// a count of 10^12 before the vertices; the binary reader counted through it one by one. Such an
+// element holds no bytes: the vertices after it read at once.
+TEST_F(FuzzRegressionTest, PlyHugeElementWithoutProperties) {
+  std::string data(12, '\0');
+  data[3] = '\x3f';  // x = 0.5 (little-endian float 0x3f000000)
+  const std::string path =
+      Write("empty_element.ply",
+            "ply\nformat binary_little_endian 1.0\nelement junk 1888888888888\n"
+            "element vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+            "end_header\n" +
+                data);
+  const auto scan = ReadScan(path);
+  ASSERT_EQ(scan.size(), 1u);
+}
+
 }  // namespace
 }  // namespace forestmap::client
