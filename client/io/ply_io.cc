@@ -199,6 +199,14 @@ bool Store(RawScan* raw, size_t i, Slot slot, double value) {
 
 constexpr char kRingRange[] = "ring value out of range 0..65535";
 
+// A list's length as read (any number, NaN or 10^29 included), clamped to [0, limit]: more than
+// the data left can hold is reported as truncated data by the caller, never converted beyond
+// size_t's range.
+size_t ListLength(double count, size_t limit) {
+  if (!(count > 0)) return 0;
+  return count >= static_cast<double>(limit) ? limit : static_cast<size_t>(count);
+}
+
 // Binary: walks every element in order (lists have per-instance lengths), keeping the vertices.
 void ReadBinary(const std::string& bytes, const PlyHeader& h, const std::string& path,
                 RawScan* raw) {
@@ -219,7 +227,7 @@ void ReadBinary(const std::string& bytes, const PlyHeader& h, const std::string&
           else {
             const double count = Decode(bytes.data() + pos, property.count_type, swap);
             pos += kTypeSize[property.count_type];
-            size *= static_cast<size_t>(std::max(0.0, count));
+            size *= ListLength(count, bytes.size());
           }
         }
         if (pos + size > bytes.size()) {
@@ -275,7 +283,7 @@ void ReadAscii(const std::string& bytes, const PlyHeader& h, const std::string& 
       size_t k = 0;
       for (const PlyProperty& property : element.properties) {
         if (property.is_list) {
-          k += 1 + (k < values.size() ? static_cast<size_t>(std::max(0.0, values[k])) : 0);
+          k += 1 + (k < values.size() ? ListLength(values[k], values.size()) : 0);
           continue;
         }
         if (k >= values.size()) {

@@ -117,5 +117,15 @@ TEST_F(FuzzRegressionTest, PlyHugeElementWithoutProperties) {
   ASSERT_EQ(scan.size(), 1u);
 }
 
+// fuzz_ply (UBSan, found while checking the two fixes above): an ASCII list length of 5.6e29
+// was converted to size_t (undefined). A length beyond the line is now "expected more values".
+TEST_F(FuzzRegressionTest, PlyHugeListLength) {
+  ExpectError("huge_list.ply",
+              "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+              "property float z\nproperty list uchar int vertex_indices\nproperty uchar i\n"
+              "end_header\n1 2 3 555555555555555555555555555551 4\n",
+              "expected more values");
+}
+
 }  // namespace
 }  // namespace forestmap::client
