@@ -290,6 +290,8 @@ void RunClients(std::vector<Client>& clients, const Input& input, const LoadBenc
     threads.emplace_back([&, &c = client] {
       ClientOptions options = context.client;
       options.write_attempts = 1;  // every failure counts; no retries behind the figures
+      options.own_connection =
+          true;  // one client, one connection (stream limits are per connection)
       ForestMapClient rpc(context.server, options);
       std::discrete_distribution<int> pick(o.weights.begin(), o.weights.end());
       while (Clock::now() < end) {

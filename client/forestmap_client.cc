@@ -68,6 +68,7 @@ ForestMapClient::ForestMapClient(std::string address, const ClientOptions& optio
   options_.Check();
   grpc::ChannelArguments arguments;
   arguments.SetMaxReceiveMessageSize(options_.max_receive_bytes);
+  if (options_.own_connection) arguments.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
   std::stringstream list(address_);
   for (std::string one; std::getline(list, one, ',');) {
     if (one.empty()) continue;
