@@ -38,7 +38,7 @@ struct ClientOptions {
   double stream_timeout = 600.0;     // s, deadline of a whole upload or export
   int upload_chunk_trees = 5000;     // trees per UploadTrees message
   int max_receive_bytes = 64 << 20;  // largest message accepted from the server
-  bool own_connection = false;  // a TCP connection not shared with same-target channels
+  bool own_connection = false;       // a TCP connection not shared with same-target channels
   // Tries of a write call (CreateMap, DeleteMap, UploadTrees, Observe, RestoreVersion,
   // RemoveSource) that timed out or lost its connection: every try carries the same request id,
   // so the server applies the write at most once (exactly-once writes).
