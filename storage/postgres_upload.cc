@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "storage/attribute_json.h"
 #include "storage/postgres.h"
 #include "storage/postgres_map_store.h"
 #include "storage/postgres_map_store_internal.h"
@@ -99,16 +100,11 @@ void PostgresTreeUpload::Insert(const std::vector<TreeRecord>& trees,
     for (size_t i = begin; i < end; ++i) {
       const TreeRecord& tree = trees[i];
       const int64_t index = chunks_.staged() + static_cast<int64_t>(i);
-      if (tree.attributes.empty()) {
-        attributes.Null();
-      } else {
-        try {
-          attributes.Text(nlohmann::json(tree.attributes).dump());
-        } catch (const nlohmann::json::exception& e) {
-          throw StorageError(
-              Code::kInvalidArgument,
-              chunks_.Label(index) + ": attributes are not valid UTF-8: " + e.what());
-        }
+      try {
+        attributes.OptionalText(internal::EncodeAttributes(tree.attributes, tree.null_attributes));
+      } catch (const nlohmann::json::exception& e) {
+        throw StorageError(Code::kInvalidArgument,
+                           chunks_.Label(index) + ": attributes are not valid UTF-8: " + e.what());
       }
       seq.Int64(index);
       id.Int64(ids[i]);

@@ -262,6 +262,26 @@ TEST_P(StagedUploadBackendTest, CreateIsAtomicIdsAreCheckedAndOtherMapsGoOn) {
   EXPECT_EQ(store.ReadMap("a").trees.size(), 15u);
 }
 
+// A staged upload keeps attributes and the columns a tree has no value for (null), like a
+// direct write does: the PostgreSQL staging path once encoded attributes without the nulls.
+TEST_P(StagedUploadBackendTest, AttributesAndNullColumnsSurviveTheStaging) {
+  TestStore test_store(GetParam());
+  MapStore& store = *test_store;
+  std::vector<TreeRecord> trees = Grid(3, 1);
+  trees[0].attributes = {{"Spp", "41"}};
+  trees[0].null_attributes = {"LI"};
+  UploadPlan create;
+  create.create_map = true;
+  auto upload = store.BeginUpload("a", create);
+  upload->Append(trees);
+  upload->Commit();
+  const MapSnapshot snapshot = store.ReadMap("a");
+  ASSERT_EQ(snapshot.trees.size(), 3u);
+  const TreeRecord& first = snapshot.trees.front();
+  EXPECT_EQ(first.attributes, trees[0].attributes);
+  EXPECT_EQ(first.null_attributes, trees[0].null_attributes);
+}
+
 INSTANTIATE_TEST_SUITE_P(Backends, StagedUploadBackendTest, kAllBackends, BackendName);
 
 // ---- Pages, on both backends ----
