@@ -72,7 +72,9 @@ void ParseHeaderLine(const std::vector<std::string>& tokens, const std::string& 
     header->fields.assign(tokens.begin() + 1, tokens.end());
   } else if (key == "SIZE") {
     for (size_t i = 1; i <= n; ++i) {
-      header->sizes.push_back(static_cast<int>(ParseCount(tokens[i], where, "SIZE")));
+      const uint64_t size = ParseCount(tokens[i], where, "SIZE");
+      if (size > 8) Fail(where, StrCat({"SIZE must be 1, 2, 4 or 8 bytes, got ", tokens[i]}));
+      header->sizes.push_back(static_cast<int>(size));
     }
   } else if (key == "TYPE") {
     for (size_t i = 1; i <= n; ++i) {
@@ -83,8 +85,14 @@ void ParseHeaderLine(const std::vector<std::string>& tokens, const std::string& 
       header->types.push_back(tokens[i][0]);
     }
   } else if (key == "COUNT") {
+    constexpr uint64_t kMaxCount = 1 << 16;  // values of one field in one point
     for (size_t i = 1; i <= n; ++i) {
-      header->counts.push_back(static_cast<int>(ParseCount(tokens[i], where, "COUNT")));
+      const uint64_t count = ParseCount(tokens[i], where, "COUNT");
+      if (count > kMaxCount) {
+        Fail(where, StrCat({"COUNT ", tokens[i], " is over ", std::to_string(kMaxCount),
+                            " values per field (not a point cloud?)"}));
+      }
+      header->counts.push_back(static_cast<int>(count));
     }
   } else if (key == "WIDTH") {
     header->width = ParseCount(single(), where, "WIDTH");
@@ -221,6 +229,15 @@ void CheckDataLength(const PcdHeader& h, const std::string& path) {
   const uint64_t file_size = std::filesystem::file_size(path);
   const uint64_t available = file_size > h.data_offset ? file_size - h.data_offset : 0;
   const uint64_t needed = h.points * PointStep(h);
+  // PCL allocates points x point step before it reads ascii data, so a header must not promise
+  // more values than the file has bytes (each value takes at least one).
+  uint64_t values = 0;
+  for (size_t i = 0; i < h.fields.size(); ++i) values += h.counts.empty() ? 1 : h.counts[i];
+  if (h.data == "ascii" && h.points * values > available) {
+    Fail(path, StrCat({"byte ", std::to_string(h.data_offset), ": ", std::to_string(h.points),
+                       " points of ", std::to_string(values), " values cannot fit in the ",
+                       std::to_string(available), " bytes of ascii data (truncated file?)"}));
+  }
   if (h.data == "binary" && available < needed) {
     Fail(path, StrCat({"byte ", std::to_string(h.data_offset), ": truncated binary data: ",
                        std::to_string(h.points), " points need ", std::to_string(needed),

@@ -101,6 +101,20 @@ TEST_F(FuzzRegressionTest, PcdCompressedSizeWordsWithoutPoints) {
               "uncompressed 2432696344) do not fit 0 bytes of points");
 }
 
+// fuzz_pcd (out of memory, found by CI's 30 s run): an ascii file of 3 points whose header said
+// COUNT 999999991 for one field; PCL allocated points x point step (12 GB) before reading a line.
+// A count is bounded, and a header must not promise more values than the file has bytes.
+TEST_F(FuzzRegressionTest, PcdHugeCountInAsciiHeader) {
+  const std::string head = "FIELDS x y z intensity\nSIZE 8 4 4 4\nTYPE F F F F\n";
+  const std::string tail = "WIDTH 3\nHEIGHT 1\nPOINTS 3\nDATA ascii\n1 2 3 4\n5 6 7 8\n";
+  ExpectError("huge_count.pcd", head + "COUNT 1 1 999999991 1\n" + tail,
+              "COUNT 999999991 is over 65536 values per field");
+  ExpectError("many_values.pcd", head + "COUNT 1 1 60000 1\n" + tail,
+              "3 points of 60003 values cannot fit in the 16 bytes of ascii data");
+  ExpectError("big_size.pcd", "FIELDS x y z\nSIZE 4 4 4294967300\nTYPE F F F\n" + tail,
+              "SIZE must be 1, 2, 4 or 8 bytes, got 4294967300");
+}
+
 // fuzz_ply (timeout, found by the 30 s run of deploy/test.sh): an element without properties and
 // a count of 10^12 before the vertices; the binary reader counted through it one by one. Such an
 // element holds no bytes: the vertices after it read at once.

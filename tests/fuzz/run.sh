@@ -6,6 +6,9 @@
 # Usage: tests/fuzz/run.sh BUILD_DIR [SECONDS=30] [JOBS=1] [TARGET...]
 #   FUZZ_OUT=DIR keeps logs, scratch corpora and crash inputs there (default: a temp dir).
 #   FUZZ_NICE=N runs the fuzzers under nice -n N (default 0).
+#   FUZZ_SEED=N fixes libFuzzer's random seed: the same mutations in the same order on every run,
+#   so a short run (the test command's) finds the same inputs wherever it runs, and a failure is
+#   reproducible. Unset (long exploratory runs): a new seed each run.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 build="$1"
@@ -25,7 +28,7 @@ run_one() {  # target -> out/target.{log,rc}
   # -timeout: one input taking over 25 s is a hang; -rss_limit_mb: libFuzzer's default, stated.
   # The CPU seconds (user + system) go to target.cpu: on a shared machine they are below wall time.
   { time nice -n "${FUZZ_NICE:-0}" "$bin" -max_total_time="$seconds" -timeout=25 \
-    -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$out/$t-" "$out/corpus/$t" \
+    -rss_limit_mb=2048 ${FUZZ_SEED:+-seed="$FUZZ_SEED"} -print_final_stats=1 -artifact_prefix="$out/$t-" "$out/corpus/$t" \
     "$here/corpus/$t" >"$out/$t.log" 2>&1 || rc=$?; } 2>"$out/$t.cpu"
   echo "$rc" >"$out/$t.rc"
 }
