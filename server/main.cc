@@ -59,96 +59,63 @@ sigset_t BlockShutdownSignals() {
   return signals;
 }
 
-int Serve(const Config& config, const sigset_t& shutdown_signals) {
-  using forestmap::server::LogLine;
-  // A PostgreSQL URI may hold a password: only host, port and database are shown.
-  const std::string shown_db =
-      forestmap::storage::IsPostgresUri(config.db)
-          ? "postgresql " + forestmap::storage::pg::DescribeServer(config.db)
-          : config.db;
-  std::unique_ptr<forestmap::storage::MapStore> store;
-  try {
-    store = forestmap::storage::OpenMapStore(config.db, config.max_db_mb);
-  } catch (const std::exception& e) {
-    LogError("cannot open database " + shown_db + ": " + e.what());
-    return 1;
-  }
-  const size_t map_count = store->ListMaps().size();
-  // Tokens live in the same database (table access_tokens), SQLite file or PostgreSQL.
-  std::unique_ptr<forestmap::storage::TokenStore> tokens;
-  try {
-    tokens = std::make_unique<forestmap::storage::TokenStore>(config.db);
-  } catch (const std::exception& e) {
-    LogError("cannot open the access tokens of " + shown_db + ": " + e.what());
-    return 1;
-  }
-  const forestmap::server::Authorizer authorizer(tokens.get());
+// Where `db` is, as logged: a PostgreSQL URI may hold a password, so only host, port and
+// database are shown.
+std::string ShownDatabase(const std::string& db) {
+  return forestmap::storage::IsPostgresUri(db)
+             ? "postgresql " + forestmap::storage::pg::DescribeServer(db)
+             : db;
+}
 
-  forestmap::server::ServiceOptions service_options;
-  service_options.keep_versions = config.keep_versions;
-  service_options.streams = config.streams;
-  service_options.authorizer = &authorizer;
-  forestmap::server::ForestMapService service(*store, service_options);
-  forestmap::server::Metrics metrics;
-  forestmap::server::AddServerMetrics(metrics, service.index_cache(), config.db);
+// Runs `open`; when it throws, logs `failure: <what>` as an error and returns null.
+template <typename T, typename Open>
+std::unique_ptr<T> OpenOrLog(const std::string& failure, const Open& open) {
+  try {
+    return open();
+  } catch (const std::exception& e) {
+    LogError(failure + ": " + e.what());
+    return nullptr;
+  }
+}
+
+// The gRPC server and the optional Prometheus endpoint (destroyed in reverse order).
+struct Listeners {
+  std::unique_ptr<forestmap::server::ServerRunner> server;
+  std::unique_ptr<forestmap::server::MetricsHttpServer> metrics_http;
+};
+
+// Starts the listeners of `config` for `service`; throws when one cannot start.
+Listeners StartListeners(const Config& config, forestmap::server::ForestMapService& service,
+                         forestmap::server::Metrics& metrics,
+                         forestmap::storage::TokenStore& tokens) {
   forestmap::server::ServerOptions server_options;
   server_options.max_receive_message_bytes = config.max_message_mb << 20;
   server_options.metrics = &metrics;
-  std::unique_ptr<forestmap::server::ServerRunner> server;
-  std::unique_ptr<forestmap::server::MetricsHttpServer> metrics_http;
-  try {
-    const bool tls =
-        !config.tls.cert.empty() || !config.tls.key.empty() || !config.tls.client_ca.empty();
-    if (tls) server_options.credentials = forestmap::server::TlsServerCredentials(config.tls);
-    server =
-        std::make_unique<forestmap::server::ServerRunner>(config.listen, service, server_options);
-    forestmap::server::WarnIfExposed(config.listen, tls, tokens && tokens->AnyToken());
-    if (!config.metrics.empty()) {
-      metrics_http = std::make_unique<forestmap::server::MetricsHttpServer>(
-          config.metrics, [&metrics] { return metrics.Render(); });
-      LogLine("metrics on http://" + config.metrics + "/metrics");
-    }
-  } catch (const std::exception& e) {
-    LogError(e.what());
-    return 1;
+  const bool tls =
+      !config.tls.cert.empty() || !config.tls.key.empty() || !config.tls.client_ca.empty();
+  if (tls) server_options.credentials = forestmap::server::TlsServerCredentials(config.tls);
+  Listeners listeners;
+  listeners.server =
+      std::make_unique<forestmap::server::ServerRunner>(config.listen, service, server_options);
+  forestmap::server::WarnIfExposed(config.listen, tls, tokens.AnyToken());
+  if (!config.metrics.empty()) {
+    listeners.metrics_http = std::make_unique<forestmap::server::MetricsHttpServer>(
+        config.metrics, [&metrics] { return metrics.Render(); });
+    forestmap::server::LogLine("metrics on http://" + config.metrics + "/metrics");
   }
-  LogLine("serving on " + server->address() + ", database " + shown_db + ", " +
-          std::to_string(map_count) + " maps");
-  std::unique_ptr<forestmap::server::HttpPage> page;
-  if (!config.http.empty()) {
-    try {
-      page = std::make_unique<forestmap::server::HttpPage>(*store, service.recent_answers(),
-                                                           config.http, tokens.get());
-    } catch (const std::exception& e) {
-      LogLine(e.what());
-      return 1;
-    }
-    LogLine("web page on http://" + page->address() + "/");
-  }
-
-  int signal_number = 0;
-  sigwait(&shutdown_signals, &signal_number);
-  LogLine(std::string("received ") + (signal_number == SIGINT ? "SIGINT" : "SIGTERM") +
-          ", shutting down");
-  page.reset();
-  server->Shutdown(kShutdownGrace);
-  server->Wait();
-  LogLine("stopped");
-  return 0;
+  return listeners;
 }
 
-}  // namespace
+// Blocks until SIGINT or SIGTERM arrives, and logs which.
+void WaitForShutdownSignal(const sigset_t& shutdown_signals) {
+  int signal_number = 0;
+  sigwait(&shutdown_signals, &signal_number);
+  forestmap::server::LogLine(std::string("received ") +
+                             (signal_number == SIGINT ? "SIGINT" : "SIGTERM") + ", shutting down");
+}
 
-int main(int argc, char** argv) {
-  Config config;
-  CLI::App app{
-      "forestmapd: the ForestMap gRPC server (maps of trees, relocalization).\n"
-      "Usage: forestmapd [--db PATH] [--listen ADDR] [--tls-cert F --tls-key F [--tls-client-ca "
-      "F]]\n"
-      "                  [--metrics ADDR] [--log-format text|json] [--log-level L]\n"
-      "                  [--max-db-mb N]\n"
-      "       forestmapd token create|list|revoke --db PATH [--map M] [--role R]\n"
-      "       forestmapd backup --db PATH --out FILE"};
+// The flags of serving (not of the token and backup subcommands), into `config`.
+void AddServeOptions(CLI::App& app, Config& config) {
   app.add_option("--db", config.db,
                  "SQLite database file (created if missing), or a PostgreSQL server as "
                  "postgresql://user@host:port/dbname (several replicas may share one)")
@@ -192,6 +159,72 @@ int main(int argc, char** argv) {
                  "open UploadTrees + ExportTrees streams per client connection")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+}
+
+int Serve(const Config& config, const sigset_t& shutdown_signals) {
+  using forestmap::server::LogLine;
+  const std::string shown_db = ShownDatabase(config.db);
+  const auto store = OpenOrLog<forestmap::storage::MapStore>(
+      "cannot open database " + shown_db,
+      [&] { return forestmap::storage::OpenMapStore(config.db, config.max_db_mb); });
+  if (!store) return 1;
+  const size_t map_count = store->ListMaps().size();
+  // Tokens live in the same database (table access_tokens), SQLite file or PostgreSQL.
+  const auto tokens = OpenOrLog<forestmap::storage::TokenStore>(
+      "cannot open the access tokens of " + shown_db,
+      [&] { return std::make_unique<forestmap::storage::TokenStore>(config.db); });
+  if (!tokens) return 1;
+  const forestmap::server::Authorizer authorizer(tokens.get());
+
+  forestmap::server::ServiceOptions service_options;
+  service_options.keep_versions = config.keep_versions;
+  service_options.streams = config.streams;
+  service_options.authorizer = &authorizer;
+  forestmap::server::ForestMapService service(*store, service_options);
+  forestmap::server::Metrics metrics;
+  forestmap::server::AddServerMetrics(metrics, service.index_cache(), config.db);
+  Listeners listeners;
+  try {
+    listeners = StartListeners(config, service, metrics, *tokens);
+  } catch (const std::exception& e) {
+    LogError(e.what());
+    return 1;
+  }
+  LogLine("serving on " + listeners.server->address() + ", database " + shown_db + ", " +
+          std::to_string(map_count) + " maps");
+  std::unique_ptr<forestmap::server::HttpPage> page;
+  if (!config.http.empty()) {
+    try {
+      page = std::make_unique<forestmap::server::HttpPage>(*store, service.recent_answers(),
+                                                           config.http, tokens.get());
+    } catch (const std::exception& e) {
+      LogLine(e.what());
+      return 1;
+    }
+    LogLine("web page on http://" + page->address() + "/");
+  }
+
+  WaitForShutdownSignal(shutdown_signals);
+  page.reset();
+  listeners.server->Shutdown(kShutdownGrace);
+  listeners.server->Wait();
+  LogLine("stopped");
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Config config;
+  CLI::App app{
+      "forestmapd: the ForestMap gRPC server (maps of trees, relocalization).\n"
+      "Usage: forestmapd [--db PATH] [--listen ADDR] [--tls-cert F --tls-key F [--tls-client-ca "
+      "F]]\n"
+      "                  [--metrics ADDR] [--log-format text|json] [--log-level L]\n"
+      "                  [--max-db-mb N]\n"
+      "       forestmapd token create|list|revoke --db PATH [--map M] [--role R]\n"
+      "       forestmapd backup --db PATH --out FILE"};
+  AddServeOptions(app, config);
   std::function<int()> offline;  // a subcommand instead of serving
   forestmap::server::AddTokenCommands(app, offline, std::cout);
   forestmap::server::AddBackupCommand(app, offline, std::cout);
