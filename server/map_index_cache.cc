@@ -39,6 +39,15 @@ MapIndexCache::MapIndexCache(storage::MapStore& store, MapIndexCacheOptions opti
 }
 
 MapIndexCache::Entry MapIndexCache::Get(const std::string& name) {
+  const storage::MapInfo info = CurrentInfo(name);
+  std::promise<Entry> promise;
+  Lookup lookup = LookUp(name, info, promise);
+  if (lookup.ready) return *std::move(lookup.ready);
+  if (lookup.other_build.valid()) return lookup.other_build.get();  // rethrows that build's error
+  return BuildAndPublish(name, info.version, lookup.build_id, promise);
+}
+
+storage::MapInfo MapIndexCache::CurrentInfo(const std::string& name) {
   storage::MapInfo info;
   try {
     info = store_.GetMap(name);
@@ -47,36 +56,41 @@ MapIndexCache::Entry MapIndexCache::Get(const std::string& name) {
     throw;
   }
   if (info.confirmed_count == 0) throw NoTrees(name, info.version);
+  return info;
+}
 
-  std::promise<Entry> promise;
-  std::shared_future<Entry> other_build;
-  uint64_t build_id = 0;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    Slot& slot = SlotLocked(name);
-    if (slot.ready && SameMapVersion(*slot.ready, info)) {
-      ++stats_.hits;
-      return *slot.ready;
-    }
-    if (slot.failed && slot.failed_version == info.version &&
-        slot.failed_created_ms == info.created_unix_ms) {
-      std::rethrow_exception(slot.failed);
-    }
-    if (slot.building.valid() && slot.building_version == info.version &&
-        slot.building_created_ms == info.created_unix_ms) {
-      ++stats_.waits;
-      other_build = slot.building;
-    } else {
-      build_id = next_build_id_++;
-      slot.building = promise.get_future().share();
-      slot.building_id = build_id;
-      slot.building_version = info.version;
-      slot.building_created_ms = info.created_unix_ms;
-      ++stats_.builds;
-    }
+MapIndexCache::Lookup MapIndexCache::LookUp(const std::string& name, const storage::MapInfo& info,
+                                            std::promise<Entry>& promise) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Slot& slot = SlotLocked(name);
+  Lookup lookup;
+  if (slot.ready && SameMapVersion(*slot.ready, info)) {
+    ++stats_.hits;
+    lookup.ready = *slot.ready;
+    return lookup;
   }
-  if (other_build.valid()) return other_build.get();  // rethrows that build's error
+  if (slot.failed && slot.failed_version == info.version &&
+      slot.failed_created_ms == info.created_unix_ms) {
+    std::rethrow_exception(slot.failed);
+  }
+  if (slot.building.valid() && slot.building_version == info.version &&
+      slot.building_created_ms == info.created_unix_ms) {
+    ++stats_.waits;
+    lookup.other_build = slot.building;
+    return lookup;
+  }
+  lookup.build_id = next_build_id_++;
+  slot.building = promise.get_future().share();
+  slot.building_id = lookup.build_id;
+  slot.building_version = info.version;
+  slot.building_created_ms = info.created_unix_ms;
+  ++stats_.builds;
+  return lookup;
+}
 
+MapIndexCache::Entry MapIndexCache::BuildAndPublish(const std::string& name, int64_t version,
+                                                    uint64_t build_id,
+                                                    std::promise<Entry>& promise) {
   try {
     const auto build_start = std::chrono::steady_clock::now();
     Entry entry = BuildEntry(name);
@@ -91,7 +105,7 @@ MapIndexCache::Entry MapIndexCache::Get(const std::string& name) {
   } catch (const std::invalid_argument& e) {
     // The trees themselves cannot be indexed: an error of this map version, not of the server.
     const std::exception_ptr error = std::make_exception_ptr(PreconditionError(
-        "map \"" + name + "\" (version " + std::to_string(info.version) +
+        "map \"" + name + "\" (version " + std::to_string(version) +
         ") cannot be indexed: " + e.what() + "; replace its trees or restore an earlier version"));
     RememberFailure(name, build_id, error);
     Publish(name, build_id, nullptr);

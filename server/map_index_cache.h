@@ -80,6 +80,25 @@ class MapIndexCache {
     std::list<std::string>::iterator lru;
   };
 
+  // What Get's lookup under the lock found: the ready entry, another caller's build of the
+  // same map version to wait for, or else the id of the build this caller runs.
+  struct Lookup {
+    std::optional<Entry> ready;
+    std::shared_future<Entry> other_build;
+    uint64_t build_id = 0;
+  };
+
+  // The map's MapInfo; evicts an unknown map, throws NoTrees for one without confirmed trees.
+  storage::MapInfo CurrentInfo(const std::string& name);
+  // Finds the map's slot (LRU order updated); when neither a ready entry nor a build of `info`'s
+  // version is there, registers a build whose result `promise` will carry. Rethrows the
+  // remembered error of a version that cannot be indexed.
+  Lookup LookUp(const std::string& name, const storage::MapInfo& info,
+                std::promise<Entry>& promise);
+  // Runs build `build_id` (of map version `version`), publishes its entry or error to the slot
+  // and to `promise`'s waiters, and returns the entry or throws the error.
+  Entry BuildAndPublish(const std::string& name, int64_t version, uint64_t build_id,
+                        std::promise<Entry>& promise);
   // Reads a snapshot and builds its index (no lock held).
   Entry BuildEntry(const std::string& name) const;
   // Ends build `build_id`: stores its entry (null when it failed) if the map's slot still exists
