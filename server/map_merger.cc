@@ -161,17 +161,67 @@ storage::MapChanges Consolidate(Loaded& loaded,
   return changes;
 }
 
-}  // namespace
-
-FramesMerge MergeFrames(storage::MergeReader& reader,
-                        const std::vector<algorithms::FrameObservations>& frames,
-                        const algorithms::MergeOptions& options, bool consolidate) {
+// The rows of `frames` each on its own, before any merging: what the merge region grows from.
+std::vector<algorithms::TreeObservation> SeedsOf(
+    const std::vector<algorithms::FrameObservations>& frames,
+    const algorithms::MergeOptions& options) {
   std::vector<algorithms::TreeObservation> seeds;
   for (const algorithms::FrameObservations& frame : frames) {
     const std::vector<algorithms::TreeObservation> rows = algorithms::ObserveFrame(frame, options);
     seeds.insert(seeds.end(), rows.begin(), rows.end());
   }
-  Loaded loaded = LoadTrees(reader, seeds, options);
+  return seeds;
+}
+
+FrameMergeCounts CountsOf(const algorithms::MergeResult& result) {
+  FrameMergeCounts counts;
+  counts.associated = result.associated;
+  counts.added = result.created;
+  counts.promoted = static_cast<int>(result.promoted_ids.size());
+  counts.ignored = result.skipped;
+  return counts;
+}
+
+// Moves the updated and new trees of one frame's merge (ids resolved) into `working`.
+void Apply(algorithms::MergeResult& result, std::map<int64_t, WorkingTree>& working) {
+  for (algorithms::TreeEstimate& tree : result.updated_trees) {
+    WorkingTree& target = working.at(tree.id);
+    target.estimate = std::move(tree);
+    target.changed = true;
+  }
+  for (algorithms::TreeEstimate& tree : result.new_trees) {
+    WorkingTree created;
+    created.estimate = std::move(tree);
+    created.changed = true;
+    created.is_new = true;
+    working.emplace(created.estimate.id, std::move(created));
+  }
+}
+
+// The changes of an incremental merge: every changed tree (with its unsaved survey prior, now
+// a row) and the new observation rows.
+storage::MapChanges ChangesOfWorkingTrees(const std::map<int64_t, WorkingTree>& working,
+                                          const std::vector<algorithms::TreeObservation>& rows) {
+  storage::MapChanges changes;
+  for (const auto& [id, tree] : working) {
+    if (!tree.changed) continue;
+    changes.put_trees.push_back(ToTreeRecord(tree.estimate, tree.attributes, tree.null_attributes));
+    if (tree.unsaved_prior) {
+      changes.added_observations.push_back(ToObservationRecord(*tree.unsaved_prior));
+    }
+  }
+  for (const algorithms::TreeObservation& row : rows) {
+    changes.added_observations.push_back(ToObservationRecord(row));
+  }
+  return changes;
+}
+
+}  // namespace
+
+FramesMerge MergeFrames(storage::MergeReader& reader,
+                        const std::vector<algorithms::FrameObservations>& frames,
+                        const algorithms::MergeOptions& options, bool consolidate) {
+  Loaded loaded = LoadTrees(reader, SeedsOf(frames, options), options);
   std::map<int64_t, WorkingTree>& working = loaded.working;
   int64_t next_id = reader.NextFreeTreeId();
   FramesMerge merge;
@@ -187,41 +237,12 @@ FramesMerge MergeFrames(storage::MergeReader& reader,
     std::vector<int64_t> new_ids;
     for (size_t k = 0; k < result.new_trees.size(); ++k) new_ids.push_back(next_id++);
     algorithms::ResolveNewIds(result, new_ids);
-    for (algorithms::TreeEstimate& tree : result.updated_trees) {
-      WorkingTree& target = working.at(tree.id);
-      target.estimate = std::move(tree);
-      target.changed = true;
-    }
-    for (algorithms::TreeEstimate& tree : result.new_trees) {
-      WorkingTree created;
-      created.estimate = std::move(tree);
-      created.changed = true;
-      created.is_new = true;
-      working.emplace(created.estimate.id, std::move(created));
-    }
+    Apply(result, working);
     rows.insert(rows.end(), result.observations.begin(), result.observations.end());
-    FrameMergeCounts counts;
-    counts.associated = result.associated;
-    counts.added = result.created;
-    counts.promoted = static_cast<int>(result.promoted_ids.size());
-    counts.ignored = result.skipped;
-    merge.counts.push_back(counts);
+    merge.counts.push_back(CountsOf(result));
   }
-  if (consolidate) {
-    merge.changes = Consolidate(loaded, rows, {}, next_id, options);
-    return merge;
-  }
-  for (auto& [id, tree] : working) {
-    if (!tree.changed) continue;
-    merge.changes.put_trees.push_back(
-        ToTreeRecord(tree.estimate, tree.attributes, tree.null_attributes));
-    if (tree.unsaved_prior) {
-      merge.changes.added_observations.push_back(ToObservationRecord(*tree.unsaved_prior));
-    }
-  }
-  for (const algorithms::TreeObservation& row : rows) {
-    merge.changes.added_observations.push_back(ToObservationRecord(row));
-  }
+  merge.changes = consolidate ? Consolidate(loaded, rows, {}, next_id, options)
+                              : ChangesOfWorkingTrees(working, rows);
   return merge;
 }
 
