@@ -12,6 +12,7 @@
 #include "storage/postgres_map_store_internal.h"
 #include "storage/sqlite_map_store.h"
 #include "storage/sqlite_map_store_internal.h"  // backend-neutral helpers: CheckName, Union, ...
+#include "storage/store_steps.h"
 
 namespace forestmap::storage {
 namespace {
@@ -22,22 +23,18 @@ using pg::Params;
 using pg::Transaction;
 using pg_internal::MapRow;
 
-// Ids of the batch in batch order: explicit ones, then the next free ones above `max_id`.
-std::vector<int64_t> AssignIds(const std::string& map_name, const std::vector<TreeRecord>& trees,
-                               std::optional<int64_t> max_id, size_t auto_count) {
-  const int64_t above = std::max<int64_t>(max_id.value_or(0), 0);
-  constexpr int64_t kMax = std::numeric_limits<int64_t>::max();
-  if (auto_count > 0 && static_cast<uint64_t>(kMax - above) < auto_count) {
-    throw StorageError(Code::kInvalidArgument,
-                       "map '" + map_name + "': no free tree ids left above " +
-                           std::to_string(above) + " for " + std::to_string(auto_count) +
-                           " trees without an id");
-  }
-  std::vector<int64_t> ids(trees.size());
-  int64_t assigned = 0;  // counted apart so the last id may be INT64_MAX without overflow
-  for (size_t i = 0; i < trees.size(); ++i)
-    ids[i] = trees[i].id ? *trees[i].id : above + ++assigned;
-  return ids;
+// Closes every current tree and observation row of a map at `version`; returns the number of
+// observation rows closed.
+int64_t CloseAllCurrentRows(Connection& conn, int64_t map_id, int64_t version) {
+  const Params close = Params().Int64(map_id).Int64(version);
+  conn.Exec("UPDATE trees SET valid_to = $2 WHERE map_id = $1 AND valid_to = " FORESTMAP_PG_CURRENT,
+            close);
+  return conn
+      .Exec(
+          "UPDATE observations SET valid_to = $2 WHERE map_id = $1 AND "
+          "valid_to = " FORESTMAP_PG_CURRENT,
+          close)
+      .affected();
 }
 
 }  // namespace
@@ -152,55 +149,29 @@ MapInfo PostgresMapStore::WriteTrees(const std::string& name, const std::vector<
     Transaction transaction(conn, Transaction::Kind::kWrite);
     MapRow map = pg_internal::LockMap(conn, name);
     const bool replace = mode == WriteMode::kReplace;
-    if (trees.empty() && (!replace || map.info.tree_count == 0)) {
+    if (internal::WriteChangesNothing(trees, replace, map.info)) {
       result = map.info;  // nothing can change: keep the version
       return;
     }
-    MapInfo& info = map.info;
-    VersionRecord record;
-    record.version = info.version + 1;
-    record.kind = replace ? VersionKind::kReplace : VersionKind::kUpload;
+    VersionRecord record =
+        internal::NextVersion(map.info, replace ? VersionKind::kReplace : VersionKind::kUpload);
     std::optional<int64_t> max_id = batch.max_explicit_id;
     if (replace) {
-      record.trees_removed = info.tree_count;
-      const Params close = Params().Int64(map.id).Int64(record.version);
-      conn.Exec(
-          "UPDATE trees SET valid_to = $2 WHERE map_id = $1 AND valid_to = " FORESTMAP_PG_CURRENT,
-          close);
-      record.observations_removed =
-          conn.Exec(
-                  "UPDATE observations SET valid_to = $2 WHERE map_id = $1 AND "
-                  "valid_to = " FORESTMAP_PG_CURRENT,
-                  close)
-              .affected();
+      record.trees_removed = map.info.tree_count;
+      record.observations_removed = CloseAllCurrentRows(conn, map.id, record.version);
     } else {
       const pg::Result max_existing = conn.Exec(
           "SELECT MAX(tree_id) FROM trees WHERE map_id = $1 AND valid_to = " FORESTMAP_PG_CURRENT,
           Params().Int64(map.id));
-      if (!max_existing.IsNull(0, 0)) {
-        max_id = std::max(max_id.value_or(std::numeric_limits<int64_t>::min()),
-                          max_existing.Int64(0, 0));
-      }
+      if (!max_existing.IsNull(0, 0)) max_id = internal::MaxId(max_id, max_existing.Int64(0, 0));
     }
-    const std::vector<int64_t> ids = AssignIds(name, trees, max_id, batch.auto_id_count);
+    const std::vector<int64_t> ids = internal::AssignIds(name, trees, max_id, batch.auto_id_count);
     pg_internal::InsertTrees(conn, map, trees, ids, record.version);
-
-    int64_t confirmed = 0;
-    for (const TreeRecord& tree : trees) confirmed += tree.status == TreeStatus::kConfirmed;
-    const auto count = static_cast<int64_t>(trees.size());
-    info.tree_count = replace ? count : info.tree_count + count;
-    info.confirmed_count = replace ? confirmed : info.confirmed_count + confirmed;
-    info.extent = replace ? batch.extent : internal::Union(info.extent, batch.extent);
-    info.version = record.version;
-    info.updated_unix_ms = internal::NowUnixMs();
+    internal::StampWrittenBatch(map.info, record, trees, batch, replace);
     pg_internal::UpdateMapRow(conn, map);
-    record.created_unix_ms = info.updated_unix_ms;
-    record.tree_count = info.tree_count;
-    record.confirmed_count = info.confirmed_count;
-    record.trees_added = count;
     pg_internal::InsertVersion(conn, map.id, record);
-    pg_internal::CommitWrite(conn, transaction, info);
-    result = info;
+    pg_internal::CommitWrite(conn, transaction, map.info);
+    result = map.info;
   });
   return result;
 }

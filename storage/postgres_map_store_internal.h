@@ -47,6 +47,21 @@ std::vector<TreeRecord> ReadTreeRows(const pg::Result& result, const std::string
 // kInvalidArgument naming the tree.
 void InsertTrees(pg::Connection& conn, const MapRow& map, const std::vector<TreeRecord>& trees,
                  const std::vector<int64_t>& ids, int64_t valid_from);
+// The ten tree columns of an INSERT ... SELECT FROM unnest(...), one array literal each, in the
+// order of FORESTMAP_PG_TREE_COLUMNS: tree_id, x, y, z, dbh, attributes, status, observations,
+// position_sigma, dbh_sigma.
+class TreeColumnArrays {
+ public:
+  // Appends a row. Attributes that are not valid UTF-8 throw nlohmann::json::exception: the
+  // caller names the tree.
+  void Add(int64_t id, const TreeRecord& tree);
+  // The ten arrays as text parameters, in column order.
+  void AppendTo(pg::Params& params) const;
+
+ private:
+  pg::ArrayLiteral id_, x_, y_, z_, dbh_, attributes_, status_, observations_, position_sigma_,
+      dbh_sigma_;
+};
 // Current trees of the map inside the box (inclusive), by id.
 std::vector<TreeRecord> CurrentTreesInBox(pg::Connection& conn, const MapRow& map,
                                           const Extent& box);

@@ -243,32 +243,19 @@ void InsertTrees(pg::Connection& conn, const MapRow& map, const std::vector<Tree
   }
   for (size_t begin = 0; begin < trees.size(); begin += PostgresMapStore::kRowsPerInsert) {
     const size_t end = std::min(trees.size(), begin + PostgresMapStore::kRowsPerInsert);
-    pg::ArrayLiteral id, x, y, z, dbh, attributes, status, observations, position_sigma, dbh_sigma;
+    TreeColumnArrays columns;
     for (size_t i = begin; i < end; ++i) {
-      const TreeRecord& tree = trees[i];
       try {
-        attributes.OptionalText(EncodeAttributes(tree.attributes, tree.null_attributes));
+        columns.Add(ids[i], trees[i]);
       } catch (const nlohmann::json::exception& e) {
         throw StorageError(Code::kInvalidArgument,
                            "map '" + map.info.name + "': " + internal::TreeLabel(trees, i) +
                                ": attributes are not valid UTF-8: " + e.what());
       }
-      id.Int64(ids[i]);
-      x.Double(tree.x);
-      y.Double(tree.y);
-      z.OptionalDouble(tree.z);
-      dbh.OptionalDouble(tree.dbh);
-      status.Int64(tree.status == TreeStatus::kConfirmed ? 1 : 0);
-      observations.Int64(tree.observations);
-      position_sigma.OptionalDouble(tree.position_sigma);
-      dbh_sigma.OptionalDouble(tree.dbh_sigma);
     }
     Params params;
     params.Int64(map.id).Int64(valid_from);
-    for (const pg::ArrayLiteral* array : {&id, &x, &y, &z, &dbh, &attributes, &status,
-                                          &observations, &position_sigma, &dbh_sigma}) {
-      params.Text(array->Finish());
-    }
+    columns.AppendTo(params);
     conn.Exec(
         "INSERT INTO trees (map_id, valid_from, valid_to, tree_id, x, y, z, dbh, attributes, "
         "status, observations, position_sigma, dbh_sigma) SELECT $1, $2, " FORESTMAP_PG_CURRENT
@@ -276,6 +263,26 @@ void InsertTrees(pg::Connection& conn, const MapRow& map, const std::vector<Tree
         "$7::float8[], $8::text[], $9::smallint[], $10::bigint[], $11::float8[], "
         "$12::float8[]) AS u",
         params);
+  }
+}
+
+void TreeColumnArrays::Add(int64_t id, const TreeRecord& tree) {
+  attributes_.OptionalText(EncodeAttributes(tree.attributes, tree.null_attributes));
+  id_.Int64(id);
+  x_.Double(tree.x);
+  y_.Double(tree.y);
+  z_.OptionalDouble(tree.z);
+  dbh_.OptionalDouble(tree.dbh);
+  status_.Int64(tree.status == TreeStatus::kConfirmed ? 1 : 0);
+  observations_.Int64(tree.observations);
+  position_sigma_.OptionalDouble(tree.position_sigma);
+  dbh_sigma_.OptionalDouble(tree.dbh_sigma);
+}
+
+void TreeColumnArrays::AppendTo(Params& params) const {
+  for (const pg::ArrayLiteral* array : {&id_, &x_, &y_, &z_, &dbh_, &attributes_, &status_,
+                                        &observations_, &position_sigma_, &dbh_sigma_}) {
+    params.Text(array->Finish());
   }
 }
 

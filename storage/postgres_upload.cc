@@ -22,6 +22,7 @@
 #include "storage/postgres_map_store_internal.h"
 #include "storage/sqlite_map_store_internal.h"  // backend-neutral helpers: CheckName, Union
 #include "storage/staged_writes.h"
+#include "storage/store_steps.h"
 #include "storage/upload_chunks.h"
 
 namespace forestmap::storage {
@@ -95,33 +96,21 @@ void PostgresTreeUpload::Insert(const std::vector<TreeRecord>& trees,
                                 const std::vector<int64_t>& ids) {
   for (size_t begin = 0; begin < trees.size(); begin += PostgresMapStore::kRowsPerInsert) {
     const size_t end = std::min(trees.size(), begin + PostgresMapStore::kRowsPerInsert);
-    pg::ArrayLiteral seq, id, x, y, z, dbh, attributes, status, observations, position_sigma,
-        dbh_sigma;
+    pg::ArrayLiteral seq;
+    pg_internal::TreeColumnArrays columns;
     for (size_t i = begin; i < end; ++i) {
-      const TreeRecord& tree = trees[i];
       const int64_t index = chunks_.staged() + static_cast<int64_t>(i);
       try {
-        attributes.OptionalText(internal::EncodeAttributes(tree.attributes, tree.null_attributes));
+        columns.Add(ids[i], trees[i]);
       } catch (const nlohmann::json::exception& e) {
         throw StorageError(Code::kInvalidArgument,
                            chunks_.Label(index) + ": attributes are not valid UTF-8: " + e.what());
       }
       seq.Int64(index);
-      id.Int64(ids[i]);
-      x.Double(tree.x);
-      y.Double(tree.y);
-      z.OptionalDouble(tree.z);
-      dbh.OptionalDouble(tree.dbh);
-      status.Int64(tree.status == TreeStatus::kConfirmed ? 1 : 0);
-      observations.Int64(tree.observations);
-      position_sigma.OptionalDouble(tree.position_sigma);
-      dbh_sigma.OptionalDouble(tree.dbh_sigma);
     }
     Params params;
-    for (const pg::ArrayLiteral* array : {&seq, &id, &x, &y, &z, &dbh, &attributes, &status,
-                                          &observations, &position_sigma, &dbh_sigma}) {
-      params.Text(array->Finish());
-    }
+    params.Text(seq.Finish());
+    columns.AppendTo(params);
     conn_->Exec(
         "INSERT INTO upload_trees SELECT * FROM unnest($1::bigint[], $2::bigint[], "
         "$3::float8[], $4::float8[], $5::float8[], $6::float8[], $7::text[], $8::smallint[], "
@@ -260,12 +249,11 @@ MapInfo PostgresTreeUpload::Commit() {
 
 // Binds $1 map id, $2 version, $3 after id, $4 limit, $5..$8 the box (infinite without one).
 Params PageParams(int64_t map_id, const TreePageQuery& query) {
-  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const Extent box = internal::PageBox(query);
   Params params;
   params.Int64(map_id).Int64(query.version);
-  params.Int64(query.after_id.value_or(std::numeric_limits<int64_t>::min())).Int64(query.limit);
-  params.Double(query.box ? query.box->min_x : -kInf).Double(query.box ? query.box->max_x : kInf);
-  params.Double(query.box ? query.box->min_y : -kInf).Double(query.box ? query.box->max_y : kInf);
+  params.Int64(internal::PageAfterId(query)).Int64(query.limit);
+  params.Double(box.min_x).Double(box.max_x).Double(box.min_y).Double(box.max_y);
   return params;
 }
 
@@ -279,24 +267,12 @@ std::unique_ptr<TreeUpload> PostgresMapStore::BeginUpload(const std::string& nam
 std::vector<TreeRecord> PostgresMapStore::ReadTreesPage(const std::string& name,
                                                         const TreePageQuery& query) {
   internal::CheckName(name);
-  if (query.version < 1 || query.limit < 1) {
-    throw StorageError(Code::kInvalidArgument,
-                       "map '" + name + "': a page needs version >= 1 and limit >= 1");
-  }
-  if (query.box) internal::CheckBox(name, *query.box);
+  internal::CheckPageQuery(name, query);
   std::vector<TreeRecord> trees;
   With([&](Connection& conn) {
     pg::Transaction transaction(conn, pg::Transaction::Kind::kRead);
     const MapRow map = pg_internal::RequireMap(conn, name);
-    if (query.created_unix_ms != 0 && map.info.created_unix_ms != query.created_unix_ms) {
-      throw StorageError(Code::kConflict, "map '" + name +
-                                              "' was deleted and created again during the "
-                                              "export; retry");
-    }
-    if (query.version > map.info.version) {
-      throw StorageError(Code::kNotFound, "map '" + name + "' has no version " +
-                                              std::to_string(query.version) + " yet");
-    }
+    internal::CheckPageTarget(name, query, map.info);
     if (query.version != map.info.version) pg_internal::RequireVersion(conn, map, query.version);
     const Params params = PageParams(map.id, query);
     trees = pg_internal::ReadTreeRows(
@@ -316,11 +292,7 @@ std::vector<TreeRecord> PostgresMapStore::ReadTreesPage(const std::string& name,
                     params),
           name);
       trees.insert(trees.end(), closed.begin(), closed.end());
-      std::sort(trees.begin(), trees.end(),
-                [](const TreeRecord& a, const TreeRecord& b) { return *a.id < *b.id; });
-      if (static_cast<int64_t>(trees.size()) > query.limit) {
-        trees.resize(static_cast<size_t>(query.limit));
-      }
+      internal::SortAndTrimPage(trees, query.limit);
     }
     transaction.Commit();
   });

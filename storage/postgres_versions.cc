@@ -13,6 +13,7 @@
 #include "storage/postgres_map_store.h"
 #include "storage/postgres_map_store_internal.h"
 #include "storage/sqlite_map_store_internal.h"  // backend-neutral helpers: CheckName, Union, ...
+#include "storage/store_steps.h"
 
 namespace forestmap::storage {
 namespace {
@@ -127,11 +128,7 @@ std::set<int64_t> CloseTrees(Connection& conn, MapRow& map, const std::vector<in
     found.insert(closed.Int64(r, 0));
     info.tree_count -= 1;
     info.confirmed_count -= closed.Int64(r, 1) != 0 ? 1 : 0;
-    const double x = closed.Double(r, 2), y = closed.Double(r, 3);
-    if (info.extent && (x == info.extent->min_x || x == info.extent->max_x ||
-                        y == info.extent->min_y || y == info.extent->max_y)) {
-      boundary = true;
-    }
+    if (internal::OnBorder(info.extent, closed.Double(r, 2), closed.Double(r, 3))) boundary = true;
   }
   return found;
 }
@@ -139,33 +136,19 @@ std::set<int64_t> CloseTrees(Connection& conn, MapRow& map, const std::vector<in
 // Writes `changes` as version map.version + 1 and updates `map` (row and info).
 void ApplyChanges(Connection& conn, MapRow& map, const MergeNote& note, const MapChanges& changes) {
   internal::CheckPutTrees(map.info.name, changes);
-  VersionRecord record;
-  record.version = map.info.version + 1;
-  record.kind = note.kind;
-  record.source = note.source;
+  VersionRecord record = internal::NextVersion(map.info, note.kind, note.source);
   bool boundary = false;
   const std::set<int64_t> removed =
       CloseTrees(conn, map, changes.removed_trees, record.version, boundary);
   for (const int64_t id : changes.removed_trees) {
-    if (removed.count(id) == 0) {
-      throw StorageError(Code::kInvalidArgument, "map '" + map.info.name + "': merge: tree " +
-                                                     std::to_string(id) +
-                                                     " to remove is not in the map");
-    }
+    if (removed.count(id) == 0) throw internal::TreeToRemoveMissing(map.info.name, id);
   }
   record.trees_removed = static_cast<int64_t>(removed.size());
-  std::vector<int64_t> ids;
-  std::optional<Extent> added_extent;
-  for (const TreeRecord& tree : changes.put_trees) {
-    ids.push_back(*tree.id);
-    map.info.tree_count += 1;
-    map.info.confirmed_count += tree.status == TreeStatus::kConfirmed ? 1 : 0;
-    added_extent = internal::Union(added_extent, Extent{tree.x, tree.y, tree.x, tree.y});
-  }
+  const internal::PutTrees put = internal::CountPutTrees(map.info, changes.put_trees);
   record.trees_updated =
-      static_cast<int64_t>(CloseTrees(conn, map, ids, record.version, boundary).size());
-  record.trees_added = static_cast<int64_t>(ids.size()) - record.trees_updated;
-  pg_internal::InsertTrees(conn, map, changes.put_trees, ids, record.version);
+      static_cast<int64_t>(CloseTrees(conn, map, put.ids, record.version, boundary).size());
+  record.trees_added = static_cast<int64_t>(put.ids.size()) - record.trees_updated;
+  pg_internal::InsertTrees(conn, map, changes.put_trees, put.ids, record.version);
 
   const pg::Result closed = conn.Exec(
       "UPDATE observations SET valid_to = $2 WHERE map_id = $1 AND valid_to = " FORESTMAP_PG_CURRENT
@@ -174,26 +157,17 @@ void ApplyChanges(Connection& conn, MapRow& map, const MergeNote& note, const Ma
   std::set<int64_t> closed_ids;
   for (int r = 0; r < closed.rows(); ++r) closed_ids.insert(closed.Int64(r, 0));
   for (const int64_t id : changes.removed_observations) {
-    if (closed_ids.count(id) == 0) {
-      throw StorageError(Code::kInvalidArgument, "map '" + map.info.name +
-                                                     "': merge: observation " + std::to_string(id) +
-                                                     " to remove is not current in the map");
-    }
+    if (closed_ids.count(id) == 0) throw internal::ObservationToRemoveMissing(map.info.name, id);
   }
   pg_internal::InsertObservations(conn, map.id, changes.added_observations, record.version);
   record.observations_added = static_cast<int64_t>(changes.added_observations.size());
   record.observations_removed = static_cast<int64_t>(closed_ids.size());
 
-  MapInfo& info = map.info;
-  info.extent =
-      boundary ? pg_internal::ScanExtent(conn, map.id) : internal::Union(info.extent, added_extent);
-  if (info.tree_count == 0) info.extent.reset();
-  info.version = record.version;
-  info.updated_unix_ms = internal::NowUnixMs();
+  std::optional<Extent> extent = boundary ? pg_internal::ScanExtent(conn, map.id)
+                                          : internal::Union(map.info.extent, put.extent);
+  if (map.info.tree_count == 0) extent.reset();
+  internal::StampVersion(map.info, record, std::move(extent));
   pg_internal::UpdateMapRow(conn, map);
-  record.created_unix_ms = info.updated_unix_ms;
-  record.tree_count = info.tree_count;
-  record.confirmed_count = info.confirmed_count;
   pg_internal::InsertVersion(conn, map.id, record);
 }
 
@@ -222,10 +196,7 @@ void RestoreObservations(Connection& conn, const MapRow& map, int64_t version, i
 
 MapSnapshot PostgresMapStore::ReadMapVersion(const std::string& name, int64_t version) {
   internal::CheckName(name);
-  if (version < 0) {
-    throw StorageError(Code::kInvalidArgument,
-                       "map '" + name + "': version " + std::to_string(version) + " is negative");
-  }
+  internal::CheckVersionNumber(name, version);
   MapSnapshot snapshot;
   With([&](Connection& conn) {
     Transaction transaction(conn, Transaction::Kind::kRead);  // info and trees of one version
@@ -239,16 +210,7 @@ MapSnapshot PostgresMapStore::ReadMapVersion(const std::string& name, int64_t ve
     const VersionRecord record = pg_internal::RequireVersion(conn, map, version);
     snapshot.trees = TreesAtVersion(conn, map, version);
     transaction.Commit();
-    MapInfo& info = snapshot.info;
-    info.version = version;
-    info.updated_unix_ms = record.created_unix_ms;
-    info.tree_count = static_cast<int64_t>(snapshot.trees.size());
-    info.confirmed_count = 0;
-    info.extent.reset();
-    for (const TreeRecord& tree : snapshot.trees) {
-      info.confirmed_count += tree.status == TreeStatus::kConfirmed ? 1 : 0;
-      info.extent = internal::Union(info.extent, Extent{tree.x, tree.y, tree.x, tree.y});
-    }
+    snapshot.info = internal::InfoAtVersion(map.info, record, snapshot.trees);
   });
   return snapshot;
 }
@@ -304,22 +266,11 @@ MapInfo PostgresMapStore::RestoreVersion(const std::string& name, int64_t versio
 
     RestoreObservations(conn, map, version, next, record);
 
-    MapInfo& info = map.info;
-    info.version = next;
-    info.tree_count = old.tree_count;
-    info.confirmed_count = old.confirmed_count;
-    info.extent = pg_internal::ScanExtent(conn, map.id);
-    info.updated_unix_ms = internal::NowUnixMs();
+    internal::StampRestore(map.info, record, old, pg_internal::ScanExtent(conn, map.id));
     pg_internal::UpdateMapRow(conn, map);
-    record.version = next;
-    record.created_unix_ms = info.updated_unix_ms;
-    record.kind = VersionKind::kRestore;
-    record.tree_count = info.tree_count;
-    record.confirmed_count = info.confirmed_count;
-    record.restored_from = version;
     pg_internal::InsertVersion(conn, map.id, record);
     pg_internal::CommitWrite(conn, transaction, map.info);
-    result = info;
+    result = map.info;
   });
   return result;
 }
@@ -333,12 +284,7 @@ MapInfo PostgresMapStore::Merge(const std::string& name, const MergeNote& note,
     // The map's lock is held to the commit: what `merge` reads is the version its changes apply
     // to, whichever replica the other writers of this map go through.
     MapRow map = pg_internal::LockMap(conn, name);
-    if (note.expected_version && *note.expected_version != map.info.version) {
-      throw StorageError(Code::kConflict,
-                         "map '" + name + "' is at version " + std::to_string(map.info.version) +
-                             ", not at the base version " + std::to_string(*note.expected_version) +
-                             " (rejected as stale; fetch the map and retry, or merge anyway)");
-    }
+    internal::CheckExpectedVersion(note, map.info);
     PostgresMergeReader reader(conn, map);
     const MapChanges changes = merge(reader);
     if (changes.empty()) {

@@ -12,6 +12,7 @@
 #include "storage/batch_checks.h"
 #include "storage/sqlite.h"
 #include "storage/sqlite_map_store_internal.h"
+#include "storage/store_steps.h"
 
 namespace forestmap::storage {
 namespace {
@@ -27,21 +28,6 @@ using internal::TreeLabel;
 using internal::Union;
 
 // ---- Writing trees ----
-
-// First id handed to the `count` trees without one: above `max_id` (the largest id they must not
-// reuse), and at least 1. Unused (0) when count is 0.
-int64_t FirstAutoId(const std::string& map_name, std::optional<int64_t> max_id, size_t count) {
-  if (count == 0) return 0;
-  const int64_t above = std::max<int64_t>(max_id.value_or(0), 0);
-  constexpr int64_t kMax = std::numeric_limits<int64_t>::max();
-  if (static_cast<uint64_t>(kMax - above) < count) {
-    throw StorageError(Code::kInvalidArgument, "map '" + map_name +
-                                                   "': no free tree ids left above " +
-                                                   std::to_string(above) + " for " +
-                                                   std::to_string(count) + " trees without an id");
-  }
-  return above + 1;
-}
 
 void DeleteTreesOfMap(Database& db, int64_t map_id) {
   Statement blocks(db,
@@ -217,17 +203,15 @@ MapInfo SqliteMapStore::WriteTrees(const std::string& name, const std::vector<Tr
     Transaction transaction(db, Transaction::Kind::kWrite);
     MapRow map = RequireMap(db, name);
     const bool replace = mode == WriteMode::kReplace;
-    if (trees.empty() && (!replace || map.info.tree_count == 0)) {
+    if (internal::WriteChangesNothing(trees, replace, map.info)) {
       result = map.info;  // nothing can change: keep the version
       return;
     }
-    MapInfo& info = map.info;
-    VersionRecord record;
-    record.version = info.version + 1;
-    record.kind = replace ? VersionKind::kReplace : VersionKind::kUpload;
+    VersionRecord record =
+        internal::NextVersion(map.info, replace ? VersionKind::kReplace : VersionKind::kUpload);
     std::optional<int64_t> max_id = batch.max_explicit_id;
     if (replace) {
-      record.trees_removed = info.tree_count;
+      record.trees_removed = map.info.tree_count;
       record.observations_removed = internal::CloseAllCurrentRows(db, map.id, record.version);
     } else {
       Statement max_existing(db,
@@ -235,35 +219,16 @@ MapInfo SqliteMapStore::WriteTrees(const std::string& name, const std::vector<Tr
                              "map_id = ?1 AND valid_to = " FORESTMAP_CURRENT);
       max_existing.BindInt64(1, map.id);
       if (max_existing.Step() && !max_existing.ColumnIsNull(0)) {
-        max_id = std::max(max_id.value_or(std::numeric_limits<int64_t>::min()),
-                          max_existing.ColumnInt64(0));
+        max_id = internal::MaxId(max_id, max_existing.ColumnInt64(0));
       }
     }
-    const int64_t first_auto_id = FirstAutoId(name, max_id, batch.auto_id_count);
-    std::vector<int64_t> ids(trees.size());  // assigned in batch order, whatever the packing
-    int64_t assigned = 0;  // counted apart so the last id may be INT64_MAX without overflow
-    for (size_t i = 0; i < trees.size(); ++i) {
-      ids[i] = trees[i].id ? *trees[i].id : first_auto_id + assigned++;
-    }
+    const std::vector<int64_t> ids = internal::AssignIds(name, trees, max_id, batch.auto_id_count);
     internal::InsertTrees(db, map, trees, ids, record.version);
-
-    // The new counts and extent follow from the old ones and the batch: no table scan needed.
-    int64_t confirmed = 0;
-    for (const TreeRecord& tree : trees) confirmed += tree.status == TreeStatus::kConfirmed;
-    const auto count = static_cast<int64_t>(trees.size());
-    info.tree_count = replace ? count : info.tree_count + count;
-    info.confirmed_count = replace ? confirmed : info.confirmed_count + confirmed;
-    info.extent = replace ? batch.extent : Union(info.extent, batch.extent);
-    info.version = record.version;
-    info.updated_unix_ms = internal::NowUnixMs();
+    internal::StampWrittenBatch(map.info, record, trees, batch, replace);
     internal::UpdateMapRow(db, map);
-    record.created_unix_ms = info.updated_unix_ms;
-    record.tree_count = info.tree_count;
-    record.confirmed_count = info.confirmed_count;
-    record.trees_added = count;
     internal::InsertVersion(db, map.id, record);
-    internal::CommitWrite(db, transaction, info);
-    result = info;
+    internal::CommitWrite(db, transaction, map.info);
+    result = map.info;
   });
   return result;
 }

@@ -14,6 +14,7 @@
 #include "storage/sqlite.h"
 #include "storage/sqlite_map_store.h"
 #include "storage/sqlite_map_store_internal.h"
+#include "storage/store_steps.h"
 
 namespace forestmap::storage {
 namespace {
@@ -199,10 +200,7 @@ bool CloseTree(Statement& close, MapRow& map, int64_t id, Tally& tally) {
   MapInfo& info = map.info;
   info.tree_count -= 1;
   info.confirmed_count -= confirmed ? 1 : 0;
-  if (info.extent && (x == info.extent->min_x || x == info.extent->max_x ||
-                      y == info.extent->min_y || y == info.extent->max_y)) {
-    tally.boundary_touched = true;
-  }
+  if (internal::OnBorder(info.extent, x, y)) tally.boundary_touched = true;
   return true;
 }
 
@@ -210,10 +208,7 @@ bool CloseTree(Statement& close, MapRow& map, int64_t id, Tally& tally) {
 VersionRecord ApplyChanges(Database& db, MapRow& map, const MergeNote& note,
                            const MapChanges& changes) {
   internal::CheckPutTrees(map.info.name, changes);
-  VersionRecord record;
-  record.version = map.info.version + 1;
-  record.kind = note.kind;
-  record.source = note.source;
+  VersionRecord record = internal::NextVersion(map.info, note.kind, note.source);
   Tally tally;
   Statement close(db,
                   "UPDATE trees SET valid_to = ?3 WHERE map_id = ?1 AND tree_id = ?2 AND "
@@ -221,24 +216,14 @@ VersionRecord ApplyChanges(Database& db, MapRow& map, const MergeNote& note,
   close.BindInt64(1, map.id);
   close.BindInt64(3, record.version);
   for (const int64_t id : changes.removed_trees) {
-    if (!CloseTree(close, map, id, tally)) {
-      throw StorageError(Code::kInvalidArgument, "map '" + map.info.name + "': merge: tree " +
-                                                     std::to_string(id) +
-                                                     " to remove is not in the map");
-    }
+    if (!CloseTree(close, map, id, tally)) throw internal::TreeToRemoveMissing(map.info.name, id);
     ++record.trees_removed;
   }
-  std::vector<int64_t> ids;
-  ids.reserve(changes.put_trees.size());
-  std::optional<Extent> added_extent;
   for (const TreeRecord& tree : changes.put_trees) {
     ++(CloseTree(close, map, *tree.id, tally) ? record.trees_updated : record.trees_added);
-    ids.push_back(*tree.id);
-    map.info.tree_count += 1;
-    map.info.confirmed_count += tree.status == TreeStatus::kConfirmed ? 1 : 0;
-    added_extent = internal::Union(added_extent, Extent{tree.x, tree.y, tree.x, tree.y});
   }
-  internal::InsertTrees(db, map, changes.put_trees, ids, record.version);
+  const internal::PutTrees put = internal::CountPutTrees(map.info, changes.put_trees);
+  internal::InsertTrees(db, map, changes.put_trees, put.ids, record.version);
 
   Statement close_observation(db,
                               "UPDATE observations SET valid_to = ?3 WHERE id = ?2 AND "
@@ -249,25 +234,19 @@ VersionRecord ApplyChanges(Database& db, MapRow& map, const MergeNote& note,
     close_observation.BindInt64(2, id);
     close_observation.Run();
     if (sqlite3_changes64(db.handle()) != 1) {
-      throw StorageError(Code::kInvalidArgument, "map '" + map.info.name +
-                                                     "': merge: observation " + std::to_string(id) +
-                                                     " to remove is not current in the map");
+      throw internal::ObservationToRemoveMissing(map.info.name, id);
     }
   }
   internal::InsertObservations(db, map.id, changes.added_observations, record.version);
   record.observations_added = static_cast<int64_t>(changes.added_observations.size());
   record.observations_removed = static_cast<int64_t>(changes.removed_observations.size());
 
-  MapInfo& info = map.info;
-  info.extent = tally.boundary_touched ? internal::ScanExtent(db, map.id)
-                                       : internal::Union(info.extent, added_extent);
-  if (info.tree_count == 0) info.extent.reset();
-  info.version = record.version;
-  info.updated_unix_ms = internal::NowUnixMs();
+  std::optional<Extent> extent = tally.boundary_touched
+                                     ? internal::ScanExtent(db, map.id)
+                                     : internal::Union(map.info.extent, put.extent);
+  if (map.info.tree_count == 0) extent.reset();
+  internal::StampVersion(map.info, record, std::move(extent));
   internal::UpdateMapRow(db, map);
-  record.created_unix_ms = info.updated_unix_ms;
-  record.tree_count = info.tree_count;
-  record.confirmed_count = info.confirmed_count;
   internal::InsertVersion(db, map.id, record);
   return record;
 }
@@ -280,10 +259,7 @@ VersionRecord internal::RequireVersion(Database& db, const MapRow& map, int64_t 
 
 MapSnapshot SqliteMapStore::ReadMapVersion(const std::string& name, int64_t version) {
   internal::CheckName(name);
-  if (version < 0) {
-    throw StorageError(Code::kInvalidArgument,
-                       "map '" + name + "': version " + std::to_string(version) + " is negative");
-  }
+  internal::CheckVersionNumber(name, version);
   MapSnapshot snapshot;
   WithReader([&](Database& db) {
     Transaction transaction(db, Transaction::Kind::kRead);  // info and trees of one version
@@ -297,16 +273,7 @@ MapSnapshot SqliteMapStore::ReadMapVersion(const std::string& name, int64_t vers
     const VersionRecord record = internal::RequireVersion(db, map, version);
     snapshot.trees = TreesAtVersion(db, map, version);
     transaction.Commit();
-    MapInfo& info = snapshot.info;
-    info.version = version;
-    info.updated_unix_ms = record.created_unix_ms;
-    info.tree_count = static_cast<int64_t>(snapshot.trees.size());
-    info.confirmed_count = 0;
-    info.extent.reset();
-    for (const TreeRecord& tree : snapshot.trees) {
-      info.confirmed_count += tree.status == TreeStatus::kConfirmed ? 1 : 0;
-      info.extent = internal::Union(info.extent, Extent{tree.x, tree.y, tree.x, tree.y});
-    }
+    snapshot.info = internal::InfoAtVersion(map.info, record, snapshot.trees);
   });
   return snapshot;
 }
@@ -341,12 +308,7 @@ MapInfo SqliteMapStore::Merge(const std::string& name, const MergeNote& note,
     // version its changes apply to (no other writer, in this process or another, in between).
     Transaction transaction(db, Transaction::Kind::kWrite);
     MapRow map = internal::RequireMap(db, name);
-    if (note.expected_version && *note.expected_version != map.info.version) {
-      throw StorageError(Code::kConflict,
-                         "map '" + name + "' is at version " + std::to_string(map.info.version) +
-                             ", not at the base version " + std::to_string(*note.expected_version) +
-                             " (rejected as stale; fetch the map and retry, or merge anyway)");
-    }
+    internal::CheckExpectedVersion(note, map.info);
     SqliteMergeReader reader(db, map);
     const MapChanges changes = merge(reader);
     if (changes.empty()) {

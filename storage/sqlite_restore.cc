@@ -11,6 +11,7 @@
 #include "storage/sqlite.h"
 #include "storage/sqlite_map_store.h"
 #include "storage/sqlite_map_store_internal.h"
+#include "storage/store_steps.h"
 
 namespace forestmap::storage {
 namespace {
@@ -94,22 +95,11 @@ MapInfo SqliteMapStore::RestoreVersion(const std::string& name, int64_t version)
     RestoreTreeRows(db, map, version, next, record);
     RestoreObservationRows(db, map, version, next, record);
 
-    MapInfo& info = map.info;
-    info.version = next;
-    info.tree_count = old.tree_count;
-    info.confirmed_count = old.confirmed_count;
-    info.extent = internal::ScanExtent(db, map.id);
-    info.updated_unix_ms = internal::NowUnixMs();
+    internal::StampRestore(map.info, record, old, internal::ScanExtent(db, map.id));
     internal::UpdateMapRow(db, map);
-    record.version = next;
-    record.created_unix_ms = info.updated_unix_ms;
-    record.kind = VersionKind::kRestore;
-    record.tree_count = info.tree_count;
-    record.confirmed_count = info.confirmed_count;
-    record.restored_from = version;
     internal::InsertVersion(db, map.id, record);
-    internal::CommitWrite(db, transaction, info);
-    result = info;
+    internal::CommitWrite(db, transaction, map.info);
+    result = map.info;
   });
   return result;
 }
