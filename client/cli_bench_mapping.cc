@@ -166,6 +166,26 @@ void Relocalize(const BenchMappingOptions& o, const std::vector<algorithms::MapT
   report["reloc_error_xy_p50_m"] = s.error_xy_p50;
 }
 
+// The built trajectory against the truth, frame by frame, in the truth's world frame (by
+// `alignment`): CSV frame,fix,x,y,z,yaw,true_x,...,error_xy,error_z (m, rad).
+void WriteTrajectory(const std::string& path, const Sequence& sequence,
+                     const std::vector<Pose3>& poses, const std::vector<algorithms::FrameFix>& how,
+                     const algorithms::TrajectoryError& alignment) {
+  std::ofstream out(path);
+  out << "frame,fix,x,y,z,yaw,true_x,true_y,true_z,true_yaw,error_xy,error_z\n";
+  for (size_t i = 0; i < poses.size(); ++i) {
+    const Pose3 estimate = alignment.truth_from_estimate * poses[i];
+    const Eigen::Vector3d e = alignment.ToTruth(poses[i].translation());
+    const Eigen::Vector3d t = sequence.truth[i].translation();
+    const auto yaw = [](const Pose3& p) { return std::atan2(p(1, 0), p(0, 0)); };
+    out << sequence.frames[i].frame << "," << algorithms::ToString(how[i]) << "," << e.x() << ","
+        << e.y() << "," << e.z() << "," << yaw(estimate) << "," << t.x() << "," << t.y() << ","
+        << t.z() << "," << yaw(sequence.truth[i]) << "," << (e - t).head<2>().norm() << ","
+        << e.z() - t.z() << "\n";
+  }
+  if (!out) throw CommandError(path + ": cannot write");
+}
+
 nlohmann::ordered_json BuildMap(const BenchMappingOptions& o, std::ostream& err) {
   const Sequence sequence = ReadSequence(o.frames_path, o.poses_path, o.step, o.limit);
   algorithms::MapBuilderOptions options;
@@ -218,21 +238,8 @@ nlohmann::ordered_json BuildMap(const BenchMappingOptions& o, std::ostream& err)
   }
   if (!o.eval_frames_path.empty()) Relocalize(o, aligned, report, err);
   if (!o.out_path.empty()) WriteTrees(o.out_path, o.align_out ? aligned : builder.ConfirmedTrees());
-  if (!o.trajectory_path.empty()) {
-    std::ofstream out(o.trajectory_path);
-    out << "frame,fix,x,y,z,yaw,true_x,true_y,true_z,true_yaw,error_xy,error_z\n";
-    for (size_t i = 0; i < poses.size(); ++i) {
-      const Pose3 estimate = alignment.truth_from_estimate * poses[i];
-      const Eigen::Vector3d e = alignment.ToTruth(poses[i].translation());
-      const Eigen::Vector3d t = sequence.truth[i].translation();
-      const auto yaw = [](const Pose3& p) { return std::atan2(p(1, 0), p(0, 0)); };
-      out << sequence.frames[i].frame << "," << algorithms::ToString(how[i]) << "," << e.x() << ","
-          << e.y() << "," << e.z() << "," << yaw(estimate) << "," << t.x() << "," << t.y() << ","
-          << t.z() << "," << yaw(sequence.truth[i]) << "," << (e - t).head<2>().norm() << ","
-          << e.z() - t.z() << "\n";
-    }
-    if (!out) throw CommandError(o.trajectory_path + ": cannot write");
-  }
+  if (!o.trajectory_path.empty())
+    WriteTrajectory(o.trajectory_path, sequence, poses, how, alignment);
   return report;
 }
 

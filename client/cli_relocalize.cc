@@ -129,6 +129,24 @@ void RunFrames(const RelocalizeOptions& options, const CliContext& context) {
   }
 }
 
+// --prior X,Y,YAW_DEG,RADIUS_M, parsed; a CLI11 error naming the flag otherwise.
+PriorXyYaw PriorFlag(const std::string& text) {
+  try {
+    return ParsePrior(text);
+  } catch (const std::invalid_argument& error) {
+    throw CLI::ValidationError("--prior", error.what());
+  }
+}
+
+// --gravity GX,GY,GZ as a unit vector; a CLI11 error for a zero or non-finite one.
+Eigen::Vector3d GravityFlag(const std::vector<double>& values) {
+  const Eigen::Vector3d g(values[0], values[1], values[2]);
+  if (!g.allFinite() || g.norm() < 1e-6) {
+    throw CLI::ValidationError("--gravity", "needs a finite, non-zero vector GX,GY,GZ");
+  }
+  return g.normalized();
+}
+
 }  // namespace
 
 void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
@@ -169,21 +187,8 @@ void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
     if (trees->count() + frames->count() + scan->count() == 0) {
       throw CLI::RequiredError("--trees FILE, --scan SCAN or --frames FILE");
     }
-    if (prior->count() > 0) {
-      try {
-        options->prior = ParsePrior(options->prior_text);
-      } catch (const std::invalid_argument& error) {
-        throw CLI::ValidationError("--prior", error.what());
-      }
-    }
-    if (gravity->count() > 0) {
-      const Eigen::Vector3d g(options->gravity_values[0], options->gravity_values[1],
-                              options->gravity_values[2]);
-      if (!g.allFinite() || g.norm() < 1e-6) {
-        throw CLI::ValidationError("--gravity", "needs a finite, non-zero vector GX,GY,GZ");
-      }
-      options->gravity = g.normalized();
-    }
+    if (prior->count() > 0) options->prior = PriorFlag(options->prior_text);
+    if (gravity->count() > 0) options->gravity = GravityFlag(options->gravity_values);
     context.run = [options, &context] {
       if (!options->scan_file.empty()) {
         RunScan(*options, context);

@@ -282,6 +282,28 @@ void Run(const SimulateOptions& o, CliContext& context) {
   if (!pose_out) throw CommandError("cannot write " + o.out_dir + "/poses.csv");
 }
 
+// What the simulated scene and beams hold: vegetation, the drone's body, noise, terrain.
+void AddSceneOptions(CLI::App* cmd, SimulateOptions& o) {
+  cmd->add_flag("--no-shrubs", o.no_shrubs, "No shrubs");
+  cmd->add_flag("--no-crowns", o.no_crowns, "No crowns");
+  cmd->add_flag("--no-branches", o.no_branches, "No branches");
+  cmd->add_flag("--no-body", o.no_body, "No returns from the drone's own body");
+  cmd->add_flag("--no-noise", o.no_noise, "No range noise");
+  cmd->add_flag("--no-divergence", o.no_divergence,
+                "Thin beams: no footprint, no partial returns at stem edges");
+  cmd->add_flag("--mixed-pixels", o.mixed_pixels,
+                "Stem-edge beams that miss report a range between stem and background");
+  cmd->add_option("--dropout", o.dropout, "Probability that a beam with a hit returns nothing")
+      ->check(CLI::Range(0.0, 0.99))
+      ->capture_default_str();
+  cmd->add_option("--slope", o.slope, "Max terrain slope (m/m)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--undulation", o.undulation, "Terrain undulation amplitude (m)")
+      ->check(CLI::Range(0.0, 20.0))
+      ->capture_default_str();
+}
+
 }  // namespace
 
 void AddSimulateCommand(CLI::App& app, CliContext& context) {
@@ -320,24 +342,7 @@ void AddSimulateCommand(CLI::App& app, CliContext& context) {
       ->capture_default_str();
   cmd->add_option("--out", o->out_dir, "Output folder")->required();
   cmd->add_option("--seed", o->seed, "Random seed (scene and scans)")->capture_default_str();
-  cmd->add_flag("--no-shrubs", o->no_shrubs, "No shrubs");
-  cmd->add_flag("--no-crowns", o->no_crowns, "No crowns");
-  cmd->add_flag("--no-branches", o->no_branches, "No branches");
-  cmd->add_flag("--no-body", o->no_body, "No returns from the drone's own body");
-  cmd->add_flag("--no-noise", o->no_noise, "No range noise");
-  cmd->add_flag("--no-divergence", o->no_divergence,
-                "Thin beams: no footprint, no partial returns at stem edges");
-  cmd->add_flag("--mixed-pixels", o->mixed_pixels,
-                "Stem-edge beams that miss report a range between stem and background");
-  cmd->add_option("--dropout", o->dropout, "Probability that a beam with a hit returns nothing")
-      ->check(CLI::Range(0.0, 0.99))
-      ->capture_default_str();
-  cmd->add_option("--slope", o->slope, "Max terrain slope (m/m)")
-      ->check(CLI::Range(0.0, 1.0))
-      ->capture_default_str();
-  cmd->add_option("--undulation", o->undulation, "Terrain undulation amplitude (m)")
-      ->check(CLI::Range(0.0, 20.0))
-      ->capture_default_str();
+  AddSceneOptions(cmd, *o);
   cmd->add_flag("--labels", o->labels, "Also write scan_NNN_labels.txt (one label per point)");
   cmd->add_flag("--ascii", o->ascii, "Write ASCII PCD instead of binary");
   cmd->add_option("--threads", o->threads, "Worker threads (0 = all cores)")
