@@ -6,39 +6,21 @@
 // open whatever tokens were made.
 
 #include <gtest/gtest.h>
-#include <signal.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include <chrono>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <regex>
-#include <sstream>
 #include <string>
-#include <thread>
 
+#include "daemon_process.h"
 #include "tests/pg_fixture.h"
 
 namespace forestmap {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr auto kStartTimeout = std::chrono::seconds(20);
-
-struct Result {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
-
-std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
+using Result = test::CommandResult;
+using test::ReadFile;
 
 // A CSV of `count` trees with an attribute each (x,y,dbh,species).
 void WriteTrees(const fs::path& path, int count) {
@@ -68,56 +50,29 @@ class DaemonFaultsTest : public ::testing::Test {
   Result Run(const std::string& command) {
     const fs::path out = fs::temp_directory_path() / ("daemon_faults_out_" + Pid());
     const fs::path err = fs::temp_directory_path() / ("daemon_faults_err_" + Pid());
-    const int status =
-        std::system((command + " >'" + out.string() + "' 2>'" + err.string() + "'").c_str());
-    Result result{WIFEXITED(status) ? WEXITSTATUS(status) : -1, ReadFile(out), ReadFile(err)};
+    Result result = test::RunShell(command, out, err);
     fs::remove(out);
     fs::remove(err);
     return result;
   }
   static std::string Pid() { return std::to_string(getpid()); }
   Result Client(const std::string& args) {
-    return Run("env -u FORESTMAP_TOKEN -u FORESTMAP_SERVER '" FORESTMAP_CLI_PATH "' --server " +
-               address_ + " " + args);
+    return Run(test::ClientCommand(daemon_.address(), args));
   }
 
   // Starts forestmapd with `flags` on port 0 and waits for its "serving on" line.
   void Serve(const std::string& flags) { Serve(db_, flags); }
   void Serve(const std::string& db, const std::string& flags) {
     log_ = dir_ / "server.log";
-    const std::string command = "'" FORESTMAPD_PATH "' --db '" + db + "' --listen 127.0.0.1:0 " +
-                                flags + " 2>'" + log_.string() + "' & echo $! > '" +
-                                (dir_ / "pid").string() + "'";
-    ASSERT_EQ(std::system(command.c_str()), 0);
-    pid_ = std::stoi(ReadFile(dir_ / "pid"));
-    const std::regex serving(R"(serving on [^ ]*:(\d+))");
-    const auto deadline = std::chrono::steady_clock::now() + kStartTimeout;
-    std::smatch match;
-    std::string log;
-    while (std::chrono::steady_clock::now() < deadline) {
-      log = ReadFile(log_);
-      if (std::regex_search(log, match, serving)) {
-        address_ = "127.0.0.1:" + match[1].str();
-        return;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-    FAIL() << "forestmapd did not start: " << log;
+    ASSERT_TRUE(
+        daemon_.Start("--db '" + db + "' --listen 127.0.0.1:0 " + flags, log_, dir_ / "pid"));
   }
-  void Stop() {
-    if (pid_ <= 0) return;
-    kill(pid_, SIGTERM);
-    for (int i = 0; i < 200 && kill(pid_, 0) == 0; ++i) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(25));
-    }
-    pid_ = -1;
-  }
+  void Stop() { daemon_.Stop(); }
 
   fs::path dir_;
   fs::path log_;
   std::string db_;
-  std::string address_;
-  int pid_ = -1;
+  test::DaemonProcess daemon_;
 };
 
 TEST_F(DaemonFaultsTest, ReadOnlyDatabaseRefusesToStartAndSaysWhy) {

@@ -3,38 +3,21 @@
 // `forestmapd backup` while it serves, and the warning for a listener beyond loopback.
 
 #include <gtest/gtest.h>
-#include <signal.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include <chrono>
-#include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
-#include <regex>
 #include <sstream>
 #include <string>
-#include <thread>
+
+#include "daemon_process.h"
 
 namespace forestmap {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr auto kStartTimeout = std::chrono::seconds(20);
-
-struct Result {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
-
-std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
+using Result = test::CommandResult;
+using test::ReadFile;
 
 class DaemonSecurityTest : public ::testing::Test {
  protected:
@@ -53,45 +36,18 @@ class DaemonSecurityTest : public ::testing::Test {
 
   // Runs a shell command line, capturing stdout and stderr.
   Result Run(const std::string& command) {
-    const fs::path out = dir_ / "stdout", err = dir_ / "stderr";
-    const int status =
-        std::system((command + " >'" + out.string() + "' 2>'" + err.string() + "'").c_str());
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ReadFile(out), ReadFile(err)};
+    return test::RunShell(command, dir_ / "stdout", dir_ / "stderr");
   }
   Result Client(const std::string& args, const std::string& env = "") {
-    return Run("env -u FORESTMAP_TOKEN -u FORESTMAP_SERVER " + env +
-               " '" FORESTMAP_CLI_PATH "' --server " + address_ + " " + args);
+    return Run(test::ClientCommand(daemon_.address(), args, env));
   }
 
-  // Starts forestmapd with `flags` on port 0 and waits for its "serving on" line.
+  // Starts forestmapd with `flags` and waits for its "serving on" line.
   void Serve(const std::string& flags) {
     log_ = dir_ / ("server" + std::to_string(++starts_) + ".log");  // never a stale one
-    const std::string command = "'" FORESTMAPD_PATH "' --db '" + db_ + "' " + flags + " 2>'" +
-                                log_.string() + "' & echo $! > '" + (dir_ / "pid").string() + "'";
-    ASSERT_EQ(std::system(command.c_str()), 0);
-    pid_ = std::stoi(ReadFile(dir_ / "pid"));
-    const std::regex serving(R"(serving on [^ ]*:(\d+))");
-    const auto deadline = std::chrono::steady_clock::now() + kStartTimeout;
-    std::smatch match;
-    std::string log;
-    while (std::chrono::steady_clock::now() < deadline) {
-      log = ReadFile(log_);
-      if (std::regex_search(log, match, serving)) {
-        address_ = "127.0.0.1:" + match[1].str();
-        return;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-    FAIL() << "forestmapd did not start: " << log;
+    ASSERT_TRUE(daemon_.Start("--db '" + db_ + "' " + flags, log_, dir_ / "pid"));
   }
-  void Stop() {
-    if (pid_ <= 0) return;
-    kill(pid_, SIGTERM);
-    for (int i = 0; i < 200 && kill(pid_, 0) == 0; ++i) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(25));
-    }
-    pid_ = -1;
-  }
+  void Stop() { daemon_.Stop(); }
 
   std::string CreateToken(const std::string& map, const std::string& role) {
     const Result result = Run("'" FORESTMAPD_PATH "' token create --db '" + db_ + "' --map '" +
@@ -106,8 +62,7 @@ class DaemonSecurityTest : public ::testing::Test {
   fs::path dir_;
   fs::path log_;
   std::string db_;
-  std::string address_;
-  int pid_ = -1;
+  test::DaemonProcess daemon_;
   int starts_ = 0;
 };
 
