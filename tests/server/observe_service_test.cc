@@ -19,6 +19,7 @@
 #include "server/server.h"
 #include "server/service.h"
 #include "storage/sqlite_map_store.h"
+#include "tests/server/rpc_test_support.h"
 
 namespace forestmap::server {
 namespace {
@@ -26,11 +27,7 @@ namespace {
 using ::testing::HasSubstr;
 constexpr auto kCallDeadline = std::chrono::seconds(60);  // turns a hang into a failure
 
-std::unique_ptr<grpc::ClientContext> Context() {
-  auto context = std::make_unique<grpc::ClientContext>();
-  context->set_deadline(std::chrono::system_clock::now() + kCallDeadline);
-  return context;
-}
+std::unique_ptr<grpc::ClientContext> Context() { return test::CallContext(kCallDeadline); }
 
 // 500 trees at least 2.5 m apart in a 200 x 60 m strip; 100 frames every 2 m along it, each
 // seeing the trees within 25 m (2 cm position noise, 1 cm DBH noise), sensor 1.5 m up, yawing.

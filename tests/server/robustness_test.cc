@@ -17,6 +17,7 @@
 #include "server/service.h"
 #include "storage/sqlite_map_store.h"
 #include "tests/server/gated_store.h"
+#include "tests/server/rpc_test_support.h"
 
 namespace forestmap::server {
 namespace {
@@ -25,21 +26,9 @@ using ::testing::HasSubstr;
 
 constexpr auto kCallDeadline = std::chrono::seconds(20);  // turns a hang into a failure
 
-std::unique_ptr<grpc::ClientContext> Context() {
-  auto context = std::make_unique<grpc::ClientContext>();
-  context->set_deadline(std::chrono::system_clock::now() + kCallDeadline);
-  return context;
-}
+std::unique_ptr<grpc::ClientContext> Context() { return test::CallContext(kCallDeadline); }
 
-std::filesystem::path TestDir() {
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() /
-      ("forestmap_robust_" + std::to_string(getpid()) + "_" +
-       ::testing::UnitTest::GetInstance()->current_test_info()->name());
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
+std::filesystem::path TestDir() { return test::FreshTestDir("forestmap_robust_"); }
 
 v1::Tree TreeAt(double x, double y) {
   v1::Tree tree;

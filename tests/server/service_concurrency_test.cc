@@ -21,6 +21,7 @@
 #include "server/service.h"
 #include "storage/sqlite_map_store.h"
 #include "tests/server/gated_store.h"
+#include "tests/server/rpc_test_support.h"
 
 namespace forestmap::server {
 namespace {
@@ -31,11 +32,7 @@ constexpr auto kCallDeadline = std::chrono::seconds(20);  // turns a hang into a
 constexpr double kPositionTolerance = 0.05;               // m, noise-free query
 constexpr double kYawTolerance = 0.005;                   // rad
 
-std::unique_ptr<grpc::ClientContext> Context() {
-  auto context = std::make_unique<grpc::ClientContext>();
-  context->set_deadline(std::chrono::system_clock::now() + kCallDeadline);
-  return context;
-}
+std::unique_ptr<grpc::ClientContext> Context() { return test::CallContext(kCallDeadline); }
 
 // A forest of `count` trees with ids 1..count, x, y uniform in [0, 100) m, z = 0, dbh known.
 std::vector<storage::TreeRecord> Forest(int count, unsigned seed) {

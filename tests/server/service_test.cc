@@ -14,6 +14,7 @@
 
 #include "server/server.h"
 #include "storage/sqlite_map_store.h"
+#include "tests/server/rpc_test_support.h"
 
 namespace forestmap::server {
 namespace {
@@ -24,11 +25,7 @@ using ::testing::HasSubstr;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr auto kCallDeadline = std::chrono::seconds(20);  // turns a hang into a failure
 
-std::unique_ptr<grpc::ClientContext> Context() {
-  auto context = std::make_unique<grpc::ClientContext>();
-  context->set_deadline(std::chrono::system_clock::now() + kCallDeadline);
-  return context;
-}
+std::unique_ptr<grpc::ClientContext> Context() { return test::CallContext(kCallDeadline); }
 
 // `count` trees with explicit ids first_id.., random coordinates in [0, 200) m, and every
 // combination of optional z / dbh / attributes.

@@ -21,6 +21,7 @@
 #include "storage/sqlite.h"
 #include "storage/sqlite_map_store.h"
 #include "tests/server/gated_store.h"
+#include "tests/server/rpc_test_support.h"
 
 namespace forestmap::server {
 namespace {
@@ -30,21 +31,9 @@ using Stub = v1::ForestMap::Stub;
 
 constexpr auto kCallDeadline = std::chrono::seconds(60);  // turns a hang into a failure
 
-std::unique_ptr<grpc::ClientContext> Context() {
-  auto context = std::make_unique<grpc::ClientContext>();
-  context->set_deadline(std::chrono::system_clock::now() + kCallDeadline);
-  return context;
-}
+std::unique_ptr<grpc::ClientContext> Context() { return test::CallContext(kCallDeadline); }
 
-std::filesystem::path TestDir() {
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() /
-      ("forestmap_bounds_" + std::to_string(getpid()) + "_" +
-       ::testing::UnitTest::GetInstance()->current_test_info()->name());
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
+std::filesystem::path TestDir() { return test::FreshTestDir("forestmap_bounds_"); }
 
 // `count` trees with ids first_id.. on a grid.
 v1::UploadTreesRequest Chunk(const std::string& name, int64_t first_id, int count) {
