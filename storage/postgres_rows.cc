@@ -7,14 +7,13 @@
 #include "storage/attribute_json.h"
 #include "storage/postgres_map_store_internal.h"
 #include "storage/sqlite_map_store_internal.h"  // backend-neutral helpers: Union, TreeLabel
+#include "storage/store_steps.h"
 
 namespace forestmap::storage::pg_internal {
 namespace {
 
 using Code = StorageError::Code;
-using internal::DecodeAttributes;
 using internal::EncodeAttributes;
-using internal::TreeAttributes;
 using pg::Params;
 
 // Step i takes the schema from version i to i + 1 (pg::MigrateSchema). Never edit a shipped
@@ -213,19 +212,7 @@ std::vector<TreeRecord> ReadTreeRows(const pg::Result& result, const std::string
     tree.y = result.Double(r, 2);
     tree.z = result.OptionalDouble(r, 3);
     tree.dbh = result.OptionalDouble(r, 4);
-    if (!result.IsNull(r, 5)) {
-      try {
-        TreeAttributes stored = DecodeAttributes(result.Text(r, 5));
-        tree.attributes = std::move(stored.values);
-        tree.null_attributes = std::move(stored.nulls);
-      } catch (const std::invalid_argument& e) {
-        throw StorageError(Code::kInternal, "map '" + map_name + "' tree " +
-                                                std::to_string(*tree.id) +
-                                                ": stored attributes are not a JSON object of "
-                                                "strings and nulls: " +
-                                                e.what());
-      }
-    }
+    if (!result.IsNull(r, 5)) internal::SetStoredAttributes(tree, result.Text(r, 5), map_name);
     tree.status = result.Int64(r, 6) == 0 ? TreeStatus::kCandidate : TreeStatus::kConfirmed;
     tree.observations = result.Int64(r, 7);
     tree.position_sigma = result.OptionalDouble(r, 8);

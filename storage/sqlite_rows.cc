@@ -14,6 +14,7 @@
 
 #include "storage/attribute_json.h"
 #include "storage/sqlite_map_store_internal.h"
+#include "storage/store_steps.h"
 
 namespace forestmap::storage::internal {
 namespace {
@@ -178,19 +179,7 @@ TreeRecord ReadTreeRow(const Statement& row, const std::string& map_name) {
   tree.y = row.ColumnDouble(2);
   tree.z = row.ColumnOptionalDouble(3);
   tree.dbh = row.ColumnOptionalDouble(4);
-  if (!row.ColumnIsNull(5)) {
-    try {
-      TreeAttributes stored = DecodeAttributes(row.ColumnText(5));
-      tree.attributes = std::move(stored.values);
-      tree.null_attributes = std::move(stored.nulls);
-    } catch (const std::invalid_argument& e) {
-      throw StorageError(Code::kInternal, "map '" + map_name + "' tree " +
-                                              std::to_string(*tree.id) +
-                                              ": stored attributes are not a JSON object of "
-                                              "strings and nulls: " +
-                                              e.what());
-    }
-  }
+  if (!row.ColumnIsNull(5)) SetStoredAttributes(tree, row.ColumnText(5), map_name);
   tree.status = row.ColumnInt64(6) == 0 ? TreeStatus::kCandidate : TreeStatus::kConfirmed;
   tree.observations = row.ColumnInt64(7);
   tree.position_sigma = row.ColumnOptionalDouble(8);

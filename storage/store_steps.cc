@@ -4,11 +4,25 @@
 #include <limits>
 #include <utility>
 
+#include "storage/attribute_json.h"
 #include "storage/sqlite_map_store_internal.h"  // backend-neutral helpers: NowUnixMs, Union, ...
 
 namespace forestmap::storage::internal {
 
 using Code = StorageError::Code;
+
+void SetStoredAttributes(TreeRecord& tree, const std::string& text, const std::string& map_name) {
+  try {
+    TreeAttributes stored = DecodeAttributes(text);
+    tree.attributes = std::move(stored.values);
+    tree.null_attributes = std::move(stored.nulls);
+  } catch (const std::invalid_argument& e) {
+    throw StorageError(Code::kInternal, "map '" + map_name + "' tree " + std::to_string(*tree.id) +
+                                            ": stored attributes are not a JSON object of "
+                                            "strings and nulls: " +
+                                            e.what());
+  }
+}
 
 void CheckVersionNumber(const std::string& name, int64_t version) {
   if (version < 0) {

@@ -15,6 +15,12 @@
 
 namespace forestmap::storage::internal {
 
+// ---- Rows ----
+
+// Sets the survey columns of `tree` (of map `map_name`, id set) from their stored JSON `text`;
+// kInternal naming the tree when the text is not a JSON object of strings and nulls.
+void SetStoredAttributes(TreeRecord& tree, const std::string& text, const std::string& map_name);
+
 // ---- Versions ----
 
 // kInvalidArgument for a negative version number (0 reads the current version).
