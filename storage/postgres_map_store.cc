@@ -82,12 +82,7 @@ void PostgresMapStore::With(const Body& body) { pool_->With(body); }
 MapInfo PostgresMapStore::CreateMap(const std::string& name, const std::string& description,
                                     const std::string& crs) {
   internal::CheckName(name);
-  MapInfo info;
-  info.name = name;
-  info.description = description;
-  info.crs = crs;
-  info.version = 1;
-  info.created_unix_ms = info.updated_unix_ms = internal::NowUnixMs();
+  const MapInfo info = internal::NewMapInfo(name, description, crs);
   With([&](Connection& conn) {
     Transaction transaction(conn, Transaction::Kind::kWrite);
     int64_t id = 0;
@@ -102,11 +97,7 @@ MapInfo PostgresMapStore::CreateMap(const std::string& name, const std::string& 
       if (e.code() != Code::kAlreadyExists) throw;  // UNIQUE(name)
       throw StorageError(Code::kAlreadyExists, "map '" + name + "' already exists");
     }
-    VersionRecord created;
-    created.version = 1;
-    created.created_unix_ms = info.created_unix_ms;
-    created.kind = VersionKind::kCreate;
-    pg_internal::InsertVersion(conn, id, created);
+    pg_internal::InsertVersion(conn, id, internal::CreationRecord(info));
     pg_internal::CommitWrite(conn, transaction, info);
   });
   return info;

@@ -151,12 +151,8 @@ MapRow PostgresTreeUpload::LockTarget(pg::Transaction& /*transaction*/) {
     return map;
   }
   MapRow map;
-  MapInfo& info = map.info;
-  info.name = name_;
-  info.description = plan_.description;
-  info.crs = plan_.crs;
-  info.version = 1;
-  info.created_unix_ms = info.updated_unix_ms = internal::NowUnixMs();
+  map.info = internal::NewMapInfo(name_, plan_.description, plan_.crs);
+  const MapInfo& info = map.info;
   try {
     map.id = conn_
                  ->Exec(
@@ -174,11 +170,7 @@ MapRow PostgresTreeUpload::LockTarget(pg::Transaction& /*transaction*/) {
     throw StorageError(Code::kAlreadyExists, "map '" + name_ + "' already exists");
   }
   conn_->Exec("SELECT pg_advisory_xact_lock($1)", Params().Int64(map.id));
-  VersionRecord created;
-  created.version = 1;
-  created.created_unix_ms = info.created_unix_ms;
-  created.kind = VersionKind::kCreate;
-  pg_internal::InsertVersion(*conn_, map.id, created);
+  pg_internal::InsertVersion(*conn_, map.id, internal::CreationRecord(info));
   return map;
 }
 

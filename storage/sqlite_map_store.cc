@@ -116,12 +116,7 @@ void SqliteMapStore::WithReader(const Body& body) {
 MapInfo SqliteMapStore::CreateMap(const std::string& name, const std::string& description,
                                   const std::string& crs) {
   internal::CheckName(name);
-  MapInfo info;
-  info.name = name;
-  info.description = description;
-  info.crs = crs;
-  info.version = 1;
-  info.created_unix_ms = info.updated_unix_ms = internal::NowUnixMs();
+  const MapInfo info = internal::NewMapInfo(name, description, crs);
   WithWriter([&](Database& db) {
     Transaction transaction(db, Transaction::Kind::kWrite);
     Statement insert(db,
@@ -137,11 +132,7 @@ MapInfo SqliteMapStore::CreateMap(const std::string& name, const std::string& de
       if (e.code() != Code::kAlreadyExists) throw;  // UNIQUE(name)
       throw StorageError(Code::kAlreadyExists, "map '" + name + "' already exists");
     }
-    VersionRecord created;
-    created.version = 1;
-    created.created_unix_ms = info.created_unix_ms;
-    created.kind = VersionKind::kCreate;
-    internal::InsertVersion(db, db.LastInsertRowId(), created);
+    internal::InsertVersion(db, db.LastInsertRowId(), internal::CreationRecord(info));
     internal::CommitWrite(db, transaction, info);
   });
   return info;

@@ -24,6 +24,25 @@ void SetStoredAttributes(TreeRecord& tree, const std::string& text, const std::s
   }
 }
 
+MapInfo NewMapInfo(const std::string& name, const std::string& description,
+                   const std::string& crs) {
+  MapInfo info;
+  info.name = name;
+  info.description = description;
+  info.crs = crs;
+  info.version = 1;
+  info.created_unix_ms = info.updated_unix_ms = NowUnixMs();
+  return info;
+}
+
+VersionRecord CreationRecord(const MapInfo& info) {
+  VersionRecord created;
+  created.version = 1;
+  created.created_unix_ms = info.created_unix_ms;
+  created.kind = VersionKind::kCreate;
+  return created;
+}
+
 void CheckVersionNumber(const std::string& name, int64_t version) {
   if (version < 0) {
     throw StorageError(Code::kInvalidArgument,

@@ -23,6 +23,10 @@ void SetStoredAttributes(TreeRecord& tree, const std::string& text, const std::s
 
 // ---- Versions ----
 
+// A new map's info: version 1 without trees, created and updated now.
+MapInfo NewMapInfo(const std::string& name, const std::string& description, const std::string& crs);
+// The history entry of a map's creation (version 1, at `info`'s creation time).
+VersionRecord CreationRecord(const MapInfo& info);
 // kInvalidArgument for a negative version number (0 reads the current version).
 void CheckVersionNumber(const std::string& name, int64_t version);
 // The map as it was at `record.version`, whose trees were `trees`: the current map's name,
