@@ -9,6 +9,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <future>
 #include <string>
@@ -79,6 +80,8 @@ TEST_F(CreatedUploadTest, TheCommitWritesAFewPagesWhateverTheUploadsSize) {
     constexpr uint64_t kWalHeader = 32, kFrameHeader = 24, kPage = 4096;
     const uint64_t frames = (fs::file_size(path_ + "-wal") - kWalHeader) / (kFrameHeader + kPage);
     EXPECT_LT(frames, 64u) << trees << " trees";
+    std::printf("commit of %lld staged trees: %llu WAL frames\n", static_cast<long long>(trees),
+                static_cast<unsigned long long>(frames));
     EXPECT_EQ(store.ReadMap(name).trees.size(), static_cast<size_t>(trees));
     EXPECT_EQ(store.TreesInBox(name, Extent{0, 0, 3, 3}).size(), 4u);
   }
@@ -111,6 +114,8 @@ TEST_F(CreatedUploadTest, AWriteToAnotherMapDoesNotWaitForALongUploadsCommit) {
   EXPECT_EQ(a.get().tree_count, kTrees);
   EXPECT_GE(writes, 10);  // B was written all along A's upload
   EXPECT_LT(slowest, kBound) << std::chrono::duration<double>(slowest).count() << " s";
+  std::printf("%d writes of map B during the upload of A, the slowest %.0f ms\n", writes,
+              std::chrono::duration<double, std::milli>(slowest).count());
   EXPECT_EQ(store.GetMap("a").version, 2);
 }
 
