@@ -64,17 +64,32 @@ std::optional<Extent> ScanExtent(sqlite::Database& db, int64_t map_id);
 TreeRecord ReadTreeRow(const sqlite::Statement& row, const std::string& map_name);
 
 // Inserts trees[i] with id ids[i], valid from `valid_from` to `valid_to`, block by block with
-// their R*Tree rows. A current id of the map -> kInvalidArgument naming the tree. Pending rows of
-// an upload (valid_to < 0, sqlite_upload.cc) pass pending_base >= 0: see InsertTree.
-void InsertTrees(sqlite::Database& db, const MapRow& map, const std::vector<TreeRecord>& trees,
-                 const std::vector<int64_t>& ids, int64_t valid_from, int64_t valid_to = kForever,
-                 int64_t pending_base = -1);
+// their R*Tree rows, in the returned order (consecutive rowids). A current id of the map ->
+// kInvalidArgument naming the tree. Rows staged by an upload (sqlite_upload.cc) pass
+// pending_base >= 0: see InsertTree.
+std::vector<size_t> InsertTrees(sqlite::Database& db, const MapRow& map,
+                                const std::vector<TreeRecord>& trees,
+                                const std::vector<int64_t>& ids, int64_t valid_from,
+                                int64_t valid_to = kForever, int64_t pending_base = -1);
 // Closes every current tree and observation row of a map at `version`; returns the number of
 // observation rows closed.
 int64_t CloseAllCurrentRows(sqlite::Database& db, int64_t map_id, int64_t version);
 // Removes the staged rows (and the map it was creating) of every upload left by a process that
 // stopped (sqlite_upload.cc); called when the store opens the database.
 void RemoveAbandonedUploads(sqlite::Database& db);
+
+// Uploads that create their map (schema step 7, sqlite_created_upload.cc): their trees are final
+// rows of the hidden map, valid from kCreatedTreesVersion. Records where the rows of a chunk,
+// from `first_rowid` on in `order` (InsertTrees), come from: the chunk starts at `first_index`.
+inline constexpr int64_t kCreatedTreesVersion = 2;  // version 1: the map, created empty
+void RecordChunk(sqlite::Database& db, int64_t upload_id, int64_t first_rowid, int64_t first_index,
+                 const std::vector<size_t>& order);
+// The index in the upload of its staged row with tree id `tree_id` in map `map_id` (unset: none).
+std::optional<int64_t> StagedIndex(sqlite::Database& db, int64_t upload_id, int64_t map_id,
+                                   int64_t tree_id);
+// Removes the chunk records of `upload_id`, or with upload_id < 0 those of every upload that is
+// no longer open.
+void ForgetChunks(sqlite::Database& db, int64_t upload_id);
 // kInvalidArgument for a NaN bound or min > max.
 void CheckBox(const std::string& name, const Extent& box);
 // Current trees of the map inside the box (inclusive), by id, through the spatial index.

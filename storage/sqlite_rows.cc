@@ -47,11 +47,12 @@ std::vector<size_t> PackingOrder(const std::vector<TreeRecord>& trees) {
 }
 
 // Inserts trees[index] through `insert` (map id at parameter 1, valid_from at 8, valid_to at
-// 13). A pending row (pending_base >= 0) keeps its index in the upload, pending_base + index, in
-// valid_from; its duplicate id is kAlreadyExists with `index` as the message (for the caller).
+// 13). A staged row (pending_base >= 0) has its duplicate id reported as kAlreadyExists with
+// `index` as the message (for the caller); a pending one (`pending`) also keeps its index in the
+// upload, pending_base + index, in valid_from.
 void InsertTree(Statement& insert, const std::string& map_name,
                 const std::vector<TreeRecord>& trees, size_t index, int64_t id,
-                int64_t pending_base) {
+                int64_t pending_base, bool pending) {
   const TreeRecord& tree = trees[index];
   std::optional<std::string> attributes;
   try {
@@ -75,7 +76,7 @@ void InsertTree(Statement& insert, const std::string& map_name,
   insert.BindInt64(10, tree.observations);
   insert.BindOptionalDouble(11, tree.position_sigma);
   insert.BindOptionalDouble(12, tree.dbh_sigma);
-  if (pending_base >= 0) insert.BindInt64(8, pending_base + static_cast<int64_t>(index));
+  if (pending) insert.BindInt64(8, pending_base + static_cast<int64_t>(index));
   try {
     insert.Run();
   } catch (const StorageError& e) {
@@ -193,10 +194,12 @@ std::string TreeLabel(const std::vector<TreeRecord>& trees, size_t index) {
   return label;
 }
 
-void InsertTrees(Database& db, const MapRow& map, const std::vector<TreeRecord>& trees,
-                 const std::vector<int64_t>& ids, int64_t valid_from, int64_t valid_to,
-                 int64_t pending_base) {
-  const std::vector<size_t> order = PackingOrder(trees);
+std::vector<size_t> InsertTrees(Database& db, const MapRow& map,
+                                const std::vector<TreeRecord>& trees,
+                                const std::vector<int64_t>& ids, int64_t valid_from,
+                                int64_t valid_to, int64_t pending_base) {
+  std::vector<size_t> order = PackingOrder(trees);
+  const bool pending = pending_base >= 0 && valid_to < 0;
   Statement insert_tree(db,
                         "INSERT INTO trees (map_id, tree_id, x, y, z, dbh, attributes, valid_from, "
                         "valid_to, status, observations, position_sigma, dbh_sigma) VALUES (?1, "
@@ -218,7 +221,7 @@ void InsertTrees(Database& db, const MapRow& map, const std::vector<TreeRecord>&
     int64_t last_rowid = std::numeric_limits<int64_t>::min();
     for (size_t k = begin; k < end; ++k) {
       const size_t i = order[k];
-      InsertTree(insert_tree, map.info.name, trees, i, ids[i], pending_base);
+      InsertTree(insert_tree, map.info.name, trees, i, ids[i], pending_base, pending);
       first_rowid = std::min(first_rowid, db.LastInsertRowId());
       last_rowid = std::max(last_rowid, db.LastInsertRowId());
       box = Union(box, Extent{trees[i].x, trees[i].y, trees[i].x, trees[i].y});
@@ -231,6 +234,7 @@ void InsertTrees(Database& db, const MapRow& map, const std::vector<TreeRecord>&
     insert_block.BindInt64(7, last_rowid);
     insert_block.Run();
   }
+  return order;
 }
 
 ObservationRecord ReadObservationRow(const Statement& row) {

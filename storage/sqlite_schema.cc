@@ -193,10 +193,27 @@ CREATE UNIQUE INDEX trees_pending ON trees (valid_to, tree_id) WHERE valid_to < 
 PRAGMA user_version = 6;
 )sql";
 
+// Version 7: an upload that creates its map (storage/sqlite_created_upload.cc) writes its trees
+// as the final rows of the hidden map (valid_from 2, valid_to current), so its commit changes a
+// few rows whatever its size: the map row is revealed. Its chunks are written in packing order;
+// upload_chunks keeps, per chunk, the index in the upload of each row (to name the earlier tree
+// of a duplicate id). Rows of a committed upload are removed after the commit.
+constexpr const char* kStep7 = R"sql(
+CREATE TABLE upload_chunks (
+  upload_id INTEGER NOT NULL,    -- uploads.id (no foreign key: removed after the commit)
+  first_rowid INTEGER NOT NULL,  -- rowid of the chunk's first tree row; its rows are consecutive
+  first_index INTEGER NOT NULL,  -- index in the upload of the chunk's first tree
+  packing BLOB NOT NULL,         -- per row in rowid order, its index in the chunk (int32 LE)
+  PRIMARY KEY (upload_id, first_rowid)
+);
+PRAGMA user_version = 7;
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4, kStep5, kStep6};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4,
+                                                 kStep5, kStep6, kStep7};
   return steps;
 }
 

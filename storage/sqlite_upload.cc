@@ -1,10 +1,13 @@
-// SqliteMapStore: uploads staged in the database (schema step 6, storage/staged_writes.h).
+// SqliteMapStore: uploads staged in the database (schema steps 6 and 7, storage/staged_writes.h).
 //
-// Append writes the trees of a chunk as pending rows of `trees` (valid_to = -upload id,
-// valid_from = the tree's index in the upload) with their R*Tree blocks, in its own short
-// transaction; Commit closes the old rows (replace), turns the pending rows current in one UPDATE
-// and writes the version, in one last transaction. Between the transactions the writer
-// connection is free, so writes to other maps (and reads, always) go on while an upload streams.
+// Append writes the trees of a chunk with their R*Tree blocks in its own short transaction.
+// An upload that creates its map writes them as the final rows of the hidden map (step 7), so
+// Commit only reveals the map row and writes its versions: a few rows whatever the upload's
+// size. An upload to an existing map writes pending rows of `trees` (valid_to = -upload id,
+// valid_from = the tree's index in the upload); Commit closes the old rows (replace), turns the
+// pending rows current in one UPDATE and writes the version, in one last transaction. Between
+// the transactions the writer connection is free, so writes to other maps (and reads, always) go
+// on while an upload streams.
 
 #include <algorithm>
 #include <cmath>
@@ -39,22 +42,28 @@ struct UploadRow {
 // Rowids an abort removes per transaction: other writers go on between the slices.
 constexpr int64_t kAbortSliceRows = 20'000;
 
-// Removes the pending rows of an upload with rowids first..last, and their blocks.
+// Removes the staged rows of an upload with rowids first..last, and their blocks: its pending
+// rows, or every row of the hidden map it creates (final rows since step 7, pending before).
 void RemovePendingRows(Database& db, const UploadRow& upload, int64_t first, int64_t last) {
   Statement blocks(db,
                    "DELETE FROM tree_blocks WHERE id IN (SELECT b.id FROM tree_blocks AS b "
                    "WHERE b.min_map <= ?1 AND b.max_map >= ?1 AND b.map_id = ?1 AND "
-                   "b.first_rowid BETWEEN ?2 AND ?3 AND EXISTS (SELECT 1 FROM trees AS t "
-                   "WHERE t.rowid = b.first_rowid AND t.valid_to = ?4))");
+                   "b.first_rowid BETWEEN ?2 AND ?3 AND (?5 OR EXISTS (SELECT 1 FROM trees AS t "
+                   "WHERE t.rowid = b.first_rowid AND t.valid_to = ?4)))");
   blocks.BindInt64(1, upload.map_id);
   blocks.BindInt64(2, first);
   blocks.BindInt64(3, last);
   blocks.BindInt64(4, -upload.id);
+  blocks.BindInt64(5, upload.creates_map ? 1 : 0);
   blocks.Run();
-  Statement rows(db, "DELETE FROM trees WHERE rowid BETWEEN ?1 AND ?2 AND valid_to = ?3");
+  Statement rows(db,
+                 "DELETE FROM trees WHERE rowid BETWEEN ?1 AND ?2 AND (valid_to = ?3 OR "
+                 "(?4 AND map_id = ?5))");
   rows.BindInt64(1, first);
   rows.BindInt64(2, last);
   rows.BindInt64(3, -upload.id);
+  rows.BindInt64(4, upload.creates_map ? 1 : 0);
+  rows.BindInt64(5, upload.map_id);
   rows.Run();
 }
 
@@ -70,6 +79,7 @@ void RemoveUpload(Database& db, const UploadRow& upload) {
   Statement row(db, "DELETE FROM uploads WHERE id = ?1");
   row.BindInt64(1, upload.id);
   row.Run();
+  internal::ForgetChunks(db, upload.id);
 }
 
 std::optional<int64_t> MaxRowid(Database& db) {
@@ -106,6 +116,7 @@ void internal::RemoveAbandonedUploads(Database& db) {
     }
   }
   for (const UploadRow& upload : uploads) RemoveUpload(db, upload);
+  internal::ForgetChunks(db, -1);  // of uploads committed just before the process stopped
   transaction.Commit();
 }
 
@@ -198,14 +209,20 @@ MapRow SqliteTreeUpload::RequireOwnMap(Database& db) const {
 
 void SqliteTreeUpload::ThrowDuplicate(Database& db, const std::vector<TreeRecord>& trees,
                                       size_t index) const {
-  // The earlier row with the same id holds its index in valid_from.
+  // The earlier row with the same id holds its index in valid_from (pending) or upload_chunks.
   const int64_t id = trees[index].id.value_or(-1);
-  Statement earlier(db,
-                    "SELECT valid_from FROM trees WHERE valid_to = ?1 AND valid_to < 0 AND "
-                    "tree_id = ?2");
-  earlier.BindInt64(1, -row_.id);
-  earlier.BindInt64(2, id);
-  const std::string other = earlier.Step() ? Label(earlier.ColumnInt64(0)) : "an earlier tree";
+  std::optional<int64_t> earlier_index;
+  if (row_.creates_map) {
+    earlier_index = internal::StagedIndex(db, row_.id, row_.map_id, id);
+  } else {
+    Statement earlier(db,
+                      "SELECT valid_from FROM trees WHERE valid_to = ?1 AND valid_to < 0 AND "
+                      "tree_id = ?2");
+    earlier.BindInt64(1, -row_.id);
+    earlier.BindInt64(2, id);
+    if (earlier.Step()) earlier_index = earlier.ColumnInt64(0);
+  }
+  const std::string other = earlier_index ? Label(*earlier_index) : "an earlier tree";
   throw StorageError(Code::kInvalidArgument,
                      chunks_.Label(chunks_.staged() + static_cast<int64_t>(index)) + ".id " +
                          std::to_string(id) + " duplicates " + other +
@@ -229,11 +246,19 @@ void SqliteTreeUpload::Stage(const std::vector<TreeRecord>& trees) {
   store_.WithWriter([&](Database& db) {
     Transaction transaction(db, Transaction::Kind::kWrite);
     const MapRow map = RequireOwnMap(db);
-    const std::vector<int64_t> ids = chunks_.Assign(
-        trees, plan_.mode == WriteMode::kAppend ? MaxCurrentId(db, row_.map_id) : std::nullopt);
+    const bool append = plan_.mode == WriteMode::kAppend && !row_.creates_map;
+    const std::vector<int64_t> ids =
+        chunks_.Assign(trees, append ? MaxCurrentId(db, row_.map_id) : std::nullopt);
     const int64_t before = MaxRowid(db).value_or(0);
     try {
-      internal::InsertTrees(db, map, trees, ids, 0, -row_.id, chunks_.staged());
+      if (row_.creates_map) {  // final rows of the hidden map
+        const std::vector<size_t> order =
+            internal::InsertTrees(db, map, trees, ids, internal::kCreatedTreesVersion,
+                                  internal::kForever, chunks_.staged());
+        internal::RecordChunk(db, row_.id, before + 1, chunks_.staged(), order);
+      } else {
+        internal::InsertTrees(db, map, trees, ids, 0, -row_.id, chunks_.staged());
+      }
     } catch (const StorageError& e) {
       if (e.code() != Code::kAlreadyExists) throw;
       ThrowDuplicate(db, trees, std::stoul(e.what()));
@@ -253,7 +278,7 @@ void SqliteTreeUpload::Stage(const std::vector<TreeRecord>& trees) {
 }
 
 void SqliteTreeUpload::Flip(Database& db, const MapRow& map, int64_t version) {
-  if (!row_.first_rowid) return;
+  if (!row_.first_rowid || row_.creates_map) return;  // the created map's rows are final
   Statement flip(db, "UPDATE trees SET valid_from = ?4, valid_to = " FORESTMAP_CURRENT
                      " WHERE rowid BETWEEN ?1 AND ?2 AND valid_to = ?3");
   flip.BindInt64(1, *row_.first_rowid);
@@ -314,7 +339,9 @@ MapInfo SqliteTreeUpload::Commit() {
       if (row_.creates_map) Reveal(db, map);
       if (changes) {
         const int64_t version = map.info.version + 1;
-        const int64_t closed = replace ? internal::CloseAllCurrentRows(db, map.id, version) : 0;
+        // A created map has no old rows: its current rows are the upload's.
+        const int64_t closed =
+            replace && !row_.creates_map ? internal::CloseAllCurrentRows(db, map.id, version) : 0;
         Flip(db, map, version);
         const VersionRecord record = chunks_.Apply(map.info, closed);
         internal::UpdateMapRow(db, map);
@@ -335,6 +362,14 @@ MapInfo SqliteTreeUpload::Commit() {
     throw;
   }
   done_ = true;
+  try {  // after the commit, in its own transaction; left for the next open if it fails
+    store_.WithWriter([&](Database& db) {
+      Transaction transaction(db, Transaction::Kind::kWrite);
+      internal::ForgetChunks(db, row_.id);
+      transaction.Commit();
+    });
+  } catch (const StorageError&) {
+  }
   return result;
 }
 

@@ -12,13 +12,14 @@
 # Prints one line per kill and "N/N passed"; exits 1 when any check failed.
 #   tests/bench/kill9.sh [KILLS] [BUILD_DIR]
 # Data: $FORESTMAP_SHARED_DATA (default ../shared/data). Needs sqlite3 and python3.
+# KILL9_UPLOAD_TREES: trees per upload (default 20000; more puts more kills inside uploads).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 kills=${1:-100}
 build=${2:-build}
 D=${FORESTMAP_SHARED_DATA:-../shared/data}/sequences/Wild_V01
 F=$build/client/forestmap S=$build/server/forestmapd
-upload_trees=20000 # trees per upload
+upload_trees=${KILL9_UPLOAD_TREES:-20000} # trees per upload
 merge_frames=100   # frames per observe (one map version)
 work=$(mktemp -d)
 db=$work/maps.db

@@ -112,10 +112,13 @@ class StreamBoundsTest : public ::testing::Test {
     return map;
   }
 
-  // Staged rows and open uploads in the file, through another connection.
+  // Staged rows (pending ones, and the rows of maps being created) and open uploads in the
+  // file, through another connection.
   int64_t Pending() {
     storage::sqlite::Database db(path_, SQLITE_OPEN_READONLY, 5000);
-    return db.QueryInt64("SELECT COUNT(*) FROM trees WHERE valid_to < 0") +
+    return db.QueryInt64(
+               "SELECT COUNT(*) FROM trees WHERE valid_to < 0 OR map_id IN (SELECT id "
+               "FROM maps WHERE creating_upload IS NOT NULL)") +
            db.QueryInt64("SELECT COUNT(*) FROM uploads");
   }
 

@@ -57,10 +57,13 @@ class StagedUploadTest : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir_); }
 
-  // Pending (staged, not committed) tree rows and uploads in the file, read by another connection.
+  // Staged, not committed tree rows (pending ones, and the rows of maps being created) and
+  // uploads in the file, read by another connection.
   int64_t Pending(const std::string& path) {
     sqlite::Database db(path, SQLITE_OPEN_READONLY, 1000);
-    return db.QueryInt64("SELECT COUNT(*) FROM trees WHERE valid_to < 0") +
+    return db.QueryInt64(
+               "SELECT COUNT(*) FROM trees WHERE valid_to < 0 OR map_id IN (SELECT id "
+               "FROM maps WHERE creating_upload IS NOT NULL)") +
            db.QueryInt64("SELECT COUNT(*) FROM uploads");
   }
 
