@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 
 #include "algorithms/evaluation/reloc_evaluation.h"
 #include "algorithms/relocalization/pose_covariance.h"
@@ -12,6 +13,8 @@
 #include "algorithms/simulation/forest_generator.h"
 #include "algorithms/simulation/stand_cases.h"
 #include "algorithms/simulation/view_simulator.h"
+#include "client/io/tree_csv.h"
+#include "tests/shared_data.h"
 
 namespace forestmap::algorithms {
 namespace {
@@ -197,7 +200,9 @@ TEST(RelocalizerDecision, UnexplainedNearbyTreesCountAgainstAPose) {
 }
 
 // Covariance: the map's own error is what the residuals show beyond the detection noise; a
-// perfect map (simulated views) gets none, and dense stands are calibrated too.
+// perfect map (simulated views) gets none. Calibrated in the densest shared stem map
+// (siplab_boreasNS, 0.47 trees/m^2, 150 matched trees a view), where the systematic term
+// proportional to the whole residual made it three times too large (mean NEES 1.0).
 TEST(RelocalizerDecision, CovarianceIsCalibratedInADenseStand) {
   PoseCovarianceInput tight, loose;
   for (int i = 0; i < 40; ++i) {
@@ -211,9 +216,11 @@ TEST(RelocalizerDecision, CovarianceIsCalibratedInADenseStand) {
   const double tight_var = PoseCovariance(tight)(0, 0), loose_var = PoseCovariance(loose)(0, 0);
   EXPECT_GT(loose_var, 1.2 * 9 * tight_var);  // 3x the residual: over 9x the variance
 
-  const std::vector<MapTree> dense = Forest(16, 60, 0.45);
+  const std::string path = std::string(FORESTMAP_SHARED_DATA) + "/stemmaps/siplab_boreasNS.csv";
+  if (!std::filesystem::exists(path)) FORESTMAP_SKIP_WITHOUT_DATA() << "missing " << path;
+  const std::vector<MapTree> dense = client::ToMapTrees(client::ReadMapTreesCsv(path));
   const MapIndex index(dense);
-  const Outcomes o = RunViews(dense, index, 100, 17);
+  const Outcomes o = RunViews(dense, index, 100, 17, /*margin=*/5.0);
   ASSERT_GE(o.nees.size(), 95u) << o.localized;
   EXPECT_GE(Mean(o.nees), 0.5 * 3) << "covariance too large";
   EXPECT_LE(Mean(o.nees), 2.0 * 3) << "covariance too small";
