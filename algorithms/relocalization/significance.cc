@@ -47,12 +47,19 @@ GateSignificance TestSignificance(const MapIndexImpl& m, const LevelledQuery& q,
   const double rms_range = q.xy.empty() ? 0 : std::sqrt(sum_range2 / q.xy.size());
   const int nearby = RatioTrees(q, options);  // the nearest trees, as the inlier ratio's
   const double gates = static_cast<double>(std::size(kGates));
+  // Every pair within the widest gate, once: each gate counts those within it.
+  const std::vector<Association> pairs = Associate(m, q, pose, options, options.inlier_distance);
   GateSignificance best;
   double best_margin = 0;  // of the best gate's log likelihood ratio over its threshold
   for (double share : kGates) {
     GateSignificance test;
     test.gate = share * options.inlier_distance;
-    test.inliers = static_cast<int>(Associate(m, q, pose, options, test.gate).size());
+    int near = 0;  // inliers among the nearby trees
+    for (const Association& a : pairs) {
+      if (a.distance > test.gate) continue;
+      ++test.inliers;
+      near += static_cast<int>(a.query) < nearby;
+    }
     double near_chance = 0;  // summed over the nearby trees
     for (size_t i = 0; i < occupied.size(); ++i) {
       const double p = chance_scale * (1 - std::pow(1 - occupied[i], share * share));
@@ -66,7 +73,6 @@ GateSignificance TestSignificance(const MapIndexImpl& m, const LevelledQuery& q,
     test.trials = gates * PoseCells(extent, test.gate, rms_range);
     // The nearby trees the pose leaves unexplained count against it: the likelihood ratio of
     // "a true pose explaining kTrueShare of them" to "chance" must beat the trials too.
-    const int near = static_cast<int>(Associate(m, q, pose, options, test.gate, nearby).size());
     test.nearby = nearby;
     test.nearby_inliers = near;
     const double p_near = std::min(kMaxOccupied, near_chance / std::max(nearby, 1));
