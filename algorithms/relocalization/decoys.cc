@@ -9,6 +9,7 @@ namespace {
 
 constexpr size_t kNeighbours = 12;      // map trees around an anchor's match (two lattice rings)
 constexpr int kTurns = 12;              // headings: multiples of 30 degrees
+constexpr size_t kPatternAnchors = 3;   // matched query trees whose neighbourhoods give the rate
 constexpr double kGateFromRmse = 3.0;   // comparison gate = this x the pose's rmse ...
 constexpr double kMinGateShare = 0.35;  // ... within [this share, 1] x inlier_distance
 constexpr double kMinHitShare = 0.5;    // a decoy must hit this share of the pose's hits
@@ -32,6 +33,22 @@ int Hits(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose, size
     if (hits + static_cast<int>(count - i - 1) < needed) return hits;
   }
   return hits;
+}
+
+// Adds to `turn_hits`, per heading, the mean hits of the decoys that put `anchor`'s query tree
+// on each map tree around its match (the pose itself excluded).
+void AddTurnHits(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
+                 const Association& anchor, size_t nearest, std::vector<double>* turn_hits) {
+  const auto around = m.positions->Knn(m.positions->point(anchor.map), kNeighbours + 1);
+  for (const auto& [j, d2] : around) {
+    for (int turn = 0; turn < kTurns; ++turn) {
+      if (j == anchor.map && turn == 0) continue;
+      Rigid2 decoy{WrapAngle(pose.yaw + turn * 2 * M_PI / kTurns), {0, 0}};
+      decoy.translation = m.Xy(j) - decoy(q.xy[anchor.query]);
+      const int hits = Hits(m, q, decoy, nearest, 0);
+      (*turn_hits)[turn] += (hits - 1.0) / (turn == 0 ? around.size() - 1 : around.size());
+    }
+  }
 }
 
 // Whether two poses differ by more than the comparison can blur (a decoy that fell back onto
@@ -90,14 +107,21 @@ DecoyTest TestDecoys(const MapIndexImpl& m, const LevelledQuery& q, const Hypoth
       if (decoy.score > test.best.score) test.best = decoy;
     }
   }
+  // The pattern's rate from more anchors than the first: one anchor's neighbourhood (a gap of
+  // dead trees, a false stem's match) can make a plantation look random.
+  const size_t pattern_anchors = std::min(anchors.size(), kPatternAnchors);
+  for (size_t a = 1; a < pattern_anchors; ++a) {
+    AddTurnHits(m, q, pose.pose, anchors[a], nearest, &turn_hits);
+  }
   test.pattern_rate = std::max(0.0, *std::max_element(turn_hits.begin(), turn_hits.end())) /
-                      static_cast<double>(nearest - 1);
+                      static_cast<double>(pattern_anchors * (nearest - 1));
   test.passed = test.pose_score >= options.decoy_ratio * test.best.score;
   return test;
 }
 
 PoseBelief Assess(const MapIndexImpl& m, const LevelledQuery& q, const Hypothesis& pose,
-                  int64_t trials, const RelocalizerOptions& options, const DecoyTest* decoys) {
+                  const SearchExtent& extent, const RelocalizerOptions& options,
+                  const DecoyTest* decoys) {
   PoseBelief belief;
   belief.decoys = decoys ? *decoys : TestDecoys(m, q, pose, options);
   // Regularity: how much more often poses aligned to the local pattern hit than random ones,
@@ -115,8 +139,12 @@ PoseBelief Assess(const MapIndexImpl& m, const LevelledQuery& q, const Hypothesi
   belief.regular = regularity > kRegularFactor;
   belief.chance = belief.regular ? regularity * random_chance : random_chance;
   belief.tight = belief.decoys.gate <= kTightGateShare * options.inlier_distance;
-  belief.significant = Significant(pose.inliers, belief.chance, trials, options) ||
-                       (belief.tight && Significant(pose.inliers, random_chance, trials, options));
+  const double scale = belief.regular ? regularity : 1.0;
+  belief.test = TestSignificance(m, q, pose.pose, extent, scale, options);
+  if (!belief.test.significant && belief.tight && belief.regular) {
+    belief.test = TestSignificance(m, q, pose.pose, extent, 1.0, options);
+  }
+  belief.significant = belief.test.significant;
   return belief;
 }
 

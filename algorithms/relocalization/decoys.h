@@ -12,6 +12,7 @@
 // tightly and a shifted grid does not.
 
 #include "algorithms/relocalization/pose_search.h"
+#include "algorithms/relocalization/significance.h"
 
 namespace forestmap::algorithms {
 
@@ -24,16 +25,18 @@ struct PoseBelief {
   bool tight = false;        // the pose fits much more tightly than the inlier gate
   bool regular = false;      // the local pattern is regular (a plantation's grid, rows)
   bool significant = false;  // see Assess
+  GateSignificance test;     // the significance test that decided
   bool believable() const { return significant && decoys.passed; }
 };
 
 // Whether a refined pose is believable: its inliers are significant against the larger of the
 // random-forest chance (ChanceInliers) and the local pattern's (pattern_rate x query trees), or,
 // when it fits much more tightly than the inlier gate, against the random-forest chance alone;
-// and it beats its best decoy. `trials`: poses tried (the look-elsewhere effect).
+// and it beats its best decoy. `extent`: what the search looked at (the look-elsewhere
+// effect, significance.h).
 // `decoys`: the decoy test of this very pose when already done (the search's last one).
 PoseBelief Assess(const MapIndexImpl& m, const LevelledQuery& q, const Hypothesis& pose,
-                  int64_t trials, const RelocalizerOptions& options,
+                  const SearchExtent& extent, const RelocalizerOptions& options,
                   const DecoyTest* decoys = nullptr);
 
 }  // namespace forestmap::algorithms

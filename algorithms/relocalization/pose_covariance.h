@@ -5,10 +5,12 @@
 // x, y, yaw: the least-squares information of the matched tree pairs (each pair constrains the
 // position, and the heading through its lever arm), with the per-axis residual variance
 // estimated from the pairs themselves (floored: a handful of near-perfect matches do not make a
-// centimetre pose) and inflated because neighbouring trees' errors are correlated (map drift,
-// shared occlusion), not independent. z: the spread of the matched trees' height offsets (the
-// median's variance); unknown (kUnknownVariance) for a map without heights. roll, pitch: the
-// levelling's typical error (stem axes or gravity), not estimated per query.
+// centimetre pose; scaled for the few degrees of freedom of a small set) and inflated because
+// neighbouring trees' errors are correlated (shared occlusion), not independent; plus the map's
+// own error against the world (survey drift, shared by neighbouring trees), from the residual
+// variance in excess of a frame's detection noise. z: the spread of the matched trees' height
+// offsets (the median's variance); unknown (kUnknownVariance) for a map without heights. roll,
+// pitch: the levelling's typical error (stem axes or gravity), not estimated per query.
 
 #include <Eigen/Core>
 #include <vector>

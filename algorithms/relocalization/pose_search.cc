@@ -6,6 +6,7 @@
 
 #include "algorithms/relocalization/decoys.h"
 #include "algorithms/relocalization/query_triangles.h"
+#include "algorithms/relocalization/significance.h"
 
 namespace forestmap::algorithms {
 namespace {
@@ -280,7 +281,8 @@ class Searcher {
   }
 
   bool Believable(const Hypothesis& refined) {
-    const PoseBelief belief = Assess(m_, q_, refined, result_.matches, options_);
+    const PoseBelief belief =
+        Assess(m_, q_, refined, {result_.matches, SearchArea(m_, prior_)}, options_);
     result_.tested.emplace(refined.pose, belief.decoys);
     return belief.believable();
   }

@@ -180,8 +180,9 @@ double MinInlierRatio(const PoseBelief& belief, const RelocalizerOptions& option
 // only when it is far above chance (a random forest's or the local pattern's), explains enough
 // of the nearby trees and beats the rival and its decoys (decoys.h).
 RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizeQuery& query,
-                        const Hypothesis& best, const Hypothesis* best_rival, int64_t trials,
-                        const RelocalizerOptions& options, const DecoyTest* decoys = nullptr) {
+                        const Hypothesis& best, const Hypothesis* best_rival,
+                        const SearchExtent& extent, const RelocalizerOptions& options,
+                        const DecoyTest* decoys = nullptr) {
   const double rival = best_rival ? best_rival->score : 0.0;
   const int nearest = RatioTrees(q, options);
   const double ratio =
@@ -191,15 +192,17 @@ RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q, const Rel
 
   RelocalizeResult result = FinishWithTilt(m, q, query, best, options);
   result.confidence = best.score > 0 ? std::clamp(1.0 - rival / best.score, 0.0, 1.0) : 0.0;
-  const PoseBelief belief = Assess(m, q, best, trials, options, decoys);
-  char detail[200];
+  const PoseBelief belief = Assess(m, q, best, extent, options, decoys);
+  char detail[256];
   if (!belief.significant) {
     result.status = RelocalizeStatus::kNotFound;
     result.reason = RelocalizeReason::kNotSignificant;
     std::snprintf(detail, sizeof detail,
-                  "best pose matches %d trees, no better than chance here (%.1f expected at "
-                  "random); is the drone in this map?",
-                  best.inliers, belief.chance);
+                  "best pose matches %d trees within %.2f m (%.1f expected at random), %d of "
+                  "the nearest %d: chance does as well somewhere among the %.2g poses searched; "
+                  "is the drone in this map?",
+                  belief.test.inliers, belief.test.gate, belief.test.chance,
+                  belief.test.nearby_inliers, belief.test.nearby, belief.test.trials);
   } else if (best.inliers < options.min_inliers || ratio < MinInlierRatio(belief, options)) {
     result.status = RelocalizeStatus::kNotFound;
     result.reason = RelocalizeReason::kTooFewInliers;
@@ -216,10 +219,13 @@ RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q, const Rel
   } else {
     result.status = RelocalizeStatus::kLocalized;
     result.reason = RelocalizeReason::kNone;
-    std::snprintf(detail, sizeof detail,
-                  "%d trees matched (%.0f%% of the nearest %d trees, %.1f expected by chance), "
-                  "next distinct pose scores %.1f",
-                  best.inliers, 100 * ratio, nearest, belief.chance, rival);
+    std::snprintf(
+        detail, sizeof detail,
+        "%d trees matched (%.0f%% of the nearest %d trees, %.1f expected by chance; "
+        "%d within %.2f m, log likelihood ratio %.0f over %.2g poses), next distinct pose "
+        "scores %.1f",
+        best.inliers, 100 * ratio, nearest, belief.chance, belief.test.inliers, belief.test.gate,
+        belief.test.log_ratio, belief.test.trials, rival);
   }
   if (result.status != RelocalizeStatus::kAmbiguous) result.detail = detail;
   if (result.status != RelocalizeStatus::kLocalized) {
@@ -372,7 +378,7 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   }
   const bool tested = search.tested && search.tested->first.yaw == best.pose.yaw &&
                       search.tested->first.translation == best.pose.translation;
-  result = Decide(m, q, query, best, rival, search.matches, options,
+  result = Decide(m, q, query, best, rival, {search.matches, SearchArea(m, query.prior)}, options,
                   tested ? &search.tested->second : nullptr);
   result.hypotheses = verified;
   result.triangles = search.triangles;
@@ -422,7 +428,7 @@ RelocalizeResult RefineNear(const MapIndex& index, const RelocalizeQuery& query,
   for (Hypothesis& h : seeds) Refine(m, q, options, &h);
   std::sort(seeds.begin(), seeds.end(), by_score);
   RelocalizeResult result =
-      Decide(m, q, query, seeds.front(), /*best_rival=*/nullptr, seeds_tried, options);
+      Decide(m, q, query, seeds.front(), /*best_rival=*/nullptr, {seeds_tried, 0.0}, options);
   result.hypotheses = static_cast<int>(seeds.size());
   return result;
 }

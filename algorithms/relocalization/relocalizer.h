@@ -88,7 +88,9 @@ struct RelocalizerOptions {
   // 5.3 sigma, true answers on the real sequences 6.6 and more).
   double chance_sigmas = 6.0;
   // ... and the best of all the poses tried must reach them by chance with at most this
-  // probability (Poisson tail times the number of poses: what decides in sparse maps).
+  // probability (Poisson tail times the number of poses: what decides in sparse maps), and the
+  // likelihood ratio of its nearby trees must beat every pose cell searched at this
+  // probability (significance.h).
   double false_alarm = 0.01;
   double ambiguity_ratio = 1.5;  // best score must be >= this x the best distinct pose
   // ... and >= this x its best decoy (the query shifted or turned onto the same local pattern,
