@@ -73,7 +73,7 @@ void BuildTriangles(const std::vector<Eigen::Vector2d>& local, const MapIndexOpt
   m.levels =
       ChooseLevels(*m.positions, local, SpacingCells(*m.positions, options.spacing_cell, chunks),
                    options, &level);
-  std::vector<std::vector<std::vector<Triangle>>> parts(chunks);
+  std::vector<std::vector<PageVector<Triangle>>> parts(chunks);
   ParallelFor(n, chunks, [&](int chunk, size_t begin, size_t end) {
     parts[chunk] = EnumerateLevelled(*m.positions, local, level, m.levels, begin, end);
   });
@@ -82,7 +82,7 @@ void BuildTriangles(const std::vector<Eigen::Vector2d>& local, const MapIndexOpt
   for (uint8_t l : level) {
     for (int b = 0; b <= l; ++b) m.band_share[b] += 1.0 / static_cast<double>(n);
   }
-  std::vector<Triangle> all;
+  PageVector<Triangle> all;
   for (int l = 0; l < m.levels.count(); ++l) {
     size_t total = 0;
     for (const auto& part : parts) total += part[l].size();
@@ -91,7 +91,7 @@ void BuildTriangles(const std::vector<Eigen::Vector2d>& local, const MapIndexOpt
     all.reserve(total);
     for (auto& part : parts) {
       all.insert(all.end(), part[l].begin(), part[l].end());
-      part[l] = {};
+      PageVector<Triangle>().swap(part[l]);
     }
     m.tables[l] = std::make_unique<TriangleTable>(all, local, m.levels.Side(l));
   }

@@ -152,15 +152,15 @@ double QuerySpacing(const std::vector<Eigen::Vector2d>& points, size_t count) {
   return spacing[spacing.size() / 2];
 }
 
-std::vector<std::vector<Triangle>> EnumerateLevelled(const KdTree<float, 2>& kd,
-                                                     const std::vector<Eigen::Vector2d>& points,
-                                                     const std::vector<uint8_t>& level,
-                                                     const TriangleLevels& levels, size_t begin,
-                                                     size_t end) {
+std::vector<PageVector<Triangle>> EnumerateLevelled(const KdTree<float, 2>& kd,
+                                                    const std::vector<Eigen::Vector2d>& points,
+                                                    const std::vector<uint8_t>& level,
+                                                    const TriangleLevels& levels, size_t begin,
+                                                    size_t end) {
   std::vector<double> side2(levels.count());
   for (int l = 0; l < levels.count(); ++l) side2[l] = levels.Side(l) * levels.Side(l);
   const double min2 = levels.min_side * levels.min_side;
-  std::vector<std::vector<Triangle>> out(levels.count());
+  std::vector<PageVector<Triangle>> out(levels.count());
   std::vector<std::pair<uint32_t, float>> found;
   std::vector<std::pair<uint32_t, double>> higher;  // neighbour, squared distance
   for (size_t i = begin; i < std::min(end, points.size()); ++i) {

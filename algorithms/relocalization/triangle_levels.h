@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "algorithms/core/kdtree.h"
+#include "algorithms/relocalization/page_vector.h"
 #include "algorithms/relocalization/triangles.h"
 
 namespace forestmap::algorithms {
@@ -58,11 +59,12 @@ double QuerySpacing(const std::vector<Eigen::Vector2d>& points, size_t count);
 // by band: a triangle is kept when all its sides lie within [levels.min_side,
 // levels.Side(level)], its level being the lowest of its points' `level`; its band is the
 // lowest level whose side its longest side fits (so a query triangle has one band to look in,
-// two near a band's edge, whatever the density where it lies).
-std::vector<std::vector<Triangle>> EnumerateLevelled(const KdTree<float, 2>& kd,
-                                                     const std::vector<Eigen::Vector2d>& points,
-                                                     const std::vector<uint8_t>& level,
-                                                     const TriangleLevels& levels, size_t begin,
-                                                     size_t end);
+// two near a band's edge, whatever the density where it lies). Page-mapped buffers
+// (page_vector.h): the index build calls this on worker threads.
+std::vector<PageVector<Triangle>> EnumerateLevelled(const KdTree<float, 2>& kd,
+                                                    const std::vector<Eigen::Vector2d>& points,
+                                                    const std::vector<uint8_t>& level,
+                                                    const TriangleLevels& levels, size_t begin,
+                                                    size_t end);
 
 }  // namespace forestmap::algorithms
