@@ -55,7 +55,8 @@ TriangleLevels ChooseLevels(const KdTree<float, 2>& kd, const std::vector<Eigen:
   constexpr int kIterations = 6;
   constexpr double kMaxScale = 100;  // every tree at the top level long before
   for (int i = 0; i < kIterations; ++i) {
-    *level = cells.Levels(kd, levels, budget);
+    *level =
+        cells.Levels(kd, levels, budget, {options.sparse_spacing, options.sparse_budget_factor});
     const double per_tree = std::max(0.1, TrianglesPerTree(kd, local, *level, levels));
     if (per_tree >= 0.8 * wanted || levels.scale > kMaxScale) break;
     levels.scale *= std::pow(wanted / per_tree, 0.25);
@@ -133,6 +134,10 @@ void MapIndexOptions::Check() const {
   if (!(occupancy_resolution > 0 && occupancy_radius >= occupancy_resolution)) {
     throw std::invalid_argument(
         "MapIndexOptions: need 0 < occupancy_resolution <= occupancy_radius");
+  }
+  if (!(sparse_spacing >= 0 && sparse_budget_factor >= 1)) {
+    throw std::invalid_argument(
+        "MapIndexOptions: need sparse_spacing >= 0 and sparse_budget_factor >= 1");
   }
   if (threads < 0) throw std::invalid_argument("MapIndexOptions: threads must be >= 0");
 }
