@@ -126,8 +126,11 @@ std::vector<uint8_t> SpacingCells::Levels(const KdTree<float, 2>& kd, const Tria
     for (size_t r = first; r < last; ++r) {
       const size_t step = std::max<size_t>(1, (runs_[r + 1] - runs_[r]) / kSpacingSample);
       const size_t sampled = (runs_[r + 1] - runs_[r] + step - 1) / step;
-      const auto limit = static_cast<size_t>(3 * cap * sparse.Factor(spacing_[r]) * sampled);
-      int l = levels.LevelFor(spacing_[r]);
+      // A budget F times larger affords sides F^(1/4) times longer (a tree's triangles grow as
+      // side^4 / spacing^4): a sparse stand's larger budget buys longer triangles.
+      const double factor = sparse.Factor(spacing_[r]);
+      int l = levels.LevelFor(spacing_[r] * std::sqrt(std::sqrt(factor)));
+      const auto limit = static_cast<size_t>(3 * cap * factor * sampled);
       for (; l > 0; --l) {
         size_t triangles = 0;
         for (size_t i = runs_[r]; i < runs_[r + 1] && triangles <= limit; i += step) {

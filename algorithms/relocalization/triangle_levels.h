@@ -49,9 +49,9 @@ struct SparseBudget {
 class SpacingCells {
  public:
   SpacingCells(const KdTree<float, 2>& kd, double cell, int threads);
-  // Every tree's level: its cell's LevelFor, lowered while the cell's sampled trees have more
-  // than `cap` (times the sparse factor of the cell's spacing) triangles each (a third of the
-  // triangles they are a vertex of).
+  // Every tree's level: its cell's LevelFor (of the spacing times the fourth root of the sparse
+  // factor F of the cell's spacing), lowered while the cell's sampled trees have more than
+  // F x `cap` triangles each (a third of the triangles they are a vertex of).
   std::vector<uint8_t> Levels(const KdTree<float, 2>& kd, const TriangleLevels& levels, double cap,
                               const SparseBudget& sparse = {}) const;
 
