@@ -55,7 +55,8 @@ TriangleLevels ChooseLevels(const KdTree<float, 2>& kd, const std::vector<Eigen:
   constexpr int kIterations = 6;
   constexpr double kMaxScale = 100;  // every tree at the top level long before
   for (int i = 0; i < kIterations; ++i) {
-    *level = cells.Levels(kd, levels, budget);
+    *level =
+        cells.Levels(kd, levels, budget, {options.sparse_spacing, options.sparse_budget_factor});
     const double per_tree = std::max(0.1, TrianglesPerTree(kd, local, *level, levels));
     if (per_tree >= 0.8 * wanted || levels.scale > kMaxScale) break;
     levels.scale *= std::pow(wanted / per_tree, 0.25);
@@ -73,7 +74,7 @@ void BuildTriangles(const std::vector<Eigen::Vector2d>& local, const MapIndexOpt
   m.levels =
       ChooseLevels(*m.positions, local, SpacingCells(*m.positions, options.spacing_cell, chunks),
                    options, &level);
-  std::vector<std::vector<std::vector<Triangle>>> parts(chunks);
+  std::vector<std::vector<PageVector<Triangle>>> parts(chunks);
   ParallelFor(n, chunks, [&](int chunk, size_t begin, size_t end) {
     parts[chunk] = EnumerateLevelled(*m.positions, local, level, m.levels, begin, end);
   });
@@ -82,7 +83,7 @@ void BuildTriangles(const std::vector<Eigen::Vector2d>& local, const MapIndexOpt
   for (uint8_t l : level) {
     for (int b = 0; b <= l; ++b) m.band_share[b] += 1.0 / static_cast<double>(n);
   }
-  std::vector<Triangle> all;
+  PageVector<Triangle> all;
   for (int l = 0; l < m.levels.count(); ++l) {
     size_t total = 0;
     for (const auto& part : parts) total += part[l].size();
@@ -91,7 +92,7 @@ void BuildTriangles(const std::vector<Eigen::Vector2d>& local, const MapIndexOpt
     all.reserve(total);
     for (auto& part : parts) {
       all.insert(all.end(), part[l].begin(), part[l].end());
-      part[l] = {};
+      PageVector<Triangle>().swap(part[l]);
     }
     m.tables[l] = std::make_unique<TriangleTable>(all, local, m.levels.Side(l));
   }
@@ -133,6 +134,10 @@ void MapIndexOptions::Check() const {
   if (!(occupancy_resolution > 0 && occupancy_radius >= occupancy_resolution)) {
     throw std::invalid_argument(
         "MapIndexOptions: need 0 < occupancy_resolution <= occupancy_radius");
+  }
+  if (!(sparse_spacing >= 0 && sparse_budget_factor >= 1)) {
+    throw std::invalid_argument(
+        "MapIndexOptions: need sparse_spacing >= 0 and sparse_budget_factor >= 1");
   }
   if (threads < 0) throw std::invalid_argument("MapIndexOptions: threads must be >= 0");
 }

@@ -23,6 +23,11 @@ struct MapIndexOptions {
   double max_triangles_per_tree = 8.0;           // maps of more than large_map_trees trees
   double small_map_triangles_per_tree = 1000.0;  // smaller maps
   size_t large_map_trees = 200000;
+  // Where the local spacing (triangle_levels.h) exceeds sparse_spacing, the per-tree budget
+  // grows as (spacing / sparse_spacing)^2, by at most sparse_budget_factor (triangle_levels.h
+  // SparseBudget): a view in a sparse stand sees few trees and needs more triangles of each.
+  double sparse_spacing = 4.0;        // m (0: no growth)
+  double sparse_budget_factor = 2.5;  // times the per-tree budget, at most
   // Small or sparse maps: grow the sides until the index holds this many triangles (2.4 MB), so
   // that the few trees a sensor sees in a sparse forest, tens of metres apart, still form
   // indexed triangles; the search stays cheap on a small index.

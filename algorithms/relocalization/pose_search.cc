@@ -6,6 +6,7 @@
 
 #include "algorithms/relocalization/decoys.h"
 #include "algorithms/relocalization/query_triangles.h"
+#include "algorithms/relocalization/search_budget.h"
 #include "algorithms/relocalization/significance.h"
 
 namespace forestmap::algorithms {
@@ -227,8 +228,7 @@ class Searcher {
             std::max<int>(options.min_inliers,
                           std::ceil(options.decisive_fraction *
                                     std::min<size_t>(q.xy.size(), options.quick_score_trees)))),
-        strong_(std::max(2 * options.min_inliers,
-                         static_cast<int>(options.decisive_fraction * RatioTrees(q, options)))),
+        strong_(StrongInliers(q, options)),
         polish_hits_(std::max(3, static_cast<int>(kPolishShare * decisive_))) {
     triangles_ = QueryTriangles(seed_xy_, m, QuerySide(seed_xy_, m), options.triangle_tolerance);
     if (triangles_.size() > static_cast<size_t>(options.max_query_triangles)) {
@@ -354,7 +354,7 @@ class Searcher {
       Hypothesis& h = result_.hypotheses[k];
       // Only a pose that already puts a good share of the nearest trees near map trees can
       // become decisive: the others stay unscored (score 0) and cost one bitmap pass.
-      if (check_.Hits(h.pose) < polish_hits_) continue;
+      if (check_.Hits(h.pose) < PolishHits(m_, q_, h.pose, polish_hits_, options_)) continue;
       ++polished_;
       Polish(m_, q_, options_, &h);
       promising_ = promising_ || h.inliers >= decisive_;
@@ -377,7 +377,7 @@ class Searcher {
   const std::vector<Eigen::Vector2d> seed_xy_;
   QuickCheck check_;
   const int decisive_;  // inliers among the nearest trees that make a pose worth refining
-  const int strong_;    // inliers within ratio_range that decide the search
+  const int strong_;    // inliers within ratio_range that decide the search (search_budget.h)
   // A hypothesis is polished and scored only with this many bitmap hits among the nearest
   // trees: this share of decisive_ (a triangle's pose can be a few degrees off before polish).
   static constexpr double kPolishShare = 0.4;

@@ -17,15 +17,16 @@ float KthDistance(const KdTree<float, 2>& kd, const KdTree<float, 2>::Point& p, 
   return nn.empty() ? 0.f : std::sqrt(nn.back().second);
 }
 
-// Triangles of sides within [min_side, side] that point i is a vertex of.
+// Triangles of sides within [min_side, side] that point i is a vertex of, counted up to just
+// past `limit` (the caller only asks whether they exceed it: a dense cell at too high a level
+// has thousands).
 size_t TrianglesAt(const KdTree<float, 2>& kd, uint32_t i, double side, double min_side,
-                   std::vector<std::pair<uint32_t, float>>& found) {
+                   size_t limit, std::vector<std::pair<uint32_t, float>>& found) {
   kd.Radius(kd.point(i), static_cast<float>(side), found);
-  const auto& p = kd.point(i);
   const float max2 = static_cast<float>(side * side),
               min2 = static_cast<float>(min_side * min_side);
   size_t count = 0;
-  for (size_t a = 0; a < found.size(); ++a) {
+  for (size_t a = 0; a < found.size() && count <= limit; ++a) {
     if (found[a].first == i || found[a].second < min2) continue;
     const auto& pa = kd.point(found[a].first);
     for (size_t b = a + 1; b < found.size(); ++b) {
@@ -36,7 +37,6 @@ size_t TrianglesAt(const KdTree<float, 2>& kd, uint32_t i, double side, double m
       count += d2 >= min2 && d2 <= max2;
     }
   }
-  (void)p;
   return count;
 }
 
@@ -113,20 +113,31 @@ void SpacingCells::Smooth() {
   }
 }
 
+double SparseBudget::Factor(double spacing) const {
+  if (!(spacing > spacing_from) || spacing_from <= 0) return 1.0;
+  return std::min(max_factor, (spacing / spacing_from) * (spacing / spacing_from));
+}
+
 std::vector<uint8_t> SpacingCells::Levels(const KdTree<float, 2>& kd, const TriangleLevels& levels,
-                                          double cap) const {
+                                          double cap, const SparseBudget& sparse) const {
   std::vector<uint8_t> level(by_cell_.size(), 0);
   ParallelFor(spacing_.size(), threads_, [&](int, size_t first, size_t last) {
     std::vector<std::pair<uint32_t, float>> found;
     for (size_t r = first; r < last; ++r) {
       const size_t step = std::max<size_t>(1, (runs_[r + 1] - runs_[r]) / kSpacingSample);
-      int l = levels.LevelFor(spacing_[r]);
+      const size_t sampled = (runs_[r + 1] - runs_[r] + step - 1) / step;
+      // A budget F times larger affords sides F^(1/4) times longer (a tree's triangles grow as
+      // side^4 / spacing^4): a sparse stand's larger budget buys longer triangles.
+      const double factor = sparse.Factor(spacing_[r]);
+      int l = levels.LevelFor(spacing_[r] * std::sqrt(std::sqrt(factor)));
+      const auto limit = static_cast<size_t>(3 * cap * factor * sampled);
       for (; l > 0; --l) {
-        size_t triangles = 0, sampled = 0;
-        for (size_t i = runs_[r]; i < runs_[r + 1]; i += step, ++sampled) {
-          triangles += TrianglesAt(kd, by_cell_[i].second, levels.Side(l), levels.min_side, found);
+        size_t triangles = 0;
+        for (size_t i = runs_[r]; i < runs_[r + 1] && triangles <= limit; i += step) {
+          triangles += TrianglesAt(kd, by_cell_[i].second, levels.Side(l), levels.min_side,
+                                   limit - triangles, found);
         }
-        if (triangles <= 3 * cap * sampled) break;
+        if (triangles <= limit) break;
       }
       for (size_t i = runs_[r]; i < runs_[r + 1]; ++i) {
         level[by_cell_[i].second] = static_cast<uint8_t>(l);
@@ -152,15 +163,15 @@ double QuerySpacing(const std::vector<Eigen::Vector2d>& points, size_t count) {
   return spacing[spacing.size() / 2];
 }
 
-std::vector<std::vector<Triangle>> EnumerateLevelled(const KdTree<float, 2>& kd,
-                                                     const std::vector<Eigen::Vector2d>& points,
-                                                     const std::vector<uint8_t>& level,
-                                                     const TriangleLevels& levels, size_t begin,
-                                                     size_t end) {
+std::vector<PageVector<Triangle>> EnumerateLevelled(const KdTree<float, 2>& kd,
+                                                    const std::vector<Eigen::Vector2d>& points,
+                                                    const std::vector<uint8_t>& level,
+                                                    const TriangleLevels& levels, size_t begin,
+                                                    size_t end) {
   std::vector<double> side2(levels.count());
   for (int l = 0; l < levels.count(); ++l) side2[l] = levels.Side(l) * levels.Side(l);
   const double min2 = levels.min_side * levels.min_side;
-  std::vector<std::vector<Triangle>> out(levels.count());
+  std::vector<PageVector<Triangle>> out(levels.count());
   std::vector<std::pair<uint32_t, float>> found;
   std::vector<std::pair<uint32_t, double>> higher;  // neighbour, squared distance
   for (size_t i = begin; i < std::min(end, points.size()); ++i) {

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "algorithms/core/kdtree.h"
+#include "algorithms/relocalization/page_vector.h"
 #include "algorithms/relocalization/triangles.h"
 
 namespace forestmap::algorithms {
@@ -32,15 +33,27 @@ struct TriangleLevels {
   int LevelFor(double spacing) const;
 };
 
+// A sparse stand's trees may have more triangles each than the map's per-tree budget: a view
+// holds few of them, and only an indexed triangle of three seen trees finds the pose. The
+// budget grows with the square of the local spacing (about triangles per square metre instead
+// of per tree) above `spacing_from`, by at most `max_factor`. Sparse stands hold few of a
+// district's trees, so the index grows little.
+struct SparseBudget {
+  double spacing_from = 0;              // m, local spacing where the growth starts (0: none)
+  double max_factor = 1;                // largest factor on the per-tree budget
+  double Factor(double spacing) const;  // spacing in m
+};
+
 // The map's trees by square cell, with each cell's local spacing (m): the median, over up to 15
 // of its trees, of the distance to the kSpacingNeighbour-th nearest tree.
 class SpacingCells {
  public:
   SpacingCells(const KdTree<float, 2>& kd, double cell, int threads);
-  // Every tree's level: its cell's LevelFor, lowered while the cell's sampled trees have more
-  // than `cap` triangles each (a third of the triangles they are a vertex of).
-  std::vector<uint8_t> Levels(const KdTree<float, 2>& kd, const TriangleLevels& levels,
-                              double cap) const;
+  // Every tree's level: its cell's LevelFor (of the spacing times the fourth root of the sparse
+  // factor F of the cell's spacing), lowered while the cell's sampled trees have more than
+  // F x `cap` triangles each (a third of the triangles they are a vertex of).
+  std::vector<uint8_t> Levels(const KdTree<float, 2>& kd, const TriangleLevels& levels, double cap,
+                              const SparseBudget& sparse = {}) const;
 
  private:
   void Smooth();
@@ -58,11 +71,12 @@ double QuerySpacing(const std::vector<Eigen::Vector2d>& points, size_t count);
 // by band: a triangle is kept when all its sides lie within [levels.min_side,
 // levels.Side(level)], its level being the lowest of its points' `level`; its band is the
 // lowest level whose side its longest side fits (so a query triangle has one band to look in,
-// two near a band's edge, whatever the density where it lies).
-std::vector<std::vector<Triangle>> EnumerateLevelled(const KdTree<float, 2>& kd,
-                                                     const std::vector<Eigen::Vector2d>& points,
-                                                     const std::vector<uint8_t>& level,
-                                                     const TriangleLevels& levels, size_t begin,
-                                                     size_t end);
+// two near a band's edge, whatever the density where it lies). Page-mapped buffers
+// (page_vector.h): the index build calls this on worker threads.
+std::vector<PageVector<Triangle>> EnumerateLevelled(const KdTree<float, 2>& kd,
+                                                    const std::vector<Eigen::Vector2d>& points,
+                                                    const std::vector<uint8_t>& level,
+                                                    const TriangleLevels& levels, size_t begin,
+                                                    size_t end);
 
 }  // namespace forestmap::algorithms

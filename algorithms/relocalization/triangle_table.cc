@@ -36,7 +36,7 @@ TriangleFrame FrameOf(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
   return frame;
 }
 
-TriangleTable::TriangleTable(const std::vector<Triangle>& triangles,
+TriangleTable::TriangleTable(std::span<const Triangle> triangles,
                              const std::vector<Eigen::Vector2d>& points, double max_side) {
   if (!(max_side > 0 && max_side <= kMaxTableSide)) {
     throw std::invalid_argument("TriangleTable: max_side must be in (0, 32] m");

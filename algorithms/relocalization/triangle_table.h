@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "algorithms/relocalization/triangles.h"
@@ -64,8 +65,11 @@ class TriangleTable {
  public:
   // `triangles` index `points` (kd coordinates); sides must not exceed `max_side` (m, at most
   // kMaxTableSide).
-  TriangleTable(const std::vector<Triangle>& triangles, const std::vector<Eigen::Vector2d>& points,
+  TriangleTable(std::span<const Triangle> triangles, const std::vector<Eigen::Vector2d>& points,
                 double max_side);
+  TriangleTable(const std::vector<Triangle>& triangles, const std::vector<Eigen::Vector2d>& points,
+                double max_side)
+      : TriangleTable(std::span<const Triangle>(triangles), points, max_side) {}
 
   size_t size() const { return triangles_.size(); }
   size_t MemoryBytes() const {
