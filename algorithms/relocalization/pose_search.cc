@@ -231,9 +231,8 @@ class Searcher {
         strong_(StrongInliers(q, options)),
         polish_hits_(std::max(3, static_cast<int>(kPolishShare * decisive_))) {
     triangles_ = QueryTriangles(seed_xy_, m, QuerySide(seed_xy_, m), options.triangle_tolerance);
-    if (triangles_.size() > static_cast<size_t>(options.max_query_triangles)) {
-      triangles_.resize(options.max_query_triangles);
-    }
+    KeepSpread(triangles_, static_cast<size_t>(std::max(0, options.max_query_triangles)),
+               kMaxTrianglesPerSeed);
   }
 
   // Looks up at most `max_triangles` query triangles at `tolerance` (m), taking in turn the

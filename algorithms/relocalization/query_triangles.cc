@@ -52,4 +52,28 @@ std::vector<QueryTriangle> QueryTriangles(const std::vector<Eigen::Vector2d>& se
   return out;
 }
 
+void KeepSpread(std::vector<QueryTriangle>& triangles, size_t max, int per_seed) {
+  if (triangles.size() <= max) return;
+  std::vector<int> uses;
+  std::vector<bool> keep(triangles.size(), false);
+  size_t kept = 0;
+  for (size_t t = 0; t < triangles.size() && kept < max; ++t) {
+    const auto& v = triangles[t].triangle.vertex;
+    const uint32_t highest = std::max({v[0], v[1], v[2]});
+    if (uses.size() <= highest) uses.resize(highest + 1, 0);
+    if (uses[v[0]] >= per_seed || uses[v[1]] >= per_seed || uses[v[2]] >= per_seed) continue;
+    keep[t] = true;
+    ++kept;
+    for (uint32_t i : v) ++uses[i];
+  }
+  for (size_t t = 0; t < triangles.size() && kept < max; ++t) {
+    if (!keep[t]) keep[t] = true, ++kept;
+  }
+  size_t out = 0;
+  for (size_t t = 0; t < triangles.size(); ++t) {
+    if (keep[t]) triangles[out++] = triangles[t];
+  }
+  triangles.resize(out);
+}
+
 }  // namespace forestmap::algorithms

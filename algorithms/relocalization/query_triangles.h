@@ -26,4 +26,16 @@ double QuerySide(const std::vector<Eigen::Vector2d>& seed_xy, const MapIndexImpl
 std::vector<QueryTriangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy,
                                           const MapIndexImpl& m, double max_side, double tolerance);
 
+// A query tree's share of the looked-up triangles: when a query has more than the search looks
+// up, the nearest ones are taken but none of its trees is a vertex of more than this many of
+// them before every tree has had its turn. A false stem near the sensor (a dense stand's views
+// hold 20% and more) is a vertex of most of the nearest triangles: nearest-first alone filled
+// whole searches with its triangles and never tried one of three true trees.
+inline constexpr int kMaxTrianglesPerSeed = 16;
+
+// Keeps at most `max` of `triangles` (nearest first, as QueryTriangles orders them): first, in
+// order, those whose vertices are each in fewer than `per_seed` triangles kept so far, then, in
+// order, the others until `max`; the kept ones stay in their order.
+void KeepSpread(std::vector<QueryTriangle>& triangles, size_t max, int per_seed);
+
 }  // namespace forestmap::algorithms
