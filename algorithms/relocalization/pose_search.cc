@@ -232,7 +232,7 @@ class Searcher {
         polish_hits_(std::max(3, static_cast<int>(kPolishShare * decisive_))) {
     triangles_ = QueryTriangles(seed_xy_, m, QuerySide(seed_xy_, m), options.triangle_tolerance);
     KeepSpread(triangles_, static_cast<size_t>(std::max(0, options.max_query_triangles)),
-               kMaxTrianglesPerSeed);
+               kFirstTrianglesPerSeed, kMaxTrianglesPerSeed);
   }
 
   // Looks up at most `max_triangles` query triangles at `tolerance` (m), taking in turn the

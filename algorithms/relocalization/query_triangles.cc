@@ -52,28 +52,29 @@ std::vector<QueryTriangle> QueryTriangles(const std::vector<Eigen::Vector2d>& se
   return out;
 }
 
-void KeepSpread(std::vector<QueryTriangle>& triangles, size_t max, int per_seed) {
-  if (triangles.size() <= max) return;
+void KeepSpread(std::vector<QueryTriangle>& triangles, size_t max, int first_per_seed,
+                int per_seed) {
   std::vector<int> uses;
-  std::vector<bool> keep(triangles.size(), false);
-  size_t kept = 0;
-  for (size_t t = 0; t < triangles.size() && kept < max; ++t) {
-    const auto& v = triangles[t].triangle.vertex;
-    const uint32_t highest = std::max({v[0], v[1], v[2]});
-    if (uses.size() <= highest) uses.resize(highest + 1, 0);
-    if (uses[v[0]] >= per_seed || uses[v[1]] >= per_seed || uses[v[2]] >= per_seed) continue;
-    keep[t] = true;
-    ++kept;
-    for (uint32_t i : v) ++uses[i];
+  std::vector<bool> taken(triangles.size(), false);
+  std::vector<QueryTriangle> out;
+  out.reserve(std::min(max, triangles.size()));
+  per_seed = std::max(1, per_seed);
+  for (int cap = std::clamp(first_per_seed, 1, per_seed);; cap = std::min(2 * cap, per_seed)) {
+    for (size_t t = 0; t < triangles.size() && out.size() < max; ++t) {
+      const auto& v = triangles[t].triangle.vertex;
+      const uint32_t highest = std::max({v[0], v[1], v[2]});
+      if (uses.size() <= highest) uses.resize(highest + 1, 0);
+      if (taken[t] || uses[v[0]] >= cap || uses[v[1]] >= cap || uses[v[2]] >= cap) continue;
+      taken[t] = true;
+      out.push_back(triangles[t]);
+      for (uint32_t i : v) ++uses[i];
+    }
+    if (cap >= per_seed) break;
   }
-  for (size_t t = 0; t < triangles.size() && kept < max; ++t) {
-    if (!keep[t]) keep[t] = true, ++kept;
+  for (size_t t = 0; t < triangles.size() && out.size() < max; ++t) {
+    if (!taken[t]) out.push_back(triangles[t]);
   }
-  size_t out = 0;
-  for (size_t t = 0; t < triangles.size(); ++t) {
-    if (keep[t]) triangles[out++] = triangles[t];
-  }
-  triangles.resize(out);
+  triangles = std::move(out);
 }
 
 }  // namespace forestmap::algorithms

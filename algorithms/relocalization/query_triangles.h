@@ -26,16 +26,21 @@ double QuerySide(const std::vector<Eigen::Vector2d>& seed_xy, const MapIndexImpl
 std::vector<QueryTriangle> QueryTriangles(const std::vector<Eigen::Vector2d>& seed_xy,
                                           const MapIndexImpl& m, double max_side, double tolerance);
 
-// A query tree's share of the looked-up triangles: when a query has more than the search looks
-// up, the nearest ones are taken but none of its trees is a vertex of more than this many of
-// them before every tree has had its turn. A false stem near the sensor (a dense stand's views
-// hold 20% and more) is a vertex of most of the nearest triangles: nearest-first alone filled
-// whole searches with its triangles and never tried one of three true trees.
+// A query tree's share of the looked-up triangles. The search looks triangles up nearest first
+// and stops after a budget (max_query_triangles, max_scored_hypotheses): a false stem near the
+// sensor (dense stands' views hold 20% and more, clustered near it by chance) is a vertex of
+// most of the nearest triangles, and nearest-first alone spent whole searches on its triangles
+// without ever trying one of three true trees. So the order goes in rounds: nearest first, but
+// no tree a vertex of more than kFirstTrianglesPerSeed triangles in the first round, twice that
+// in the next, up to kMaxTrianglesPerSeed; then the rest, nearest first.
+inline constexpr int kFirstTrianglesPerSeed = 4;
 inline constexpr int kMaxTrianglesPerSeed = 16;
 
-// Keeps at most `max` of `triangles` (nearest first, as QueryTriangles orders them): first, in
-// order, those whose vertices are each in fewer than `per_seed` triangles kept so far, then, in
-// order, the others until `max`; the kept ones stay in their order.
-void KeepSpread(std::vector<QueryTriangle>& triangles, size_t max, int per_seed);
+// Reorders `triangles` (nearest first, as QueryTriangles orders them) in those rounds: round k
+// takes, in order, the triangles not yet taken whose vertices are each in fewer than
+// min(first_per_seed x 2^k, per_seed) triangles taken so far; after the round at per_seed, the
+// rest in order. Keeps the first `max`.
+void KeepSpread(std::vector<QueryTriangle>& triangles, size_t max, int first_per_seed,
+                int per_seed);
 
 }  // namespace forestmap::algorithms
