@@ -203,12 +203,6 @@ double PoissonTail(int k, double lambda) {
   return std::min(1.0, sum);
 }
 
-bool Significant(int inliers, double chance, int64_t trials, const RelocalizerOptions& options) {
-  return inliers >= chance + options.chance_sigmas * std::sqrt(chance) &&
-         static_cast<double>(std::max<int64_t>(trials, 1)) * PoissonTail(inliers, chance) <=
-             options.false_alarm;
-}
-
 namespace {
 
 // One search: the query's triangles, looked up in passes of growing tolerance.

@@ -71,11 +71,6 @@ double ChanceInliers(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2
 // P(X >= k) for X ~ Poisson(lambda).
 double PoissonTail(int k, double lambda);
 
-// Whether `inliers` beat `chance` by options.chance_sigmas Poisson standard deviations, and
-// the best of `trials` random poses would reach them with probability <= options.false_alarm
-// (the look-elsewhere effect: the search tries many poses).
-bool Significant(int inliers, double chance, int64_t trials, const RelocalizerOptions& options);
-
 // The decoys of a pose (decoys.h): alternatives on the same local pattern.
 struct DecoyTest {
   double gate = 0;        // m, inlier gate of the comparison (from the pose's own rmse)
