@@ -66,7 +66,10 @@ TreeRecord ReadTreeRow(const sqlite::Statement& row, const std::string& map_name
 // Inserts trees[i] with id ids[i], valid from `valid_from` to `valid_to`, block by block with
 // their R*Tree rows, in the returned order (consecutive rowids). A current id of the map ->
 // kInvalidArgument naming the tree. Rows staged by an upload (sqlite_upload.cc) pass
-// pending_base >= 0: see InsertTree.
+// pending_base >= 0: a duplicate id among them throws StagedDuplicate (see InsertTree).
+struct StagedDuplicate {
+  size_t index;  // in `trees`
+};
 std::vector<size_t> InsertTrees(sqlite::Database& db, const MapRow& map,
                                 const std::vector<TreeRecord>& trees,
                                 const std::vector<int64_t>& ids, int64_t valid_from,

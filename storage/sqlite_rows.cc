@@ -47,8 +47,8 @@ std::vector<size_t> PackingOrder(const std::vector<TreeRecord>& trees) {
 }
 
 // Inserts trees[index] through `insert` (map id at parameter 1, valid_from at 8, valid_to at
-// 13). A staged row (pending_base >= 0) has its duplicate id reported as kAlreadyExists with
-// `index` as the message (for the caller); a pending one (`pending`) also keeps its index in the
+// 13). A staged row (pending_base >= 0) has its duplicate id reported as StagedDuplicate (the
+// caller names both trees); a pending one (`pending`) also keeps its index in the
 // upload, pending_base + index, in valid_from.
 void InsertTree(Statement& insert, const std::string& map_name,
                 const std::vector<TreeRecord>& trees, size_t index, int64_t id,
@@ -82,7 +82,7 @@ void InsertTree(Statement& insert, const std::string& map_name,
   } catch (const StorageError& e) {
     // Batches have no duplicates (checked before), so a UNIQUE violation is an id of the map.
     if (e.code() != Code::kAlreadyExists) throw;
-    if (pending_base >= 0) throw StorageError(Code::kAlreadyExists, std::to_string(index));
+    if (pending_base >= 0) throw StagedDuplicate{index};
     throw StorageError(Code::kInvalidArgument, "map '" + map_name +
                                                    "': " + TreeLabel(trees, index) +
                                                    ": tree id already exists in the map");

@@ -259,9 +259,8 @@ void SqliteTreeUpload::Stage(const std::vector<TreeRecord>& trees) {
       } else {
         internal::InsertTrees(db, map, trees, ids, 0, -row_.id, chunks_.staged());
       }
-    } catch (const StorageError& e) {
-      if (e.code() != Code::kAlreadyExists) throw;
-      ThrowDuplicate(db, trees, std::stoul(e.what()));
+    } catch (const internal::StagedDuplicate& duplicate) {
+      ThrowDuplicate(db, trees, duplicate.index);
     }
     const int64_t last = MaxRowid(db).value_or(before);
     Statement update(db,
@@ -312,14 +311,12 @@ void SqliteTreeUpload::Flip(Database& db, const MapRow& map, int64_t version) {
 void SqliteTreeUpload::Reveal(Database& db, MapRow& map) {
   MapInfo& info = map.info;
   info.created_unix_ms = info.updated_unix_ms = internal::NowUnixMs();
-  Statement reveal(db, "UPDATE maps SET creating_upload = NULL WHERE id = ?1");
+  Statement reveal(db,
+                   "UPDATE maps SET creating_upload = NULL, created_unix_ms = ?2 WHERE id = ?1");
   reveal.BindInt64(1, map.id);
+  reveal.BindInt64(2, info.created_unix_ms);
   reveal.Run();
   internal::UpdateMapRow(db, map);
-  Statement created_at(db, "UPDATE maps SET created_unix_ms = ?2 WHERE id = ?1");
-  created_at.BindInt64(1, map.id);
-  created_at.BindInt64(2, info.created_unix_ms);
-  created_at.Run();
   VersionRecord created;
   created.version = 1;
   created.created_unix_ms = info.created_unix_ms;
