@@ -22,18 +22,7 @@ ExportTreesReactor::ExportTreesReactor(const StreamDeps& deps, grpc::CallbackSer
     End(refused);
     return;
   }
-  const bool queued = deps_.work_pool.TrySubmit([this] {
-    const grpc::Status status = RunGuarded("ExportTrees", [this] {
-      Start();
-      LoadPage();
-    });
-    if (status.ok()) {
-      WriteNext();
-    } else {
-      End(status);
-    }
-  });
-  if (!queued) End(ServerBusy("ExportTrees"));
+  ReadThenWrite(/*start=*/true);
 }
 
 void ExportTreesReactor::Start() {
@@ -67,9 +56,12 @@ void ExportTreesReactor::LoadPage() {
   if (!page_.empty()) after_id_ = page_.back().id;
 }
 
-void ExportTreesReactor::ReadThenWrite() {
-  const bool queued = deps_.work_pool.TrySubmit([this] {
-    const grpc::Status status = RunGuarded("ExportTrees", [this] { LoadPage(); });
+void ExportTreesReactor::ReadThenWrite(bool start) {
+  const bool queued = deps_.work_pool.TrySubmit([this, start] {
+    const grpc::Status status = RunGuarded("ExportTrees", [this, start] {
+      if (start) Start();
+      LoadPage();
+    });
     if (status.ok()) {
       WriteNext();
     } else {
@@ -82,7 +74,7 @@ void ExportTreesReactor::ReadThenWrite() {
 void ExportTreesReactor::WriteNext() {
   if (next_ >= page_.size()) {
     if (!last_page_) {
-      ReadThenWrite();  // the client took the last message: read on
+      ReadThenWrite(/*start=*/false);  // the client took the last message: read on
       return;
     }
     if (wrote_any_) {

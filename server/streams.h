@@ -97,7 +97,7 @@ class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTrees
   void End(const grpc::Status& status);  // frees the stream's place, then Finish
   void Start();                          // authorizes, picks the version; throws
   void LoadPage();                       // the next page into page_; throws
-  void ReadThenWrite();
+  void ReadThenWrite(bool start);        // on the work pool: (Start,) LoadPage, then WriteNext
   void WriteNext();
 
   StreamDeps deps_;

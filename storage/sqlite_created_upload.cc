@@ -61,7 +61,10 @@ std::optional<int64_t> StagedIndex(Database& db, int64_t upload_id, int64_t map_
 void ForgetChunks(Database& db, int64_t upload_id) {
   // The records are indices, nothing to scrub: without secure_delete (on in Debian's SQLite)
   // their freed pages go to the free list unwritten, a page per ~1,000 of them.
-  const int64_t secure_delete = db.QueryInt64("PRAGMA secure_delete");
+  const bool secure_delete = db.QueryInt64("PRAGMA secure_delete") != 0;
+  const auto restore = [&] {
+    db.Execute(secure_delete ? "PRAGMA secure_delete = ON" : "PRAGMA secure_delete = OFF");
+  };
   db.Execute("PRAGMA secure_delete = OFF");
   try {
     if (upload_id >= 0) {
@@ -72,10 +75,10 @@ void ForgetChunks(Database& db, int64_t upload_id) {
       db.Execute("DELETE FROM upload_chunks WHERE upload_id NOT IN (SELECT id FROM uploads)");
     }
   } catch (...) {
-    db.Execute(secure_delete != 0 ? "PRAGMA secure_delete = ON" : "PRAGMA secure_delete = OFF");
+    restore();
     throw;
   }
-  db.Execute(secure_delete != 0 ? "PRAGMA secure_delete = ON" : "PRAGMA secure_delete = OFF");
+  restore();
 }
 
 }  // namespace forestmap::storage::internal
