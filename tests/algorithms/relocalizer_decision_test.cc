@@ -10,24 +10,16 @@
 #include "algorithms/relocalization/pose_covariance.h"
 #include "algorithms/relocalization/relocalizer.h"
 #include "algorithms/relocalization/significance.h"
-#include "algorithms/simulation/forest_generator.h"
 #include "algorithms/simulation/stand_cases.h"
 #include "algorithms/simulation/view_simulator.h"
 #include "client/io/tree_csv.h"
+#include "tests/algorithms/generated_forest.h"
 #include "tests/shared_data.h"
 
 namespace forestmap::algorithms {
 namespace {
 
-std::vector<MapTree> Forest(unsigned seed, double size, double density) {
-  StemMapStatistics stats;
-  stats.density = density;
-  stats.min_spacing = std::min(1.0, 0.5 / std::sqrt(density));
-  ForestOptions forest;
-  forest.width = forest.height = size;
-  forest.seed = seed;
-  return GenerateForest(stats, forest);
-}
+using testing_util::Forest;
 
 PlantationOptions Grid(double spacing, double error, double mortality, unsigned seed) {
   PlantationOptions p;

@@ -6,22 +6,14 @@
 
 #include "algorithms/evaluation/reloc_evaluation.h"
 #include "algorithms/relocalization/relocalizer.h"
-#include "algorithms/simulation/forest_generator.h"
 #include "algorithms/simulation/stand_cases.h"
 #include "algorithms/simulation/view_simulator.h"
+#include "tests/algorithms/generated_forest.h"
 
 namespace forestmap::algorithms {
 namespace {
 
-std::vector<MapTree> Forest(unsigned seed, double size = 200, double density = 0.05) {
-  StemMapStatistics stats;
-  stats.density = density;
-  stats.min_spacing = std::min(1.0, 0.5 / std::sqrt(density));
-  ForestOptions forest;
-  forest.width = forest.height = size;
-  forest.seed = seed;
-  return GenerateForest(stats, forest);
-}
+using testing_util::Forest;
 
 SimulatedView ViewAt(const std::vector<MapTree>& map, double x, double y, double yaw,
                      unsigned seed) {
