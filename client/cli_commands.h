@@ -34,21 +34,22 @@ class CommandError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-void AddMapCommand(CLI::App& app, CliContext& context);           // cli_map.cc
-void AddMapPruneCommand(CLI::App& map_app, CliContext& context);  // cli_prune.cc ("map prune")
-void AddRelocalizeCommand(CLI::App& app, CliContext& context);    // cli_relocalize.cc
-void AddBenchRelocCommand(CLI::App& app, CliContext& context);    // cli_bench_reloc.cc
-void AddDemoDataCommand(CLI::App& app, CliContext& context);      // cli_demo_data.cc
-void AddBenchServerCommand(CLI::App& app, CliContext& context);   // cli_bench_server.cc
-void AddBenchLoadCommand(CLI::App& app, CliContext& context);     // cli_bench_load.cc
-void AddBenchMappingCommand(CLI::App& app, CliContext& context);  // cli_bench_mapping.cc
-void AddObserveCommand(CLI::App& app, CliContext& context);       // cli_observe.cc
-void AddDetectCommand(CLI::App& app, CliContext& context);        // cli_detect.cc
-void AddSimulateCommand(CLI::App& app, CliContext& context);      // cli_simulate.cc
-void AddTrackCommand(CLI::App& app, CliContext& context);         // cli_track.cc
-void AddHealthCommand(CLI::App& app, CliContext& context);        // cli_health.cc
-void AddCompareCommand(CLI::App& app, CliContext& context);       // cli_compare.cc
-void AddPlotCommand(CLI::App& app, CliContext& context);          // cli_plot.cc
+void AddMapCommand(CLI::App& app, CliContext& context);            // cli_map.cc
+void AddMapPruneCommand(CLI::App& map_app, CliContext& context);   // cli_prune.cc ("map prune")
+void AddMapUploadCommand(CLI::App& map_app, CliContext& context);  // cli_map_upload.cc
+void AddRelocalizeCommand(CLI::App& app, CliContext& context);     // cli_relocalize.cc
+void AddBenchRelocCommand(CLI::App& app, CliContext& context);     // cli_bench_reloc.cc
+void AddDemoDataCommand(CLI::App& app, CliContext& context);       // cli_demo_data.cc
+void AddBenchServerCommand(CLI::App& app, CliContext& context);    // cli_bench_server.cc
+void AddBenchLoadCommand(CLI::App& app, CliContext& context);      // cli_bench_load.cc
+void AddBenchMappingCommand(CLI::App& app, CliContext& context);   // cli_bench_mapping.cc
+void AddObserveCommand(CLI::App& app, CliContext& context);        // cli_observe.cc
+void AddDetectCommand(CLI::App& app, CliContext& context);         // cli_detect.cc
+void AddSimulateCommand(CLI::App& app, CliContext& context);       // cli_simulate.cc
+void AddTrackCommand(CLI::App& app, CliContext& context);          // cli_track.cc
+void AddHealthCommand(CLI::App& app, CliContext& context);         // cli_health.cc
+void AddCompareCommand(CLI::App& app, CliContext& context);        // cli_compare.cc
+void AddPlotCommand(CLI::App& app, CliContext& context);           // cli_plot.cc
 // Global flags --tls, --tls-ca, --tls-cert, --tls-key, --token (cli_security.cc).
 void AddSecurityOptions(CLI::App& app, CliContext& context);
 

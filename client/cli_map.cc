@@ -25,6 +25,7 @@ struct CreateOptions {
   std::string name;
   std::string trees_file;
   std::string crs;
+  std::string to_crs;  // --to-crs: reproject the trees into this CRS, the map's
   std::string description;
   std::string columns;   // --columns x=HEADER,... (io/tree_columns.h)
   std::string dbh_unit;  // --dbh-unit m|cm|mm; empty: from the header, else m
@@ -68,6 +69,10 @@ void RunCreate(CreateOptions options, const CliContext& context) {
         ReadTreeFile(options.trees_file, TreeFileOptionsFrom(options.columns, options.dbh_unit));
     rows = std::move(file.rows);
     if (options.crs.empty()) options.crs = file.crs;  // a GIS file's own CRS
+    options.crs =
+        ReprojectTrees(rows, options.trees_file, options.crs, options.to_crs, *context.err);
+  } else if (!options.to_crs.empty()) {
+    throw CommandError("--to-crs reprojects the trees of --trees FILE; without trees give --crs");
   }
   if (!options.trees_file.empty() && rows.empty()) {
     *context.err << "forestmap: warning: " << options.trees_file
@@ -88,7 +93,9 @@ void AddCreate(CLI::App& map_app, CliContext& context) {
                   "(whose CRS is used when --crs is not given)");
   AddTreeFileOptions(*sub, options->columns, options->dbh_unit);
   sub->add_option("--crs", options->crs,
-                  "Coordinate reference system: EPSG code (EPSG:2959), WKT or PROJ string");
+                  "Coordinate reference system of the trees and the map: EPSG code (EPSG:2959), "
+                  "WKT or PROJ string, in metres");
+  AddToCrsOption(*sub, options->to_crs);
   sub->add_option("--description", options->description, "Free text");
   sub->callback(
       [options, &context] { context.run = [options, &context] { RunCreate(*options, context); }; });
@@ -389,8 +396,10 @@ void AddRemoveSource(CLI::App& map_app, CliContext& context) {
 void AddMapCommand(CLI::App& app, CliContext& context) {
   CLI::App* map_app = app.add_subcommand(
       "map",
-      "Create, build, list, show, delete and export maps; history, restore, remove-source, prune");
+      "Create, upload into, build, list, show, delete and export maps; history, restore, "
+      "remove-source, prune");
   AddCreate(*map_app, context);
+  AddMapUploadCommand(*map_app, context);
   AddBuild(*map_app, context);
   AddList(*map_app, context);
   AddShow(*map_app, context);

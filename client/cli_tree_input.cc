@@ -8,6 +8,7 @@
 
 #include "client/cli_commands.h"
 #include "client/io/geo_io.h"
+#include "geo/crs.h"
 
 namespace forestmap::client {
 
@@ -49,11 +50,99 @@ TreeFile ReadTreeFile(const std::string& path, const TreeFileOptions& options) {
   return file;
 }
 
+void AddToCrsOption(CLI::App& command, std::string& to_crs) {
+  command.add_option("--to-crs", to_crs,
+                     "Reproject the trees' x, y from the file's CRS (or --crs) into this one (an "
+                     "EPSG code, WKT or PROJ string in metres; utm: the WGS 84 / UTM zone of the "
+                     "trees), which the map takes; needed for files in degrees or feet");
+}
+
+namespace {
+
+geo::CrsInfo ParseCrsOf(const std::string& what, const std::string& crs) {
+  try {
+    return geo::ParseCrs(crs);
+  } catch (const geo::CrsError& e) {
+    throw CommandError(what + ": CRS '" + ShortCrs(crs) + "' is not one PROJ knows (" + e.what() +
+                       "); give an EPSG code (EPSG:2959), WKT or a PROJ string");
+  }
+}
+
+std::string Described(const geo::CrsInfo& info) {
+  return info.epsg > 0 ? "EPSG:" + std::to_string(info.epsg) + " (" + info.name + ")" : info.name;
+}
+
+// The WGS 84 / UTM zone of the centre of `rows`, which are in `from`.
+std::string UtmZoneOf(const std::vector<MapTreeRow>& rows, const std::string& from) {
+  double x = 0, y = 0, z = 0;
+  for (const MapTreeRow& row : rows) {
+    x += row.x / static_cast<double>(rows.size());
+    y += row.y / static_cast<double>(rows.size());
+  }
+  geo::Reprojection(from, "EPSG:4326").Apply(x, y, z);
+  return geo::UtmZoneCrs(x, y);
+}
+
+}  // namespace
+
+std::string ReprojectTrees(std::vector<MapTreeRow>& rows, const std::string& path,
+                           const std::string& from, const std::string& to, std::ostream& log) {
+  try {
+    if (to.empty()) {
+      if (from.empty()) return from;
+      const geo::CrsInfo info = ParseCrsOf(path, from);
+      if (info.map_problem.empty()) return from;
+      std::string hint = "--to-crs utm";
+      if (!rows.empty()) hint += " (here " + UtmZoneOf(rows, from) + ")";
+      throw CommandError(path + ": its CRS " + Described(info) + " cannot be " +
+                         "a map's: " + info.map_problem + ", and a map's x and y are metres; " +
+                         "add " + hint + " or --to-crs EPSG:n to reproject the trees");
+    }
+    if (from.empty()) {
+      throw CommandError(path +
+                         ": --to-crs needs the CRS the trees are in, and the file "
+                         "declares none: give it with --crs");
+    }
+    ParseCrsOf(path, from);
+    const std::string target = to == "utm" ? (rows.empty() ? "" : UtmZoneOf(rows, from)) : to;
+    if (target.empty()) return from;  // no trees: nothing tells the zone
+    const geo::CrsInfo target_info = ParseCrsOf("--to-crs", target);
+    if (!target_info.map_problem.empty()) {
+      throw CommandError("--to-crs " + Described(target_info) +
+                         " cannot be a map's: " + target_info.map_problem);
+    }
+    const geo::Reprojection move(from, target);
+    for (size_t i = 0; i < rows.size(); ++i) {
+      double z = rows[i].z.value_or(0);  // moved too, then dropped: heights are kept
+      try {
+        move.Apply(rows[i].x, rows[i].y, z);
+      } catch (const geo::CrsError& e) {
+        throw CommandError(path + ": tree " + std::to_string(i + 1) + " (" +
+                           std::to_string(rows[i].x) + ", " + std::to_string(rows[i].y) +
+                           "): " + e.what());
+      }
+    }
+    log << path << ": " << rows.size() << " trees reprojected from "
+        << Described(ParseCrsOf(path, from)) << " to " << Described(target_info) << std::endl;
+    return target_info.Canonical();
+  } catch (const geo::CrsError& e) {
+    throw CommandError(path + ": " + e.what());
+  }
+}
+
 void WriteCrsSidecar(const std::string& csv_path, const std::string& crs) {
   const std::string path = std::filesystem::path(csv_path).replace_extension(".prj").string();
   std::ofstream out(path);
   out << crs << '\n';
   if (!out) throw CommandError(path + ": cannot write the CRS");
+}
+
+std::string DescribedCrs(const std::string& crs) {
+  try {
+    return Described(geo::ParseCrs(crs));
+  } catch (const geo::CrsError&) {
+    return ShortCrs(crs);
+  }
 }
 
 std::string ShortCrs(const std::string& crs) {

@@ -30,6 +30,20 @@ TreeFile ReadTreeFile(const std::string& path, const TreeFileOptions& options);
 // Writes `crs` to PATH.prj (PATH without its extension), beside a CSV.
 void WriteCrsSidecar(const std::string& csv_path, const std::string& crs);
 
+// Adds --to-crs to `command`, storing its text.
+void AddToCrsOption(CLI::App& command, std::string& to_crs);
+
+// Puts `rows`, read from `path` in CRS `from` (the file's own or --crs; empty: unknown), into
+// CRS `to` (--to-crs; "utm": the WGS 84 / UTM zone of their centre) and returns the CRS they are
+// then in. Only x and y move; heights are kept. Without `to`, a `from` whose coordinates are not
+// metres on a plane (degrees, feet) is refused, naming the --to-crs that would take it. Throws
+// CommandError naming the file (and the tree PROJ cannot move).
+std::string ReprojectTrees(std::vector<MapTreeRow>& rows, const std::string& path,
+                           const std::string& from, const std::string& to, std::ostream& log);
+
+// "EPSG:n (name)", or the CRS's name, for messages (ShortCrs when PROJ does not know it).
+std::string DescribedCrs(const std::string& crs);
+
 // "EPSG:n", or the name in a WKT's first quotes, for messages.
 std::string ShortCrs(const std::string& crs);
 

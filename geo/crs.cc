@@ -1,10 +1,13 @@
 #include "geo/crs.h"
 
 #include <geodesic.h>
-#include <proj.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
+
+#include "geo/proj_handles.h"
 
 namespace forestmap::geo {
 namespace {
@@ -13,18 +16,57 @@ constexpr size_t kMaxCachedCrs = 256;        // distinct CRS texts kept parsed
 constexpr double kHeadingStepM = 1.0;        // m: the heading is the azimuth to a point this far
 constexpr const char* kWgs84 = "EPSG:4979";  // WGS84 geographic 3-D (lat, lon, h)
 
-// A PROJ context of our own: its errors are read here, never logged by PROJ.
-struct Context {
-  Context() : ctx(proj_context_create()) { proj_log_level(ctx, PJ_LOG_NONE); }
-  ~Context() { proj_context_destroy(ctx); }
-  std::string Error() const { return proj_context_errno_string(ctx, proj_context_errno(ctx)); }
-  PJ_CONTEXT* ctx;
-};
+using internal::Context;
+using internal::PjPtr;
 
-struct PjDeleter {
-  void operator()(PJ* pj) const { proj_destroy(pj); }
-};
-using PjPtr = std::unique_ptr<PJ, PjDeleter>;
+// The horizontal part of a CRS: a bound CRS's source, a compound CRS's first component.
+PjPtr HorizontalPart(PJ_CONTEXT* ctx, const PJ* crs) {
+  PjPtr part(proj_clone(ctx, crs));
+  constexpr int kMaxNesting = 3;  // e.g. a bound CRS of a compound CRS
+  for (int depth = 0; part && depth < kMaxNesting; ++depth) {
+    const PJ_TYPE type = proj_get_type(part.get());
+    if (type == PJ_TYPE_BOUND_CRS) {
+      part.reset(proj_get_source_crs(ctx, part.get()));
+    } else if (type == PJ_TYPE_COMPOUND_CRS) {
+      part.reset(proj_crs_get_sub_crs(ctx, part.get(), 0));
+    } else {
+      break;
+    }
+  }
+  return part;
+}
+
+// CrsInfo::map_problem of `crs`.
+std::string MapProblem(PJ_CONTEXT* ctx, const PJ* crs) {
+  const PjPtr horizontal = HorizontalPart(ctx, crs);
+  if (!horizontal) return "PROJ cannot tell its horizontal part";
+  switch (proj_get_type(horizontal.get())) {
+    case PJ_TYPE_GEOGRAPHIC_CRS:
+    case PJ_TYPE_GEOGRAPHIC_2D_CRS:
+    case PJ_TYPE_GEOGRAPHIC_3D_CRS:
+      return "it is geographic: its coordinates are degrees of longitude and latitude";
+    case PJ_TYPE_GEOCENTRIC_CRS:
+      return "it is geocentric: its coordinates are earth-centred X, Y, Z";
+    case PJ_TYPE_PROJECTED_CRS:
+    case PJ_TYPE_ENGINEERING_CRS:
+      break;
+    default:
+      return "it has no horizontal plane";
+  }
+  const PjPtr cs(proj_crs_get_coordinate_system(ctx, horizontal.get()));
+  double to_metre = 0;
+  const char* unit = nullptr;
+  if (!cs || proj_cs_get_axis_count(ctx, cs.get()) < 2 ||
+      !proj_cs_get_axis_info(ctx, cs.get(), 0, nullptr, nullptr, nullptr, &to_metre, &unit, nullptr,
+                             nullptr)) {
+    return "PROJ cannot tell the unit of its axes";
+  }
+  if (to_metre == 1.0) return "";
+  char factor[32];
+  std::snprintf(factor, sizeof factor, "%.10g", to_metre);
+  return std::string("its coordinates are in ") + (unit ? unit : "an unnamed unit") + " (" +
+         factor + " m), not metres";
+}
 
 CrsInfo Parse(const std::string& text) {
   Context context;
@@ -44,6 +86,7 @@ CrsInfo Parse(const std::string& text) {
   if (const char* name = proj_get_name(crs.get())) info.name = name;
   const PJ_TYPE type = proj_get_type(crs.get());
   info.projected = type == PJ_TYPE_PROJECTED_CRS;
+  info.map_problem = MapProblem(context.ctx, crs.get());
   const char* authority = proj_get_id_auth_name(crs.get(), 0);
   const char* code = proj_get_id_code(crs.get(), 0);
   if (authority && code && std::string(authority) == "EPSG") {
@@ -80,42 +123,65 @@ CrsInfo ParseCrs(const std::string& text) {
   return info;
 }
 
-struct MapToWgs84::Impl {
+struct Reprojection::Impl {
   Context context;
   PjPtr transform;
-  geod_geodesic wgs84;
 };
 
-MapToWgs84::MapToWgs84(const std::string& crs) : impl_(std::make_unique<Impl>()) {
+Reprojection::Reprojection(const std::string& from, const std::string& to)
+    : impl_(std::make_unique<Impl>()) {
   PJ_CONTEXT* ctx = impl_->context.ctx;
-  PjPtr raw(proj_create_crs_to_crs(ctx, crs.c_str(), kWgs84, nullptr));
-  if (!raw)
-    throw CrsError("no transformation from '" + crs + "' to WGS84: " + impl_->context.Error());
-  // Easting/northing in, longitude/latitude out, whatever the CRSs' axis orders.
+  PjPtr raw(proj_create_crs_to_crs(ctx, from.c_str(), to.c_str(), nullptr));
+  if (!raw) {
+    throw CrsError("no transformation from '" + from + "' to '" + to +
+                   "': " + impl_->context.Error());
+  }
+  // Easting/northing (longitude/latitude) in and out, whatever the CRSs' axis orders.
   impl_->transform.reset(proj_normalize_for_visualization(ctx, raw.get()));
   if (!impl_->transform) throw CrsError(impl_->context.Error());
-  geod_init(&impl_->wgs84, 6378137.0, 1 / 298.257223563);  // WGS84 ellipsoid
 }
 
-MapToWgs84::~MapToWgs84() = default;
+Reprojection::~Reprojection() = default;
 
-GeodeticPose MapToWgs84::Convert(double x, double y, double z, double yaw_rad) const {
+void Reprojection::Apply(double& x, double& y, double& z) const {
   std::lock_guard<std::mutex> lock(mutex_);
-  PJ* transform = impl_->transform.get();
-  const PJ_COORD at = proj_trans(transform, PJ_FWD, proj_coord(x, y, z, 0));
-  const PJ_COORD ahead = proj_trans(transform, PJ_FWD,
-                                    proj_coord(x + kHeadingStepM * std::cos(yaw_rad),
-                                               y + kHeadingStepM * std::sin(yaw_rad), z, 0));
-  if (!std::isfinite(at.lpzt.lam) || !std::isfinite(ahead.lpzt.lam)) {
+  const PJ_COORD out = proj_trans(impl_->transform.get(), PJ_FWD, proj_coord(x, y, z, 0));
+  if (!std::isfinite(out.xyzt.x) || !std::isfinite(out.xyzt.y)) {
     throw CrsError("PROJ cannot transform the point: " + impl_->context.Error());
   }
+  x = out.xyzt.x;
+  y = out.xyzt.y;
+  z = out.xyzt.z;
+}
+
+std::string UtmZoneCrs(double longitude_deg, double latitude_deg) {
+  constexpr double kSouthLimit = -80, kNorthLimit = 84;  // degrees: UTM's domain
+  if (!(latitude_deg >= kSouthLimit && latitude_deg <= kNorthLimit) ||
+      !std::isfinite(longitude_deg)) {
+    throw CrsError("no UTM zone at latitude " + std::to_string(latitude_deg) +
+                   " (UTM covers 80 S to 84 N)");
+  }
+  const double wrapped = std::remainder(longitude_deg, 360.0);  // [-180, 180]
+  const int zone = std::clamp(static_cast<int>(std::floor((wrapped + 180) / 6)) + 1, 1, 60);
+  return "EPSG:" + std::to_string((latitude_deg >= 0 ? 32600 : 32700) + zone);
+}
+
+MapToWgs84::MapToWgs84(const std::string& crs) : to_wgs84_(crs, kWgs84) {}
+
+GeodeticPose MapToWgs84::Convert(double x, double y, double z, double yaw_rad) const {
+  double lon = x, lat = y, height = z;
+  to_wgs84_.Apply(lon, lat, height);
+  double ahead_lon = x + kHeadingStepM * std::cos(yaw_rad);
+  double ahead_lat = y + kHeadingStepM * std::sin(yaw_rad), ahead_height = z;
+  to_wgs84_.Apply(ahead_lon, ahead_lat, ahead_height);
   GeodeticPose pose;
-  pose.longitude_deg = at.lpzt.lam;
-  pose.latitude_deg = at.lpzt.phi;
-  pose.ellipsoidal_height_m = at.lpzt.z;
+  pose.longitude_deg = lon;
+  pose.latitude_deg = lat;
+  pose.ellipsoidal_height_m = height;
+  geod_geodesic wgs84;
+  geod_init(&wgs84, 6378137.0, 1 / 298.257223563);  // WGS84 ellipsoid
   double distance = 0, azimuth = 0, azimuth_end = 0;
-  geod_inverse(&impl_->wgs84, at.lpzt.phi, at.lpzt.lam, ahead.lpzt.phi, ahead.lpzt.lam, &distance,
-               &azimuth, &azimuth_end);
+  geod_inverse(&wgs84, lat, lon, ahead_lat, ahead_lon, &distance, &azimuth, &azimuth_end);
   pose.true_heading_deg = std::fmod(azimuth + 360.0, 360.0);
   const double grid_heading_deg = 90.0 - yaw_rad * 180.0 / M_PI;
   pose.grid_convergence_deg = std::remainder(pose.true_heading_deg - grid_heading_deg, 360.0);

@@ -1,7 +1,7 @@
 #pragma once
-// Coordinate reference systems through PROJ (the one file that includes proj.h): parsing and
-// validating a CRS given as an EPSG code, WKT or PROJ string, and turning map poses into WGS84
-// latitude, longitude, ellipsoidal height and true heading.
+// Coordinate reference systems through PROJ (only geo/*.cc include proj.h): parsing and
+// validating a CRS given as an EPSG code, WKT or PROJ string, moving points between CRSs, and
+// turning map poses into WGS84 latitude, longitude, ellipsoidal height and true heading.
 //
 // Map frame convention: x east(ing), y north(ing), z up, metres, in the map's projected CRS;
 // the CRS's own axis order (some EPSG CRSs are northing-first) is normalised away here.
@@ -24,6 +24,10 @@ struct CrsInfo {
   int epsg = 0;      // the EPSG code it is identical to; 0 when it has none
   std::string name;  // e.g. "NAD83(CSRS) / UTM zone 17N"
   bool projected = false;
+  // Why its coordinates cannot be a map's x, y (a plane in metres), for users: e.g. "it is
+  // geographic: its coordinates are degrees"; empty when they can (projected or engineering
+  // CRSs in metres, alone or with a vertical CRS).
+  std::string map_problem;
   // How to store it: "EPSG:n" when it has an EPSG code, else the WKT.
   std::string Canonical() const;
 };
@@ -31,6 +35,30 @@ struct CrsInfo {
 // Parses `text` ("EPSG:2959", WKT, "+proj=utm +zone=17 ..."); throws CrsError. Results are
 // cached (PROJ's database look-ups take milliseconds). Thread-safe.
 CrsInfo ParseCrs(const std::string& text);
+
+// Moves points from one CRS to another with PROJ's best transformation for each point, as cs2cs
+// does; coordinates in easting, northing (longitude, latitude) order whatever the CRSs' axis
+// orders. Thread-safe (PROJ objects are used under a lock).
+class Reprojection {
+ public:
+  Reprojection(const std::string& from, const std::string& to);  // throws CrsError
+  ~Reprojection();
+  Reprojection(const Reprojection&) = delete;
+  Reprojection& operator=(const Reprojection&) = delete;
+
+  // x, y, z in place (z passes unchanged between 2-D CRSs); throws CrsError when PROJ cannot
+  // transform the point (outside the CRSs' domain).
+  void Apply(double& x, double& y, double& z) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  mutable std::mutex mutex_;
+};
+
+// "EPSG:326zz" (north) or "EPSG:327zz" (south): the WGS 84 / UTM zone of a point (degrees).
+// Throws CrsError for a latitude outside UTM's [-80, 84] or a non-finite point.
+std::string UtmZoneCrs(double longitude_deg, double latitude_deg);
 
 // The WGS84 pose of a sensor.
 struct GeodeticPose {
@@ -46,18 +74,13 @@ struct GeodeticPose {
 class MapToWgs84 {
  public:
   explicit MapToWgs84(const std::string& crs);  // throws CrsError
-  ~MapToWgs84();
-  MapToWgs84(const MapToWgs84&) = delete;
-  MapToWgs84& operator=(const MapToWgs84&) = delete;
 
   // A position (map x, y, z in metres) and the sensor's grid heading (yaw, radians counter-
   // clockwise from map x). Throws CrsError when PROJ cannot transform the point.
   GeodeticPose Convert(double x, double y, double z, double yaw_rad) const;
 
  private:
-  struct Impl;
-  std::unique_ptr<Impl> impl_;
-  mutable std::mutex mutex_;
+  Reprojection to_wgs84_;
 };
 
 }  // namespace forestmap::geo

@@ -9,15 +9,23 @@ namespace forestmap::server {
 
 std::string CanonicalCrs(const std::string& crs) {
   if (crs.empty()) return crs;
+  constexpr size_t kMaxShown = 64;
+  const std::string shown = crs.size() > kMaxShown ? crs.substr(0, kMaxShown) + "..." : crs;
+  geo::CrsInfo info;
   try {
-    return geo::ParseCrs(crs).Canonical();
+    info = geo::ParseCrs(crs);
   } catch (const geo::CrsError& error) {
-    constexpr size_t kMaxShown = 64;
-    const std::string shown = crs.size() > kMaxShown ? crs.substr(0, kMaxShown) + "..." : crs;
     throw ValidationError("crs \"" + shown +
                           "\" is not a coordinate reference system PROJ knows (" + error.what() +
                           "); give an EPSG code (EPSG:2959), WKT or a PROJ string");
   }
+  if (!info.map_problem.empty()) {
+    throw ValidationError("crs \"" + shown + "\" (" + info.name +
+                          ") cannot be a map's: " + info.map_problem +
+                          ", and a map's x and y are metres; reproject the trees to a projected "
+                          "CRS in metres (forestmap map create --to-crs utm)");
+  }
+  return info.Canonical();
 }
 
 void DescribeCrs(v1::Map& map) {

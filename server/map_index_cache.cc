@@ -134,7 +134,10 @@ MapIndexCache::Entry MapIndexCache::BuildEntry(const std::string& name) const {
   entry.created_unix_ms = snapshot.info.created_unix_ms;
   if (!snapshot.info.crs.empty()) {
     try {
-      entry.to_wgs84 = std::make_shared<const geo::MapToWgs84>(snapshot.info.crs);
+      // Not for a CRS stored before maps had to be in metres: its poses mean nothing in WGS84.
+      if (geo::ParseCrs(snapshot.info.crs).map_problem.empty()) {
+        entry.to_wgs84 = std::make_shared<const geo::MapToWgs84>(snapshot.info.crs);
+      }
     } catch (const geo::CrsError&) {
       // A free-text CRS from before validation: answers stay in map coordinates.
     }

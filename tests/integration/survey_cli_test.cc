@@ -149,6 +149,75 @@ TEST_F(SurveyCliTest, GeoJsonShapefileAndCsvRoundTripWithTheirCrsAndNullFields) 
   }
 }
 
+// Files in degrees or feet (QGIS writes GeoJSON in WGS 84, as RFC 7946 says) are refused with
+// the --to-crs that takes them, reprojected with it, and moved into an existing map's CRS by
+// `map upload`.
+TEST_F(SurveyCliTest, TreesInDegreesOrFeetAreReprojectedIntoMetres) {
+  ASSERT_EQ(CreateField("prf025", "--dbh-unit cm --crs EPSG:2959").exit_code, 0);
+  const std::string gpkg = (dir_ / "prf025.gpkg").string();
+  ASSERT_EQ(Cli("map export prf025 --out '" + gpkg + "'").exit_code, 0);
+  const std::string degrees = (dir_ / "wgs84.geojson").string();
+  const std::string feet = (dir_ / "feet.geojson").string();
+  ASSERT_EQ(
+      Shell("ogr2ogr -f GeoJSON -lco RFC7946=YES -t_srs EPSG:4326 '" + degrees + "' '" + gpkg + "'")
+          .exit_code,
+      0);
+  ASSERT_EQ(Shell("ogr2ogr -f GeoJSON -t_srs EPSG:2263 '" + feet + "' '" + gpkg + "'").exit_code,
+            0);
+
+  const Result refused = Cli("map create wgs --trees '" + degrees + "'");
+  EXPECT_EQ(refused.exit_code, 1);
+  EXPECT_NE(refused.err.find("wgs84.geojson: its CRS EPSG:4326 (WGS 84) cannot be a map's: it is "
+                             "geographic"),
+            std::string::npos)
+      << refused.err;
+  EXPECT_NE(refused.err.find("--to-crs utm (here EPSG:32618)"), std::string::npos) << refused.err;
+
+  const auto original = client_.ExportTrees("prf025").trees;
+  const auto expect_original = [&](const std::string& map, double tolerance) {
+    const auto trees = client_.ExportTrees(map).trees;
+    ASSERT_EQ(trees.size(), original.size()) << map;
+    for (size_t i = 0; i < trees.size(); ++i) {
+      EXPECT_EQ(trees[i].id, original[i].id) << map;
+      EXPECT_NEAR(trees[i].x, original[i].x, tolerance) << map << " tree " << *trees[i].id;
+      EXPECT_NEAR(trees[i].y, original[i].y, tolerance) << map << " tree " << *trees[i].id;
+      EXPECT_EQ(trees[i].attributes, original[i].attributes) << map;
+    }
+  };
+  constexpr double kRfc7946Metres = 0.02;  // RFC 7946 GeoJSON keeps 7 decimals of a degree
+  const Result back = Cli("map create back --trees '" + degrees + "' --to-crs EPSG:2959");
+  ASSERT_EQ(back.exit_code, 0) << back.err;
+  EXPECT_NE(back.err.find("62 trees reprojected from EPSG:4326 (WGS 84) to EPSG:2959"),
+            std::string::npos)
+      << back.err;
+  expect_original("back", kRfc7946Metres);
+  ASSERT_EQ(Cli("map create zone --trees '" + degrees + "' --to-crs utm").exit_code, 0);
+  EXPECT_EQ(client_.GetMap("zone").crs_epsg(), 32618);
+
+  // map upload: the feet file into a map in metres, then a replace by the GeoPackage.
+  ASSERT_EQ(Cli("map create upload --crs EPSG:2959").exit_code, 0);
+  const Result appended = Cli("map upload upload --trees '" + feet + "'");
+  ASSERT_EQ(appended.exit_code, 0) << appended.err;
+  EXPECT_NE(appended.out.find("appended to map 'upload': 62 trees uploaded, 62 trees"),
+            std::string::npos)
+      << appended.out;
+  expect_original("upload", 1e-6);
+  const Result replaced = Cli("map upload upload --replace --trees '" + gpkg + "'");
+  ASSERT_EQ(replaced.exit_code, 0) << replaced.err;
+  EXPECT_NE(replaced.out.find("replaced the trees of map 'upload': 62 trees uploaded, 62 trees, "
+                              "version 3"),
+            std::string::npos)
+      << replaced.out;
+  const Result twice = Cli("map upload upload --trees '" + gpkg + "'");  // the same ids again
+  EXPECT_EQ(twice.exit_code, 1);
+  EXPECT_NE(twice.err.find("tree id already exists in the map; the map is unchanged"),
+            std::string::npos)
+      << twice.err;
+  EXPECT_EQ(client_.GetMap("upload").version(), 3);
+  EXPECT_EQ(Cli("map upload nosuch --trees '" + gpkg + "'").exit_code, 1);
+  EXPECT_EQ(client_.ListMaps().size(), 4u);  // prf025, back, zone, upload
+}
+
 TEST_F(SurveyCliTest, InputErrorsNameFileAndFieldAndCreateNothing) {
   const Result unit = CreateField("a", "--crs EPSG:2959");
   EXPECT_EQ(unit.exit_code, 1);
@@ -162,7 +231,8 @@ TEST_F(SurveyCliTest, InputErrorsNameFileAndFieldAndCreateNothing) {
 
   const Result crs = CreateField("c", "--dbh-unit cm --crs 'not a crs at all'");
   EXPECT_EQ(crs.exit_code, 1);
-  EXPECT_NE(crs.err.find("INVALID_ARGUMENT: crs \"not a crs at all\""), std::string::npos)
+  EXPECT_NE(crs.err.find("PRF025_Field.csv: CRS 'not a crs at all' is not one PROJ knows"),
+            std::string::npos)
       << crs.err;
 
   const fs::path bad = dir_ / "bad.geojson";

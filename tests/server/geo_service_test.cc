@@ -69,6 +69,33 @@ TEST_F(GeoServiceTest, UnknownCrsIsRefusedAndNothingIsCreated) {
   EXPECT_TRUE(client_.ListMaps().empty());
 }
 
+// A map's x and y are metres on a plane: a CRS in degrees or feet would store trees whose
+// distances mean nothing to the relocalizer.
+TEST_F(GeoServiceTest, CrsInDegreesOrFeetIsRefusedAndNothingIsCreated) {
+  try {
+    client_.CreateMap("wgs84", "", "EPSG:4326");
+    FAIL() << "created a map in degrees";
+  } catch (const client::RpcError& error) {
+    EXPECT_EQ(error.code(), grpc::StatusCode::INVALID_ARGUMENT);
+    const std::string what = error.what();
+    EXPECT_NE(what.find("crs \"EPSG:4326\" (WGS 84) cannot be a map's: it is geographic"),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("--to-crs utm"), std::string::npos) << what;
+  }
+  client::MapTreeRow tree;
+  tree.x = 1000000;
+  tree.y = 200000;
+  try {
+    client_.CreateMapWithTrees("feet", "", "EPSG:2263", {tree});
+    FAIL() << "created a map in feet";
+  } catch (const client::RpcError& error) {
+    EXPECT_EQ(error.code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_NE(std::string(error.what()).find("US survey foot"), std::string::npos) << error.what();
+  }
+  EXPECT_TRUE(client_.ListMaps().empty());
+}
+
 TEST_F(GeoServiceTest, CrsIsStoredAsEpsgAndDescribedAsWkt) {
   const v1::Map epsg = client_.CreateMap("epsg", "", "EPSG:2959");
   EXPECT_EQ(epsg.crs(), "EPSG:2959");

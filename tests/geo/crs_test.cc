@@ -1,0 +1,86 @@
+// geo/crs.h on its own: which CRSs can hold a map (a plane in metres), points moved between CRSs
+// as PROJ's command line (cs2cs) moves them, and the UTM zone of a point.
+
+#include "geo/crs.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <string>
+
+namespace forestmap::geo {
+namespace {
+
+constexpr double kMetreTolerance = 1e-6;  // m, against cs2cs's 12 decimals
+
+// cs2cs -f %.12f FROM TO of "x y z", in the CRSs' own axis orders.
+void Cs2cs(const std::string& crss, double& x, double& y, double z) {
+  char command[256];
+  std::snprintf(command, sizeof command, "echo '%.12f %.12f %.12f' | cs2cs -f %%.12f %s", x, y, z,
+                crss.c_str());
+  FILE* pipe = popen(command, "r");
+  ASSERT_NE(pipe, nullptr);
+  char line[256] = {};
+  const bool read = std::fgets(line, sizeof line, pipe) != nullptr;
+  pclose(pipe);
+  ASSERT_TRUE(read) << "cs2cs gave no output (is proj-bin installed?)";
+  std::istringstream(line) >> x >> y;
+}
+
+TEST(CrsTest, ProjectedCrsInMetresCanHoldAMap) {
+  for (const char* crs : {"EPSG:2959", "EPSG:32618", "+proj=utm +zone=18 +ellps=GRS80",
+                          "+proj=tmerc +lon_0=10 +towgs84=1,2,3", "EPSG:2959+5713"}) {
+    const CrsInfo info = ParseCrs(crs);
+    EXPECT_EQ(info.map_problem, "") << crs;
+  }
+}
+
+TEST(CrsTest, DegreesFeetAndGeocentricCannotHoldAMap) {
+  EXPECT_NE(ParseCrs("EPSG:4326").map_problem.find("geographic"), std::string::npos);
+  EXPECT_NE(ParseCrs("EPSG:4979").map_problem.find("degrees"), std::string::npos);
+  EXPECT_NE(ParseCrs("+proj=longlat +datum=WGS84").map_problem.find("geographic"),
+            std::string::npos);
+  EXPECT_NE(ParseCrs("EPSG:4978").map_problem.find("geocentric"), std::string::npos);
+  const std::string feet = ParseCrs("EPSG:2263").map_problem;  // NY Long Island (ftUS)
+  EXPECT_NE(feet.find("US survey foot (0.3048006096 m)"), std::string::npos) << feet;
+  EXPECT_NE(ParseCrs("EPSG:5713").map_problem.find("no horizontal plane"), std::string::npos);
+}
+
+TEST(CrsTest, ReprojectionAgreesWithCs2cs) {
+  const Reprojection to_utm("EPSG:4326", "EPSG:2959");
+  double x = -75.25, y = 46.03, z = 123.0;  // longitude, latitude
+  to_utm.Apply(x, y, z);
+  double cx = 46.03, cy = -75.25;  // cs2cs takes EPSG:4326 as latitude, longitude
+  Cs2cs("EPSG:4326 EPSG:2959", cx, cy, 123.0);
+  EXPECT_NEAR(x, cx, kMetreTolerance);
+  EXPECT_NEAR(y, cy, kMetreTolerance);
+  EXPECT_EQ(z, 123.0);  // a 2-D target keeps heights
+
+  const Reprojection from_feet("EPSG:2263", "EPSG:32618");
+  double fx = 1000000.0, fy = 200000.0, fz = 0;
+  from_feet.Apply(fx, fy, fz);
+  double gx = 1000000.0, gy = 200000.0;
+  Cs2cs("EPSG:2263 EPSG:32618", gx, gy, 0.0);
+  EXPECT_NEAR(fx, gx, kMetreTolerance);
+  EXPECT_NEAR(fy, gy, kMetreTolerance);
+
+  double far_x = 1e30, far_y = 1e30, far_z = 0;
+  EXPECT_THROW(to_utm.Apply(far_x, far_y, far_z), CrsError);
+}
+
+TEST(CrsTest, UtmZoneOfAPoint) {
+  EXPECT_EQ(UtmZoneCrs(-75.25, 46.03), "EPSG:32618");
+  EXPECT_EQ(UtmZoneCrs(10.5, -33.0), "EPSG:32732");
+  EXPECT_EQ(UtmZoneCrs(-180.0, 0.0), "EPSG:32601");
+  EXPECT_EQ(UtmZoneCrs(179.999, 0.0), "EPSG:32660");
+  EXPECT_EQ(UtmZoneCrs(180.0, 0.0), "EPSG:32660");
+  EXPECT_EQ(UtmZoneCrs(370.5, 10.0), "EPSG:32632");  // wrapped longitude
+  EXPECT_THROW(UtmZoneCrs(0, 85.0), CrsError);
+  EXPECT_THROW(UtmZoneCrs(0, std::nan("")), CrsError);
+  EXPECT_THROW(UtmZoneCrs(std::nan(""), 0), CrsError);
+}
+
+}  // namespace
+}  // namespace forestmap::geo
