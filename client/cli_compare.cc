@@ -16,6 +16,7 @@
 #include "algorithms/evaluation/inventory_comparison.h"
 #include "client/cli_commands.h"
 #include "client/cli_tree_input.h"
+#include "client/io/las_crs.h"
 #include "client/scan_trees.h"
 
 namespace forestmap::client {
@@ -69,13 +70,30 @@ std::vector<MapTreeRow> DetectInScan(const CompareOptions& o, const CliContext& 
   return rows;
 }
 
-std::vector<MapTreeRow> ReadDetections(const CompareOptions& o, const CliContext& context) {
+// The detections and the CRS they are in ("" when unknown).
+TreeFile ReadDetections(const CompareOptions& o, const CliContext& context) {
   const std::string prefix = "map:";
   if (o.detections.rfind(prefix, 0) == 0) {
-    return context.Connect().ExportTrees(o.detections.substr(prefix.size())).trees;
+    const std::string name = o.detections.substr(prefix.size());
+    ForestMapClient client = context.Connect();
+    return {client.ExportTrees(name).trees, client.GetMap(name).crs()};
   }
-  if (IsScan(o)) return DetectInScan(o, context);
-  return ReadTreeFile(o.detections, TreeFileOptionsFrom(o.columns, o.dbh_unit)).rows;
+  if (IsScan(o)) return {DetectInScan(o, context), ReadLasCrs(o.detections)};
+  return ReadTreeFile(o.detections, TreeFileOptionsFrom(o.columns, o.dbh_unit));
+}
+
+// Both inventories in one CRS in metres, when they declare their CRSs: the reference's, or the
+// UTM zone of the reference when it is in degrees or feet. One without a CRS is taken to be in
+// the other's.
+void AlignCrs(const CompareOptions& o, TreeFile& detected, TreeFile& reference, std::ostream& log) {
+  if (!InMetres(reference.crs)) {
+    reference.crs = ReprojectTrees(reference.rows, o.reference, reference.crs, "utm", log);
+  }
+  if (detected.crs.empty()) return;
+  const std::string target =
+      reference.crs.empty() ? (InMetres(detected.crs) ? "" : "utm") : reference.crs;
+  if (target.empty() || (target != "utm" && SameCrs(target, detected.crs))) return;
+  detected.crs = ReprojectTrees(detected.rows, o.detections, detected.crs, target, log);
 }
 
 std::vector<algorithms::DetectedTree> AsDetections(const std::vector<MapTreeRow>& rows) {
@@ -169,10 +187,12 @@ void PrintTable(const CompareOptions& o, const algorithms::InventoryComparison& 
 
 void Run(const CompareOptions& o, const CliContext& context) {
   // The reference first: its errors come before a scan's detection work.
-  const std::vector<MapTreeRow> reference_rows =
-      ReadTreeFile(o.reference, TreeFileOptionsFrom(o.reference_columns, o.reference_dbh_unit))
-          .rows;
-  const std::vector<MapTreeRow> detected_rows = ReadDetections(o, context);
+  TreeFile reference_file =
+      ReadTreeFile(o.reference, TreeFileOptionsFrom(o.reference_columns, o.reference_dbh_unit));
+  TreeFile detected_file = ReadDetections(o, context);
+  AlignCrs(o, detected_file, reference_file, *context.err);
+  const std::vector<MapTreeRow>& reference_rows = reference_file.rows;
+  const std::vector<MapTreeRow>& detected_rows = detected_file.rows;
   std::vector<algorithms::DetectedTree> detected = AsDetections(detected_rows);
   const std::vector<algorithms::MapTree> reference = ToMapTrees(reference_rows);
   if (o.register_first) {

@@ -71,6 +71,7 @@ void RunCreate(CreateOptions options, const CliContext& context) {
     if (options.crs.empty()) options.crs = file.crs;  // a GIS file's own CRS
     options.crs =
         ReprojectTrees(rows, options.trees_file, options.crs, options.to_crs, *context.err);
+    WarnIfNotMetres(rows, options.trees_file, *context.err);
   } else if (!options.to_crs.empty()) {
     throw CommandError("--to-crs reprojects the trees of --trees FILE; without trees give --crs");
   }

@@ -38,8 +38,7 @@ void PlaceInMap(std::vector<MapTreeRow>& rows, const UploadOptions& options,
         << std::endl;
     return;
   }
-  const bool same = geo::ParseCrs(from).Canonical() == geo::ParseCrs(map_crs).Canonical();
-  if (!same) ReprojectTrees(rows, options.trees_file, from, map_crs, log);
+  if (!SameCrs(from, map_crs)) ReprojectTrees(rows, options.trees_file, from, map_crs, log);
 }
 
 void RunUpload(const UploadOptions& options, const CliContext& context) {
@@ -54,6 +53,7 @@ void RunUpload(const UploadOptions& options, const CliContext& context) {
   } catch (const geo::CrsError& e) {
     throw CommandError(options.trees_file + ": " + e.what());
   }
+  WarnIfNotMetres(file.rows, options.trees_file, *context.err);
   const bool report = static_cast<int64_t>(file.rows.size()) > ClientOptions().upload_chunk_trees;
   v1::UploadTreesResponse response;
   try {

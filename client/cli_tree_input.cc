@@ -1,11 +1,15 @@
 #include "client/cli_tree_input.h"
 
+#include <algorithm>
+#include <array>
 #include <cctype>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <stdexcept>
 
+#include "algorithms/core/kdtree.h"
 #include "client/cli_commands.h"
 #include "client/io/geo_io.h"
 #include "geo/crs.h"
@@ -135,6 +139,39 @@ void WriteCrsSidecar(const std::string& csv_path, const std::string& crs) {
   std::ofstream out(path);
   out << crs << '\n';
   if (!out) throw CommandError(path + ": cannot write the CRS");
+}
+
+void WarnIfNotMetres(const std::vector<MapTreeRow>& rows, const std::string& path,
+                     std::ostream& log) {
+  constexpr size_t kMinTrees = 10;           // fewer say little about spacing
+  constexpr size_t kSampled = 2000;          // trees whose nearest neighbour is measured
+  constexpr double kCloserThanTrees = 0.05;  // m: stems' centres are at least a DBH apart
+  if (rows.size() < kMinTrees) return;
+  std::vector<std::array<double, 2>> points;
+  points.reserve(rows.size());
+  for (const MapTreeRow& row : rows) points.push_back({row.x, row.y});
+  const algorithms::KdTree<double, 2> index(std::move(points));
+  std::vector<double> nearest;
+  const size_t step = std::max<size_t>(1, rows.size() / kSampled);
+  for (size_t i = 0; i < rows.size(); i += step) {
+    const auto two = index.Knn(index.point(i), 2);  // itself, then its nearest neighbour
+    if (two.size() == 2) nearest.push_back(std::sqrt(two[1].second));
+  }
+  std::nth_element(nearest.begin(), nearest.begin() + nearest.size() / 2, nearest.end());
+  const double median = nearest[nearest.size() / 2];
+  if (median >= kCloserThanTrees) return;
+  log << "forestmap: warning: " << path << ": half the trees are closer than " << median
+      << " to their nearest neighbour, and trees stand further apart than 0.05 m: are x and y "
+         "metres? (for degrees: --crs EPSG:4326 --to-crs utm)"
+      << std::endl;
+}
+
+bool InMetres(const std::string& crs) {
+  return crs.empty() || ParseCrsOf("the CRS", crs).map_problem.empty();
+}
+
+bool SameCrs(const std::string& a, const std::string& b) {
+  return ParseCrsOf("the CRS", a).Canonical() == ParseCrsOf("the CRS", b).Canonical();
 }
 
 std::string DescribedCrs(const std::string& crs) {

@@ -41,6 +41,16 @@ void AddToCrsOption(CLI::App& command, std::string& to_crs);
 std::string ReprojectTrees(std::vector<MapTreeRow>& rows, const std::string& path,
                            const std::string& from, const std::string& to, std::ostream& log);
 
+// Warns on `log` when the trees of `path` stand closer together than trees can (half of them
+// under 5 cm from their nearest neighbour): x and y are then not metres (degrees, km?).
+void WarnIfNotMetres(const std::vector<MapTreeRow>& rows, const std::string& path,
+                     std::ostream& log);
+
+// Whether coordinates in `crs` are metres on a plane (true for an empty, unknown CRS), and
+// whether two CRSs are the same; throw CommandError for a CRS PROJ does not know.
+bool InMetres(const std::string& crs);
+bool SameCrs(const std::string& a, const std::string& b);
+
 // "EPSG:n (name)", or the CRS's name, for messages (ShortCrs when PROJ does not know it).
 std::string DescribedCrs(const std::string& crs);
 

@@ -14,7 +14,12 @@ struct Context {
   ~Context() { proj_context_destroy(ctx); }
   Context(const Context&) = delete;
   Context& operator=(const Context&) = delete;
-  std::string Error() const { return proj_context_errno_string(ctx, proj_context_errno(ctx)); }
+  // PROJ's reason for the last failure; PROJ gives none (null) for some, e.g. no transformation
+  // between an engineering CRS and WGS84.
+  std::string Error() const {
+    const char* text = proj_context_errno_string(ctx, proj_context_errno(ctx));
+    return text ? text : "no reason given by PROJ";
+  }
   PJ_CONTEXT* ctx;
 };
 

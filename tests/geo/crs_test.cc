@@ -70,6 +70,23 @@ TEST(CrsTest, ReprojectionAgreesWithCs2cs) {
   EXPECT_THROW(to_utm.Apply(far_x, far_y, far_z), CrsError);
 }
 
+constexpr const char* kLocalGrid =
+    R"(ENGCRS["Plot 25 local grid",EDATUM["Plot 25 origin"],CS[Cartesian,2],)"
+    R"(AXIS["x",east,ORDER[1],LENGTHUNIT["metre",1]],AXIS["y",north,ORDER[2],LENGTHUNIT["metre",1]]])";
+
+// A local grid in metres can hold a map, and has no way to WGS84: a CrsError with a reason (PROJ
+// gives none itself), never a crash.
+TEST(CrsTest, LocalGridHoldsAMapAndHasNoWayToWgs84) {
+  EXPECT_EQ(ParseCrs(kLocalGrid).map_problem, "");
+  try {
+    MapToWgs84 to_wgs84(kLocalGrid);
+    FAIL() << "a local grid transformed to WGS84";
+  } catch (const CrsError& e) {
+    EXPECT_NE(std::string(e.what()).find("no transformation"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(Reprojection(kLocalGrid, "EPSG:2959"), CrsError);
+}
+
 TEST(CrsTest, UtmZoneOfAPoint) {
   EXPECT_EQ(UtmZoneCrs(-75.25, 46.03), "EPSG:32618");
   EXPECT_EQ(UtmZoneCrs(10.5, -33.0), "EPSG:32732");

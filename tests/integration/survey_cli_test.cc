@@ -194,6 +194,28 @@ TEST_F(SurveyCliTest, TreesInDegreesOrFeetAreReprojectedIntoMetres) {
   ASSERT_EQ(Cli("map create zone --trees '" + degrees + "' --to-crs utm").exit_code, 0);
   EXPECT_EQ(client_.GetMap("zone").crs_epsg(), 32618);
 
+  // Degrees in a CSV without a CRS: the trees are centimetres apart, which says so.
+  const fs::path lon_lat = dir_ / "lon_lat.csv";
+  std::ofstream table(lon_lat);
+  table << "x,y\n";
+  for (int i = 0; i < 20; ++i)
+    table << -75.25 + i % 5 * 3e-5 << ',' << 46.03 + i / 5 * 3e-5 << '\n';
+  table.close();
+  const Result warned = Cli("map create lonlat --trees '" + lon_lat.string() + "'");
+  EXPECT_EQ(warned.exit_code, 0) << warned.err;
+  EXPECT_NE(warned.err.find("are x and y metres? (for degrees: --crs EPSG:4326 --to-crs utm)"),
+            std::string::npos)
+      << warned.err;
+  EXPECT_EQ(CreateField("metres", "--dbh-unit cm").err.find("are x and y metres"),
+            std::string::npos);
+
+  // compare: the map (EPSG:2959) against the same trees in degrees, both taken to UTM 18N.
+  const Result compared = Cli("compare map:prf025 --reference '" + degrees + "' --json");
+  ASSERT_EQ(compared.exit_code, 0) << compared.err;
+  const nlohmann::json comparison = nlohmann::json::parse(compared.out);
+  EXPECT_EQ(comparison["linked"], 62) << compared.out;
+  EXPECT_LT(comparison["position_rmse_m"].get<double>(), kRfc7946Metres) << compared.out;
+
   // map upload: the feet file into a map in metres, then a replace by the GeoPackage.
   ASSERT_EQ(Cli("map create upload --crs EPSG:2959").exit_code, 0);
   const Result appended = Cli("map upload upload --trees '" + feet + "'");
@@ -215,7 +237,7 @@ TEST_F(SurveyCliTest, TreesInDegreesOrFeetAreReprojectedIntoMetres) {
       << twice.err;
   EXPECT_EQ(client_.GetMap("upload").version(), 3);
   EXPECT_EQ(Cli("map upload nosuch --trees '" + gpkg + "'").exit_code, 1);
-  EXPECT_EQ(client_.ListMaps().size(), 4u);  // prf025, back, zone, upload
+  EXPECT_EQ(client_.ListMaps().size(), 6u);  // prf025, back, zone, lonlat, metres, upload
 }
 
 TEST_F(SurveyCliTest, InputErrorsNameFileAndFieldAndCreateNothing) {
