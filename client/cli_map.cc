@@ -68,10 +68,10 @@ void RunCreate(CreateOptions options, const CliContext& context) {
     TreeFile file =
         ReadTreeFile(options.trees_file, TreeFileOptionsFrom(options.columns, options.dbh_unit));
     rows = std::move(file.rows);
-    if (options.crs.empty()) options.crs = file.crs;  // a GIS file's own CRS
+    options.crs = CrsOfTrees(options.trees_file, options.crs, file.crs);
     options.crs =
         ReprojectTrees(rows, options.trees_file, options.crs, options.to_crs, *context.err);
-    WarnIfNotMetres(rows, options.trees_file, *context.err);
+    CheckTreePlacement(rows, options.trees_file, options.crs, *context.err);
   } else if (!options.to_crs.empty()) {
     throw CommandError("--to-crs reprojects the trees of --trees FILE; without trees give --crs");
   }

@@ -48,12 +48,12 @@ void RunUpload(const UploadOptions& options, const CliContext& context) {
   ForestMapClient client = context.Connect();
   const v1::Map map = client.GetMap(options.name);
   try {
-    PlaceInMap(file.rows, options, options.crs.empty() ? file.crs : options.crs, map.crs(),
+    PlaceInMap(file.rows, options, CrsOfTrees(options.trees_file, options.crs, file.crs), map.crs(),
                *context.err);
   } catch (const geo::CrsError& e) {
     throw CommandError(options.trees_file + ": " + e.what());
   }
-  WarnIfNotMetres(file.rows, options.trees_file, *context.err);
+  CheckTreePlacement(file.rows, options.trees_file, map.crs(), *context.err);
   const bool report = static_cast<int64_t>(file.rows.size()) > ClientOptions().upload_chunk_trees;
   v1::UploadTreesResponse response;
   try {

@@ -141,6 +141,8 @@ void WriteCrsSidecar(const std::string& csv_path, const std::string& crs) {
   if (!out) throw CommandError(path + ": cannot write the CRS");
 }
 
+namespace {
+
 void WarnIfNotMetres(const std::vector<MapTreeRow>& rows, const std::string& path,
                      std::ostream& log) {
   constexpr size_t kMinTrees = 10;           // fewer say little about spacing
@@ -164,6 +166,47 @@ void WarnIfNotMetres(const std::vector<MapTreeRow>& rows, const std::string& pat
       << " to their nearest neighbour, and trees stand further apart than 0.05 m: are x and y "
          "metres? (for degrees: --crs EPSG:4326 --to-crs utm)"
       << std::endl;
+}
+
+void WarnIfOutsideArea(const std::vector<MapTreeRow>& rows, const std::string& path,
+                       const std::string& crs, std::ostream& log) {
+  constexpr double kMarginDeg = 1.0;  // CRSs are used a little beyond their official area
+  const geo::CrsInfo info = ParseCrsOf(path, crs);
+  double x = 0, y = 0, z = 0;
+  for (const MapTreeRow& row : rows) {
+    x += row.x / static_cast<double>(rows.size());
+    y += row.y / static_cast<double>(rows.size());
+  }
+  try {
+    geo::Reprojection(crs, "EPSG:4326").Apply(x, y, z);
+    if (info.InArea(x, y, kMarginDeg)) return;
+    log << "forestmap: warning: " << path << ": the trees' centre (longitude " << x << ", latitude "
+        << y << ") is outside the area of use of " << Described(info) << " (" << info.area
+        << "): is that the trees' CRS?" << std::endl;
+  } catch (const geo::CrsError& e) {
+    log << "forestmap: warning: " << path << ": the trees' centre does not map onto the Earth in "
+        << Described(info) << " (" << e.what() << "): is that the trees' CRS?" << std::endl;
+  }
+}
+
+}  // namespace
+
+void CheckTreePlacement(const std::vector<MapTreeRow>& rows, const std::string& path,
+                        const std::string& crs, std::ostream& log) {
+  WarnIfNotMetres(rows, path, log);
+  if (!crs.empty() && !rows.empty()) WarnIfOutsideArea(rows, path, crs, log);
+}
+
+std::string CrsOfTrees(const std::string& path, const std::string& given,
+                       const std::string& declared) {
+  if (given.empty()) return declared;
+  if (!declared.empty() && !SameCrs(given, declared)) {
+    throw CommandError(path + " declares its CRS, " + DescribedCrs(declared) + "; --crs " +
+                       DescribedCrs(given) +
+                       " would relabel its coordinates without moving them: to move them into " +
+                       "that CRS use --to-crs (map create) or upload into a map in it");
+  }
+  return given;
 }
 
 bool InMetres(const std::string& crs) {

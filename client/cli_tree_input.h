@@ -41,10 +41,16 @@ void AddToCrsOption(CLI::App& command, std::string& to_crs);
 std::string ReprojectTrees(std::vector<MapTreeRow>& rows, const std::string& path,
                            const std::string& from, const std::string& to, std::ostream& log);
 
-// Warns on `log` when the trees of `path` stand closer together than trees can (half of them
-// under 5 cm from their nearest neighbour): x and y are then not metres (degrees, km?).
-void WarnIfNotMetres(const std::vector<MapTreeRow>& rows, const std::string& path,
-                     std::ostream& log);
+// Warns on `log` when the trees of `path` cannot be where `crs` says: closer together than trees
+// stand (half of them under 5 cm from their nearest neighbour: x and y are not metres), or their
+// centre outside the area of use of `crs` (a wrong CRS).
+void CheckTreePlacement(const std::vector<MapTreeRow>& rows, const std::string& path,
+                        const std::string& crs, std::ostream& log);
+
+// The CRS of trees read from `path`: --crs (`given`) or the file's own (`declared`); refuses a
+// --crs that contradicts the file's CRS (it would relabel the coordinates without moving them).
+std::string CrsOfTrees(const std::string& path, const std::string& given,
+                       const std::string& declared);
 
 // Whether coordinates in `crs` are metres on a plane (true for an empty, unknown CRS), and
 // whether two CRSs are the same; throw CommandError for a CRS PROJ does not know.

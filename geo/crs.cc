@@ -87,6 +87,11 @@ CrsInfo Parse(const std::string& text) {
   const PJ_TYPE type = proj_get_type(crs.get());
   info.projected = type == PJ_TYPE_PROJECTED_CRS;
   info.map_problem = MapProblem(context.ctx, crs.get());
+  const char* area = nullptr;
+  info.has_area = proj_get_area_of_use(context.ctx, crs.get(), &info.west, &info.south, &info.east,
+                                       &info.north, &area) &&
+                  info.west > -1000;  // PROJ's "unknown"
+  if (area) info.area = area;
   const char* authority = proj_get_id_auth_name(crs.get(), 0);
   const char* code = proj_get_id_code(crs.get(), 0);
   if (authority && code && std::string(authority) == "EPSG") {
@@ -106,6 +111,18 @@ CrsInfo Parse(const std::string& text) {
 }
 
 }  // namespace
+
+bool CrsInfo::InArea(double longitude_deg, double latitude_deg, double margin_deg) const {
+  if (!has_area) return true;
+  if (latitude_deg < south - margin_deg || latitude_deg > north + margin_deg) return false;
+  double span = east - west;  // degrees eastwards from west to east
+  if (span < 0) span += 360;  // across the antimeridian
+  span += 2 * margin_deg;
+  if (span >= 360) return true;
+  const double start = west - margin_deg;
+  const double offset = std::fmod(std::fmod(longitude_deg - start, 360.0) + 360.0, 360.0);
+  return offset <= span;
+}
 
 std::string CrsInfo::Canonical() const { return epsg > 0 ? "EPSG:" + std::to_string(epsg) : wkt; }
 

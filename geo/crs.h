@@ -28,6 +28,13 @@ struct CrsInfo {
   // geographic: its coordinates are degrees"; empty when they can (projected or engineering
   // CRSs in metres, alone or with a vertical CRS).
   std::string map_problem;
+  // Its area of use (degrees of WGS84 longitude and latitude; west > east when it crosses the
+  // antimeridian) and its name; has_area is false when PROJ does not know it.
+  bool has_area = false;
+  double west = 0, south = 0, east = 0, north = 0;
+  std::string area;
+  // Whether a point (degrees) lies in the area of use widened by `margin_deg`; true without one.
+  bool InArea(double longitude_deg, double latitude_deg, double margin_deg) const;
   // How to store it: "EPSG:n" when it has an EPSG code, else the WKT.
   std::string Canonical() const;
 };

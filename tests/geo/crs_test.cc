@@ -87,6 +87,23 @@ TEST(CrsTest, LocalGridHoldsAMapAndHasNoWayToWgs84) {
   EXPECT_THROW(Reprojection(kLocalGrid, "EPSG:2959"), CrsError);
 }
 
+TEST(CrsTest, AreaOfUse) {
+  const CrsInfo utm18 = ParseCrs("EPSG:2959");  // Canada, 78 W to 72 W
+  ASSERT_TRUE(utm18.has_area);
+  EXPECT_TRUE(utm18.InArea(-75.25, 46.03, 0));
+  EXPECT_FALSE(utm18.InArea(-79.5, 46.0, 1.0));
+  EXPECT_TRUE(utm18.InArea(-78.5, 46.0, 1.0));  // within the margin
+  EXPECT_FALSE(utm18.InArea(117.0, 30.0, 1.0));
+  EXPECT_FALSE(utm18.InArea(std::nan(""), 46.0, 1.0));
+  const CrsInfo nztm = ParseCrs("EPSG:3851");  // NZ continental shelf: across the antimeridian
+  ASSERT_TRUE(nztm.has_area);
+  ASSERT_GT(nztm.west, nztm.east);
+  EXPECT_TRUE(nztm.InArea(179.9, -40.0, 0));
+  EXPECT_TRUE(nztm.InArea(-179.9, -40.0, 0));
+  EXPECT_FALSE(nztm.InArea(0.0, -40.0, 1.0));
+  EXPECT_TRUE(ParseCrs("EPSG:4326").InArea(123.0, -45.0, 0));  // the world
+}
+
 TEST(CrsTest, UtmZoneOfAPoint) {
   EXPECT_EQ(UtmZoneCrs(-75.25, 46.03), "EPSG:32618");
   EXPECT_EQ(UtmZoneCrs(10.5, -33.0), "EPSG:32732");

@@ -209,6 +209,18 @@ TEST_F(SurveyCliTest, TreesInDegreesOrFeetAreReprojectedIntoMetres) {
   EXPECT_EQ(CreateField("metres", "--dbh-unit cm").err.find("are x and y metres"),
             std::string::npos);
 
+  // A --crs that contradicts the file's own is refused; trees outside their CRS's area warned.
+  const Result relabel = Cli("map create relabel --trees '" + feet + "' --crs EPSG:2959");
+  EXPECT_EQ(relabel.exit_code, 1);
+  EXPECT_NE(relabel.err.find("feet.geojson declares its CRS, EPSG:2263"), std::string::npos)
+      << relabel.err;
+  const Result europe = CreateField("europe", "--dbh-unit cm --crs EPSG:3067");
+  EXPECT_EQ(europe.exit_code, 0) << europe.err;
+  EXPECT_NE(europe.err.find("is outside the area of use of EPSG:3067"), std::string::npos)
+      << europe.err;
+  EXPECT_EQ(CreateField("canada", "--dbh-unit cm --crs EPSG:2959").err.find("area of use"),
+            std::string::npos);
+
   // compare: the map (EPSG:2959) against the same trees in degrees, both taken to UTM 18N.
   const Result compared = Cli("compare map:prf025 --reference '" + degrees + "' --json");
   ASSERT_EQ(compared.exit_code, 0) << compared.err;
@@ -237,7 +249,8 @@ TEST_F(SurveyCliTest, TreesInDegreesOrFeetAreReprojectedIntoMetres) {
       << twice.err;
   EXPECT_EQ(client_.GetMap("upload").version(), 3);
   EXPECT_EQ(Cli("map upload nosuch --trees '" + gpkg + "'").exit_code, 1);
-  EXPECT_EQ(client_.ListMaps().size(), 6u);  // prf025, back, zone, lonlat, metres, upload
+  // prf025, back, zone, lonlat, metres, europe, canada, upload
+  EXPECT_EQ(client_.ListMaps().size(), 8u);
 }
 
 TEST_F(SurveyCliTest, InputErrorsNameFileAndFieldAndCreateNothing) {
