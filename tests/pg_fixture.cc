@@ -135,6 +135,10 @@ std::string PostgresCluster::server_url() const {
   return "postgresql://postgres@127.0.0.1:" + std::to_string(port_);
 }
 
+std::string RunStateFile(const std::string& state) {
+  return state + "." + std::to_string(getppid());
+}
+
 std::string TestServerUrl() {
   static std::mutex mutex;
   static std::unique_ptr<PostgresCluster> own;  // stopped by its destructor at exit
@@ -143,7 +147,7 @@ std::string TestServerUrl() {
   if (!url.empty()) return url;
   if (const char* env = std::getenv("FORESTMAP_TEST_PG_URL")) return url = env;
   if (const char* state = std::getenv("FORESTMAP_TEST_PG_STATE")) {
-    const std::string shared = Slurp(state);
+    const std::string shared = Slurp(RunStateFile(state));
     if (!shared.empty()) return url = shared;
   }
   own = PostgresCluster::Start();

@@ -5,10 +5,10 @@
 // `nobody` (`runuser`), which owns the directory: PostgreSQL refuses to run as root.
 //
 // Under CTest one cluster serves every test of the run: the fixture test `pg_cluster_start`
-// (the `pg_fixture start` command below) writes its URL to the file named by the environment
-// variable FORESTMAP_TEST_PG_STATE and `pg_cluster_stop` removes it. A test binary run by hand
-// starts its own cluster on first use and stops it at exit. FORESTMAP_TEST_PG_URL (a server URL,
-// e.g. postgresql://user@host:5432) points the tests at an existing server instead.
+// (the `pg_fixture start` command below) writes its URL to RunStateFile(the file named by the
+// environment variable FORESTMAP_TEST_PG_STATE) and `pg_cluster_stop` removes it. A test binary
+// run by hand starts its own cluster on first use and stops it at exit. FORESTMAP_TEST_PG_URL (a
+// server URL, e.g. postgresql://user@host:5432) points the tests at an existing server instead.
 //
 // The binaries come from FORESTMAP_PG_BIN or /usr/lib/postgresql/15/bin (Debian's `postgresql`).
 
@@ -46,6 +46,11 @@ int FreeLoopbackPort();
 
 // The server URL the tests of this process use (see above); starts a cluster on first use.
 std::string TestServerUrl();
+
+// `state`.<pid of the parent process>: CTest starts the fixture and the tests as its children, so
+// every CTest run has its own state file, and its own cluster, even beside another run in the
+// same build folder.
+std::string RunStateFile(const std::string& state);
 
 // A fresh, empty database on the test server, dropped (connections forced out) on destruction.
 class TestDatabase {

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 #include <sqlite3.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -50,8 +51,9 @@ std::unique_ptr<TreeUpload> StagedCreate(SqliteMapStore& store, const std::strin
 class CreatedUploadTest : public ::testing::Test {
  protected:
   void SetUp() override {
+    // The pid too: another build's run of the same test (another worktree) shares /tmp.
     dir_ = fs::temp_directory_path() /
-           ("created_upload_" +
+           ("created_upload_" + std::to_string(getpid()) + "_" +
             std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);

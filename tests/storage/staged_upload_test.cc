@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 #include <sqlite3.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <future>
@@ -48,8 +49,9 @@ Code CodeOf(const std::function<void()>& body) {
 class StagedUploadTest : public ::testing::Test {
  protected:
   void SetUp() override {
+    // The pid too: another build's run of the same test (another worktree) shares /tmp.
     dir_ = fs::temp_directory_path() /
-           ("staged_upload_" +
+           ("staged_upload_" + std::to_string(getpid()) + "_" +
             std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
