@@ -15,6 +15,7 @@
 
 #include "algorithms/evaluation/inventory_comparison.h"
 #include "client/cli_commands.h"
+#include "client/cli_tree_crs.h"
 #include "client/cli_tree_input.h"
 #include "client/io/las_crs.h"
 #include "client/scan_trees.h"

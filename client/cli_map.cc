@@ -14,6 +14,7 @@
 #include "algorithms/mapping/map_builder.h"
 #include "client/cli_commands.h"
 #include "client/cli_format.h"
+#include "client/cli_tree_crs.h"
 #include "client/cli_tree_input.h"
 #include "client/io/geo_io.h"
 #include "client/io/tree_csv.h"

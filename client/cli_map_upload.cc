@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "client/cli_commands.h"
+#include "client/cli_tree_crs.h"
 #include "client/cli_tree_input.h"
 #include "geo/crs.h"
 
