@@ -95,6 +95,8 @@ nlohmann::ordered_json RelocalizeJson(const v1::RelocalizeResponse& response,
     line["ellipsoidal_height_m"] = g.ellipsoidal_height_m();
     line["true_heading_deg"] = g.true_heading_deg();
     line["grid_convergence_deg"] = g.grid_convergence_deg();
+    line["wgs84_accuracy_m"] = g.transformation_accuracy_m();  // -1: PROJ states none
+    if (g.ballpark_transformation()) line["wgs84_ballpark"] = true;
   }
   line["inliers"] = response.inliers();
   line["rmse_m"] = response.rmse_m();

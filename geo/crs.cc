@@ -160,11 +160,20 @@ Reprojection::Reprojection(const std::string& from, const std::string& to)
 
 Reprojection::~Reprojection() = default;
 
-void Reprojection::Apply(double& x, double& y, double& z) const {
+void Reprojection::Apply(double& x, double& y, double& z, Used* used) const {
   std::lock_guard<std::mutex> lock(mutex_);
-  const PJ_COORD out = proj_trans(impl_->transform.get(), PJ_FWD, proj_coord(x, y, z, 0));
+  PJ* transform = impl_->transform.get();
+  const PJ_COORD out = proj_trans(transform, PJ_FWD, proj_coord(x, y, z, 0));
   if (!std::isfinite(out.xyzt.x) || !std::isfinite(out.xyzt.y)) {
     throw CrsError("PROJ cannot transform the point: " + impl_->context.Error());
+  }
+  if (used) {
+    PJ_CONTEXT* ctx = impl_->context.ctx;
+    // The operation PROJ chose for this point (of the candidates for the two CRSs).
+    const PjPtr operation(proj_trans_get_last_used_operation(transform));
+    PJ* op = operation ? operation.get() : transform;
+    used->accuracy_m = proj_coordoperation_get_accuracy(ctx, op);
+    used->ballpark = proj_coordoperation_has_ballpark_transformation(ctx, op) == 1;
   }
   x = out.xyzt.x;
   y = out.xyzt.y;
@@ -187,7 +196,8 @@ MapToWgs84::MapToWgs84(const std::string& crs) : to_wgs84_(crs, kWgs84) {}
 
 GeodeticPose MapToWgs84::Convert(double x, double y, double z, double yaw_rad) const {
   double lon = x, lat = y, height = z;
-  to_wgs84_.Apply(lon, lat, height);
+  Reprojection::Used used;
+  to_wgs84_.Apply(lon, lat, height, &used);
   double ahead_lon = x + kHeadingStepM * std::cos(yaw_rad);
   double ahead_lat = y + kHeadingStepM * std::sin(yaw_rad), ahead_height = z;
   to_wgs84_.Apply(ahead_lon, ahead_lat, ahead_height);
@@ -195,6 +205,7 @@ GeodeticPose MapToWgs84::Convert(double x, double y, double z, double yaw_rad) c
   pose.longitude_deg = lon;
   pose.latitude_deg = lat;
   pose.ellipsoidal_height_m = height;
+  pose.transformation = used;
   geod_geodesic wgs84;
   geod_init(&wgs84, 6378137.0, 1 / 298.257223563);  // WGS84 ellipsoid
   double distance = 0, azimuth = 0, azimuth_end = 0;

@@ -53,9 +53,16 @@ class Reprojection {
   Reprojection(const Reprojection&) = delete;
   Reprojection& operator=(const Reprojection&) = delete;
 
+  // What PROJ used for the last point: its stated accuracy and whether it is a ballpark (no
+  // datum or height transformation known: errors of metres).
+  struct Used {
+    double accuracy_m = -1;  // -1: PROJ states none
+    bool ballpark = false;
+  };
+
   // x, y, z in place (z passes unchanged between 2-D CRSs); throws CrsError when PROJ cannot
-  // transform the point (outside the CRSs' domain).
-  void Apply(double& x, double& y, double& z) const;
+  // transform the point (outside the CRSs' domain). `used`, when given, says what moved it.
+  void Apply(double& x, double& y, double& z, Used* used = nullptr) const;
 
  private:
   struct Impl;
@@ -69,11 +76,12 @@ std::string UtmZoneCrs(double longitude_deg, double latitude_deg);
 
 // The WGS84 pose of a sensor.
 struct GeodeticPose {
-  double latitude_deg = 0;          // WGS84 (EPSG:4979)
-  double longitude_deg = 0;         // WGS84, east positive
-  double ellipsoidal_height_m = 0;  // above the WGS84 ellipsoid (map z taken as ellipsoidal)
-  double true_heading_deg = 0;      // of the sensor's x axis, clockwise from true north, [0, 360)
-  double grid_convergence_deg = 0;  // true heading minus grid heading (clockwise from grid north)
+  double latitude_deg = 0;            // WGS84 (EPSG:4979)
+  double longitude_deg = 0;           // WGS84, east positive
+  double ellipsoidal_height_m = 0;    // above the WGS84 ellipsoid (map z taken as ellipsoidal)
+  double true_heading_deg = 0;        // of the sensor's x axis, clockwise from true north, [0, 360)
+  double grid_convergence_deg = 0;    // true heading minus grid heading (clockwise from grid north)
+  Reprojection::Used transformation;  // map CRS -> WGS84: PROJ's stated accuracy, ballpark
 };
 
 // Map CRS -> WGS84 (EPSG:4979) with PROJ's best transformation for each point, as cs2cs does.

@@ -53,6 +53,8 @@ void AddGeodetic(v1::RelocalizeResponse& response, const geo::MapToWgs84& to_wgs
     out.set_ellipsoidal_height_m(g.ellipsoidal_height_m);
     out.set_true_heading_deg(g.true_heading_deg);
     out.set_grid_convergence_deg(g.grid_convergence_deg);
+    out.set_transformation_accuracy_m(g.transformation.accuracy_m);
+    out.set_ballpark_transformation(g.transformation.ballpark);
   } catch (const geo::CrsError&) {
     // Outside the CRS's area: the projected pose stands alone.
   }

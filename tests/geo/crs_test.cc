@@ -87,6 +87,20 @@ TEST(CrsTest, LocalGridHoldsAMapAndHasNoWayToWgs84) {
   EXPECT_THROW(Reprojection(kLocalGrid, "EPSG:2959"), CrsError);
 }
 
+// What PROJ says of the transformation to WGS84 travels with the pose: NAD83(CSRS) -> WGS 84 is
+// stated to 1 or 2 m; a compound CRS whose geoid grid is not installed is a ballpark.
+TEST(CrsTest, GeodeticPoseSaysHowGoodTheTransformationIs) {
+  const GeodeticPose nad83 = MapToWgs84("EPSG:2959").Convert(312030, 5096040, 0, 0);
+  EXPECT_GT(nad83.transformation.accuracy_m, 0);
+  EXPECT_LE(nad83.transformation.accuracy_m, 2);
+  EXPECT_FALSE(nad83.transformation.ballpark);
+  const GeodeticPose wgs84 = MapToWgs84("EPSG:32618").Convert(312030, 5096040, 0, 0);
+  EXPECT_FALSE(wgs84.transformation.ballpark);
+  EXPECT_LE(wgs84.transformation.accuracy_m, 0);  // a conversion: exact (0), or none stated
+  const GeodeticPose navd88 = MapToWgs84("EPSG:2959+5703").Convert(312030, 5096040, 100, 0);
+  EXPECT_TRUE(navd88.transformation.ballpark);
+}
+
 TEST(CrsTest, AreaOfUse) {
   const CrsInfo utm18 = ParseCrs("EPSG:2959");  // Canada, 78 W to 72 W
   ASSERT_TRUE(utm18.has_area);

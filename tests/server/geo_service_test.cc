@@ -144,6 +144,9 @@ TEST_F(GeoServiceTest, RelocalizationOnPrf025AgreesWithCs2cs) {
   EXPECT_NEAR(g.latitude_deg(), expected.x(), kDegreeTolerance);
   EXPECT_NEAR(g.longitude_deg(), expected.y(), kDegreeTolerance);
   EXPECT_NEAR(g.ellipsoidal_height_m(), expected.z(), kHeightTolerance);
+  EXPECT_GT(g.transformation_accuracy_m(), 0);  // NAD83(CSRS) -> WGS 84: PROJ states 1-2 m
+  EXPECT_LE(g.transformation_accuracy_m(), 2);
+  EXPECT_FALSE(g.ballpark_transformation());
   // Transverse Mercator: grid north is turned from true north by atan(tan(dlon) sin(lat)).
   const double dlon = (g.longitude_deg() - kUtm18CentralMeridian) * M_PI / 180.0;
   const double convergence =
