@@ -126,6 +126,13 @@ std::string FormatExtent(const v1::Map& map) {
          Printf("y %.2f..%.2f m", box.min_y(), box.max_y());
 }
 
+bool IsProgressStep(int64_t sent, int64_t total, int64_t chunk) {
+  constexpr int64_t kProgressSteps = 10;  // lines of progress per upload, about
+  if (total <= 0 || sent >= total) return true;
+  const int64_t before = std::max<int64_t>(0, sent - chunk);
+  return sent * kProgressSteps / total != before * kProgressSteps / total;
+}
+
 std::string FormatUnixMs(int64_t unix_ms) {
   if (unix_ms == 0) return "-";
   const std::time_t seconds = static_cast<std::time_t>(unix_ms / 1000);
@@ -136,11 +143,58 @@ std::string FormatUnixMs(int64_t unix_ms) {
   return buffer;
 }
 
+namespace {
+
+constexpr size_t kCrsColumnChars = 32;  // widest CRS shown in `map list` (longer: cut with "...")
+
+// The EPSG code of the outermost object of WKT `wkt`, its ID["EPSG",n] (WKT2) or
+// AUTHORITY["EPSG","n"] (WKT1) directly inside the outer brackets; empty if it has none.
+std::string WktEpsgCode(const std::string& wkt) {
+  int depth = 0;
+  bool quoted = false;
+  for (size_t i = 0; i < wkt.size(); ++i) {
+    const char c = wkt[i];
+    if (c == '"') quoted = !quoted;
+    if (quoted) continue;
+    if (c == '[' || c == '(') ++depth;
+    if (c == ']' || c == ')') --depth;
+    if (depth != 1 || c != ',') continue;
+    const std::string_view rest = std::string_view(wkt).substr(i + 1);
+    for (const std::string_view key : {"ID[\"EPSG\",", "AUTHORITY[\"EPSG\",\""}) {
+      if (!rest.starts_with(key)) continue;
+      const std::string_view code = rest.substr(key.size());
+      const size_t digits = code.find_first_not_of("0123456789");
+      if (digits != 0 && digits != std::string_view::npos)
+        return std::string(code.substr(0, digits));
+    }
+  }
+  return "";
+}
+
+}  // namespace
+
+std::string ListedCrs(const std::string& crs) {
+  if (crs.empty()) return "-";
+  std::string shown = crs;
+  const size_t open = crs.find('[');
+  if (open != std::string::npos) {
+    const std::string code = WktEpsgCode(crs);
+    const size_t name_end = crs.find('"', open + 2);
+    if (!code.empty()) {
+      shown = "EPSG:" + code;
+    } else if (crs.compare(open + 1, 1, "\"") == 0 && name_end != std::string::npos) {
+      shown = crs.substr(open + 2, name_end - open - 2);  // PROJCRS["NAME",...
+    }
+  }
+  if (shown.size() > kCrsColumnChars) shown = shown.substr(0, kCrsColumnChars - 3) + "...";
+  return shown;
+}
+
 std::string FormatMapTable(const std::vector<v1::Map>& maps) {
   std::vector<std::array<std::string, 5>> cells = {{"NAME", "TREES", "VERSION", "CRS", "EXTENT"}};
   for (const v1::Map& map : maps) {
     cells.push_back({map.name(), std::to_string(map.tree_count()), std::to_string(map.version()),
-                     map.crs().empty() ? "-" : map.crs(), FormatExtent(map)});
+                     ListedCrs(map.crs()), FormatExtent(map)});
   }
   std::array<size_t, 5> width{};
   for (const auto& row : cells) {

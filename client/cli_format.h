@@ -31,7 +31,11 @@ double YawDegrees(const algorithms::Pose3& map_from_sensor);
 nlohmann::ordered_json RelocalizeJson(const v1::RelocalizeResponse& response,
                                       std::optional<int64_t> frame = std::nullopt);
 
-// The `map list` table: NAME TREES VERSION CRS EXTENT, one map per line, columns aligned.
+// The CRS as `map list` shows it: "EPSG:n" for a WKT with an EPSG id, else the WKT's name, a
+// short CRS as given, "-" for none; cut to 32 characters ("..."). `map show` shows it whole.
+std::string ListedCrs(const std::string& crs);
+
+// The `map list` table: NAME TREES VERSION CRS (ListedCrs) EXTENT, one map per line, aligned.
 std::string FormatMapTable(const std::vector<v1::Map>& maps);
 
 // The `map show` text: one "field: value" line per field.
@@ -39,6 +43,11 @@ std::string FormatMapDetails(const v1::Map& map);
 
 // "x 0.00..200.00 m, y 8.80..200.00 m" or "-" for an empty map.
 std::string FormatExtent(const v1::Map& map);
+
+// Whether an upload that has sent `sent` of `total` trees, `chunk` per message, prints its
+// progress now: when it crosses a tenth of `total` and at the end (at most 11 lines, whether or
+// not stderr is a terminal).
+bool IsProgressStep(int64_t sent, int64_t total, int64_t chunk);
 
 // UTC ISO 8601 ("2024-05-01T12:00:00Z"), or "-" for 0.
 std::string FormatUnixMs(int64_t unix_ms);

@@ -47,7 +47,7 @@ void CreateWithTrees(const CreateOptions& options, const std::vector<MapTreeRow>
       map = client
                 .CreateMapWithTrees(options.name, options.description, options.crs, rows,
                                     [&](int64_t sent, int64_t total) {
-                                      if (report) {
+                                      if (report && IsProgressStep(sent, total, chunk)) {
                                         *context.err << "uploading: " << sent << "/" << total
                                                      << " trees" << std::endl;
                                       }
@@ -87,7 +87,8 @@ void AddCreate(CLI::App& map_app, CliContext& context) {
   auto options = std::make_shared<CreateOptions>();
   CLI::App* sub = map_app.add_subcommand(
       "create", "Create a map, empty or with the trees of a CSV file (x,y[,z,dbh,id,...])");
-  sub->add_option("NAME", options->name, "Map name: 1-128 characters of A-Z a-z 0-9 _ . -")
+  sub->add_option("NAME", options->name,
+                  "Map name: 1-128 characters of A-Z a-z 0-9 _ . - (not . or ..)")
       ->required();
   sub->add_option("--trees", options->trees_file,
                   "The map's trees: CSV (columns x,y (m) required; z, dbh (m), id optional; "

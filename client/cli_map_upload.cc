@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "client/cli_commands.h"
+#include "client/cli_format.h"
 #include "client/cli_tree_crs.h"
 #include "client/cli_tree_input.h"
 #include "geo/crs.h"
@@ -60,7 +61,7 @@ void RunUpload(const UploadOptions& options, const CliContext& context) {
   try {
     response = client.UploadTrees(
         options.name, file.rows, options.replace, [&](int64_t sent, int64_t total) {
-          if (report) {
+          if (report && IsProgressStep(sent, total, ClientOptions().upload_chunk_trees)) {
             *context.err << "uploading: " << sent << "/" << total << " trees" << std::endl;
           }
         });

@@ -3,10 +3,13 @@
 // Eigen (through convert.h) before httplib.h: httplib pulls in <resolv.h>, whose `_res` macro
 // breaks Eigen's headers when they come after it.
 #include "server/convert.h"
+#include "server/http_listen.h"
+#include "server/http_trees.h"
 // clang-format off
 #include <httplib.h>
 // clang-format on
 
+#include <chrono>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <stdexcept>
@@ -17,6 +20,8 @@ namespace forestmap::server {
 namespace {
 
 using Json = nlohmann::json;
+
+constexpr auto kStopPoll = std::chrono::milliseconds(5);  // while waiting for the listen loop
 
 Json MapJson(const storage::MapInfo& info) {
   Json map = {{"name", info.name},
@@ -88,15 +93,6 @@ void Guarded(httplib::Response& response, Body body) {
   }
 }
 
-Json TreesJson(const storage::MapSnapshot& snapshot) {
-  Json trees = Json::array();
-  for (const storage::TreeRecord& t : snapshot.trees) {
-    trees.push_back({t.x, t.y, t.dbh ? Json(*t.dbh) : Json(nullptr),
-                     t.status == storage::TreeStatus::kConfirmed});
-  }
-  return Json{{"map", MapJson(snapshot.info)}, {"trees", trees}};
-}
-
 Json VersionsJson(const std::vector<storage::VersionRecord>& records) {
   Json versions = Json::array();
   for (const storage::VersionRecord& v : records) {
@@ -151,12 +147,15 @@ void AddRoutes(httplib::Server& http, storage::MapStore& store, const RecentAnsw
       Reply(response, maps);
     });
   });
-  http.Get(R"(/api/maps/([A-Za-z0-9_.\-]+)/trees)", [&store, tokens](const Request& request,
-                                                                     Response& response) {
-    const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
-    if (!caller || !MayRead(*caller, request.matches[1], response)) return;
-    Guarded(response, [&] { Reply(response, TreesJson(store.ReadMap(request.matches[1]))); });
-  });
+  http.Get(R"(/api/maps/([A-Za-z0-9_.\-]+)/trees)",
+           [&store, tokens](const Request& request, Response& response) {
+             const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
+             if (!caller || !MayRead(*caller, request.matches[1], response)) return;
+             Guarded(response, [&] {
+               const storage::MapInfo info = store.GetMap(request.matches[1]);
+               ReplyTreesStreamed(response, store, info, MapJson(info).dump());
+             });
+           });
   http.Get(R"(/api/maps/([A-Za-z0-9_.\-]+)/versions)",
            [&store, tokens](const Request& request, Response& response) {
              const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
@@ -177,25 +176,20 @@ HttpPage::HttpPage(storage::MapStore& store, const RecentAnswers& answers,
                    const std::string& address, storage::TokenStore* tokens)
     : http_(std::make_unique<httplib::Server>()) {
   AddRoutes(*http_, store, answers, tokens);
-  const size_t colon = address.rfind(':');
-  if (colon == std::string::npos) {
-    throw std::runtime_error("--http " + address + ": give host:port");
-  }
-  const std::string host = address.substr(0, colon);
-  int port = std::stoi(address.substr(colon + 1));
-  if (port == 0) {
-    port = http_->bind_to_any_port(host);
-  } else if (!http_->bind_to_port(host, port)) {
-    port = -1;
-  }
-  if (port < 0) throw std::runtime_error("--http " + address + ": cannot bind");
-  address_ = host + ":" + std::to_string(port);
-  thread_ = std::thread([this] { http_->listen_after_bind(); });
+  address_ = BoundHttpAddress(address, BindHttpListener(*http_, "--http", address));
+  thread_ = std::thread([this] {
+    http_->listen_after_bind();
+    stopped_ = true;
+  });
 }
 
 HttpPage::~HttpPage() {
-  http_->stop();
-  if (thread_.joinable()) thread_.join();
+  // stop() is a no-op until the listen loop runs: repeat it until the loop has ended.
+  while (!stopped_) {
+    http_->stop();
+    std::this_thread::sleep_for(kStopPoll);
+  }
+  thread_.join();
 }
 
 }  // namespace forestmap::server

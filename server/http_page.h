@@ -15,6 +15,7 @@
 //         GET /api/maps/NAME/versions  [{version, kind, source, trees, time_ms}]
 //         GET /api/relocalizations     the last answers, newest first
 
+#include <atomic>
 #include <memory>
 #include <string>
 #include <thread>
@@ -44,6 +45,7 @@ class HttpPage {
 
  private:
   std::unique_ptr<httplib::Server> http_;
+  std::atomic<bool> stopped_{false};  // the listen loop has ended
   std::thread thread_;
   std::string address_;
 };

@@ -14,6 +14,7 @@
 
 #include "server/auth.h"
 #include "server/daemon.h"
+#include "server/http_listen.h"
 #include "server/http_page.h"
 #include "server/logging.h"
 #include "server/metrics.h"
@@ -78,14 +79,16 @@ std::unique_ptr<T> OpenOrLog(const std::string& failure, const Open& open) {
   }
 }
 
-// The gRPC server and the optional Prometheus endpoint (destroyed in reverse order).
+// The gRPC server, the optional web page and Prometheus endpoint (destroyed in reverse order).
 struct Listeners {
   std::unique_ptr<forestmap::server::ServerRunner> server;
+  std::unique_ptr<forestmap::server::HttpPage> page;
   std::unique_ptr<forestmap::server::MetricsHttpServer> metrics_http;
 };
 
 // Starts the listeners of `config` for `service`; throws when one cannot start.
-Listeners StartListeners(const Config& config, forestmap::server::ForestMapService& service,
+Listeners StartListeners(const Config& config, forestmap::storage::MapStore& store,
+                         forestmap::server::ForestMapService& service,
                          forestmap::server::Metrics& metrics,
                          forestmap::storage::TokenStore& tokens) {
   forestmap::server::ServerOptions server_options;
@@ -98,10 +101,18 @@ Listeners StartListeners(const Config& config, forestmap::server::ForestMapServi
   listeners.server =
       std::make_unique<forestmap::server::ServerRunner>(config.listen, service, server_options);
   forestmap::server::WarnIfExposed(config.listen, tls, tokens.AnyToken());
+  if (!config.http.empty()) {
+    listeners.page = std::make_unique<forestmap::server::HttpPage>(store, service.recent_answers(),
+                                                                   config.http, &tokens);
+    forestmap::server::LogLine("web page on http://" + listeners.page->address() + "/");
+  }
   if (!config.metrics.empty()) {
     listeners.metrics_http = std::make_unique<forestmap::server::MetricsHttpServer>(
         config.metrics, [&metrics] { return metrics.Render(); });
-    forestmap::server::LogLine("metrics on http://" + config.metrics + "/metrics");
+    forestmap::server::LogLine(
+        "metrics on http://" +
+        forestmap::server::BoundHttpAddress(config.metrics, listeners.metrics_http->port()) +
+        "/metrics");
   }
   return listeners;
 }
@@ -127,7 +138,7 @@ void AddServeOptions(CLI::App& app, Config& config) {
       ->capture_default_str();
   app.add_option("--http", config.http,
                  "also serve a read-only web page (maps, versions, trees, last relocalizations) "
-                 "on host:port");
+                 "on host:port (port 0: any)");
   app.add_option("--keep-versions", config.keep_versions,
                  "history retention: after every write a map keeps its newest N versions "
                  "readable (0: all)")
@@ -185,27 +196,16 @@ int Serve(const Config& config, const sigset_t& shutdown_signals) {
   forestmap::server::AddServerMetrics(metrics, service.index_cache(), config.db);
   Listeners listeners;
   try {
-    listeners = StartListeners(config, service, metrics, *tokens);
+    listeners = StartListeners(config, *store, service, metrics, *tokens);
   } catch (const std::exception& e) {
     LogError(e.what());
     return 1;
   }
   LogLine("serving on " + listeners.server->address() + ", database " + shown_db + ", " +
           std::to_string(map_count) + " maps");
-  std::unique_ptr<forestmap::server::HttpPage> page;
-  if (!config.http.empty()) {
-    try {
-      page = std::make_unique<forestmap::server::HttpPage>(*store, service.recent_answers(),
-                                                           config.http, tokens.get());
-    } catch (const std::exception& e) {
-      LogLine(e.what());
-      return 1;
-    }
-    LogLine("web page on http://" + page->address() + "/");
-  }
 
   WaitForShutdownSignal(shutdown_signals);
-  page.reset();
+  listeners.page.reset();
   listeners.server->Shutdown(kShutdownGrace);
   listeners.server->Wait();
   LogLine("stopped");
@@ -218,11 +218,16 @@ int main(int argc, char** argv) {
   Config config;
   CLI::App app{
       "forestmapd: the ForestMap gRPC server (maps of trees, relocalization).\n"
-      "Usage: forestmapd [--db PATH] [--listen ADDR] [--tls-cert F --tls-key F [--tls-client-ca "
-      "F]]\n"
-      "                  [--metrics ADDR] [--log-format text|json] [--log-level L]\n"
-      "                  [--max-db-mb N]\n"
-      "       forestmapd token create|list|revoke --db PATH [--map M] [--role R]\n"
+      "Usage: forestmapd [--db PATH|postgresql://USER@HOST:PORT/DB] [--listen ADDR] "
+      "[--max-message-mb N]\n"
+      "                  [--http ADDR] [--keep-versions N] [--max-streams N] "
+      "[--max-streams-per-client N]\n"
+      "                  [--tls-cert F --tls-key F [--tls-client-ca F]] [--metrics ADDR]\n"
+      "                  [--log-format text|json] [--log-level debug|info|warn|error] "
+      "[--max-db-mb N] [--help]\n"
+      "       forestmapd token create --db PATH [--map NAME|GLOB|*] [--role read|write|admin] "
+      "[--note TEXT]\n"
+      "       forestmapd token list --db PATH | token revoke --db PATH ID\n"
       "       forestmapd backup --db PATH --out FILE"};
   AddServeOptions(app, config);
   std::function<int()> offline;  // a subcommand instead of serving

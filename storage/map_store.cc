@@ -27,6 +27,10 @@ std::string ValidateMapName(const std::string& name) {
              std::to_string(i + 1) + " is not one of them)";
     }
   }
+  if (name == "." || name == "..") {
+    return "a map name must not be \".\" or \"..\" (a URL path resolves them: the web page's "
+           "/api/maps/NAME/trees would name another path)";
+  }
   return "";
 }
 

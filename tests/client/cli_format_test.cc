@@ -113,6 +113,59 @@ TEST(CliFormatTest, MapTableAlignsColumns) {
   EXPECT_EQ(FormatMapTable({}), "NAME  TREES  VERSION  CRS  EXTENT\n");
 }
 
+// `map list` was padded to ~2,084 characters a row once one map had a WKT CRS.
+TEST(CliFormatTest, MapTableShowsAShortCrs) {
+  // WKT2: the outermost ID wins over the base CRS's ID["EPSG",4326] inside.
+  const std::string wkt2 =
+      "PROJCRS[\"WGS 84 / UTM zone 33N\",BASEGEOGCRS[\"WGS 84\",DATUM[\"World Geodetic System "
+      "1984\",ELLIPSOID[\"WGS 84\",6378137,298.257223563]],ID[\"EPSG\",4326]],CONVERSION[\"UTM "
+      "zone 33N\",METHOD[\"Transverse Mercator\",ID[\"EPSG\",9807]]],CS[Cartesian,2],"
+      "USAGE[SCOPE[\"Engineering survey, [topographic] mapping.\"],BBOX[0,12,84,18]],"
+      "ID[\"EPSG\",32633]]";
+  EXPECT_EQ(ListedCrs(wkt2), "EPSG:32633");
+  const std::string wkt1 =
+      "PROJCS[\"NZGD2000 / New Zealand Transverse Mercator 2000\",GEOGCS[\"NZGD2000\","
+      "AUTHORITY[\"EPSG\",\"4167\"]],UNIT[\"metre\",1],AUTHORITY[\"EPSG\",\"2193\"]]";
+  EXPECT_EQ(ListedCrs(wkt1), "EPSG:2193");
+  // No ID of its own: the name, cut to 32 characters.
+  EXPECT_EQ(ListedCrs("PROJCRS[\"Forest grid\",BASEGEOGCRS[\"x\",ID[\"EPSG\",4326]],CS[]]"),
+            "Forest grid");
+  EXPECT_EQ(ListedCrs("ENGCRS[\"A very long local engineering grid name, version 2\",EDATUM[]]"),
+            "A very long local engineering...");
+  EXPECT_EQ(ListedCrs("EPSG:2959"), "EPSG:2959");
+  EXPECT_EQ(ListedCrs(""), "-");
+  EXPECT_EQ(ListedCrs("+proj=tmerc +lat_0=0 +lon_0=173 +k=0.9996 +x_0=1600000 +units=m"),
+            "+proj=tmerc +lat_0=0 +lon_0=1...");
+
+  v1::Map map;
+  map.set_name("nz");
+  map.set_crs(wkt1 + std::string(2000, ' '));
+  const std::string table = FormatMapTable({map});
+  EXPECT_EQ(table,
+            "NAME  TREES  VERSION  CRS        EXTENT\n"
+            "nz    0      0        EPSG:2193  -\n");
+  EXPECT_NE(FormatMapDetails(map).find(wkt1), std::string::npos);  // `map show`: the whole
+}
+
+// Upload progress: at most one line per tenth of the trees, and the last (was one per message).
+TEST(CliFormatTest, ProgressEveryTenth) {
+  constexpr int64_t kChunk = 5000;
+  for (const int64_t total : {int64_t{10'001}, int64_t{1'000'000}, int64_t{123'456}}) {
+    int lines = 0;
+    bool last = false;
+    for (int64_t sent = std::min(kChunk, total); sent <= total;
+         sent = sent == total ? total + 1 : std::min(sent + kChunk, total)) {
+      if (IsProgressStep(sent, total, kChunk)) {
+        ++lines;
+        last = sent == total;
+      }
+    }
+    EXPECT_LE(lines, 11) << total;
+    EXPECT_GE(lines, std::min<int64_t>(10, (total + kChunk - 1) / kChunk)) << total;
+    EXPECT_TRUE(last) << total;
+  }
+}
+
 TEST(CliFormatTest, MapDetails) {
   v1::Map map;
   map.set_name("plot");

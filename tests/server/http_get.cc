@@ -15,6 +15,7 @@ HttpAnswer HttpGet(const std::string& host, int port, const std::string& path,
   answer.ok = true;
   answer.status = result->status;
   answer.content_type = result->get_header_value("Content-Type");
+  answer.transfer_encoding = result->get_header_value("Transfer-Encoding");
   answer.body = result->body;
   return answer;
 }

@@ -10,6 +10,7 @@ struct HttpAnswer {
   bool ok = false;  // false: no answer (connection failed)
   int status = 0;   // HTTP status code
   std::string content_type;
+  std::string transfer_encoding;  // "chunked" for a streamed answer
   std::string body;
 };
 

@@ -72,6 +72,22 @@ TEST(ValidationTest, MapNames) {
               HasSubstr("map_name \"a\\x0ab\""));
 }
 
+// "." and ".." are paths in a URL: the web page's /api/maps/../trees would name another route.
+TEST(ValidationTest, DotAndDotDotAreNoMapNames) {
+  for (const std::string name : {".", ".."}) {
+    v1::CreateMapRequest create;
+    create.set_name(name);
+    const std::string message = ErrorOf<ValidationError>([&] { Validate(create); });
+    EXPECT_THAT(message, HasSubstr("name \"" + name + "\""));
+    EXPECT_THAT(message, HasSubstr("must not be \".\" or \"..\""));
+  }
+  for (const std::string name : {"...", ".a", "a..b", "v1.", "-"}) {
+    v1::CreateMapRequest create;
+    create.set_name(name);
+    EXPECT_NO_THROW(Validate(create)) << name;
+  }
+}
+
 TEST(ValidationTest, CreateMapLimitsDescriptionAndCrs) {
   v1::CreateMapRequest request;
   request.set_name("plot");

@@ -1,0 +1,23 @@
+#pragma once
+// Binding forestmapd's HTTP listeners (--http, --metrics) the way its gRPC --listen binds: one
+// port, one server. cpp-httplib sets SO_REUSEPORT on its sockets by default, which lets a second
+// forestmapd bind a port already in use and silently take part of its connections; the sockets
+// bound here only get SO_REUSEADDR (restart after TIME_WAIT), so a port in use is an error.
+
+#include <string>
+
+namespace httplib {
+class Server;
+}  // namespace httplib
+
+namespace forestmap::server {
+
+// Binds `http` to `address` ("host:port" or "[v6]:port"; port 0: any free one) and returns the
+// bound port. `flag` names the option in errors ("--http"). Throws std::runtime_error naming
+// the flag, the address and the reason, e.g. "--http 127.0.0.1:8080: address already in use".
+int BindHttpListener(httplib::Server& http, const std::string& flag, const std::string& address);
+
+// "host:port" with the port replaced by `port` (for port 0), as BindHttpListener read it.
+std::string BoundHttpAddress(const std::string& address, int port);
+
+}  // namespace forestmap::server
