@@ -259,12 +259,12 @@ std::map<int64_t, algorithms::Pose3> ReadPoses(CsvReader reader) {
 }  // namespace
 
 std::vector<MapTreeRow> ReadMapTreesCsv(const std::string& path, const TreeFileOptions& options) {
-  return ReadMapTrees(CsvReader::Open(path), options);
+  return ParseMapTreesCsv(ReadCsvFile(path), path, options);
 }
 
 std::vector<MapTreeRow> ParseMapTreesCsv(std::string content, const std::string& name,
                                          const TreeFileOptions& options) {
-  return ReadMapTrees(CsvReader(std::move(content), name), options);
+  return ReadMapTrees(CsvReader(HeaderlessTreeTable(std::move(content), name), name), options);
 }
 
 std::vector<DetectedTreeRow> ReadDetectedTreesCsv(const std::string& path) {

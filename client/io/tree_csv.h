@@ -70,6 +70,12 @@ struct Frame {
 std::vector<MapTreeRow> ReadMapTreesCsv(const std::string& path,
                                         const TreeFileOptions& options = {});
 
+// A tree table without a header row: 3DFin's `*_dbh_and_heights.txt` (blank-separated TH DBH
+// X Y, DBH in m) as CSV text with the header TH,DBH,X,Y (TH stays an attribute); any other
+// file whose first line is only numbers is refused (CsvError naming `path`); files with a
+// header are returned unchanged. ReadMapTreesCsv and ParseMapTreesCsv apply it.
+std::string HeaderlessTreeTable(std::string content, const std::string& path);
+
 // Map rows as the relocalizer's trees: unknown z / dbh become NaN; a row without an id gets its
 // index.
 std::vector<algorithms::MapTree> ToMapTrees(const std::vector<MapTreeRow>& rows);
