@@ -39,7 +39,8 @@ struct CompareOptions {
   algorithms::InventoryComparisonOptions comparison;
   bool register_first = false;
   bool json = false;
-  std::string links_out;
+  std::string links_out;     // --out: the links as CSV
+  std::string unlinked_out;  // --out-unlinked: missed reference trees and unlinked detections
 };
 
 // Point clouds by extension; a .csv or .txt is a tree file unless --scan says it is a scan.
@@ -199,6 +200,9 @@ void Run(const CompareOptions& o, const CliContext& context) {
   if (!o.links_out.empty()) {
     WriteCompareLinks(o.links_out, detected_rows, detected, reference_rows, report.result);
   }
+  if (!o.unlinked_out.empty()) {
+    WriteCompareUnlinked(o.unlinked_out, detected_rows, detected, reference_rows, report.result);
+  }
   if (o.json) {
     *context.out << CompareJson(report).dump() << std::endl;
   } else {
@@ -258,9 +262,10 @@ void AddCompareCommand(CLI::App& app, CliContext& context) {
                 "Find the detections in the reference first (relocalizer), for surveys in "
                 "different frames");
   sub->add_flag("--json", o->json, "One JSON object instead of the table");
-  sub->add_option("--out", o->links_out,
-                  "Write the links as CSV, then the missed reference trees and the unlinked "
-                  "detections (column status: linked, missed, commission)");
+  sub->add_option("--out", o->links_out, "Write the links as CSV");
+  sub->add_option("--out-unlinked", o->unlinked_out,
+                  "Write the trees without a link as CSV (status,id,x,y,dbh_m): missed reference "
+                  "trees, then unlinked detections (status commission)");
   sub->callback([o, &context] { context.run = [o, &context] { Run(*o, context); }; });
 }
 

@@ -163,34 +163,44 @@ void WriteCompareLinks(const std::string& path, const std::vector<MapTreeRow>& d
                        const std::vector<MapTreeRow>& reference,
                        const algorithms::InventoryComparison& result) {
   std::ofstream out(path);
-  out << "status,detected_id,reference_id,detected_x,detected_y,reference_x,reference_y,"
-         "distance_m,detected_dbh_m,reference_dbh_m,dbh_difference_m\n";
-  std::vector<bool> detected_linked(placed.size()), reference_linked(reference.size());
+  out << "detected_id,reference_id,detected_x,detected_y,reference_x,reference_y,distance_m,"
+         "detected_dbh_m,reference_dbh_m,dbh_difference_m\n";
   for (const algorithms::InventoryLink& link : result.links) {
     const algorithms::DetectedTree& d = placed[link.detected];
     const MapTreeRow& r = reference[link.reference];
-    detected_linked[link.detected] = reference_linked[link.reference] = true;
     const double reference_dbh = r.dbh.value_or(algorithms::kUnknown);
-    out << "linked," << CsvText(RowId(detected[link.detected], link.detected)) << ','
+    out << CsvText(RowId(detected[link.detected], link.detected)) << ','
         << CsvText(RowId(r, link.reference)) << ',' << Number(d.position.x()) << ','
         << Number(d.position.y()) << ',' << Number(r.x) << ',' << Number(r.y) << ','
         << Number(link.distance) << ',' << Number(d.dbh) << ',' << Number(reference_dbh) << ','
         << Number(d.dbh - reference_dbh) << '\n';
   }
+  if (!out) throw CommandError(path + ": cannot write the links");
+}
+
+void WriteCompareUnlinked(const std::string& path, const std::vector<MapTreeRow>& detected,
+                          const std::vector<algorithms::DetectedTree>& placed,
+                          const std::vector<MapTreeRow>& reference,
+                          const algorithms::InventoryComparison& result) {
+  std::ofstream out(path);
+  out << "status,id,x,y,dbh_m\n";
+  std::vector<bool> detected_linked(placed.size()), reference_linked(reference.size());
+  for (const algorithms::InventoryLink& link : result.links) {
+    detected_linked[link.detected] = reference_linked[link.reference] = true;
+  }
   for (size_t i = 0; i < reference.size(); ++i) {
     if (reference_linked[i]) continue;
     const MapTreeRow& r = reference[i];
-    out << "missed,," << CsvText(RowId(r, static_cast<int>(i))) << ",,," << Number(r.x) << ','
-        << Number(r.y) << ",,," << Number(r.dbh.value_or(algorithms::kUnknown)) << ",\n";
+    out << "missed," << CsvText(RowId(r, static_cast<int>(i))) << ',' << Number(r.x) << ','
+        << Number(r.y) << ',' << Number(r.dbh.value_or(algorithms::kUnknown)) << '\n';
   }
   for (size_t i = 0; i < placed.size(); ++i) {
     if (detected_linked[i]) continue;
     const algorithms::DetectedTree& d = placed[i];
-    out << "commission," << CsvText(RowId(detected[i], static_cast<int>(i))) << ",,"
-        << Number(d.position.x()) << ',' << Number(d.position.y()) << ",,,," << Number(d.dbh)
-        << ",,\n";
+    out << "commission," << CsvText(RowId(detected[i], static_cast<int>(i))) << ','
+        << Number(d.position.x()) << ',' << Number(d.position.y()) << ',' << Number(d.dbh) << '\n';
   }
-  if (!out) throw CommandError(path + ": cannot write the links");
+  if (!out) throw CommandError(path + ": cannot write the unlinked trees");
 }
 
 }  // namespace forestmap::client

@@ -36,12 +36,18 @@ struct CompareReport {
 nlohmann::ordered_json CompareJson(const CompareReport& report);
 void PrintCompareTable(const CompareReport& report, std::ostream& out);
 
-// One row per link, then one per unlinked reference tree (missed: empty detected columns) and
-// one per unlinked detection (commission: empty reference columns); `status` says which.
+// --out: one row per link (ids are the files' own, text ids included, else #ROW).
 void WriteCompareLinks(const std::string& path, const std::vector<MapTreeRow>& detected,
                        const std::vector<algorithms::DetectedTree>& placed,
                        const std::vector<MapTreeRow>& reference,
                        const algorithms::InventoryComparison& result);
+
+// --out-unlinked: status,id,x,y,dbh_m; one row per reference tree no detection is linked to
+// (status missed), then one per detection linked to nothing (status commission).
+void WriteCompareUnlinked(const std::string& path, const std::vector<MapTreeRow>& detected,
+                          const std::vector<algorithms::DetectedTree>& placed,
+                          const std::vector<MapTreeRow>& reference,
+                          const algorithms::InventoryComparison& result);
 
 // The text id of a row: its `id`, else the text id the file had (kept as an attribute when not
 // an integer, tree_csv.h), else "#N" (its 1-based row).

@@ -10,6 +10,8 @@
 namespace forestmap::algorithms {
 namespace {
 
+constexpr double kBoundSlack = 1e-9;  // share of a DBH class: rounding of dbh / width
+
 void OmissionByDbh(const std::vector<MapTree>& reference, const std::vector<InventoryLink>& links,
                    double width, InventoryComparison& out) {
   std::vector<bool> linked(reference.size());
@@ -21,7 +23,9 @@ void OmissionByDbh(const std::vector<MapTree>& reference, const std::vector<Inve
       out.reference_without_dbh_linked += linked[r];
       continue;
     }
-    const size_t k = static_cast<size_t>(std::floor(dbh / width));
+    // A DBH on a class bound (0.30 m in classes of 0.1 m) belongs to the class it starts, though
+    // 0.30 / 0.1 is 2.9999999999999996 in doubles.
+    const size_t k = static_cast<size_t>(std::floor(dbh / width + kBoundSlack));
     while (out.omission_by_dbh.size() <= k) {
       const double min = width * static_cast<double>(out.omission_by_dbh.size());
       out.omission_by_dbh.push_back({min, min + width, 0, 0, 0});

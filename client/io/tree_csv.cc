@@ -124,7 +124,7 @@ void SetIds(std::vector<MapTreeRow>& rows, const IdColumn& ids, const CsvReader&
     *options.notes << "forestmap: " << reader.name() << ": column '" << header
                    << "' holds ids that are not integers (e.g. '" << *example
                    << "'): kept as the attribute '" << header
-                   << "'; the trees get numeric ids when stored" << std::endl;
+                   << "' (a map gives the trees numeric ids)" << std::endl;
   }
 }
 

@@ -145,6 +145,15 @@ TEST(InventoryComparisonTest, LinksAPairAtExactlyTheLinkDistance) {
   EXPECT_EQ(CompareInventories(detected, reference, {0.4999}).links.size(), 0u);
 }
 
+// A DBH on a class bound is in the class it starts (0.30 m: 30-40 cm, not 20-30 cm).
+TEST(InventoryComparisonTest, DbhOnAClassBoundStartsTheClass) {
+  const std::vector<MapTree> reference = {{1, {0, 0, kUnknown}, 0.30}, {2, {9, 0, kUnknown}, 0.7}};
+  const InventoryComparison r = CompareInventories({}, reference);
+  ASSERT_EQ(r.omission_by_dbh.size(), 2u);
+  EXPECT_DOUBLE_EQ(r.omission_by_dbh[0].min_dbh, 0.3);
+  EXPECT_DOUBLE_EQ(r.omission_by_dbh[1].min_dbh, 0.7);
+}
+
 // Nothing to measure gives no figure rather than 0.
 TEST(InventoryComparisonTest, FiguresOverNothingAreUnknownNotZero) {
   const std::vector<MapTree> reference = {{1, {0, 0, kUnknown}, 0.2}};
