@@ -8,13 +8,16 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "algorithms/evaluation/inventory_comparison.h"
 #include "client/cli_commands.h"
+#include "client/cli_compare_report.h"
 #include "client/cli_tree_crs.h"
 #include "client/cli_tree_input.h"
 #include "client/io/las_crs.h"
@@ -23,7 +26,8 @@
 namespace forestmap::client {
 namespace {
 
-constexpr double kCm = 100.0;  // cm per m, for the table
+constexpr double kMinLinkDistance = 0.01;  // m: closer than a stem's width is no link distance
+constexpr double kMinDbhClass = 0.01;      // m: DBH is measured to the cm
 
 struct CompareOptions {
   std::string detections;   // tree file, map:NAME, or a scan (trunks detected here)
@@ -35,7 +39,8 @@ struct CompareOptions {
   algorithms::InventoryComparisonOptions comparison;
   bool register_first = false;
   bool json = false;
-  std::string links_out;
+  std::string links_out;     // --out: the links as CSV
+  std::string unlinked_out;  // --out-unlinked: missed reference trees and unlinked detections
 };
 
 // Point clouds by extension; a .csv or .txt is a tree file unless --scan says it is a scan.
@@ -108,120 +113,123 @@ std::vector<algorithms::DetectedTree> AsDetections(const std::vector<MapTreeRow>
   return trees;
 }
 
-std::string Id(const MapTreeRow& row, int index) {
-  return row.id ? std::to_string(*row.id) : "#" + std::to_string(index + 1);
+// The reference's `visible` column (0/1, as `simulate` writes it), when it has one.
+std::optional<std::vector<bool>> VisibleColumn(const std::vector<MapTreeRow>& rows,
+                                               const std::string& path) {
+  constexpr const char* kVisible = "visible";
+  if (rows.empty() || !rows.front().attributes.count(kVisible)) return std::nullopt;
+  std::vector<bool> visible;
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const auto it = rows[i].attributes.find(kVisible);
+    const std::string value = it == rows[i].attributes.end() ? "" : it->second;
+    if (value != "0" && value != "1") {
+      throw CommandError(path + ": tree " + std::to_string(i + 1) + ": column 'visible' is '" +
+                         value + "', not 0 or 1");
+    }
+    visible.push_back(value == "1");
+  }
+  return visible;
 }
 
-void WriteLinks(const std::string& path, const std::vector<MapTreeRow>& detected,
-                const std::vector<algorithms::DetectedTree>& placed,
-                const std::vector<MapTreeRow>& reference,
-                const algorithms::InventoryComparison& result) {
-  std::ofstream out(path);
-  out << "detected_id,reference_id,detected_x,detected_y,reference_x,reference_y,distance_m,"
-         "detected_dbh_m,reference_dbh_m,dbh_difference_m\n";
-  const auto number = [](double v) {
-    char text[32];
-    std::snprintf(text, sizeof(text), "%.4f", v);
-    return std::isfinite(v) ? std::string(text) : std::string();
-  };
-  for (const algorithms::InventoryLink& link : result.links) {
-    const algorithms::DetectedTree& d = placed[link.detected];
-    const MapTreeRow& r = reference[link.reference];
-    const double reference_dbh = r.dbh.value_or(algorithms::kUnknown);
-    out << Id(detected[link.detected], link.detected) << ',' << Id(r, link.reference) << ','
-        << number(d.position.x()) << ',' << number(d.position.y()) << ',' << number(r.x) << ','
-        << number(r.y) << ',' << number(link.distance) << ',' << number(d.dbh) << ','
-        << number(reference_dbh) << ',' << number(d.dbh - reference_dbh) << '\n';
-  }
-  if (!out) throw CommandError(path + ": cannot write the links");
+// The relocalizer's answer in words for two inventories (its own speaks of a drone and a map).
+std::string RegistrationFailure(const algorithms::RelocalizeResult& result) {
+  std::string detail = result.detail;
+  const std::string drone = "; is the drone in this map?";
+  if (const size_t at = detail.find(drone); at != std::string::npos) detail.erase(at);
+  return "--register: the detections could not be placed in the reference (" + detail +
+         "); do the two inventories cover the same trees (at least a few dozen in common)? "
+         "Without --register they are compared in the coordinates they have";
 }
 
-nlohmann::ordered_json ToJson(const algorithms::InventoryComparison& r) {
-  nlohmann::ordered_json json;
-  json["detected_trees"] = r.detected_trees;
-  json["reference_trees"] = r.reference_trees;
-  json["linked"] = r.links.size();
-  json["completeness"] = r.completeness;
-  json["commission"] = r.commission;
-  json["position_rmse_m"] = r.position_rmse;
-  json["bias_x_m"] = r.bias_x;
-  json["bias_y_m"] = r.bias_y;
-  json["dbh_pairs"] = r.dbh_pairs;
-  json["dbh_rmse_m"] = r.dbh_rmse;
-  json["dbh_bias_m"] = r.dbh_bias;
-  for (const algorithms::DbhClassOmission& c : r.omission_by_dbh) {
-    json["omission_by_dbh"].push_back({{"min_dbh_m", c.min_dbh},
-                                       {"max_dbh_m", c.max_dbh},
-                                       {"reference_trees", c.reference_trees},
-                                       {"linked", c.linked},
-                                       {"omission", c.omission}});
+// Moves `detected` into the reference's frame; throws CommandError when it cannot.
+CompareRegistration Register(std::vector<algorithms::DetectedTree>& detected,
+                             const std::vector<algorithms::MapTree>& reference, std::ostream& log) {
+  const algorithms::Registration registration =
+      algorithms::RegisterToReference(detected, reference);
+  if (registration.result.status != algorithms::RelocalizeStatus::kLocalized) {
+    throw CommandError(RegistrationFailure(registration.result));
   }
-  return json;
+  const algorithms::Pose3& t = registration.reference_from_detected;
+  for (algorithms::DetectedTree& tree : detected) tree.position = t * tree.position;
+  const CompareRegistration out{algorithms::YawOf(t.linear()) * 180 / M_PI, t.translation().x(),
+                                t.translation().y(), registration.result.inliers,
+                                registration.result.rmse};
+  char text[160];
+  std::snprintf(text, sizeof(text),
+                "registered: rotation %.3f deg, translation (%.3f, %.3f) m, %d inliers, "
+                "rmse %.3f m\n",
+                out.rotation_deg, out.translation_x, out.translation_y, out.inliers, out.rmse);
+  log << text;
+  return out;
 }
 
-void PrintTable(const CompareOptions& o, const algorithms::InventoryComparison& r,
-                std::ostream& out) {
-  char line[1024];
-  const auto print = [&](const char* format, auto... values) {
-    std::snprintf(line, sizeof(line), format, values...);
-    out << line << '\n';
-  };
-  print("%-16s %s (%d trees) vs reference %s (%d trees), links within %.2f m", "compare",
-        o.detections.c_str(), r.detected_trees, o.reference.c_str(), r.reference_trees,
-        o.comparison.link_distance);
-  print("%-16s %zu of %d reference trees", "linked", r.links.size(), r.reference_trees);
-  print("%-16s %.1f %%", "completeness", 100 * r.completeness);
-  print("%-16s %.1f %% (%d of %d detections unlinked)", "commission", 100 * r.commission,
-        r.detected_trees - static_cast<int>(r.links.size()), r.detected_trees);
-  print("%-16s %.3f m (bias x %+.3f m, y %+.3f m)", "position RMSE", r.position_rmse, r.bias_x,
-        r.bias_y);
-  print("%-16s %.2f cm over %d pairs (bias %+.2f cm, detected - reference)", "DBH RMSE",
-        kCm * r.dbh_rmse, r.dbh_pairs, kCm * r.dbh_bias);
-  out << "omission by reference DBH class:\n";
-  print("  %-12s %6s %7s %9s", "DBH cm", "trees", "linked", "omission");
-  for (const algorithms::DbhClassOmission& c : r.omission_by_dbh) {
-    char range[32];
-    std::snprintf(range, sizeof(range), "%.0f-%.0f", kCm * c.min_dbh, kCm * c.max_dbh);
-    print("  %-12s %6d %7d %8.1f%%", range, c.reference_trees, c.linked, 100 * c.omission);
+// The reference's --columns / --dbh-unit, with messages naming the --reference-* flags.
+TreeFileOptions ReferenceOptions(const CompareOptions& o) {
+  TreeFileOptions options;
+  options.columns_flag = "--reference-columns";
+  options.dbh_unit_flag = "--reference-dbh-unit";
+  try {
+    if (!o.reference_columns.empty()) {
+      options.columns = ParseColumnMapping(o.reference_columns, options.columns_flag);
+    }
+    if (!o.reference_dbh_unit.empty()) {
+      options.dbh_unit = ParseDbhUnit(o.reference_dbh_unit, options.dbh_unit_flag);
+    }
+  } catch (const std::invalid_argument& e) {
+    throw CommandError(e.what());
   }
+  options.notes = &std::cerr;
+  return options;
 }
 
 void Run(const CompareOptions& o, const CliContext& context) {
   // The reference first: its errors come before a scan's detection work.
-  TreeFile reference_file =
-      ReadTreeFile(o.reference, TreeFileOptionsFrom(o.reference_columns, o.reference_dbh_unit));
+  TreeFile reference_file = ReadTreeFile(o.reference, ReferenceOptions(o));
   TreeFile detected_file = ReadDetections(o, context);
   AlignCrs(o, detected_file, reference_file, *context.err);
   const std::vector<MapTreeRow>& reference_rows = reference_file.rows;
   const std::vector<MapTreeRow>& detected_rows = detected_file.rows;
   std::vector<algorithms::DetectedTree> detected = AsDetections(detected_rows);
   const std::vector<algorithms::MapTree> reference = ToMapTrees(reference_rows);
-  if (o.register_first) {
-    const algorithms::Registration registration =
-        algorithms::RegisterToReference(detected, reference);
-    if (registration.result.status != algorithms::RelocalizeStatus::kLocalized) {
-      throw CommandError("--register: the detections were not found in the reference (" +
-                         registration.result.detail + ")");
-    }
-    const algorithms::Pose3& t = registration.reference_from_detected;
-    for (algorithms::DetectedTree& tree : detected) tree.position = t * tree.position;
-    char text[160];
-    std::snprintf(text, sizeof(text),
-                  "registered: rotation %.3f deg, translation (%.3f, %.3f) m, %d inliers, "
-                  "rmse %.3f m\n",
-                  algorithms::YawOf(t.linear()) * 180 / M_PI, t.translation().x(),
-                  t.translation().y(), registration.result.inliers, registration.result.rmse);
-    *context.err << text;
+  CompareReport report{o.detections, o.reference, o.comparison.link_distance, {}, {}, {}};
+  if (o.register_first) report.registration = Register(detected, reference, *context.err);
+  report.result = algorithms::CompareInventories(detected, reference, o.comparison);
+  if (const auto visible = VisibleColumn(reference_rows, o.reference)) {
+    report.visible = algorithms::CompletenessOver(report.result, *visible);
   }
-  const algorithms::InventoryComparison result =
-      algorithms::CompareInventories(detected, reference, o.comparison);
-  if (!o.links_out.empty())
-    WriteLinks(o.links_out, detected_rows, detected, reference_rows, result);
+  if (!o.links_out.empty()) {
+    WriteCompareLinks(o.links_out, detected_rows, detected, reference_rows, report.result);
+  }
+  if (!o.unlinked_out.empty()) {
+    WriteCompareUnlinked(o.unlinked_out, detected_rows, detected, reference_rows, report.result);
+  }
   if (o.json) {
-    *context.out << ToJson(result).dump() << std::endl;
+    *context.out << CompareJson(report).dump() << std::endl;
   } else {
-    PrintTable(o, result, *context.out);
+    PrintCompareTable(report, *context.out);
   }
+}
+
+// Refuses lengths under `min` (m) with a message naming the flag, in plain numbers.
+CLI::Validator AtLeast(double min, const std::string& what) {
+  return CLI::Validator(
+      [min, what](std::string& text) -> std::string {
+        double value = 0;
+        try {
+          size_t used = 0;
+          value = std::stod(text, &used);
+          if (used != text.size()) return "'" + text + "' is not a number of metres";
+        } catch (const std::exception&) {
+          return "'" + text + "' is not a number of metres";
+        }
+        if (!(value >= min)) {
+          char limit[32];
+          std::snprintf(limit, sizeof(limit), "%g", min);
+          return text + " m is too small: " + what + " is at least " + limit + " m";
+        }
+        return "";
+      },
+      "METRES");
 }
 
 }  // namespace
@@ -246,15 +254,18 @@ void AddCompareCommand(CLI::App& app, CliContext& context) {
   sub->add_option("--reference-dbh-unit", o->reference_dbh_unit, "--dbh-unit of the reference");
   sub->add_option("--link-distance", o->comparison.link_distance,
                   "Largest distance of a link, m (default 0.8)")
-      ->check(CLI::PositiveNumber);
+      ->check(AtLeast(kMinLinkDistance, "a link distance"));
   sub->add_option("--dbh-class", o->comparison.dbh_class_width,
                   "Width of the omission DBH classes, m (default 0.1)")
-      ->check(CLI::PositiveNumber);
+      ->check(AtLeast(kMinDbhClass, "a DBH class"));
   sub->add_flag("--register", o->register_first,
                 "Find the detections in the reference first (relocalizer), for surveys in "
                 "different frames");
   sub->add_flag("--json", o->json, "One JSON object instead of the table");
   sub->add_option("--out", o->links_out, "Write the links as CSV");
+  sub->add_option("--out-unlinked", o->unlinked_out,
+                  "Write the trees without a link as CSV (status,id,x,y,dbh_m): missed reference "
+                  "trees, then unlinked detections (status commission)");
   sub->callback([o, &context] { context.run = [o, &context] { Run(*o, context); }; });
 }
 

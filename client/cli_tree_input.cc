@@ -3,6 +3,7 @@
 #include <cctype>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <iterator>
 #include <stdexcept>
 
@@ -17,8 +18,8 @@ void AddTreeFileOptions(CLI::App& command, std::string& columns, std::string& db
                      "id: e.g. x=Field_Xpj,y=Field_Ypj,dbh=DBH,id=Tree (any subset); other "
                      "columns are kept as attributes");
   command.add_option("--dbh-unit", dbh_unit,
-                     "Unit of the DBH column: m, cm or mm (default: from a _cm/_mm suffix of "
-                     "its name, else m)");
+                     "Unit of the DBH column: m, cm, mm or in (default: from a _cm/_mm/_in "
+                     "suffix of its name, else m)");
 }
 
 TreeFileOptions TreeFileOptionsFrom(const std::string& columns, const std::string& dbh_unit) {
@@ -26,6 +27,7 @@ TreeFileOptions TreeFileOptionsFrom(const std::string& columns, const std::strin
   try {
     if (!columns.empty()) options.columns = ParseColumnMapping(columns);
     if (!dbh_unit.empty()) options.dbh_unit = ParseDbhUnit(dbh_unit);
+    options.notes = &std::cerr;  // text ids kept as attributes
   } catch (const std::invalid_argument& e) {
     throw CommandError(e.what());
   }

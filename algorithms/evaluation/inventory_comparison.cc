@@ -4,33 +4,13 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "algorithms/evaluation/inventory_links.h"
 #include "algorithms/relocalization/map_index.h"
 
 namespace forestmap::algorithms {
 namespace {
 
-std::vector<InventoryLink> LinkOneToOne(const std::vector<DetectedTree>& detected,
-                                        const std::vector<MapTree>& reference, double distance) {
-  std::vector<InventoryLink> candidates;
-  for (size_t d = 0; d < detected.size(); ++d) {
-    for (size_t r = 0; r < reference.size(); ++r) {
-      const double gap = (detected[d].position.head<2>() - reference[r].position.head<2>()).norm();
-      if (gap <= distance) {
-        candidates.push_back({static_cast<int>(d), static_cast<int>(r), gap});
-      }
-    }
-  }
-  std::sort(candidates.begin(), candidates.end(),
-            [](const InventoryLink& a, const InventoryLink& b) { return a.distance < b.distance; });
-  std::vector<bool> detected_used(detected.size()), reference_used(reference.size());
-  std::vector<InventoryLink> links;
-  for (const InventoryLink& link : candidates) {
-    if (detected_used[link.detected] || reference_used[link.reference]) continue;
-    detected_used[link.detected] = reference_used[link.reference] = true;
-    links.push_back(link);
-  }
-  return links;
-}
+constexpr double kBoundSlack = 1e-9;  // share of a DBH class: rounding of dbh / width
 
 void OmissionByDbh(const std::vector<MapTree>& reference, const std::vector<InventoryLink>& links,
                    double width, InventoryComparison& out) {
@@ -40,9 +20,12 @@ void OmissionByDbh(const std::vector<MapTree>& reference, const std::vector<Inve
     const double dbh = reference[r].dbh;
     if (!std::isfinite(dbh)) {
       ++out.reference_without_dbh;
+      out.reference_without_dbh_linked += linked[r];
       continue;
     }
-    const size_t k = static_cast<size_t>(std::floor(dbh / width));
+    // A DBH on a class bound (0.30 m in classes of 0.1 m) belongs to the class it starts, though
+    // 0.30 / 0.1 is 2.9999999999999996 in doubles.
+    const size_t k = static_cast<size_t>(std::floor(dbh / width + kBoundSlack));
     while (out.omission_by_dbh.size() <= k) {
       const double min = width * static_cast<double>(out.omission_by_dbh.size());
       out.omission_by_dbh.push_back({min, min + width, 0, 0, 0});
@@ -75,13 +58,13 @@ InventoryComparison CompareInventories(const std::vector<DetectedTree>& detected
   const double links = static_cast<double>(out.links.size());
   if (!reference.empty()) out.completeness = links / reference.size();
   if (!detected.empty()) out.commission = 1.0 - links / detected.size();
+  Eigen::Vector2d offset_sum = Eigen::Vector2d::Zero();
   double squared = 0, dbh_squared = 0, dbh_sum = 0;
   for (const InventoryLink& link : out.links) {
     const Eigen::Vector2d offset =
         detected[link.detected].position.head<2>() - reference[link.reference].position.head<2>();
     squared += offset.squaredNorm();
-    out.bias_x += offset.x() / links;
-    out.bias_y += offset.y() / links;
+    offset_sum += offset;
     const double dbh_error = detected[link.detected].dbh - reference[link.reference].dbh;
     if (std::isfinite(dbh_error)) {
       ++out.dbh_pairs;
@@ -89,12 +72,30 @@ InventoryComparison CompareInventories(const std::vector<DetectedTree>& detected
       dbh_sum += dbh_error;
     }
   }
-  if (!out.links.empty()) out.position_rmse = std::sqrt(squared / links);
+  if (!out.links.empty()) {
+    out.position_rmse = std::sqrt(squared / links);
+    out.bias_x = offset_sum.x() / links;
+    out.bias_y = offset_sum.y() / links;
+  }
   if (out.dbh_pairs > 0) {
     out.dbh_rmse = std::sqrt(dbh_squared / out.dbh_pairs);
     out.dbh_bias = dbh_sum / out.dbh_pairs;
   }
   OmissionByDbh(reference, out.links, options.dbh_class_width, out);
+  return out;
+}
+
+SubsetCompleteness CompletenessOver(const InventoryComparison& comparison,
+                                    const std::vector<bool>& in_subset) {
+  SubsetCompleteness out;
+  for (const bool in : in_subset) out.reference_trees += in;
+  for (const InventoryLink& link : comparison.links) {
+    const size_t r = static_cast<size_t>(link.reference);
+    if (r < in_subset.size() && in_subset[r]) ++out.linked;
+  }
+  if (out.reference_trees > 0) {
+    out.completeness = static_cast<double>(out.linked) / out.reference_trees;
+  }
   return out;
 }
 

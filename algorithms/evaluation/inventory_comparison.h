@@ -5,9 +5,11 @@
 // of the links, and omission by reference DBH class. Horizontal (x, y) only; both sets in one
 // frame (register first when they are not: RegisterToReference).
 
+#include <optional>
 #include <vector>
 
 #include "algorithms/core/geometry.h"
+#include "algorithms/evaluation/inventory_links.h"
 #include "algorithms/relocalization/relocalizer.h"
 
 namespace forestmap::algorithms {
@@ -18,12 +20,6 @@ struct InventoryComparisonOptions {
   void Check() const;             // throws std::invalid_argument
 };
 
-struct InventoryLink {
-  int detected = 0;     // index into the detections
-  int reference = 0;    // index into the reference trees
-  double distance = 0;  // m, horizontal
-};
-
 struct DbhClassOmission {
   double min_dbh = 0, max_dbh = 0;  // m, [min, max)
   int reference_trees = 0;
@@ -31,23 +27,36 @@ struct DbhClassOmission {
   double omission = 0;  // 1 - linked / reference_trees
 };
 
+// Figures over nothing (no reference trees, no detections, no links, no DBH pairs) are nullopt,
+// not 0: a report must not show "RMSE 0" for "nothing measured".
 struct InventoryComparison {
-  std::vector<InventoryLink> links;  // by increasing distance
+  std::vector<InventoryLink> links;  // LinkBefore order (by increasing distance)
   int detected_trees = 0, reference_trees = 0;
-  double completeness = 0;                        // linked reference trees / reference trees
-  double commission = 0;                          // unlinked detections / detections
-  double position_rmse = 0;                       // m, horizontal, over the links
-  double bias_x = 0, bias_y = 0;                  // m, mean detected - reference
+  std::optional<double> completeness;             // linked reference trees / reference trees
+  std::optional<double> commission;               // unlinked detections / detections
+  std::optional<double> position_rmse;            // m, horizontal, over the links
+  std::optional<double> bias_x, bias_y;           // m, mean detected - reference
   int dbh_pairs = 0;                              // links where both DBHs are known
-  double dbh_rmse = 0;                            // m
-  double dbh_bias = 0;                            // m, mean detected - reference
+  std::optional<double> dbh_rmse;                 // m
+  std::optional<double> dbh_bias;                 // m, mean detected - reference
   std::vector<DbhClassOmission> omission_by_dbh;  // reference trees with a known DBH
-  int reference_without_dbh = 0;
+  int reference_without_dbh = 0;                  // reference trees of unknown DBH ...
+  int reference_without_dbh_linked = 0;           // ... and how many of them are linked
 };
 
-// Links greedily by increasing distance (each tree at most once): the one-to-one assignment the
-// papers use, which equals the optimal one whenever trees are farther apart than twice
-// link_distance.
+// Completeness over a subset of the reference trees (e.g. those a simulation marks visible).
+struct SubsetCompleteness {
+  int reference_trees = 0;             // in the subset
+  int linked = 0;                      // of them
+  std::optional<double> completeness;  // linked / reference_trees; nullopt for an empty subset
+};
+// `in_subset[r]` says whether reference tree r belongs to the subset (one entry per tree).
+SubsetCompleteness CompletenessOver(const InventoryComparison& comparison,
+                                    const std::vector<bool>& in_subset);
+
+// Links greedily by increasing distance (each tree at most once, LinkOneToOne): the one-to-one
+// assignment the papers use, which equals the optimal one whenever trees are farther apart than
+// twice link_distance. O(n log n) in the number of trees.
 InventoryComparison CompareInventories(const std::vector<DetectedTree>& detected,
                                        const std::vector<MapTree>& reference,
                                        const InventoryComparisonOptions& options = {});

@@ -1,5 +1,6 @@
 #include "client/io/csv_reader.h"
 
+#include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -13,6 +14,58 @@ namespace forestmap::client {
 namespace {
 
 bool IsBlank(char c) { return c == ' ' || c == '\t' || c == '\r'; }
+
+constexpr size_t kSniffedBytes = 4096;  // the start of a file looked at for binary content
+
+// Throws CsvError when `content` is no UTF-8 / ASCII text table, saying what it is instead.
+void CheckIsText(const std::string& content, const std::string& name) {
+  const auto starts = [&](std::string_view magic) { return content.rfind(magic, 0) == 0; };
+  std::string what;
+  if (starts("\xFF\xFE") || starts("\xFE\xFF")) {
+    what = "UTF-16 text (Excel's \"Unicode text\"): save it as UTF-8 CSV (\"CSV UTF-8\")";
+  } else if (starts("LASF")) {
+    what = "a LAS point cloud, not a tree table: use `forestmap detect` to find its trees";
+  } else if (starts("PK\x03\x04")) {
+    what = "a zip archive (an .xlsx workbook?), not a text table: save the sheet as CSV";
+  } else if (starts("\x7F"
+                    "ELF")) {
+    what = "an executable (ELF), not a text table";
+  } else if (content.find('\0') < kSniffedBytes) {
+    what = "binary data (a NUL byte near the start), not a text table";
+  } else {
+    return;
+  }
+  throw CsvError(name + ": " + what);
+}
+
+// The separator of the header line starting at `pos`: ';' or tab when there are more of them
+// than commas outside quotes, else ','.
+char DetectSeparator(const std::string& content, size_t pos) {
+  size_t commas = 0, semicolons = 0, tabs = 0;
+  bool quoted = false;
+  for (; pos < content.size() && (quoted || content[pos] != '\n'); ++pos) {
+    const char c = content[pos];
+    if (c == '"') quoted = !quoted;
+    if (quoted) continue;
+    commas += c == ',';
+    semicolons += c == ';';
+    tabs += c == '\t';
+  }
+  if (semicolons > commas && semicolons >= tabs) return ';';
+  if (tabs > commas && tabs > semicolons) return '\t';
+  return ',';
+}
+
+// "12,5" (digits, one comma, digits; a sign allowed): a number with a decimal comma.
+bool IsDecimalComma(std::string_view text) {
+  if (!text.empty() && (text.front() == '-' || text.front() == '+')) text.remove_prefix(1);
+  const size_t comma = text.find(',');
+  if (comma == std::string_view::npos || comma == 0 || comma + 1 == text.size()) return false;
+  for (size_t i = 0; i < text.size(); ++i) {
+    if (i != comma && !std::isdigit(static_cast<unsigned char>(text[i]))) return false;
+  }
+  return true;
+}
 
 std::string ReadWholeFile(const std::string& path) {
   std::error_code ec;
@@ -37,11 +90,16 @@ std::string ReadWholeFile(const std::string& path) {
 
 }  // namespace
 
+std::string ReadCsvFile(const std::string& path) { return ReadWholeFile(path); }
+
 CsvReader CsvReader::Open(const std::string& path) { return CsvReader(ReadWholeFile(path), path); }
 
 CsvReader::CsvReader(std::string content, std::string name)
     : content_(std::move(content)), name_(std::move(name)) {
+  CheckIsText(content_, name_);
   if (content_.rfind("\xEF\xBB\xBF", 0) == 0) pos_ = 3;  // UTF-8 byte-order mark
+  SkipBlankLines();
+  separator_ = DetectSeparator(content_, pos_);
   if (!ParseRecord()) throw CsvError(name_ + ": empty file (no header)");
   header_line_ = record_line_;
   header_.reserve(fields_.size());
@@ -87,11 +145,11 @@ bool CsvReader::ParseRecord() {
   record_line_ = line_;
   const size_t n = content_.size();
   while (true) {
-    while (pos_ < n && (content_[pos_] == ' ' || content_[pos_] == '\t')) ++pos_;
+    while (pos_ < n && content_[pos_] != '\r' && IsTrimmed(content_[pos_])) ++pos_;
     const bool quoted = pos_ < n && content_[pos_] == '"';
     fields_.push_back(quoted ? ParseQuoted(fields_.size()) : ParseUnquoted());
     if (pos_ >= n) return true;
-    if (content_[pos_] == ',') {
+    if (content_[pos_] == separator_) {
       ++pos_;
       continue;
     }
@@ -105,10 +163,12 @@ bool CsvReader::ParseRecord() {
 CsvField CsvReader::ParseUnquoted() {
   const size_t n = content_.size();
   const size_t start = pos_;
-  while (pos_ < n && content_[pos_] != ',' && content_[pos_] != '\n') ++pos_;
+  while (pos_ < n && content_[pos_] != separator_ && content_[pos_] != '\n') ++pos_;
   size_t end = pos_;
-  while (end > start && IsBlank(content_[end - 1])) --end;
-  return {std::string_view(content_.data() + start, end - start), false};
+  while (end > start && IsTrimmed(content_[end - 1])) --end;
+  const std::string_view text(content_.data() + start, end - start);
+  if (separator_ == ';' && IsDecimalComma(text)) content_[start + text.find(',')] = '.';
+  return {text, false};
 }
 
 CsvField CsvReader::ParseQuoted(size_t field_index) {
@@ -132,8 +192,8 @@ CsvField CsvReader::ParseQuoted(size_t field_index) {
     content_[out++] = c;
     ++pos_;
   }
-  while (pos_ < n && IsBlank(content_[pos_])) ++pos_;
-  if (pos_ < n && content_[pos_] != ',' && content_[pos_] != '\n') {
+  while (pos_ < n && IsTrimmed(content_[pos_])) ++pos_;
+  if (pos_ < n && content_[pos_] != separator_ && content_[pos_] != '\n') {
     FailAt(field_index, "unexpected text after a closing quote");
   }
   return {std::string_view(content_.data() + start, out - start), true};

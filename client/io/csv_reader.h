@@ -4,9 +4,15 @@
 // Why hand-written: the per-frame detection files have ~320k lines and must parse in well under
 // a second; Debian ships no C++ CSV library. The dialect (RFC 4180 plus what R's write.csv does):
 // - a header row names the columns; the first non-blank line is the header;
-// - fields are separated by ','; spaces and tabs around a field are trimmed;
-// - a field may be quoted with '"', inside which ',' and newlines are literal and '""' is a '"';
+// - fields are separated by ',', or by ';' or tab when the header has more of those than commas
+//   (European spreadsheets, tab-separated text); spaces (and tabs, unless they separate) around a
+//   field are trimmed;
+// - in a ';' file, an unquoted field of digits with one decimal comma (0,149) reads as 0.149;
+// - a field may be quoted with '"', inside which the separator and newlines are literal and '""'
+//   is a '"';
 // - lines end with "\n" or "\r\n"; blank lines are skipped; a UTF-8 byte-order mark is ignored.
+// UTF-16 text (a byte-order mark FF FE or FE FF) and binary files (zip / .xlsx, ELF, LAS, or any
+// NUL byte near the start) are refused with a message saying what the file is.
 // Whether a field was quoted is reported, because R writes a missing string as unquoted NA and
 // the string "NA" quoted.
 
@@ -39,6 +45,7 @@ class CsvReader {
   CsvReader(std::string content, std::string name);
 
   const std::string& name() const { return name_; }
+  char separator() const { return separator_; }
   // Column names as written (trimmed, unquoted).
   const std::vector<std::string>& header() const { return header_; }
   int header_line() const { return header_line_; }
@@ -61,6 +68,7 @@ class CsvReader {
   bool SkipBlankLines();
   CsvField ParseQuoted(size_t field_index);
   CsvField ParseUnquoted();
+  bool IsTrimmed(char c) const { return (c == ' ' || c == '\t' || c == '\r') && c != separator_; }
 
   std::string content_;  // unescaped in place: an unescaped field is never longer than its text
   std::string name_;
@@ -70,6 +78,10 @@ class CsvReader {
   size_t pos_ = 0;
   int line_ = 1;  // line of pos_
   int record_line_ = 0;
+  char separator_ = ',';
 };
+
+// The whole file, as CsvReader::Open reads it. Throws CsvError when it cannot be read.
+std::string ReadCsvFile(const std::string& path);
 
 }  // namespace forestmap::client

@@ -15,7 +15,9 @@
 namespace forestmap::client {
 namespace {
 
-constexpr double kMaxMedianDbh = 3.0;  // m: no tree is that thick
+constexpr double kMaxMedianDbh = 3.0;   // m: no tree is that thick
+constexpr double kMinMedianDbh = 0.01;  // m: a stand of stems under 1 cm is no inventory
+constexpr double kMetresPerInch = 0.0254;
 constexpr const char* kTreeColumns[] = {"x", "y", "z", "dbh", "id"};
 
 std::string Lower(std::string_view text) {
@@ -40,7 +42,8 @@ std::string HeaderList(const std::vector<std::string>& header) {
 
 }  // namespace
 
-std::map<std::string, std::string> ParseColumnMapping(const std::string& text) {
+std::map<std::string, std::string> ParseColumnMapping(const std::string& text,
+                                                      const std::string& flag) {
   std::map<std::string, std::string> mapping;
   size_t start = 0;
   while (start <= text.size()) {
@@ -48,30 +51,38 @@ std::map<std::string, std::string> ParseColumnMapping(const std::string& text) {
     const std::string entry(Trim(std::string_view(text).substr(start, end - start)));
     const size_t equals = entry.find('=');
     if (equals == std::string::npos) {
-      throw std::invalid_argument("--columns: '" + entry +
+      throw std::invalid_argument(flag + ": '" + entry +
                                   "' is not COLUMN=HEADER (e.g. x=Field_Xpj,dbh=DBH)");
     }
     const std::string column = Lower(entry.substr(0, equals));
     const std::string header(Trim(std::string_view(entry).substr(equals + 1)));
     if (!IsTreeColumn(column)) {
-      throw std::invalid_argument("--columns: '" + column +
+      throw std::invalid_argument(flag + ": '" + column +
                                   "' is not a tree column (x, y, z, dbh, id)");
     }
-    if (header.empty()) throw std::invalid_argument("--columns: " + column + "= names no column");
+    if (header.empty()) throw std::invalid_argument(flag + ": " + column + "= names no column");
+    for (const auto& [other, other_header] : mapping) {
+      if (Lower(other_header) == Lower(header)) {
+        throw std::invalid_argument(flag + ": the column '" + header + "' is mapped twice (" +
+                                    other + "=" + other_header + " and " + column + "=" + header +
+                                    "): each tree column needs its own");
+      }
+    }
     if (!mapping.emplace(column, header).second) {
-      throw std::invalid_argument("--columns: '" + column + "' is given twice");
+      throw std::invalid_argument(flag + ": '" + column + "' is given twice");
     }
     start = end + 1;
   }
   return mapping;
 }
 
-DbhUnit ParseDbhUnit(const std::string& text) {
+DbhUnit ParseDbhUnit(const std::string& text, const std::string& flag) {
   const std::string unit = Lower(text);
   if (unit == "m") return DbhUnit::kMetre;
   if (unit == "cm") return DbhUnit::kCentimetre;
   if (unit == "mm") return DbhUnit::kMillimetre;
-  throw std::invalid_argument("--dbh-unit: '" + text + "' is not one of m, cm, mm");
+  if (unit == "in") return DbhUnit::kInch;
+  throw std::invalid_argument(flag + ": '" + text + "' is not one of m, cm, mm, in");
 }
 
 const char* DbhUnitName(DbhUnit unit) {
@@ -80,6 +91,8 @@ const char* DbhUnitName(DbhUnit unit) {
       return "cm";
     case DbhUnit::kMillimetre:
       return "mm";
+    case DbhUnit::kInch:
+      return "in";
     default:
       return "m";
   }
@@ -91,6 +104,8 @@ double MetresPer(DbhUnit unit) {
       return 0.01;
     case DbhUnit::kMillimetre:
       return 0.001;
+    case DbhUnit::kInch:
+      return kMetresPerInch;
     default:
       return 1.0;
   }
@@ -121,7 +136,7 @@ struct Dialect {
   std::string Canonical(const std::string& name) const {
     const std::string lower = Lower(name);
     if (lower == "treeid") return "id";
-    if (lower == "dbh_cm" || lower == "dbh_mm") return "dbh";
+    if (lower == "dbh_cm" || lower == "dbh_mm" || lower == "dbh_in") return "dbh";
     if (fortls && lower == "id") return AsAttribute(name);
     if (fortls && lower == "tree") return "id";
     if (treeloc && lower.starts_with("location_") && lower.size() == 10) {
@@ -132,6 +147,37 @@ struct Dialect {
     return CanonicalColumnName(name);
   }
 };
+
+}  // namespace
+
+namespace {
+
+// --dbh-unit, else the unit the DBH column's name (_cm, _mm, _in) or dialect implies, else m;
+// a --dbh-unit contradicting the name's unit is refused.
+DbhUnit DbhUnitOf(const std::vector<std::string>& header, const std::vector<std::string>& canonical,
+                  const TreeFileOptions& options, const std::string& where, bool fortls) {
+  std::optional<DbhUnit> name_unit;  // said by the column's name
+  std::optional<DbhUnit> header_unit;
+  std::string column;
+  for (size_t i = 0; i < header.size(); ++i) {
+    if (canonical[i] != "dbh") continue;
+    column = header[i];
+    const std::string lower = Lower(header[i]);
+    if (lower.ends_with("_cm")) name_unit = DbhUnit::kCentimetre;
+    if (lower.ends_with("_mm")) name_unit = DbhUnit::kMillimetre;
+    if (lower.ends_with("_in")) name_unit = DbhUnit::kInch;
+    if (lower.ends_with("_m")) name_unit = DbhUnit::kMetre;
+    header_unit = name_unit;
+    if (fortls && lower == "dbh") header_unit = DbhUnit::kCentimetre;
+  }
+  if (options.dbh_unit && name_unit && *options.dbh_unit != *name_unit) {
+    throw CsvError(StrCat({where, ": column '", column, "' is in ", DbhUnitName(*name_unit),
+                           " by its name, but ", options.dbh_unit_flag, " says ",
+                           DbhUnitName(*options.dbh_unit), ": drop ", options.dbh_unit_flag,
+                           " or rename the column"}));
+  }
+  return options.dbh_unit.value_or(header_unit.value_or(DbhUnit::kMetre));
+}
 
 }  // namespace
 
@@ -150,22 +196,16 @@ ResolvedColumns ResolveMapColumns(const std::vector<std::string>& header,
     const auto it = std::find_if(header.begin(), header.end(),
                                  [&](const std::string& h) { return Lower(h) == wanted; });
     if (it == header.end()) {
-      throw CsvError(StrCat({where, ": --columns ", column, "=", header_name, ": no column '",
-                             header_name, "' (columns: ", HeaderList(header), ")"}));
+      throw CsvError(
+          StrCat({where, ": ", options.columns_flag, " ", column, "=", header_name, ": no column '",
+                  header_name, "' (columns: ", HeaderList(header), ")"}));
     }
     for (size_t i = 0; i < header.size(); ++i) {
       if (resolved.canonical[i] == column) resolved.canonical[i] = AsAttribute(header[i]);
     }
     resolved.canonical[it - header.begin()] = column;
   }
-  std::optional<DbhUnit> header_unit;  // the unit the DBH column's name or dialect implies
-  for (size_t i = 0; i < header.size(); ++i) {
-    if (resolved.canonical[i] != "dbh") continue;
-    const std::string lower = Lower(header[i]);
-    if (lower.ends_with("_cm") || (fortls && lower == "dbh")) header_unit = DbhUnit::kCentimetre;
-    if (lower.ends_with("_mm")) header_unit = DbhUnit::kMillimetre;
-  }
-  resolved.dbh_unit = options.dbh_unit.value_or(header_unit.value_or(DbhUnit::kMetre));
+  resolved.dbh_unit = DbhUnitOf(header, resolved.canonical, options, where, fortls);
   return resolved;
 }
 
@@ -176,9 +216,9 @@ constexpr const char* kExportPrefix = "attr_";  // short: shapefile fields have 
 // Lower-case names a reader takes as a tree column or a dialect's marker (see Dialect).
 bool ReservedOnExport(const std::string& name) {
   static const std::set<std::string> kReserved = {
-      "id",     "x",      "y",          "z",          "dbh",       "x_m",
-      "y_m",    "z_m",    "dbh_m",      "tree_id",    "treeid",    "dbh_cm",
-      "dbh_mm", "h.dist", "location_x", "location_y", "location_z"};
+      "id",     "x",      "y",      "z",          "dbh",        "x_m",
+      "y_m",    "z_m",    "dbh_m",  "tree_id",    "treeid",     "dbh_cm",
+      "dbh_mm", "dbh_in", "h.dist", "location_x", "location_y", "location_z"};
   const std::string lower = Lower(name);
   return lower.empty() || kReserved.count(lower) != 0 || CanonicalColumnName(name).empty();
 }
@@ -214,9 +254,15 @@ void CheckDbhMedian(const std::vector<MapTreeRow>& rows, const std::string& file
   if (dbh.empty()) return;
   std::nth_element(dbh.begin(), dbh.begin() + dbh.size() / 2, dbh.end());
   const double median = dbh[dbh.size() / 2];
-  if (median <= kMaxMedianDbh) return;
   char text[64];
   std::snprintf(text, sizeof(text), "%.4g", median);
+  if (median > 0 && median < kMinMedianDbh) {
+    throw CsvError(StrCat({file, ": column '", column, "': the median DBH is ", text, " m read in ",
+                           DbhUnitName(unit),
+                           " (under 1 cm: no inventory of trees); if the column is in metres, "
+                           "drop --dbh-unit or give --dbh-unit m"}));
+  }
+  if (median <= kMaxMedianDbh) return;
   throw CsvError(StrCat({file, ": column '", column, "': the median DBH is ", text, " m read in ",
                          DbhUnitName(unit),
                          " (over 3 m: no tree is that thick); if the column is in centimetres, "

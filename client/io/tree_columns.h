@@ -3,9 +3,9 @@
 // deliver them (see tree_csv.h for the columns themselves).
 //
 // Resolution, per column of a map file's header:
-// 1. By name, case-insensitively: x | x_m, y | y_m, z | z_m, dbh | dbh_m | dbh_cm | dbh_mm,
-//    id | tree_id | treeid. These cover lidR (treeID, X, Y, Z, DBH in m) and 3DFin (X, Y, Z,
-//    DBH in m) output.
+// 1. By name, case-insensitively: x | x_m, y | y_m, z | z_m,
+//    dbh | dbh_m | dbh_cm | dbh_mm | dbh_in, id | tree_id | treeid. These cover lidR (treeID, X, Y,
+//    Z, DBH in m) and 3DFin (X, Y, Z, DBH in m) output.
 // 2. Dialects, recognised by their header:
 //    - FORTLS tree lists (a `h.dist` column): `tree` is the tree id, `dbh` is in cm, and `id`
 //      (FORTLS's plot id) stays an attribute;
@@ -19,12 +19,13 @@
 //    nothing more than 1.
 // 3. `--columns x=Field_Xpj,y=Field_Ypj,dbh=DBH,id=Tree` (any subset) names the columns
 //    explicitly and wins over 1 and 2; a column that would otherwise have given the same tree
-//    column is kept as an attribute.
-// The DBH unit: --dbh-unit when given, else the column name's suffix (_cm, _mm), else FORTLS's
-// cm, else metres.
+//    column is kept as an attribute. One header column named for two tree columns is refused.
+// The DBH unit: --dbh-unit when given, else the column name's suffix (_cm, _mm, _in), else
+// FORTLS's cm, else metres. A --dbh-unit that contradicts the suffix (dbh_cm with mm) is refused.
 
 #include <map>
 #include <optional>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -32,19 +33,23 @@ namespace forestmap::client {
 
 struct MapTreeRow;  // tree_csv.h
 
-enum class DbhUnit { kMetre, kCentimetre, kMillimetre };
+enum class DbhUnit { kMetre, kCentimetre, kMillimetre, kInch };
 
 struct TreeFileOptions {
   std::map<std::string, std::string> columns;  // tree column (x, y, z, dbh, id) -> header name
   std::optional<DbhUnit> dbh_unit;             // nullopt: from the header, else metres
+  std::string columns_flag = "--columns";      // the flags that gave them, named in messages
+  std::string dbh_unit_flag = "--dbh-unit";    // (compare's reference: --reference-*)
+  std::ostream* notes = nullptr;  // where notes on the reading go (text ids); nullptr: nowhere
 };
 
-// "x=Field_Xpj,y=Field_Ypj": throws std::invalid_argument naming the bad entry.
-std::map<std::string, std::string> ParseColumnMapping(const std::string& text);
-// "m", "cm" or "mm": throws std::invalid_argument otherwise.
-DbhUnit ParseDbhUnit(const std::string& text);
+// "x=Field_Xpj,y=Field_Ypj": throws std::invalid_argument naming `flag` and the bad entry.
+std::map<std::string, std::string> ParseColumnMapping(const std::string& text,
+                                                      const std::string& flag = "--columns");
+// "m", "cm", "mm" or "in": throws std::invalid_argument naming `flag` otherwise.
+DbhUnit ParseDbhUnit(const std::string& text, const std::string& flag = "--dbh-unit");
 const char* DbhUnitName(DbhUnit unit);
-double MetresPer(DbhUnit unit);  // 1, 0.01 or 0.001
+double MetresPer(DbhUnit unit);  // 1, 0.01, 0.001 or 0.0254
 
 // The resolved header of a map file.
 struct ResolvedColumns {
@@ -71,8 +76,8 @@ struct ExportedAttribute {
 std::vector<ExportedAttribute> ExportedAttributes(const std::vector<MapTreeRow>& rows);
 
 // A DBH column whose median (in metres, after the unit) is over 3 m holds centimetres or
-// millimetres read as metres (a 14.9 cm stem read as 14.9 m): throws CsvError naming the file
-// and column and suggesting --dbh-unit cm.
+// millimetres read as metres (a 14.9 cm stem read as 14.9 m), one under 1 cm holds metres read
+// as cm or mm (a 0.3 m stem read as 3 mm): throws CsvError naming the file, column and unit.
 void CheckDbhMedian(const std::vector<MapTreeRow>& rows, const std::string& file,
                     const std::string& column, DbhUnit unit);
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <unordered_map>
@@ -54,7 +55,6 @@ MapTreeRow ReadMapRow(const CsvReader& reader, const MapColumns& columns, double
   if (columns.dbh) row.dbh = OptionalDiameter(reader, *columns.dbh);
   if (!row.dbh && columns.dbh_fallback) row.dbh = OptionalDiameter(reader, *columns.dbh_fallback);
   if (row.dbh) *row.dbh *= dbh_scale;
-  if (columns.id) row.id = OptionalInteger(reader, *columns.id);
   for (size_t column : columns.attributes) {
     const CsvField& field = reader.fields()[column];
     CheckUtf8(reader, column, reader.header()[column], "the column name");
@@ -68,6 +68,66 @@ MapTreeRow ReadMapRow(const CsvReader& reader, const MapColumns& columns, double
   return row;
 }
 
+// An id as a survey writes it: an integer, or one with a zero fraction ("12.0", as spreadsheets
+// export whole numbers); nullopt for text ids (A1, 12a, 1.5).
+std::optional<int64_t> IntegerId(std::string_view text) {
+  text = Trim(text);
+  if (!text.empty() && text.front() == '+') text.remove_prefix(1);
+  const size_t point = text.find('.');
+  if (point != std::string_view::npos &&
+      text.find_first_not_of('0', point + 1) == std::string_view::npos) {
+    text = text.substr(0, point);
+  }
+  int64_t value = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (text.empty() || ec != std::errc() || end != text.data() + text.size()) return std::nullopt;
+  return value;
+}
+
+// The id column's fields as read, one per row (nullopt: missing).
+struct IdColumn {
+  size_t column = 0;
+  std::vector<std::optional<std::string>> texts;
+  std::vector<int> lines;
+};
+
+// Integer ids when every id is one; else text ids, kept as the attribute of the id column's name
+// (the trees then get numeric ids where they are stored) and in text_id. Duplicates are refused.
+void SetIds(std::vector<MapTreeRow>& rows, const IdColumn& ids, const CsvReader& reader,
+            const TreeFileOptions& options) {
+  const std::string& header = reader.header()[ids.column];
+  bool integers = true;
+  for (const auto& text : ids.texts) integers = integers && (!text || IntegerId(*text));
+  std::unordered_map<std::string, int> line_of_id;
+  for (size_t i = 0; i < rows.size(); ++i) {
+    if (!ids.texts[i]) {
+      if (!integers) rows[i].null_attributes.insert(header);
+      continue;
+    }
+    const std::string key = integers ? std::to_string(*IntegerId(*ids.texts[i])) : *ids.texts[i];
+    const auto [it, inserted] = line_of_id.emplace(key, ids.lines[i]);
+    if (!inserted) {
+      throw CsvError(StrCat({reader.name(), ":", std::to_string(ids.lines[i]), ": column '", header,
+                             "': duplicate tree id ", key, " (lines ", std::to_string(it->second),
+                             " and ", std::to_string(ids.lines[i]), ")"}));
+    }
+    if (integers) {
+      rows[i].id = IntegerId(*ids.texts[i]);
+    } else {
+      rows[i].text_id = *ids.texts[i];
+      rows[i].attributes[header] = *ids.texts[i];
+    }
+  }
+  if (!integers && options.notes) {
+    const auto example = *std::find_if(ids.texts.begin(), ids.texts.end(),
+                                       [](const auto& text) { return text.has_value(); });
+    *options.notes << "forestmap: " << reader.name() << ": column '" << header
+                   << "' holds ids that are not integers (e.g. '" << *example
+                   << "'): kept as the attribute '" << header
+                   << "' (a map gives the trees numeric ids)" << std::endl;
+  }
+}
+
 std::vector<MapTreeRow> ReadMapTrees(CsvReader reader, const TreeFileOptions& options) {
   const ResolvedColumns resolved = ResolveMapColumns(
       reader.header(), options, reader.name() + ":" + std::to_string(reader.header_line()));
@@ -75,16 +135,17 @@ std::vector<MapTreeRow> ReadMapTrees(CsvReader reader, const TreeFileOptions& op
   columns.dbh_fallback = resolved.dbh_fallback;
   const double dbh_scale = MetresPer(resolved.dbh_unit);
   std::vector<MapTreeRow> rows;
-  std::unordered_map<int64_t, int> line_of_id;
+  IdColumn ids;
+  if (columns.id) ids.column = *columns.id;
   while (reader.Next()) {
     rows.push_back(ReadMapRow(reader, columns, dbh_scale));
-    const std::optional<int64_t> id = rows.back().id;
-    if (!id) continue;
-    const auto [it, inserted] = line_of_id.emplace(*id, reader.line());
-    if (!inserted) {
-      reader.FailAt(*columns.id, DuplicateMessage("tree id", *id, it->second, reader.line()));
-    }
+    if (!columns.id) continue;
+    const CsvField& field = reader.fields()[*columns.id];
+    ids.texts.push_back(IsMissing(field) ? std::nullopt
+                                         : std::optional<std::string>(std::string(field.text)));
+    ids.lines.push_back(reader.line());
   }
+  if (columns.id) SetIds(rows, ids, reader, options);
   if (columns.dbh) {
     CheckDbhMedian(rows, reader.name(), reader.header()[*columns.dbh], resolved.dbh_unit);
   }
@@ -198,12 +259,12 @@ std::map<int64_t, algorithms::Pose3> ReadPoses(CsvReader reader) {
 }  // namespace
 
 std::vector<MapTreeRow> ReadMapTreesCsv(const std::string& path, const TreeFileOptions& options) {
-  return ReadMapTrees(CsvReader::Open(path), options);
+  return ParseMapTreesCsv(ReadCsvFile(path), path, options);
 }
 
 std::vector<MapTreeRow> ParseMapTreesCsv(std::string content, const std::string& name,
                                          const TreeFileOptions& options) {
-  return ReadMapTrees(CsvReader(std::move(content), name), options);
+  return ReadMapTrees(CsvReader(HeaderlessTreeTable(std::move(content), name), name), options);
 }
 
 std::vector<DetectedTreeRow> ReadDetectedTreesCsv(const std::string& path) {

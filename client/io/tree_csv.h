@@ -6,7 +6,10 @@
 //   x | x_m, y | y_m            required, metres
 //   z | z_m                     optional, metres (stem base height)
 //   dbh | dbh_m                 optional, metres (stem diameter at breast height)
-//   id | tree_id                optional integer, maps only; unique within the file
+//   id | tree_id                optional, maps only; unique within the file: integers (also
+//                               written 12.0) are the trees' ids; when any id is text (A1, 12a),
+//                               the column is kept as a text attribute under its name, the rows
+//                               carry it in text_id, and the trees get numeric ids when stored
 //   score, axis_x, axis_y, axis_z, frame   detections only
 // An empty field, NA or NaN in an optional numeric column means "unknown"; in x or y it is an
 // error, as is an infinite value anywhere. In map files every other column is kept as a string
@@ -34,11 +37,12 @@ namespace forestmap::client {
 
 // One tree of a map file, in the map frame.
 struct MapTreeRow {
-  std::optional<int64_t> id;                      // nullopt: the server assigns one
-  double x = 0;                                   // m
-  double y = 0;                                   // m
-  std::optional<double> z;                        // m
-  std::optional<double> dbh;                      // m
+  std::optional<int64_t> id;           // nullopt: the server assigns one
+  std::optional<std::string> text_id;  // an id that is no integer (A1), also kept as an attribute
+  double x = 0;                        // m
+  double y = 0;                        // m
+  std::optional<double> z;             // m
+  std::optional<double> dbh;           // m
   std::map<std::string, std::string> attributes;  // other columns, by header name
   std::set<std::string> null_attributes;          // other columns unknown (NA) in this row
 
@@ -65,6 +69,12 @@ struct Frame {
 // column whose median is over 3 m is refused, naming the column.
 std::vector<MapTreeRow> ReadMapTreesCsv(const std::string& path,
                                         const TreeFileOptions& options = {});
+
+// A tree table without a header row: 3DFin's `*_dbh_and_heights.txt` (blank-separated TH DBH
+// X Y, DBH in m) as CSV text with the header TH,DBH,X,Y (TH stays an attribute); any other
+// file whose first line is only numbers is refused (CsvError naming `path`); files with a
+// header are returned unchanged. ReadMapTreesCsv and ParseMapTreesCsv apply it.
+std::string HeaderlessTreeTable(std::string content, const std::string& path);
 
 // Map rows as the relocalizer's trees: unknown z / dbh become NaN; a row without an id gets its
 // index.

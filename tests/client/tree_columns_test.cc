@@ -182,8 +182,64 @@ TEST(TreeColumnsTest, OptionTextErrorsSayWhatIsWrong) {
   EXPECT_THROW(ParseColumnMapping("x"), std::invalid_argument);
   EXPECT_THROW(ParseColumnMapping("height=Ht"), std::invalid_argument);
   EXPECT_THROW(ParseColumnMapping("x=A,x=B"), std::invalid_argument);
-  EXPECT_THROW(ParseDbhUnit("inch"), std::invalid_argument);
+  EXPECT_THROW(ParseDbhUnit("inch"), std::invalid_argument);  // "in" is the unit
   EXPECT_EQ(ParseColumnMapping(" X = Field_Xpj ,dbh=DBH").at("x"), "Field_Xpj");
+}
+
+template <typename Parse>
+std::string InvalidArgumentOf(Parse parse) {
+  try {
+    parse();
+  } catch (const std::invalid_argument& error) {
+    return error.what();
+  }
+  return "";
+}
+
+// One column for two tree columns is named as such, and every message names the flag given.
+TEST(TreeColumnsTest, ErrorsNameTheFlagAndAColumnMappedTwice) {
+  EXPECT_EQ(InvalidArgumentOf([] { ParseColumnMapping("x=A,y=a"); }),
+            "--columns: the column 'a' is mapped twice (x=A and y=a): each tree column needs its "
+            "own");
+  EXPECT_EQ(InvalidArgumentOf([] { ParseColumnMapping("q=A", "--reference-columns"); }),
+            "--reference-columns: 'q' is not a tree column (x, y, z, dbh, id)");
+  EXPECT_EQ(InvalidArgumentOf([] { ParseDbhUnit("yd", "--reference-dbh-unit"); }),
+            "--reference-dbh-unit: 'yd' is not one of m, cm, mm, in");
+  TreeFileOptions options;
+  options.columns_flag = "--reference-columns";
+  options.columns = {{"dbh", "DBHX"}};
+  EXPECT_EQ(ErrorOf([&] { ParseMapTreesCsv("x,y,dbh\n1,2,0.3\n", "r.csv", options); }),
+            "r.csv:1: --reference-columns dbh=DBHX: no column 'DBHX' (columns: x,y,dbh)");
+}
+
+// Inches: --dbh-unit in and a dbh_in column (US inventories).
+TEST(TreeColumnsTest, InchesAreADbhUnit) {
+  EXPECT_EQ(ParseDbhUnit("in"), DbhUnit::kInch);
+  const auto rows = ParseMapTreesCsv("id,x,y,dbh_in\n1,10,20,12\n2,12,21,10\n", "a.csv");
+  ASSERT_TRUE(rows[0].dbh.has_value());
+  EXPECT_NEAR(*rows[0].dbh, 12 * 0.0254, kTolerance);
+  EXPECT_TRUE(rows[0].attributes.empty());
+  TreeFileOptions options;
+  options.dbh_unit = DbhUnit::kInch;
+  EXPECT_NEAR(*ParseMapTreesCsv("x,y,dbh\n1,2,10\n", "a.csv", options)[0].dbh, 0.254, kTolerance);
+}
+
+// A --dbh-unit that contradicts the column's name, and a median under 1 cm (metres read as cm),
+// are refused naming column, unit and flag.
+TEST(TreeColumnsTest, ImplausibleDbhUnitsAreRefused) {
+  TreeFileOptions options;
+  options.dbh_unit = DbhUnit::kMillimetre;
+  EXPECT_EQ(ErrorOf([&] { ParseMapTreesCsv("x,y,dbh_cm\n1,2,31\n", "a.csv", options); }),
+            "a.csv:1: column 'dbh_cm' is in cm by its name, but --dbh-unit says mm: drop "
+            "--dbh-unit or rename the column");
+  options.dbh_unit = DbhUnit::kCentimetre;
+  EXPECT_NEAR(*ParseMapTreesCsv("x,y,dbh_cm\n1,2,31\n", "a.csv", options)[0].dbh, 0.31,
+              kTolerance);  // the same unit twice is fine
+  EXPECT_EQ(
+      ErrorOf(
+          [&] { ParseMapTreesCsv("x,y,dbh\n1,2,0.31\n3,4,0.25\n5,6,0.4\n", "a.csv", options); }),
+      "a.csv: column 'dbh': the median DBH is 0.0031 m read in cm (under 1 cm: no inventory of "
+      "trees); if the column is in metres, drop --dbh-unit or give --dbh-unit m");
 }
 
 }  // namespace

@@ -126,7 +126,6 @@ TEST(TreeCsvTest, MalformedInputNamesFileLineAndColumn) {
             "t.csv:2: column 'dbh': '-Infinity' is not a finite number");
   EXPECT_EQ(MapError("x,y,z\n1,2,1e999\n"), "t.csv:2: column 'z': '1e999' is out of range");
   EXPECT_EQ(MapError("x,y,dbh\n1,2,-0.3\n"), "t.csv:2: column 'dbh': '-0.3' is negative");
-  EXPECT_EQ(MapError("id,x,y\n1.5,0,0\n"), "t.csv:2: column 'id': '1.5' is not an integer");
   EXPECT_EQ(MapError("tree_id,x,y\n12,0,0\n3,0,0\n\n12,1,1\n"),
             "t.csv:5: column 'tree_id': duplicate tree id 12 (lines 2 and 5)");
   EXPECT_EQ(MapError("x,x_m,y\n1,1,2\n"), "t.csv:1: columns 'x' and 'x_m' both give 'x'");
@@ -396,6 +395,95 @@ TEST(TreeCsvRealDataTest, WildV02FramesAndPoses) {
   EXPECT_EQ(world_from_sensor.translation(), Eigen::Vector3d(391.41347, -209.52740, 139.31155));
   const Eigen::Quaterniond q(0.62294, 0.01299, 0.01038, 0.78209);
   EXPECT_TRUE(world_from_sensor.linear().isApprox(q.normalized().toRotationMatrix(), 1e-12));
+}
+
+// A survey's ids as field crews write them: 12.0 is 12; text ids (A1, 12a, 1.5) are kept as the
+// attribute of the id column's name and in text_id, the trees getting numeric ids when stored.
+TEST(TreeCsvTest, TextIdsAreKeptAsAttributes) {
+  const std::vector<MapTreeRow> whole =
+      ParseMapTreesCsv("id,x,y\n1.0,0,0\n2.00,1,1\n3,2,2\n", "t.csv");
+  ASSERT_EQ(whole.size(), 3u);
+  EXPECT_EQ(whole[0].id, 1);
+  EXPECT_EQ(whole[1].id, 2);
+  EXPECT_EQ(whole[2].id, 3);
+  EXPECT_TRUE(whole[0].attributes.empty());
+  std::ostringstream notes;
+  TreeFileOptions options;
+  options.notes = &notes;
+  const std::vector<MapTreeRow> text =
+      ParseMapTreesCsv("tree_id,x,y\n7,0,0\nA1,1,1\n12a,2,2\n,3,3\n1.5,4,4\n", "t.csv", options);
+  ASSERT_EQ(text.size(), 5u);
+  for (const MapTreeRow& row : text) EXPECT_FALSE(row.id.has_value()) << row;
+  EXPECT_EQ(text[0].attributes.at("tree_id"), "7");
+  EXPECT_EQ(text[1].attributes.at("tree_id"), "A1");
+  EXPECT_EQ(text[1].text_id, "A1");
+  EXPECT_EQ(text[2].text_id, "12a");
+  EXPECT_FALSE(text[3].text_id.has_value());
+  EXPECT_EQ(text[3].null_attributes, std::set<std::string>{"tree_id"});
+  EXPECT_EQ(text[4].text_id, "1.5");
+  EXPECT_NE(notes.str().find("column 'tree_id' holds ids that are not integers (e.g. '7')"),
+            std::string::npos)
+      << notes.str();
+  EXPECT_EQ(MapError("id,x,y\nA1,0,0\nB2,0,0\nA1,1,1\n"),
+            "t.csv:4: column 'id': duplicate tree id A1 (lines 2 and 4)");
+  EXPECT_EQ(MapError("id,x,y\n1.0,0,0\n1,1,1\n"),
+            "t.csv:3: column 'id': duplicate tree id 1 (lines 2 and 3)");
+}
+
+// European spreadsheets (';' with decimal commas) and tab-separated text read as CSV does.
+TEST(TreeCsvTest, SemicolonAndTabSeparatedFilesAreRead) {
+  const std::vector<MapTreeRow> euro = ParseMapTreesCsv(
+      "id;x;y;dbh;species\r\n1;312030,02;5096043,18;0,149;Picea abies\r\n2;-1,5;3;0,3;\"1,5\"\r\n",
+      "e.csv");
+  ASSERT_EQ(euro.size(), 2u);
+  EXPECT_DOUBLE_EQ(euro[0].x, 312030.02);
+  EXPECT_DOUBLE_EQ(euro[0].y, 5096043.18);
+  EXPECT_DOUBLE_EQ(*euro[0].dbh, 0.149);
+  EXPECT_EQ(euro[0].attributes.at("species"), "Picea abies");
+  EXPECT_DOUBLE_EQ(euro[1].x, -1.5);
+  EXPECT_EQ(euro[1].attributes.at("species"), "1,5");  // quoted: text as it is
+  const std::vector<MapTreeRow> tabs =
+      ParseMapTreesCsv("id\tx\ty\tdbh\tnote\n1\t10\t20\t0.3\t\n2\t12\t21\t0.25\tok\n", "t.tsv");
+  ASSERT_EQ(tabs.size(), 2u);
+  EXPECT_DOUBLE_EQ(tabs[1].x, 12);
+  EXPECT_DOUBLE_EQ(*tabs[1].dbh, 0.25);
+  EXPECT_EQ(tabs[0].null_attributes, std::set<std::string>{"note"});  // empty field kept
+  EXPECT_EQ(tabs[1].attributes.at("note"), "ok");
+  // A comma file with a ';' in a quoted header name stays a comma file.
+  EXPECT_EQ(ParseMapTreesCsv("x,y,\"a;b\"\n1,2,3\n", "c.csv")[0].attributes.at("a;b"), "3");
+}
+
+// Files that are no text table say what they are instead of dumping bytes.
+TEST(TreeCsvTest, Utf16AndBinaryFilesAreNamed) {
+  EXPECT_EQ(MapError(std::string("\xFF\xFEx\0,\0y\0\n\0", 10)),
+            "t.csv: UTF-16 text (Excel's \"Unicode text\"): save it as UTF-8 CSV (\"CSV UTF-8\")");
+  EXPECT_EQ(MapError(std::string("\xFE\xFF\0x\0,\0y", 9)).substr(0, 20), "t.csv: UTF-16 text (");
+  EXPECT_EQ(MapError(std::string("LASF\0\0\x01\0", 8)),
+            "t.csv: a LAS point cloud, not a tree table: use `forestmap detect` to find its trees");
+  EXPECT_EQ(MapError(std::string("PK\x03\x04\x14\0\x06\0", 8)),
+            "t.csv: a zip archive (an .xlsx workbook?), not a text table: save the sheet as CSV");
+  EXPECT_EQ(MapError(std::string("\x7F"
+                                 "ELF\x02\x01",
+                                 6)),
+            "t.csv: an executable (ELF), not a text table");
+  EXPECT_EQ(MapError(std::string("x,y\n1,\0\x01", 8)),
+            "t.csv: binary data (a NUL byte near the start), not a text table");
+}
+
+// 3DFin's own text output: no header, blank-separated TH DBH X Y.
+TEST(TreeCsvTest, ThreeDfinDbhAndHeightsTableIsRead) {
+  const std::string table = "17.234 0.251 12.345 45.678\n15.100  0.180\t14.000 40.000\n\n";
+  const std::vector<MapTreeRow> rows = ParseMapTreesCsv(table, "plot_dbh_and_heights.txt");
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_DOUBLE_EQ(rows[0].x, 12.345);
+  EXPECT_DOUBLE_EQ(rows[0].y, 45.678);
+  EXPECT_DOUBLE_EQ(*rows[0].dbh, 0.251);
+  EXPECT_EQ(rows[0].attributes.at("TH"), "17.234");
+  EXPECT_DOUBLE_EQ(*rows[1].dbh, 0.18);
+  EXPECT_EQ(ErrorOf([&] { ParseMapTreesCsv(table, "trees.txt"); }),
+            "trees.txt: no header row (the first line is numbers): a tree table needs one naming "
+            "its columns (x,y,dbh,...); 3DFin's *_dbh_and_heights.txt (TH DBH X Y) is read by "
+            "that name");
 }
 
 }  // namespace
