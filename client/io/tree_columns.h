@@ -25,6 +25,7 @@
 
 #include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,7 @@ enum class DbhUnit { kMetre, kCentimetre, kMillimetre };
 struct TreeFileOptions {
   std::map<std::string, std::string> columns;  // tree column (x, y, z, dbh, id) -> header name
   std::optional<DbhUnit> dbh_unit;             // nullopt: from the header, else metres
+  std::string layer;  // GIS files: the layer to read; empty: the only one with points
 };
 
 // "x=Field_Xpj,y=Field_Ypj": throws std::invalid_argument naming the bad entry.
@@ -62,13 +64,16 @@ ResolvedColumns ResolveMapColumns(const std::vector<std::string>& header,
 // attribute (or null attribute) of any row, with the name it is written under. Names that would
 // read back as a tree column (X_m, treeID, dbh_cm, location_x, Z, ...) or switch a dialect on
 // (h.dist) are written as "attr_NAME", so that reading the file back keeps the tree columns
-// and the DBH unit, and the value stays an attribute. Throws CsvError when two attributes would be
-// written under one name (compared case-insensitively, as GeoPackage does).
+// and the DBH unit, and the value stays an attribute; so are the lower-case names in
+// `also_reserved` (a format's own columns: GeoPackage's fid and geom). Two attributes that would
+// be written under one name (compared case-insensitively, as GeoPackage does: Species and
+// species) are not: the later one is written as attr_NAME (or NAME_2, ...).
 struct ExportedAttribute {
   std::string name;    // the attribute's name
   std::string column;  // the column it is written as
 };
-std::vector<ExportedAttribute> ExportedAttributes(const std::vector<MapTreeRow>& rows);
+std::vector<ExportedAttribute> ExportedAttributes(const std::vector<MapTreeRow>& rows,
+                                                  const std::set<std::string>& also_reserved = {});
 
 // A DBH column whose median (in metres, after the unit) is over 3 m holds centimetres or
 // millimetres read as metres (a 14.9 cm stem read as 14.9 m): throws CsvError naming the file
