@@ -208,7 +208,7 @@ OGRLayer& ChooseLayer(GDALDataset& dataset, const std::string& name, const std::
   if (points.size() == 1) return *points[0];
   throw CsvError(
       StrCat({path, points.empty() ? ": no layer has points" : ": several layers have points",
-              " (layers: ", LayerList(dataset), "): name the trees' with --layer NAME"}));
+              " (layers: ", LayerList(dataset), "): name the trees' layer with --layer NAME"}));
 }
 
 // Whether a GeoJSON file has a "crs" member (GeoJSON 2008); without one GDAL says WGS 84.

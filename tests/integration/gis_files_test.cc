@@ -237,6 +237,21 @@ TEST_F(GisFilesTest, MapsWithoutCrsReadBackWithoutOne) {
   EXPECT_TRUE(Has(garbage.err, Path("h.PRJ") + ": not a CRS PROJ knows")) << garbage.err;
 }
 
+// `detect` on a scan without a CRS writes no .prj beside its CSV and removes an old one.
+TEST_F(GisFilesTest, DetectWithoutCrsLeavesNoOldPrj) {
+  std::string scan;
+  for (int i = 0; i < 400; ++i) {
+    scan += std::to_string(i % 20 * 0.5) + " " + std::to_string(i / 20 * 0.5) + " 0.01\n";
+  }
+  Write("scan.xyz", scan);
+  Write("trees.prj", "EPSG:2959\n");
+  const Result detected =
+      Cli("detect '" + Path("scan.xyz") + "' --out '" + Path("trees.csv") + "'");
+  ASSERT_EQ(detected.exit_code, 0) << detected.err;
+  EXPECT_TRUE(fs::exists(dir_ / "trees.csv"));
+  EXPECT_FALSE(fs::exists(dir_ / "trees.prj"));
+}
+
 TEST_F(GisFilesTest, NumbersAreExportedAsNumbersAndReadBackAsWritten) {
   CreateLocal("plot", "Ht,count,code,mixed", {"62,3,007,1", "6,12,010,2.5", "16.8,-4,x1,NA"});
   for (const std::string name : {"n.gpkg", "n.shp", "n.geojson"}) {
