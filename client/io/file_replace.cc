@@ -46,6 +46,9 @@ std::vector<fs::path> Sidecars(const std::string& path,
 std::string TemporaryBeside(const std::string& path) {
   static std::atomic<int> counter{0};
   const fs::path file(path);
+  if (!file.parent_path().empty() && !fs::is_directory(file.parent_path())) {
+    throw CsvError(path + ": cannot write: no directory " + file.parent_path().string());
+  }
   std::string name = ".";  // appended piece by piece: GCC 12's -Wrestrict misfires on a + chain
   name += file.filename().string();
   name += ".tmp-";

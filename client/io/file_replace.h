@@ -13,7 +13,7 @@
 namespace forestmap::client {
 
 // A path in the directory of `path` that no one else uses: ".NAME.tmp-PID-N" plus `path`'s
-// extension (GDAL drivers look at it).
+// extension (GDAL drivers look at it). Throws CsvError when the directory does not exist.
 std::string TemporaryBeside(const std::string& path);
 
 // Calls write(temporary) and renames the temporary file to `path` when it returns; when it

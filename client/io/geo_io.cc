@@ -211,16 +211,22 @@ OGRLayer& ChooseLayer(GDALDataset& dataset, const std::string& name, const std::
               " (layers: ", LayerList(dataset), "): name the trees' layer with --layer NAME"}));
 }
 
-// Whether a GeoJSON file has a "crs" member (GeoJSON 2008); without one GDAL says WGS 84.
-bool DeclaresCrs(const std::string& path) {
+enum class CrsMember { kNone, kNull, kDeclared };
+
+// A GeoJSON file's "crs" member (GeoJSON 2008): none (GDAL says WGS 84, as RFC 7946 does), null
+// ("no CRS", as exports of maps without one write; GDAL still says WGS 84), or a CRS.
+CrsMember GeoJsonCrsMember(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   const std::string text((std::istreambuf_iterator<char>(in)), {});
   for (size_t at = text.find("\"crs\""); at != std::string::npos;
        at = text.find("\"crs\"", at + 1)) {
     const size_t colon = text.find_first_not_of(" \t\r\n", at + 5);
-    if (colon != std::string::npos && text[colon] == ':') return true;
+    if (colon == std::string::npos || text[colon] != ':') continue;
+    const size_t value = text.find_first_not_of(" \t\r\n", colon + 1);
+    const bool null = value != std::string::npos && text.compare(value, 4, "null") == 0;
+    return null ? CrsMember::kNull : CrsMember::kDeclared;
   }
-  return false;
+  return CrsMember::kNone;
 }
 
 bool InLongitudeLatitude(const std::vector<MapTreeRow>& rows) {
@@ -230,8 +236,9 @@ bool InLongitudeLatitude(const std::vector<MapTreeRow>& rows) {
 }
 
 // The CRS a layer declares. None for GeoPackage's "Undefined geographic/Cartesian SRS" (srs_id
-// 0, -1), and for a GeoJSON file without a crs member whose coordinates are not longitude and
-// latitude (RFC 7946's WGS 84 is GDAL's default then; a local grid is no WGS 84).
+// 0, -1), for a GeoJSON file whose crs member is null, and for one without a crs member whose
+// coordinates are not longitude and latitude (RFC 7946's WGS 84 is GDAL's default then; a local
+// grid is no WGS 84).
 std::string DeclaredCrs(GDALDataset& dataset, OGRLayer& layer, const std::string& path,
                         const std::vector<MapTreeRow>& rows) {
   const OGRSpatialReference* srs = layer.GetSpatialRef();
@@ -239,7 +246,12 @@ std::string DeclaredCrs(GDALDataset& dataset, OGRLayer& layer, const std::string
   const std::string driver = dataset.GetDriver() ? dataset.GetDriver()->GetDescription() : "";
   const std::string name = srs->GetName() ? srs->GetName() : "";
   if (driver == "GPKG" && name.rfind("Undefined ", 0) == 0) return "";
-  if (driver == "GeoJSON" && !InLongitudeLatitude(rows) && !DeclaresCrs(path)) return "";
+  if (driver == "GeoJSON") {
+    const CrsMember member = GeoJsonCrsMember(path);
+    if (member == CrsMember::kNull || (member == CrsMember::kNone && !InLongitudeLatitude(rows))) {
+      return "";
+    }
+  }
   return LayerCrs(layer);
 }
 

@@ -10,14 +10,15 @@
 // null where a row has no value): Integer64 when every value is an integer ("62", not "062"), Real
 // when every one is a number in the form read back ("14.9", not "14.90"), else String. Text is
 // UTF-8 (shapefiles: with a .cpg saying so). A map without a CRS is written without one
-// (GeoPackage: the "Undefined Cartesian SRS", srs_id -1).
+// (GeoPackage: the "Undefined Cartesian SRS", srs_id -1; GeoJSON: "crs": null).
 //
 // Reading takes the layer --layer names, else the only layer, else the only one with points; the
 // point's x and y (and z when the geometry has one) and the fields by name as tree_columns.h
 // resolves them (--columns and --dbh-unit apply to field names); a null or unset field is a null
 // attribute, a real field's text is FormatReal's (geo_io_internal.h). A GeoPackage's undefined
-// SRS (srs_id 0, -1) is no CRS, as is a GeoJSON file's default WGS 84 (no "crs" member) when its
-// coordinates are not longitude and latitude. Text must be UTF-8; a shapefile needs its .dbf.
+// SRS (srs_id 0, -1) is no CRS, as is a GeoJSON file's "crs": null, and its default WGS 84 (no
+// "crs" member) when its coordinates are not longitude and latitude. Text must be UTF-8; a
+// shapefile needs its .dbf.
 //
 // Errors are CsvError (the tree-file error type) naming the file and, where there is one, the
 // feature and field: "FILE: feature 3: field 'dbh': ...". A failed write leaves the file as it

@@ -3,6 +3,8 @@
 #include <cerrno>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <set>
 #include <system_error>
 
@@ -215,6 +217,24 @@ DatasetPtr OpenForWriting(GDALDriver& driver, TreeFormat format, const std::stri
   return dataset;
 }
 
+// GeoJSON cannot say "no CRS" through GDAL, which writes no crs member (WGS 84 to RFC 7946
+// readers): GeoJSON 2008's `"crs": null` says it, after the collection's type.
+void MarkNoCrs(const std::string& file, const std::string& path) {
+  std::string text;
+  {
+    std::ifstream in(file, std::ios::binary);
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  const std::string type = "\"type\": \"FeatureCollection\",";
+  const size_t at = text.find(type);
+  if (at == std::string::npos) throw CsvError(path + ": GDAL wrote no FeatureCollection");
+  text.insert(at + type.size(), "\n\"crs\": null,");
+  std::ofstream out(file, std::ios::binary | std::ios::trunc);
+  out << text;
+  out.close();
+  if (!out) throw CsvError(path + ": cannot write");
+}
+
 // A shapefile is several files: written in a directory `temporary`, then moved beside `path`
 // one by one; the parts of an earlier export this one does not write (an old .prj) are removed.
 void PlaceShapefile(const std::string& temporary, const std::string& path) {
@@ -261,6 +281,7 @@ std::vector<std::string> WriteGeoTrees(const std::string& path, TreeFormat forma
     warnings = WriteLayer(*dataset, rows, {name, format, srs.get()}, path);
     dataset.reset();  // closes: GeoJSON and shapefiles are complete only now
     if (CPLGetLastErrorType() == CE_Failure) throw CsvError(path + ": " + LastGdalError());
+    if (format == TreeFormat::kGeoJson && crs.empty()) MarkNoCrs(temporary, path);
     if (shapefile) PlaceShapefile(temporary, path);
   };
   if (shapefile) {

@@ -181,6 +181,9 @@ TEST_F(GisFilesTest, ExportsReplaceFilesWholeOrNotAtAll) {
                                          " disagree: name the file " + Path("t.shp")))
       << contradiction.err;
   EXPECT_FALSE(fs::exists(dir_ / "t.csv"));
+  const Result no_directory = Cli("map export plot --out '" + Path("none/t.shp") + "'");
+  EXPECT_TRUE(Has(no_directory.err, "t.shp: cannot write: no directory " + Path("none")))
+      << no_directory.err;
   EXPECT_EQ(Listing(dir_),
             (std::vector<std::string>{"empty.geojson", "local.csv", "notes.gpkg", "plot.csv",
                                       "t.cpg", "t.dbf", "t.shp", "t.shx"}));
@@ -217,6 +220,13 @@ TEST_F(GisFilesTest, MapsWithoutCrsReadBackWithoutOne) {
   }
   EXPECT_TRUE(
       Has(Shell("ogrinfo -so -al '" + Path("b.gpkg") + "'").out, "Undefined Cartesian SRS"));
+  EXPECT_TRUE(Has(ReadFile(dir_ / "b.geojson"), "\"crs\": null,")) << ReadFile(dir_ / "b.geojson");
+  // A local grid small enough to look like degrees reads back without a CRS all the same.
+  Write("small.csv", "x,y\n10,20\n12,21\n15,25\n");
+  ASSERT_EQ(Cli("map create small --trees '" + Path("small.csv") + "'").exit_code, 0);
+  ASSERT_EQ(Cli("map export small --out '" + Path("small.geojson") + "'").exit_code, 0);
+  EXPECT_EQ(ReadBack("small_back", Path("small.geojson")).size(), 3u);
+  EXPECT_EQ(client_.GetMap("small_back").crs(), "");
   // GeoJSON without a crs member in longitude and latitude is still WGS 84 (RFC 7946).
   Write("lonlat.geojson", R"({"type": "FeatureCollection", "features": [{"type": "Feature",
     "properties": {}, "geometry": {"type": "Point", "coordinates": [-75.6, 46.1]}}]})");
