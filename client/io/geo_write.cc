@@ -227,8 +227,9 @@ void MarkNoCrs(const std::string& file, const std::string& path) {
   }
   const std::string type = "\"type\": \"FeatureCollection\",";
   const size_t at = text.find(type);
-  if (at == std::string::npos) throw CsvError(path + ": GDAL wrote no FeatureCollection");
-  text.insert(at + type.size(), "\n\"crs\": null,");
+  const size_t brace = text.find('{');
+  if (brace == std::string::npos) throw CsvError(path + ": GDAL wrote no GeoJSON object");
+  text.insert(at == std::string::npos ? brace + 1 : at + type.size(), "\n\"crs\": null,");
   std::ofstream out(file, std::ios::binary | std::ios::trunc);
   out << text;
   out.close();
