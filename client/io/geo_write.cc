@@ -51,13 +51,17 @@ bool IsInteger(const std::string& text) {
   return errno == 0 && end == text.c_str() + text.size() && std::to_string(value) == text;
 }
 
-// A number whose text reads back the same from the field (FormatReal; a shapefile's fixed
-// decimals).
+// A number whose text reads back the same from the field (FormatReal's 15 digits; a shapefile's
+// fixed decimals).
 bool IsReal(const std::string& text, TreeFormat format) {
   if (text.empty()) return false;
   char* end = nullptr;
   const double value = std::strtod(text.c_str(), &end);
-  if (end != text.c_str() + text.size() || !std::isfinite(value) || FormatReal(value) != text) {
+  // 15 significant digits at most: GDAL's GeoJSON writer keeps no more.
+  char shortest[40];
+  std::snprintf(shortest, sizeof(shortest), "%.15g", value);
+  if (end != text.c_str() + text.size() || !std::isfinite(value) || shortest != text ||
+      std::strtod(shortest, nullptr) != value) {
     return false;
   }
   if (format != TreeFormat::kShapefile) return true;
