@@ -10,6 +10,7 @@
 #include "client/cli_commands.h"
 #include "client/io/file_replace.h"
 #include "client/io/geo_io.h"
+#include "geo/crs.h"
 
 namespace forestmap::client {
 
