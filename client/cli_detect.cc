@@ -142,8 +142,9 @@ void Run(const DetectCommandOptions& options, const CliContext& context) {
     file << text.str();
     file.close();
     if (!file) throw CommandError(options.out + ": cannot write the tree list");
-    // The CRS beside a CSV, as GIS tools keep it (map create --trees reads it back).
-    if (!crs.empty() && options.format != "json") WriteCrsSidecar(options.out, crs);
+    // The CRS beside a CSV, as GIS tools keep it (map create --trees reads it back); none: an
+    // old .prj is removed.
+    if (options.format != "json") WriteCrsSidecar(options.out, crs);
   }
   if (!crs.empty()) *context.err << options.scan << ": CRS " << ShortCrs(crs) << std::endl;
   *context.err << Summary(options.scan, result) << std::endl;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <map>
@@ -16,6 +17,7 @@
 #include "client/cli_format.h"
 #include "client/cli_tree_crs.h"
 #include "client/cli_tree_input.h"
+#include "client/io/file_replace.h"
 #include "client/io/geo_io.h"
 #include "client/io/tree_csv.h"
 
@@ -30,6 +32,7 @@ struct CreateOptions {
   std::string description;
   std::string columns;   // --columns x=HEADER,... (io/tree_columns.h)
   std::string dbh_unit;  // --dbh-unit m|cm|mm; empty: from the header, else m
+  std::string layer;     // --layer: a GIS file's layer; empty: the only one with points
 };
 
 // Creates the map with `rows` (from `source`) in one upload stream: the server creates the map
@@ -66,8 +69,8 @@ void RunCreate(CreateOptions options, const CliContext& context) {
   std::vector<MapTreeRow> rows;
   // Read the file before touching the server, so that a bad file leaves nothing behind.
   if (!options.trees_file.empty()) {
-    TreeFile file =
-        ReadTreeFile(options.trees_file, TreeFileOptionsFrom(options.columns, options.dbh_unit));
+    TreeFile file = ReadTreeFile(
+        options.trees_file, TreeFileOptionsFrom(options.columns, options.dbh_unit, options.layer));
     rows = std::move(file.rows);
     options.crs = CrsOfTrees(options.trees_file, options.crs, file.crs);
     options.crs =
@@ -94,7 +97,7 @@ void AddCreate(CLI::App& map_app, CliContext& context) {
                   "The map's trees: CSV (columns x,y (m) required; z, dbh (m), id optional; "
                   "other columns are kept as attributes), or .gpkg / .geojson / .shp points "
                   "(whose CRS is used when --crs is not given)");
-  AddTreeFileOptions(*sub, options->columns, options->dbh_unit);
+  AddTreeFileOptions(*sub, options->columns, options->dbh_unit, &options->layer);
   sub->add_option("--crs", options->crs,
                   "Coordinate reference system of the trees and the map: EPSG code (EPSG:2959), "
                   "WKT or PROJ string, in metres");
@@ -255,6 +258,25 @@ void AddStateColumns(ExportedTrees& exported) {
   }
 }
 
+// --format, or the --out extension's. An extension that names another format is refused (a
+// shapefile is always FILE.shp: GDAL would make a directory of any other name).
+TreeFormat ExportFormat(const ExportOptions& options) {
+  const TreeFormat by_extension = TreeFormatOfPath(options.out_file);
+  if (options.format.empty()) return by_extension;
+  const TreeFormat format = ParseTreeFormat(options.format);
+  std::string extension = std::filesystem::path(options.out_file).extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const bool known = by_extension != TreeFormat::kCsv || extension == ".csv";
+  if ((known && by_extension != format) || (format == TreeFormat::kShapefile && !known)) {
+    throw CommandError("--format " + options.format + " and --out " + options.out_file +
+                       " disagree: name the file " +
+                       std::filesystem::path(options.out_file).replace_extension("").string() +
+                       "." + (format == TreeFormat::kGeoJson ? "geojson" : options.format));
+  }
+  return format;
+}
+
 void RunExport(const ExportOptions& options, const CliContext& context) {
   ExportedTrees exported =
       context.Connect().ExportTrees(options.name, std::nullopt, options.version);
@@ -268,20 +290,25 @@ void RunExport(const ExportOptions& options, const CliContext& context) {
     if (!*context.out) throw CommandError("writing to standard output failed");
     return;
   }
-  const TreeFormat format =
-      options.format.empty() ? TreeFormatOfPath(options.out_file) : ParseTreeFormat(options.format);
+  const TreeFormat format = ExportFormat(options);
   const v1::Map map = context.Connect().GetMap(options.name);
   if (format == TreeFormat::kCsv) {
-    WriteMapTreesCsv(options.out_file, exported.trees);
-    // The CRS as WKT beside the CSV, as GIS tools keep it (map create --trees reads it back).
-    if (!map.crs().empty()) {
-      WriteCrsSidecar(options.out_file, map.crs_wkt().empty() ? map.crs() : map.crs_wkt());
-    }
+    ReplaceFile(options.out_file,
+                [&](const std::string& temporary) { WriteMapTreesCsv(temporary, exported.trees); });
+    // The CRS as WKT beside the CSV, as GIS tools keep it (map create --trees reads it back);
+    // for a map without one, an old .prj is removed.
+    WriteCrsSidecar(options.out_file, map.crs_wkt().empty() ? map.crs() : map.crs_wkt());
   } else {
-    WriteGeoTrees(options.out_file, format, exported.trees, map.crs());
+    // A GeoPackage takes the map as its layer (others stay); other formats are replaced.
+    for (const std::string& warning :
+         WriteGeoTrees(options.out_file, format, exported.trees, map.crs(), options.name)) {
+      *context.err << "forestmap: warning: " << warning << std::endl;
+    }
   }
   *context.err << "exported " << exported.trees.size() << " trees of map '" << options.name
-               << "' (version " << exported.map_version << ") to " << options.out_file << std::endl;
+               << "' (version " << exported.map_version << ") to " << options.out_file;
+  if (format == TreeFormat::kGeoPackage) *context.err << " (layer '" << options.name << "')";
+  *context.err << std::endl;
 }
 
 void AddExport(CLI::App& map_app, CliContext& context) {

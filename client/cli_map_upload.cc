@@ -20,6 +20,7 @@ struct UploadOptions {
   std::string crs;       // the trees' CRS when the file declares none (or another)
   std::string columns;   // --columns x=HEADER,... (io/tree_columns.h)
   std::string dbh_unit;  // --dbh-unit m|cm|mm
+  std::string layer;     // --layer: a GIS file's layer; empty: the only one with points
   bool replace = false;
 };
 
@@ -45,8 +46,8 @@ void PlaceInMap(std::vector<MapTreeRow>& rows, const UploadOptions& options,
 
 void RunUpload(const UploadOptions& options, const CliContext& context) {
   // Read and check the file before writing anything.
-  TreeFile file =
-      ReadTreeFile(options.trees_file, TreeFileOptionsFrom(options.columns, options.dbh_unit));
+  TreeFile file = ReadTreeFile(
+      options.trees_file, TreeFileOptionsFrom(options.columns, options.dbh_unit, options.layer));
   ForestMapClient client = context.Connect();
   const v1::Map map = client.GetMap(options.name);
   try {
@@ -88,7 +89,7 @@ void AddMapUploadCommand(CLI::App& map_app, CliContext& context) {
                   "The trees: CSV (columns x,y (m) required; z, dbh (m), id optional; other "
                   "columns are kept as attributes), or .gpkg / .geojson / .shp points")
       ->required();
-  AddTreeFileOptions(*sub, options->columns, options->dbh_unit);
+  AddTreeFileOptions(*sub, options->columns, options->dbh_unit, &options->layer);
   sub->add_option("--crs", options->crs,
                   "CRS of the trees (EPSG code, WKT or PROJ string) when the file declares none "
                   "or another: they are reprojected into the map's");

@@ -11,11 +11,13 @@
 
 namespace forestmap::client {
 
-// Adds --columns and --dbh-unit to `command`, storing their text.
-void AddTreeFileOptions(CLI::App& command, std::string& columns, std::string& dbh_unit);
+// Adds --columns and --dbh-unit (and, given `layer`, --layer) to `command`, storing their text.
+void AddTreeFileOptions(CLI::App& command, std::string& columns, std::string& dbh_unit,
+                        std::string* layer = nullptr);
 
 // The options from their text; throws CommandError naming the flag.
-TreeFileOptions TreeFileOptionsFrom(const std::string& columns, const std::string& dbh_unit);
+TreeFileOptions TreeFileOptionsFrom(const std::string& columns, const std::string& dbh_unit,
+                                    const std::string& layer = "");
 
 // A tree file and the CRS it declares (empty when it declares none, as CSV never does).
 struct TreeFile {
@@ -24,10 +26,12 @@ struct TreeFile {
 };
 
 // Reads CSV (any other extension) or, by extension, .gpkg, .geojson/.json, .shp. A CSV's CRS is
-// the WKT or EPSG code in FILE.prj beside it, when there is one.
+// the WKT or EPSG code in FILE.prj (or FILE.PRJ) beside it, when there is one
+// (io/crs_sidecar.h).
 TreeFile ReadTreeFile(const std::string& path, const TreeFileOptions& options);
 
-// Writes `crs` to PATH.prj (PATH without its extension), beside a CSV.
+// Writes `crs` to PATH.prj (PATH without its extension), beside a CSV, replacing any PATH.prj or
+// PATH.PRJ; an empty `crs` (none) removes them and writes nothing.
 void WriteCrsSidecar(const std::string& csv_path, const std::string& crs);
 
 // "EPSG:n", or the name in a WKT's first quotes, for messages.

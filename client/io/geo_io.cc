@@ -1,12 +1,11 @@
 #include "client/io/geo_io.h"
 
-#include <gdal_priv.h>
-#include <ogrsf_frmts.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -15,122 +14,17 @@
 #include <stdexcept>
 
 #include "client/io/csv_columns.h"
+#include "client/io/file_replace.h"
+#include "client/io/geo_io_internal.h"
 #include "client/io/str_cat.h"
+#include "client/io/utf8.h"
 
 namespace forestmap::client {
 namespace {
 
-constexpr const char* kLayerName = "trees";
-constexpr const char* kTreeFields[] = {"id", "x", "y", "z", "dbh"};
-
-void RegisterGdal() {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    GDALAllRegister();
-    CPLSetErrorHandler(CPLQuietErrorHandler);  // errors are read and reported by us
-  });
-}
-
-std::string LastGdalError() {
-  const std::string message = CPLGetLastErrorMsg();
-  return message.empty() ? "unknown GDAL error" : message;
-}
-
-const char* DriverName(TreeFormat format) {
-  switch (format) {
-    case TreeFormat::kGeoJson:
-      return "GeoJSON";
-    case TreeFormat::kGeoPackage:
-      return "GPKG";
-    case TreeFormat::kShapefile:
-      return "ESRI Shapefile";
-    default:
-      return "CSV";
-  }
-}
-
-struct DatasetCloser {
-  void operator()(GDALDataset* dataset) const { GDALClose(dataset); }
-};
-using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
-
-struct FeatureDeleter {
-  void operator()(OGRFeature* feature) const { OGRFeature::DestroyFeature(feature); }
-};
-using FeaturePtr = std::unique_ptr<OGRFeature, FeatureDeleter>;
-
-void CreateFields(OGRLayer& layer, const std::vector<ExportedAttribute>& attributes,
-                  const std::string& path) {
-  std::vector<std::pair<std::string, OGRFieldType>> fields = {
-      {"id", OFTInteger64}, {"x", OFTReal}, {"y", OFTReal}, {"z", OFTReal}, {"dbh", OFTReal}};
-  for (const ExportedAttribute& attribute : attributes) {
-    fields.emplace_back(attribute.column, OFTString);
-  }
-  for (const auto& [name, type] : fields) {
-    OGRFieldDefn field(name.c_str(), type);
-    if (layer.CreateField(&field) != OGRERR_NONE) {
-      throw CsvError(path + ": cannot create field '" + name + "': " + LastGdalError());
-    }
-  }
-}
-
-// Attribute i is field kTreeFieldCount + i (shapefiles cut names to 10 characters, so fields
-// are addressed by position, not name).
-constexpr int kTreeFieldCount = static_cast<int>(std::size(kTreeFields));
-
-void WriteFeature(OGRLayer& layer, const MapTreeRow& row,
-                  const std::vector<ExportedAttribute>& names, size_t index,
-                  const std::string& path) {
-  FeaturePtr feature(OGRFeature::CreateFeature(layer.GetLayerDefn()));
-  if (row.id) feature->SetField(0, static_cast<GIntBig>(*row.id));
-  feature->SetField(1, row.x);
-  feature->SetField(2, row.y);
-  if (row.z) feature->SetField(3, *row.z);
-  if (row.dbh) feature->SetField(4, *row.dbh);
-  for (int i = 0; i < kTreeFieldCount; ++i) {
-    if (!feature->IsFieldSet(i)) feature->SetFieldNull(i);
-  }
-  for (size_t i = 0; i < names.size(); ++i) {
-    const int field = kTreeFieldCount + static_cast<int>(i);
-    const auto it = row.attributes.find(names[i].name);
-    if (it == row.attributes.end()) {
-      feature->SetFieldNull(field);
-    } else {
-      feature->SetField(field, it->second.c_str());
-    }
-  }
-  OGRPoint point(row.x, row.y);
-  feature->SetGeometry(&point);
-  if (layer.CreateFeature(feature.get()) != OGRERR_NONE) {
-    throw CsvError(path + ": cannot write tree " + std::to_string(index + 1) + ": " +
-                   LastGdalError());
-  }
-}
-
-// The spatial reference of `crs` (EPSG:n, WKT or PROJ string), x = easting, y = northing.
-std::unique_ptr<OGRSpatialReference> SpatialReference(const std::string& crs,
-                                                      const std::string& path) {
-  auto srs = std::make_unique<OGRSpatialReference>();
-  if (srs->SetFromUserInput(crs.c_str()) != OGRERR_NONE) {
-    throw CsvError(path + ": the map's CRS '" + crs.substr(0, 64) + "' is unknown to GDAL");
-  }
-  srs->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  return srs;
-}
-
-void WriteLayer(GDALDataset& dataset, const std::vector<MapTreeRow>& rows, OGRSpatialReference* srs,
-                const std::string& path) {
-  const std::vector<ExportedAttribute> names = ExportedAttributes(rows);
-  OGRLayer* layer = dataset.CreateLayer(kLayerName, srs, wkbPoint, nullptr);
-  if (!layer) throw CsvError(path + ": cannot create a layer: " + LastGdalError());
-  CreateFields(*layer, names, path);
-  // One transaction (GeoPackage): thousands of features commit at once.
-  const bool transaction = dataset.StartTransaction() == OGRERR_NONE;
-  for (size_t i = 0; i < rows.size(); ++i) WriteFeature(*layer, rows[i], names, i, path);
-  if (transaction && dataset.CommitTransaction() != OGRERR_NONE) {
-    throw CsvError(path + ": cannot commit: " + LastGdalError());
-  }
-}
+using geo_internal::DatasetPtr;
+using geo_internal::FeaturePtr;
+using geo_internal::LastGdalError;
 
 // Where the tree fields of a layer are; x and y come from the point unless named by --columns.
 struct FieldColumns {
@@ -195,6 +89,27 @@ std::string FieldWhere(const std::string& path, int64_t feature, OGRFeature& f, 
                  f.GetFieldDefnRef(field)->GetNameRef(), "': "});
 }
 
+// Text that is not UTF-8 would make the upload undecodable on the server (as in CSV files).
+void CheckUtf8(const std::string& text, const std::string& where) {
+  const std::optional<size_t> bad = FirstInvalidUtf8(text);
+  if (!bad) return;
+  char byte[8];
+  std::snprintf(byte, sizeof(byte), "0x%02X", static_cast<unsigned char>(text[*bad]));
+  throw CsvError(StrCat({where, "not UTF-8 text (byte ", byte, " at offset ", std::to_string(*bad),
+                         "); save the file as UTF-8 (a shapefile: a .cpg beside the .shp naming "
+                         "its encoding, e.g. ISO-8859-1)"}));
+}
+
+// An attribute as text: a real number in FormatReal's form (as the writer decides types).
+std::string AttributeText(OGRFeature& feature, int field, int64_t number, const std::string& path) {
+  if (feature.GetFieldDefnRef(field)->GetType() == OFTReal) {
+    return geo_internal::FormatReal(feature.GetFieldAsDouble(field));
+  }
+  std::string text = feature.GetFieldAsString(field);
+  CheckUtf8(text, FieldWhere(path, number, feature, field));
+  return text;
+}
+
 MapTreeRow ReadFeature(OGRFeature& feature, const FieldColumns& fields, int64_t number,
                        const std::string& path) {
   MapTreeRow row;
@@ -239,7 +154,7 @@ MapTreeRow ReadFeature(OGRFeature& feature, const FieldColumns& fields, int64_t 
   for (int field : fields.attributes) {
     const char* name = feature.GetFieldDefnRef(field)->GetNameRef();
     if (feature.IsFieldSetAndNotNull(field)) {
-      row.attributes.emplace(name, feature.GetFieldAsString(field));
+      row.attributes.emplace(name, AttributeText(feature, field, number, path));
     } else {
       row.null_attributes.insert(name);  // the layer has the field; this feature no value
     }
@@ -256,6 +171,98 @@ std::string LayerCrs(OGRLayer& layer) {
   std::string text = wkt ? wkt : "";
   CPLFree(wkt);
   return text;
+}
+
+bool HasPoints(OGRLayer& layer) {
+  const OGRwkbGeometryType type = wkbFlatten(layer.GetGeomType());
+  return type == wkbPoint || type == wkbMultiPoint;
+}
+
+std::string LayerList(GDALDataset& dataset) {
+  std::string list;
+  for (int i = 0; i < dataset.GetLayerCount(); ++i) {
+    OGRLayer& layer = *dataset.GetLayer(i);
+    list += StrCat({i ? ", " : "", layer.GetName(), " (",
+                    OGRGeometryTypeToName(wkbFlatten(layer.GetGeomType())), ")"});
+  }
+  return list;
+}
+
+// The layer named by --layer; without it the only layer, or the only one with points (a
+// GeoPackage with a boundary polygon and the trees).
+OGRLayer& ChooseLayer(GDALDataset& dataset, const std::string& name, const std::string& path) {
+  if (dataset.GetLayerCount() < 1) throw CsvError(path + ": no layer");
+  if (!name.empty()) {
+    OGRLayer* layer = dataset.GetLayerByName(name.c_str());
+    if (!layer) {
+      throw CsvError(
+          StrCat({path, ": --layer ", name, ": no such layer (layers: ", LayerList(dataset), ")"}));
+    }
+    return *layer;
+  }
+  if (dataset.GetLayerCount() == 1) return *dataset.GetLayer(0);
+  std::vector<OGRLayer*> points;
+  for (int i = 0; i < dataset.GetLayerCount(); ++i) {
+    if (HasPoints(*dataset.GetLayer(i))) points.push_back(dataset.GetLayer(i));
+  }
+  if (points.size() == 1) return *points[0];
+  throw CsvError(
+      StrCat({path, points.empty() ? ": no layer has points" : ": several layers have points",
+              " (layers: ", LayerList(dataset), "): name the trees' layer with --layer NAME"}));
+}
+
+enum class CrsMember { kNone, kNull, kDeclared };
+
+// A GeoJSON file's "crs" member (GeoJSON 2008): none (GDAL says WGS 84, as RFC 7946 does), null
+// ("no CRS", as exports of maps without one write; GDAL still says WGS 84), or a CRS.
+CrsMember GeoJsonCrsMember(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  const std::string text((std::istreambuf_iterator<char>(in)), {});
+  for (size_t at = text.find("\"crs\""); at != std::string::npos;
+       at = text.find("\"crs\"", at + 1)) {
+    const size_t colon = text.find_first_not_of(" \t\r\n", at + 5);
+    if (colon == std::string::npos || text[colon] != ':') continue;
+    const size_t value = text.find_first_not_of(" \t\r\n", colon + 1);
+    const bool null = value != std::string::npos && text.compare(value, 4, "null") == 0;
+    return null ? CrsMember::kNull : CrsMember::kDeclared;
+  }
+  return CrsMember::kNone;
+}
+
+bool InLongitudeLatitude(const std::vector<MapTreeRow>& rows) {
+  return std::all_of(rows.begin(), rows.end(), [](const MapTreeRow& row) {
+    return std::fabs(row.x) <= 180 && std::fabs(row.y) <= 90;
+  });
+}
+
+// The CRS a layer declares. None for GeoPackage's "Undefined geographic/Cartesian SRS" (srs_id
+// 0, -1), for a GeoJSON file whose crs member is null, and for one without a crs member whose
+// coordinates are not longitude and latitude (RFC 7946's WGS 84 is GDAL's default then; a local
+// grid is no WGS 84).
+std::string DeclaredCrs(GDALDataset& dataset, OGRLayer& layer, const std::string& path,
+                        const std::vector<MapTreeRow>& rows) {
+  const OGRSpatialReference* srs = layer.GetSpatialRef();
+  if (!srs) return "";
+  const std::string driver = dataset.GetDriver() ? dataset.GetDriver()->GetDescription() : "";
+  const std::string name = srs->GetName() ? srs->GetName() : "";
+  if (driver == "GPKG" && name.rfind("Undefined ", 0) == 0) return "";
+  if (driver == "GeoJSON") {
+    const CrsMember member = GeoJsonCrsMember(path);
+    if (member == CrsMember::kNull || (member == CrsMember::kNone && !InLongitudeLatitude(rows))) {
+      return "";
+    }
+  }
+  return LayerCrs(layer);
+}
+
+// A shapefile's attributes are in its .dbf: without it GDAL reads positions only.
+void CheckShapefileParts(const std::string& path) {
+  if (TreeFormatOfPath(path) != TreeFormat::kShapefile) return;
+  if (!FindSidecar(path, ".dbf")) {
+    throw CsvError(StrCat({path, ": no ", std::filesystem::path(path).stem().string(),
+                           ".dbf beside it (the shapefile's attributes: without it the trees "
+                           "would have positions only); copy it beside the .shp"}));
+  }
 }
 
 }  // namespace
@@ -295,42 +302,10 @@ const char* TreeFormatName(TreeFormat format) {
 
 namespace forestmap::client {
 
-void WriteGeoTrees(const std::string& path, TreeFormat format, const std::vector<MapTreeRow>& rows,
-                   const std::string& crs) {
-  RegisterGdal();
-  GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(DriverName(format));
-  if (!driver || format == TreeFormat::kCsv) {
-    throw CsvError(path + ": GDAL has no " + TreeFormatName(format) + " writer");
-  }
-  std::unique_ptr<OGRSpatialReference> srs;
-  if (!crs.empty()) srs = SpatialReference(crs, path);
-  if (std::filesystem::exists(path)) driver->QuietDelete(path.c_str());
-  CPLErrorReset();
-  DatasetPtr dataset(driver->Create(path.c_str(), 0, 0, 0, GDT_Unknown, nullptr));
-  if (!dataset) throw CsvError(path + ": cannot create: " + LastGdalError());
-  try {
-    WriteLayer(*dataset, rows, srs.get(), path);
-    dataset->FlushCache();
-  } catch (...) {
-    dataset.reset();
-    driver->QuietDelete(path.c_str());  // nothing half-written stays behind
-    throw;
-  }
-  dataset.reset();
-  if (CPLGetLastErrorType() == CE_Failure) {
-    const std::string error = LastGdalError();
-    driver->QuietDelete(path.c_str());
-    throw CsvError(path + ": " + error);
-  }
-}
-
-}  // namespace forestmap::client
-
-namespace forestmap::client {
-
 GeoTrees ReadGeoTrees(const std::string& path, const TreeFileOptions& options) {
-  RegisterGdal();
+  geo_internal::RegisterGdal();
   if (!std::filesystem::exists(path)) throw CsvError(path + ": cannot open: no such file");
+  CheckShapefileParts(path);
   CPLErrorReset();
   DatasetPtr dataset(static_cast<GDALDataset*>(
       GDALOpenEx(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr, nullptr, nullptr)));
@@ -338,11 +313,13 @@ GeoTrees ReadGeoTrees(const std::string& path, const TreeFileOptions& options) {
     throw CsvError(StrCat({path, ": not a readable ", TreeFormatName(TreeFormatOfPath(path)),
                            " file: ", LastGdalError()}));
   }
-  if (dataset->GetLayerCount() < 1) throw CsvError(path + ": no layer");
-  OGRLayer& layer = *dataset->GetLayer(0);
+  OGRLayer& layer = ChooseLayer(*dataset, options.layer, path);
+  for (int i = 0; i < layer.GetLayerDefn()->GetFieldCount(); ++i) {
+    CheckUtf8(layer.GetLayerDefn()->GetFieldDefn(i)->GetNameRef(),
+              StrCat({path, ": the name of field ", std::to_string(i + 1), ": "}));
+  }
   const FieldColumns fields = ResolveFields(*layer.GetLayerDefn(), options, path);
   GeoTrees trees;
-  trees.crs_wkt = LayerCrs(layer);
   std::map<int64_t, int64_t> feature_of_id;
   layer.ResetReading();
   int64_t number = 0;
@@ -357,6 +334,7 @@ GeoTrees ReadGeoTrees(const std::string& path, const TreeFileOptions& options) {
     }
   }
   if (CPLGetLastErrorType() == CE_Failure) throw CsvError(path + ": " + LastGdalError());
+  trees.crs_wkt = DeclaredCrs(*dataset, layer, path, trees.rows);
   if (fields.dbh) {
     CheckDbhMedian(trees.rows, path, layer.GetLayerDefn()->GetFieldDefn(*fields.dbh)->GetNameRef(),
                    fields.dbh_unit);

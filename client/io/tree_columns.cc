@@ -225,22 +225,31 @@ bool ReservedOnExport(const std::string& name) {
 
 }  // namespace
 
-std::vector<ExportedAttribute> ExportedAttributes(const std::vector<MapTreeRow>& rows) {
+std::vector<ExportedAttribute> ExportedAttributes(const std::vector<MapTreeRow>& rows,
+                                                  const std::set<std::string>& also_reserved) {
   std::set<std::string> names;
   for (const MapTreeRow& row : rows) {
     for (const auto& [name, value] : row.attributes) names.insert(name);
     names.insert(row.null_attributes.begin(), row.null_attributes.end());
   }
   std::vector<ExportedAttribute> exported;
-  std::map<std::string, std::string> attribute_of_column;  // lower-case column -> attribute
+  std::set<std::string> taken;   // lower-case columns (GeoPackage compares them so)
+  std::vector<size_t> clashing;  // attributes whose column another one took first
   for (const std::string& name : names) {
-    const std::string column = ReservedOnExport(name) ? kExportPrefix + name : name;
-    const auto [it, inserted] = attribute_of_column.emplace(Lower(column), name);
-    if (!inserted) {
-      throw CsvError(StrCat({"cannot write attributes '", it->second, "' and '", name,
-                             "': both would be the column '", column, "'"}));
+    const bool reserved = ReservedOnExport(name) || also_reserved.count(Lower(name)) != 0;
+    exported.push_back({name, reserved ? kExportPrefix + name : name});
+    if (!taken.insert(Lower(exported.back().column)).second)
+      clashing.push_back(exported.size() - 1);
+  }
+  // Species and species: the second is written as attr_species (or species_2, ...), a column no
+  // other attribute has, so that every map exports.
+  for (const size_t i : clashing) {
+    std::string column = kExportPrefix + exported[i].name;
+    for (int n = 2; taken.count(Lower(column)) != 0 || ReservedOnExport(column); ++n) {
+      column = exported[i].name + "_" + std::to_string(n);
     }
-    exported.push_back({name, column});
+    taken.insert(Lower(column));
+    exported[i].column = column;
   }
   return exported;
 }

@@ -26,6 +26,7 @@
 #include <map>
 #include <optional>
 #include <ostream>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,7 @@ struct TreeFileOptions {
   std::string columns_flag = "--columns";      // the flags that gave them, named in messages
   std::string dbh_unit_flag = "--dbh-unit";    // (compare's reference: --reference-*)
   std::ostream* notes = nullptr;  // where notes on the reading go (text ids); nullptr: nowhere
+  std::string layer;  // GIS files: the layer to read; empty: the only one with points
 };
 
 // "x=Field_Xpj,y=Field_Ypj": throws std::invalid_argument naming `flag` and the bad entry.
@@ -67,13 +69,16 @@ ResolvedColumns ResolveMapColumns(const std::vector<std::string>& header,
 // attribute (or null attribute) of any row, with the name it is written under. Names that would
 // read back as a tree column (X_m, treeID, dbh_cm, location_x, Z, ...) or switch a dialect on
 // (h.dist) are written as "attr_NAME", so that reading the file back keeps the tree columns
-// and the DBH unit, and the value stays an attribute. Throws CsvError when two attributes would be
-// written under one name (compared case-insensitively, as GeoPackage does).
+// and the DBH unit, and the value stays an attribute; so are the lower-case names in
+// `also_reserved` (a format's own columns: GeoPackage's fid and geom). Two attributes that would
+// be written under one name (compared case-insensitively, as GeoPackage does: Species and
+// species) are not: the later one is written as attr_NAME (or NAME_2, ...).
 struct ExportedAttribute {
   std::string name;    // the attribute's name
   std::string column;  // the column it is written as
 };
-std::vector<ExportedAttribute> ExportedAttributes(const std::vector<MapTreeRow>& rows);
+std::vector<ExportedAttribute> ExportedAttributes(const std::vector<MapTreeRow>& rows,
+                                                  const std::set<std::string>& also_reserved = {});
 
 // A DBH column whose median (in metres, after the unit) is over 3 m holds centimetres or
 // millimetres read as metres (a 14.9 cm stem read as 14.9 m), one under 1 cm holds metres read

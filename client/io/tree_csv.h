@@ -87,8 +87,9 @@ std::vector<MapTreeRow> ParseMapTreesCsv(std::string content, const std::string&
 // reads back exactly, and empty fields for unknown values (null attributes, and attributes other
 // rows have), so that reading the output gives the same rows (a column a row lacks reads back as
 // a null attribute of that row); an attribute named like a tree column is written as attr_NAME
-// (ExportedAttributes, tree_columns.h). Throws CsvError for two attributes written under one
-// name, and (path form) when the file cannot be written.
+// (ExportedAttributes, tree_columns.h), and of two attributes one column would take (Species,
+// species) the later one as attr_NAME. Throws CsvError (path form) when the file cannot be
+// written.
 void WriteMapTreesCsv(std::ostream& out, const std::vector<MapTreeRow>& rows);
 void WriteMapTreesCsv(const std::string& path, const std::vector<MapTreeRow>& rows);
 

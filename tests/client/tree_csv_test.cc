@@ -296,9 +296,12 @@ TEST(TreeCsvTest, AttributesNamedLikeTreeColumnsAreWrittenWithAPrefix) {
   const MapTreeRow back = RoundTrip({row})[0];
   EXPECT_EQ(back.dbh, 0.3);  // h.dist did not make it FORTLS centimetres
   EXPECT_EQ(back.attributes.at("attr_id"), "plot7");
-  row.attributes = {{"id", "a"}, {"attr_ID", "b"}};
-  EXPECT_EQ(ErrorOf([&] { RoundTrip({row}); }),
-            "cannot write attributes 'attr_ID' and 'id': both would be the column 'attr_id'");
+  // Two attributes one column would take: the later one gets a column of its own.
+  row.attributes = {{"id", "a"}, {"attr_ID", "b"}, {"Species", "c"}, {"species", "d"}};
+  const MapTreeRow renamed = RoundTrip({row})[0];
+  EXPECT_EQ(renamed.attributes,
+            (std::map<std::string, std::string>{
+                {"attr_ID", "b"}, {"id_2", "a"}, {"Species", "c"}, {"attr_species", "d"}}));
 }
 
 TEST(TreeCsvTest, WriteRejectsWhatWouldNotReadBack) {

@@ -17,6 +17,7 @@
 #include <sstream>
 #include <string>
 #include <tuple>
+#include <utility>
 
 #include "client/forestmap_client.h"
 #include "client/io/tree_csv.h"
@@ -32,10 +33,14 @@ namespace fs = std::filesystem;
 const std::string kPlot = std::string(FORESTMAP_SHARED_DATA) + "/survey_vs_lidar/PRF025/";
 const std::string kFieldColumns = "--columns x=Field_Xpj,y=Field_Ypj,dbh=DBH,id=Tree";
 // PRF025_Field.csv's columns other than the four mapped ones: each must reach the export, LI and
-// LO too, which are NA in all 62 rows (null fields).
-const char* kFieldAttributes[] = {
-    "Plot", "Spp", "Status",   "Origin",   "Dist",    "Azim",    "DbhHt",   "Ht",      "LI",
-    "LO",   "BT",  "Plotsize", "Dbh_meas", "Field_X", "Field_Y", "Easting", "Northing"};
+// LO too, which are NA in all 62 rows (null fields), with the type of its values (QGIS compares
+// numbers as numbers: Ht > 5).
+const std::pair<const char*, const char*> kFieldAttributes[] = {
+    {"Plot", "String"},   {"Spp", "Integer64"}, {"Status", "String"}, {"Origin", "String"},
+    {"Dist", "Real"},     {"Azim", "Real"},     {"DbhHt", "Real"},    {"Ht", "Real"},
+    {"LI", "String"},     {"LO", "String"},     {"BT", "String"},     {"Plotsize", "String"},
+    {"Dbh_meas", "Real"}, {"Field_X", "Real"},  {"Field_Y", "Real"},  {"Easting", "Real"},
+    {"Northing", "Real"}};
 
 struct Result {
   int exit_code = -1;
@@ -106,15 +111,16 @@ TEST_F(SurveyCliTest, FieldInventoryUploadsAndExportsToGeoPackageWithCrsAndAttri
   for (const char* field : {"id", "x", "y", "dbh"}) {
     EXPECT_NE(info.out.find(std::string("\n") + field + ": "), std::string::npos) << field;
   }
-  for (const char* attribute : kFieldAttributes) {
-    EXPECT_NE(info.out.find(std::string("\n") + attribute + ": String"), std::string::npos)
-        << attribute << " missing from\n"
+  for (const auto& [attribute, type] : kFieldAttributes) {
+    EXPECT_NE(info.out.find(std::string("\n") + attribute + ": " + type + " "), std::string::npos)
+        << attribute << " (" << type << ") missing from\n"
         << info.out;
   }
   // A value: tree 1 has DBH 14.9 cm and species code 41.
   const Result tree1 = Shell("ogrinfo -al -where 'id = 1' '" + gpkg + "'");
   EXPECT_NE(tree1.out.find("dbh (Real) = 0.149"), std::string::npos) << tree1.out;
-  EXPECT_NE(tree1.out.find("Spp (String) = 41"), std::string::npos) << tree1.out;
+  EXPECT_NE(tree1.out.find("Spp (Integer64) = 41"), std::string::npos) << tree1.out;
+  EXPECT_NE(tree1.out.find("Ht (Real) = 16.8"), std::string::npos) << tree1.out;
   for (const char* unknown : {"LI", "LO", "BT"}) {  // NA in the file: null fields
     EXPECT_NE(tree1.out.find(std::string(unknown) + " (String) = (null)"), std::string::npos)
         << unknown << " in\n"

@@ -1,0 +1,48 @@
+#pragma once
+// GDAL handles and helpers shared by geo_io.cc (reading) and geo_write.cc (writing): the only
+// files that include GDAL.
+
+#include <gdal_priv.h>
+#include <ogrsf_frmts.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <mutex>
+#include <string>
+
+namespace forestmap::client::geo_internal {
+
+inline void RegisterGdal() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    GDALAllRegister();
+    CPLSetErrorHandler(CPLQuietErrorHandler);  // errors are read and reported by us
+  });
+}
+
+inline std::string LastGdalError() {
+  const std::string message = CPLGetLastErrorMsg();
+  return message.empty() ? "unknown GDAL error" : message;
+}
+
+struct DatasetCloser {
+  void operator()(GDALDataset* dataset) const { GDALClose(dataset); }
+};
+using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
+
+struct FeatureDeleter {
+  void operator()(OGRFeature* feature) const { OGRFeature::DestroyFeature(feature); }
+};
+using FeaturePtr = std::unique_ptr<OGRFeature, FeatureDeleter>;
+
+// A real attribute's text: 15 significant digits ("14.9", "62"), or 17 where 15 do not read back
+// as the same double. The writer exports an attribute as Real only when its text is this form.
+inline std::string FormatReal(double value) {
+  char text[40];
+  std::snprintf(text, sizeof(text), "%.15g", value);
+  if (std::strtod(text, nullptr) != value) std::snprintf(text, sizeof(text), "%.17g", value);
+  return text;
+}
+
+}  // namespace forestmap::client::geo_internal
