@@ -84,11 +84,13 @@ TEST_F(GeoIoTest, GeoPackageLayersAreAddedAndChosen) {
   WriteGeoTrees(path, TreeFormat::kGeoPackage, rows, "", "b");
   rows.pop_back();
   WriteGeoTrees(path, TreeFormat::kGeoPackage, rows, "", "a");  // replaces a
-  TreeFileOptions options;
-  options.layer = "a";
-  EXPECT_EQ(ReadGeoTrees(path, options).rows.size(), 1u);
-  options.layer = "b";
-  const GeoTrees b = ReadGeoTrees(path, options);
+  const auto read_layer = [&](const std::string& layer) {
+    TreeFileOptions options;
+    options.layer = layer;
+    return ReadGeoTrees(path, options);
+  };
+  EXPECT_EQ(read_layer("a").rows.size(), 1u);
+  const GeoTrees b = read_layer("b");
   EXPECT_EQ(b.rows.size(), 2u);
   EXPECT_EQ(b.crs_wkt, "");  // the undefined Cartesian SRS is no CRS
   try {                      // a, replaced, comes after b now
