@@ -42,7 +42,7 @@ struct TreeFileOptions {
   std::string columns_flag = "--columns";      // the flags that gave them, named in messages
   std::string dbh_unit_flag = "--dbh-unit";    // (compare's reference: --reference-*)
   std::ostream* notes = nullptr;  // where notes on the reading go (text ids); nullptr: nowhere
-  std::string layer;  // GIS files: the layer to read; empty: the only one with points
+  std::string layer;              // GIS files: the layer to read; empty: the only one with points
 };
 
 // "x=Field_Xpj,y=Field_Ypj": throws std::invalid_argument naming `flag` and the bad entry.
