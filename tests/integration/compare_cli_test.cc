@@ -15,31 +15,19 @@
 #include <sstream>
 #include <string>
 
+#include "cli_run.h"
+
 namespace forestmap {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct Result {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
+using Result = testing_util::CliResult;
+using testing_util::ReadWholeFile;
 
 class CompareCliTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("forestmap_compare_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
+  void SetUp() override { dir_ = testing_util::FreshTestFolder("forestmap_compare_test"); }
   void TearDown() override { fs::remove_all(dir_); }
 
   fs::path Write(const std::string& name, const std::string& content) {
@@ -48,11 +36,8 @@ class CompareCliTest : public ::testing::Test {
     return path;
   }
   Result Compare(const std::string& args) {
-    const fs::path out = dir_ / "stdout", err = dir_ / "stderr";
-    const std::string command = "cd '" + dir_.string() + "' && '" FORESTMAP_CLI_PATH "' compare " +
-                                args + " >'" + out.string() + "' 2>'" + err.string() + "'";
-    const int status = std::system(command.c_str());
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ReadFile(out), ReadFile(err)};
+    return testing_util::RunCapturing(
+        "cd '" + dir_.string() + "' && '" FORESTMAP_CLI_PATH "' compare " + args, dir_);
   }
 
   fs::path dir_;
@@ -93,10 +78,10 @@ TEST_F(CompareCliTest, UnknownDbhRowAndUnlinkedTreesWithTextIds) {
   EXPECT_NE(table.err.find("column 'tree_id' holds ids that are not integers (e.g. 'A1')"),
             std::string::npos)
       << table.err;
-  const std::string links = ReadFile(dir_ / "links.csv");
+  const std::string links = ReadWholeFile(dir_ / "links.csv");
   EXPECT_NE(links.find("\nD1,A1,0.1000,0.0000,0.0000,0.0000,0.1000,"), std::string::npos) << links;
   EXPECT_NE(links.find("\nD2,A2,"), std::string::npos) << links;
-  EXPECT_EQ(ReadFile(dir_ / "unlinked.csv"),
+  EXPECT_EQ(ReadWholeFile(dir_ / "unlinked.csv"),
             "status,id,x,y,dbh_m\nmissed,B-7,20.0000,0.0000,\n"
             "commission,D3,50.0000,50.0000,0.2000\n");
   const nlohmann::json r = nlohmann::json::parse(Compare("d.csv --reference r.csv --json").out);

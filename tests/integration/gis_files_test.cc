@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "cli_run.h"
 #include "client/forestmap_client.h"
 #include "server/server.h"
 #include "server/service.h"
@@ -27,17 +28,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct Result {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
+using Result = testing_util::CliResult;
+using testing_util::ReadWholeFile;
 
 // The names in `dir` (temporary files left behind show up here).
 std::vector<std::string> Listing(const fs::path& dir) {
@@ -62,21 +54,10 @@ class GisFilesTest : public ::testing::Test {
         runner_("127.0.0.1:0", service_),
         client_(runner_.address()) {}
 
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("forestmap_gis_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
+  void SetUp() override { dir_ = testing_util::FreshTestFolder("forestmap_gis_test"); }
   void TearDown() override { fs::remove_all(dir_); }
 
-  Result Shell(const std::string& command) {
-    const fs::path out = dir_ / "stdout", err = dir_ / "stderr";
-    const int status =
-        std::system((command + " >'" + out.string() + "' 2>'" + err.string() + "'").c_str());
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ReadFile(out), ReadFile(err)};
-  }
+  Result Shell(const std::string& command) { return testing_util::RunCapturing(command, dir_); }
   Result Cli(const std::string& args) {
     return Shell("'" FORESTMAP_CLI_PATH "' --server " + runner_.address() + " " + args);
   }
@@ -167,7 +148,7 @@ TEST_F(GisFilesTest, ExportsReplaceFilesWholeOrNotAtAll) {
   const Result failed = Cli("map export plot --out '" + Path("notes.gpkg") + "'");
   EXPECT_EQ(failed.exit_code, 1);
   EXPECT_TRUE(Has(failed.err, "notes.gpkg: exists and is not a GeoPackage")) << failed.err;
-  EXPECT_EQ(ReadFile(dir_ / "notes.gpkg"), "my notes");
+  EXPECT_EQ(ReadWholeFile(dir_ / "notes.gpkg"), "my notes");
   // A shapefile replaces every part of an older one (its .prj of another CRS too).
   CreateLocal("local", "sp", {"oak", "ash", "elm"});
   ASSERT_EQ(Cli("map export plot --out '" + Path("t.shp") + "'").exit_code, 0);
@@ -220,7 +201,8 @@ TEST_F(GisFilesTest, MapsWithoutCrsReadBackWithoutOne) {
   }
   EXPECT_TRUE(
       Has(Shell("ogrinfo -so -al '" + Path("b.gpkg") + "'").out, "Undefined Cartesian SRS"));
-  EXPECT_TRUE(Has(ReadFile(dir_ / "b.geojson"), "\"crs\": null,")) << ReadFile(dir_ / "b.geojson");
+  EXPECT_TRUE(Has(ReadWholeFile(dir_ / "b.geojson"), "\"crs\": null,"))
+      << ReadWholeFile(dir_ / "b.geojson");
   // A local grid small enough to look like degrees reads back without a CRS all the same.
   Write("small.csv", "x,y\n10,20\n12,21\n15,25\n");
   ASSERT_EQ(Cli("map create small --trees '" + Path("small.csv") + "'").exit_code, 0);
@@ -316,7 +298,7 @@ TEST_F(GisFilesTest, ShapefilesAreUtf8WithACpgAndSayWhichFieldsTheyRenamed) {
               {"Ch\xC3\xAAne \xE6\xA9\xA1,1500,15", "Ash,2000,20", "Elm,1800,18"});
   const Result exported = Cli("map export plot --out '" + Path("s.shp") + "'");
   ASSERT_EQ(exported.exit_code, 0) << exported.err;
-  EXPECT_TRUE(Has(ReadFile(dir_ / "s.cpg"), "UTF-8")) << ReadFile(dir_ / "s.cpg");
+  EXPECT_TRUE(Has(ReadWholeFile(dir_ / "s.cpg"), "UTF-8")) << ReadWholeFile(dir_ / "s.cpg");
   EXPECT_TRUE(Has(exported.err, "warning: " + Path("s.shp") +
                                     ": field 'total_height_cm' is written as 'total_heig'"))
       << exported.err;

@@ -19,6 +19,7 @@
 #include <tuple>
 #include <utility>
 
+#include "cli_run.h"
 #include "client/forestmap_client.h"
 #include "client/io/tree_csv.h"
 #include "server/server.h"
@@ -42,17 +43,8 @@ const std::pair<const char*, const char*> kFieldAttributes[] = {
     {"Dbh_meas", "Real"}, {"Field_X", "Real"},  {"Field_Y", "Real"},  {"Easting", "Real"},
     {"Northing", "Real"}};
 
-struct Result {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
+using Result = testing_util::CliResult;
+using testing_util::ReadWholeFile;
 
 class SurveyCliTest : public ::testing::Test {
  protected:
@@ -64,22 +56,14 @@ class SurveyCliTest : public ::testing::Test {
 
   void SetUp() override {
     if (!fs::exists(kPlot + "PRF025_Field.csv")) GTEST_SKIP() << "no " << kPlot;
-    dir_ = fs::temp_directory_path() /
-           ("forestmap_survey_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
+    dir_ = testing_util::FreshTestFolder("forestmap_survey_test");
   }
   void TearDown() override {
     if (!dir_.empty()) fs::remove_all(dir_);
   }
 
   // Runs a shell command line, capturing its output.
-  Result Shell(const std::string& command) {
-    const fs::path out = dir_ / "stdout", err = dir_ / "stderr";
-    const int status =
-        std::system((command + " >'" + out.string() + "' 2>'" + err.string() + "'").c_str());
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ReadFile(out), ReadFile(err)};
-  }
+  Result Shell(const std::string& command) { return testing_util::RunCapturing(command, dir_); }
   Result Cli(const std::string& args) {
     return Shell("'" FORESTMAP_CLI_PATH "' --server " + runner_.address() + " " + args);
   }
