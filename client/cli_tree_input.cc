@@ -90,8 +90,14 @@ void WriteCrsSidecar(const std::string& csv_path, const std::string& crs) {
   }
   if (crs.empty()) return;
   const std::string path = std::filesystem::path(csv_path).replace_extension(".prj").string();
+  std::string wkt = crs;  // a .prj holds WKT, never "EPSG:n" (a LAS file's GeoKeys give that)
+  try {
+    wkt = geo::ParseCrs(crs).wkt;
+  } catch (const geo::CrsError&) {
+    // Not a CRS PROJ knows: written as it came, for the user to see.
+  }
   std::ofstream out(path);
-  out << crs << '\n';
+  out << wkt << '\n';
   if (!out) throw CommandError(path + ": cannot write the CRS");
 }
 

@@ -30,8 +30,8 @@ struct TreeFile {
 // (io/crs_sidecar.h).
 TreeFile ReadTreeFile(const std::string& path, const TreeFileOptions& options);
 
-// Writes `crs` to PATH.prj (PATH without its extension), beside a CSV, replacing any PATH.prj or
-// PATH.PRJ; an empty `crs` (none) removes them and writes nothing.
+// Writes `crs` as WKT to PATH.prj (PATH without its extension), beside a CSV, replacing any
+// PATH.prj or PATH.PRJ; an empty `crs` (none) removes them and writes nothing.
 void WriteCrsSidecar(const std::string& csv_path, const std::string& crs);
 
 // "EPSG:n", or the name in a WKT's first quotes, for messages.
