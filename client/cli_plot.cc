@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "client/cli_commands.h"
+#include "client/cli_tree_crs.h"
 #include "client/cli_tree_input.h"
 #include "client/map_plot.h"
 
@@ -28,13 +29,23 @@ struct PlotCommandOptions {
   PlotOptions plot;
 };
 
+// "EPSG:n (name)" or the CRS's name, short enough for the picture's corner; "" for none.
+std::string CrsLabel(const std::string& crs) {
+  constexpr size_t kMaxLabel = 60;  // characters
+  if (crs.empty()) return crs;
+  const std::string label = DescribedCrs(crs);
+  return label.size() <= kMaxLabel ? label : label.substr(0, kMaxLabel - 3) + "...";
+}
+
 void LoadTrees(const PlotCommandOptions& o, const CliContext& context, PlotInput& input) {
   if (!o.trees_file.empty()) {
-    for (const MapTreeRow& row :
-         ReadTreeFile(o.trees_file, TreeFileOptionsFrom(o.columns, o.dbh_unit)).rows) {
-      input.trees.push_back({row.x, row.y, row.dbh, false});
-    }
+    TreeFile file = ReadTreeFile(o.trees_file, TreeFileOptionsFrom(o.columns, o.dbh_unit));
+    // Drawn in metres: a file in degrees or feet is drawn in its UTM zone.
+    const std::string crs = ReprojectTrees(file.rows, o.trees_file, file.crs,
+                                           InMetres(file.crs) ? "" : "utm", *context.err);
+    for (const MapTreeRow& row : file.rows) input.trees.push_back({row.x, row.y, row.dbh, false});
     input.title = o.trees_file + ": " + std::to_string(input.trees.size()) + " trees";
+    input.crs = CrsLabel(crs);
     return;
   }
   ForestMapClient client = context.Connect();
@@ -46,7 +57,7 @@ void LoadTrees(const PlotCommandOptions& o, const CliContext& context, PlotInput
   }
   input.title = "map '" + o.map + "': " + std::to_string(input.trees.size()) + " trees, version " +
                 std::to_string(exported.map_version);
-  input.crs = map.crs().size() <= 32 ? map.crs() : "WKT";
+  input.crs = CrsLabel(map.crs());
 }
 
 // Localized answers in order: a path; the last one is the sensor drawn.

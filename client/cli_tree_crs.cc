@@ -35,13 +35,20 @@ std::string Described(const geo::CrsInfo& info) {
   return info.epsg > 0 ? "EPSG:" + std::to_string(info.epsg) + " (" + info.name + ")" : info.name;
 }
 
-// The centre of `rows` (in `crs`) in WGS 84 degrees: {longitude, latitude}. Throws CrsError.
-std::array<double, 2> CentreLonLat(const std::vector<MapTreeRow>& rows, const std::string& crs) {
-  double x = 0, y = 0, z = 0;
+// The centre of `rows`, in their CRS.
+std::array<double, 2> Centre(const std::vector<MapTreeRow>& rows) {
+  double x = 0, y = 0;
   for (const MapTreeRow& row : rows) {
     x += row.x / static_cast<double>(rows.size());
     y += row.y / static_cast<double>(rows.size());
   }
+  return {x, y};
+}
+
+// The centre of `rows` (in `crs`) in WGS 84 degrees: {longitude, latitude}. Throws CrsError.
+std::array<double, 2> CentreLonLat(const std::vector<MapTreeRow>& rows, const std::string& crs) {
+  auto [x, y] = Centre(rows);
+  double z = 0;
   geo::Reprojection(crs, "EPSG:4326").Apply(x, y, z);
   return {x, y};
 }
@@ -77,19 +84,34 @@ void WarnIfNotMetres(const std::vector<MapTreeRow>& rows, const std::string& pat
       << std::endl;
 }
 
-void WarnIfOutsideArea(const std::vector<MapTreeRow>& rows, const std::string& path,
-                       const std::string& crs, std::ostream& log) {
-  constexpr double kMarginDeg = 1.0;  // CRSs are used a little beyond their official area
+// Warns when the trees' centre lies outside the area of use of `crs`, or where a unit of `crs`
+// is not a metre on the ground (Web Mercator: 1/cos(latitude)), or off the Earth.
+void WarnIfMisplaced(const std::vector<MapTreeRow>& rows, const std::string& path,
+                     const std::string& crs, std::ostream& log) {
+  constexpr double kMarginDeg = 1.0;       // CRSs are used a little beyond their official area
+  constexpr double kMaxScaleError = 0.01;  // 1%: 0.5 m over a 50 m view
   const geo::CrsInfo info = ParseCrsOf(path, crs);
+  std::array<double, 2> lon_lat{};
+  double scale = 1;
   try {
-    const auto [longitude, latitude] = CentreLonLat(rows, crs);
-    if (info.InArea(longitude, latitude, kMarginDeg)) return;
-    log << "forestmap: warning: " << path << ": the trees' centre (longitude " << longitude
-        << ", latitude " << latitude << ") is outside the area of use of " << Described(info)
-        << " (" << info.area << "): is that the trees' CRS?" << std::endl;
+    lon_lat = CentreLonLat(rows, crs);
+    const auto [x, y] = Centre(rows);
+    scale = geo::GridScaleAt(crs, x, y);
   } catch (const geo::CrsError& e) {
+    if (!info.projected) return;  // a local grid has no way to the Earth
     log << "forestmap: warning: " << path << ": the trees' centre does not map onto the Earth in "
         << Described(info) << " (" << e.what() << "): is that the trees' CRS?" << std::endl;
+    return;
+  }
+  if (!info.InArea(lon_lat[0], lon_lat[1], kMarginDeg)) {
+    log << "forestmap: warning: " << path << ": the trees' centre (longitude " << lon_lat[0]
+        << ", latitude " << lon_lat[1] << ") is outside the area of use of " << Described(info)
+        << " (" << info.area << "): is that the trees' CRS?" << std::endl;
+  }
+  if (std::abs(scale - 1) > kMaxScaleError) {
+    log << "forestmap: warning: " << path << ": a metre of " << Described(info) << " is "
+        << 1 / scale << " m on the ground where the trees are: a drone's metres will not match "
+        << "the map's; reproject with --to-crs utm" << std::endl;
   }
 }
 
@@ -143,7 +165,7 @@ std::string ReprojectTrees(std::vector<MapTreeRow>& rows, const std::string& pat
 void CheckTreePlacement(const std::vector<MapTreeRow>& rows, const std::string& path,
                         const std::string& crs, std::ostream& log) {
   WarnIfNotMetres(rows, path, log);
-  if (!crs.empty() && !rows.empty()) WarnIfOutsideArea(rows, path, crs, log);
+  if (!crs.empty() && !rows.empty()) WarnIfMisplaced(rows, path, crs, log);
 }
 
 std::string CrsOfTrees(const std::string& path, const std::string& given,

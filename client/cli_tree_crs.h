@@ -23,8 +23,9 @@ std::string ReprojectTrees(std::vector<MapTreeRow>& rows, const std::string& pat
                            const std::string& from, const std::string& to, std::ostream& log);
 
 // Warns on `log` when the trees of `path` cannot be where `crs` says: closer together than trees
-// stand (half of them under 5 cm from their nearest neighbour: x and y are not metres), or their
-// centre outside the area of use of `crs` (a wrong CRS).
+// stand (half of them under 5 cm from their nearest neighbour: x and y are not metres), their
+// centre outside the area of use of `crs` (a wrong CRS), or a unit of `crs` there more than 1%
+// off a metre on the ground (Web Mercator).
 void CheckTreePlacement(const std::vector<MapTreeRow>& rows, const std::string& path,
                         const std::string& crs, std::ostream& log);
 

@@ -192,6 +192,20 @@ std::string UtmZoneCrs(double longitude_deg, double latitude_deg) {
   return "EPSG:" + std::to_string((latitude_deg >= 0 ? 32600 : 32700) + zone);
 }
 
+double GridScaleAt(const std::string& crs, double x, double y) {
+  constexpr double kStep = 100.0;  // map units between the two points measured
+  const Reprojection to_wgs84(crs, kWgs84);
+  double lon0 = x, lat0 = y, z0 = 0, lon1 = x + kStep, lat1 = y, z1 = 0;
+  to_wgs84.Apply(lon0, lat0, z0);
+  to_wgs84.Apply(lon1, lat1, z1);
+  geod_geodesic wgs84;
+  geod_init(&wgs84, 6378137.0, 1 / 298.257223563);
+  double metres = 0, azimuth0 = 0, azimuth1 = 0;
+  geod_inverse(&wgs84, lat0, lon0, lat1, lon1, &metres, &azimuth0, &azimuth1);
+  if (!(metres > 0)) throw CrsError("no distance on the ground between two map points");
+  return kStep / metres;
+}
+
 MapToWgs84::MapToWgs84(const std::string& crs) : to_wgs84_(crs, kWgs84) {}
 
 GeodeticPose MapToWgs84::Convert(double x, double y, double z, double yaw_rad) const {

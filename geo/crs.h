@@ -70,6 +70,11 @@ class Reprojection {
   mutable std::mutex mutex_;
 };
 
+// Map units per metre on the ground (the WGS84 ellipsoid) at (x, y) of `crs`, eastwards: 1.0004
+// near a UTM zone's edge, 1.44 for Web Mercator (EPSG:3857) at 46 degrees of latitude. Throws
+// CrsError when PROJ cannot place the point on the Earth (a local grid, a point off the CRS).
+double GridScaleAt(const std::string& crs, double x, double y);
+
 // "EPSG:326zz" (north) or "EPSG:327zz" (south): the WGS 84 / UTM zone of a point (degrees).
 // Throws CrsError for a latitude outside UTM's [-80, 84] or a non-finite point.
 std::string UtmZoneCrs(double longitude_deg, double latitude_deg);

@@ -101,6 +101,18 @@ TEST(CrsTest, GeodeticPoseSaysHowGoodTheTransformationIs) {
   EXPECT_TRUE(navd88.transformation.ballpark);
 }
 
+TEST(CrsTest, GridScaleOnTheGround) {
+  // Web Mercator at 46 N: a unit is cos(46 deg) metres on the ground (spherical formula vs the
+  // ellipsoid: 0.2% apart).
+  double x = -75.25, y = 46.0, z = 0;
+  Reprojection("EPSG:4326", "EPSG:3857").Apply(x, y, z);
+  EXPECT_NEAR(GridScaleAt("EPSG:3857", x, y), 1 / std::cos(46.0 * M_PI / 180), 0.005);
+  // UTM: 0.9996 on the central meridian, about 1.0000 180 km from it.
+  EXPECT_NEAR(GridScaleAt("EPSG:32618", 500000, 5096000), 0.9996, 1e-5);
+  EXPECT_NEAR(GridScaleAt("EPSG:2959", 312030, 5096040), 1.0000, 2e-4);
+  EXPECT_THROW(GridScaleAt(kLocalGrid, 0, 0), CrsError);
+}
+
 TEST(CrsTest, AreaOfUse) {
   const CrsInfo utm18 = ParseCrs("EPSG:2959");  // Canada, 78 W to 72 W
   ASSERT_TRUE(utm18.has_area);

@@ -211,6 +211,15 @@ TEST_F(SurveyCliTest, TreesInDegreesOrFeetAreReprojectedIntoMetres) {
   EXPECT_EQ(CreateField("canada", "--dbh-unit cm --crs EPSG:2959").err.find("area of use"),
             std::string::npos);
 
+  // Web Mercator holds metres that are not the ground's (0.69 m at 46 N): created, with a warning.
+  const std::string mercator = (dir_ / "mercator.gpkg").string();
+  ASSERT_EQ(Shell("ogr2ogr -t_srs EPSG:3857 '" + mercator + "' '" + gpkg + "'").exit_code, 0);
+  const Result scaled = Cli("map create mercator --trees '" + mercator + "'");
+  EXPECT_EQ(scaled.exit_code, 0) << scaled.err;
+  EXPECT_NE(scaled.err.find("a metre of EPSG:3857 (WGS 84 / Pseudo-Mercator) is 0.69"),
+            std::string::npos)
+      << scaled.err;
+
   // compare: the map (EPSG:2959) against the same trees in degrees, both taken to UTM 18N.
   const Result compared = Cli("compare map:prf025 --reference '" + degrees + "' --json");
   ASSERT_EQ(compared.exit_code, 0) << compared.err;
@@ -239,8 +248,8 @@ TEST_F(SurveyCliTest, TreesInDegreesOrFeetAreReprojectedIntoMetres) {
       << twice.err;
   EXPECT_EQ(client_.GetMap("upload").version(), 3);
   EXPECT_EQ(Cli("map upload nosuch --trees '" + gpkg + "'").exit_code, 1);
-  // prf025, back, zone, lonlat, metres, europe, canada, upload
-  EXPECT_EQ(client_.ListMaps().size(), 8u);
+  // prf025, back, zone, lonlat, metres, europe, canada, mercator, upload
+  EXPECT_EQ(client_.ListMaps().size(), 9u);
 }
 
 TEST_F(SurveyCliTest, InputErrorsNameFileAndFieldAndCreateNothing) {
