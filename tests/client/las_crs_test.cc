@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -92,6 +94,49 @@ TEST(LasCrsTest, NoCrsAndBrokenVlrs) {
     FAIL() << "no error";
   } catch (const ScanError& e) {
     EXPECT_NE(std::string(e.what()).find("broken.las: byte 227: VLR runs past"), std::string::npos)
+        << e.what();
+  }
+}
+
+// A LAS 1.4 file without points or VLRs whose EVLRs (after the points) are `evlrs`, each a WKT.
+std::string Las14WithEvlrs(const std::vector<std::string>& wkts) {
+  constexpr size_t kHeader14 = 375;
+  std::string bytes(kHeader14, '\0');
+  std::memcpy(bytes.data(), "LASF", 4);
+  bytes[24] = 1;
+  bytes[25] = 4;
+  Put<uint16_t>(bytes, 94, kHeader14);
+  Put<uint32_t>(bytes, 96, kHeader14);
+  Put<uint64_t>(bytes, 235, kHeader14);
+  Put<uint32_t>(bytes, 243, static_cast<uint32_t>(wkts.size()));
+  for (const std::string& wkt : wkts) {
+    std::string evlr(60, '\0');
+    std::memcpy(evlr.data() + 2, "LASF_Projection", 15);
+    Put<uint16_t>(evlr, 18, 2112);
+    Put<uint64_t>(evlr, 20, wkt.size());
+    bytes += evlr + wkt;
+  }
+  return bytes;
+}
+
+TEST(LasCrsTest, Las14WktInAnExtendedVlr) {
+  const std::string wkt = "PROJCS[\"NAD83(CSRS) / UTM zone 18N\",AUTHORITY[\"EPSG\",\"2959\"]]";
+  const std::string las = Las14WithEvlrs({wkt});
+  EXPECT_EQ(LasCrsFromBytes(las, "a.las"), wkt);
+  // From a file too: only the header and the records are read.
+  const std::string path = ::testing::TempDir() + "/evlr_crs_test.las";
+  std::ofstream(path, std::ios::binary) << las;
+  EXPECT_EQ(ReadLasCrs(path), wkt);
+  std::remove(path.c_str());
+
+  std::string broken = las;
+  Put<uint64_t>(broken, 375 + 20, uint64_t{1} << 62);  // past the end of the file
+  try {
+    LasCrsFromBytes(broken, "broken.las");
+    FAIL() << "no error";
+  } catch (const ScanError& e) {
+    EXPECT_NE(std::string(e.what()).find("broken.las: byte 375: EVLR runs past the end"),
+              std::string::npos)
         << e.what();
   }
 }
