@@ -135,7 +135,7 @@ std::string ReprojectTrees(std::vector<MapTreeRow>& rows, const std::string& pat
                          ": --to-crs needs the CRS the trees are in, and the file "
                          "declares none: give it with --crs");
     }
-    ParseCrsOf(path, from);
+    const geo::CrsInfo from_info = ParseCrsOf(path, from);
     const std::string target = to == "utm" ? (rows.empty() ? "" : UtmZoneOf(rows, from)) : to;
     if (target.empty()) return from;  // no trees: nothing tells the zone
     const geo::CrsInfo target_info = ParseCrsOf("--to-crs", target);
@@ -154,8 +154,8 @@ std::string ReprojectTrees(std::vector<MapTreeRow>& rows, const std::string& pat
                            "): " + e.what());
       }
     }
-    log << path << ": " << rows.size() << " trees reprojected from "
-        << Described(ParseCrsOf(path, from)) << " to " << Described(target_info) << std::endl;
+    log << path << ": " << rows.size() << " trees reprojected from " << Described(from_info)
+        << " to " << Described(target_info) << std::endl;
     return target_info.Canonical();
   } catch (const geo::CrsError& e) {
     throw CommandError(path + ": " + e.what());
