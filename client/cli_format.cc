@@ -126,6 +126,15 @@ std::string FormatExtent(const v1::Map& map) {
          Printf("y %.2f..%.2f m", box.min_y(), box.max_y());
 }
 
+UploadProgress UploadProgressTo(std::ostream& err, int64_t trees, int64_t chunk) {
+  if (trees <= chunk) return {};
+  return [&err, chunk](int64_t sent, int64_t total) {
+    if (IsProgressStep(sent, total, chunk)) {
+      err << "uploading: " << sent << "/" << total << " trees" << std::endl;
+    }
+  };
+}
+
 bool IsProgressStep(int64_t sent, int64_t total, int64_t chunk) {
   constexpr int64_t kProgressSteps = 10;  // lines of progress per upload, about
   if (total <= 0 || sent >= total) return true;

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <ostream>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -48,6 +49,10 @@ std::string FormatExtent(const v1::Map& map);
 // progress now: when it crosses a tenth of `total` and at the end (at most 11 lines, whether or
 // not stderr is a terminal).
 bool IsProgressStep(int64_t sent, int64_t total, int64_t chunk);
+
+// The progress of an upload of `trees` trees, `chunk` per message: "uploading: SENT/TOTAL trees"
+// lines on `err` at each IsProgressStep; nothing for an upload of one message.
+UploadProgress UploadProgressTo(std::ostream& err, int64_t trees, int64_t chunk);
 
 // UTC ISO 8601 ("2024-05-01T12:00:00Z"), or "-" for 0.
 std::string FormatUnixMs(int64_t unix_ms);

@@ -44,17 +44,11 @@ void CreateWithTrees(const CreateOptions& options, const std::vector<MapTreeRow>
   if (rows.empty()) {
     map = client.CreateMap(options.name, options.description, options.crs);
   } else {
-    const int64_t chunk = ClientOptions().upload_chunk_trees;
-    const bool report = static_cast<int64_t>(rows.size()) > chunk;
     try {
       map = client
                 .CreateMapWithTrees(options.name, options.description, options.crs, rows,
-                                    [&](int64_t sent, int64_t total) {
-                                      if (report && IsProgressStep(sent, total, chunk)) {
-                                        *context.err << "uploading: " << sent << "/" << total
-                                                     << " trees" << std::endl;
-                                      }
-                                    })
+                                    UploadProgressTo(*context.err, std::ssize(rows),
+                                                     ClientOptions().upload_chunk_trees))
                 .map();
     } catch (const std::exception& upload_error) {
       throw CommandError("creating map '" + options.name + "' with the trees of " + source +

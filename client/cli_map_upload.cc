@@ -57,15 +57,11 @@ void RunUpload(const UploadOptions& options, const CliContext& context) {
     throw CommandError(options.trees_file + ": " + e.what());
   }
   CheckTreePlacement(file.rows, options.trees_file, map.crs(), *context.err);
-  const bool report = static_cast<int64_t>(file.rows.size()) > ClientOptions().upload_chunk_trees;
   v1::UploadTreesResponse response;
   try {
     response = client.UploadTrees(
-        options.name, file.rows, options.replace, [&](int64_t sent, int64_t total) {
-          if (report && IsProgressStep(sent, total, ClientOptions().upload_chunk_trees)) {
-            *context.err << "uploading: " << sent << "/" << total << " trees" << std::endl;
-          }
-        });
+        options.name, file.rows, options.replace,
+        UploadProgressTo(*context.err, std::ssize(file.rows), ClientOptions().upload_chunk_trees));
   } catch (const std::exception& upload_error) {
     throw CommandError("uploading the trees of " + options.trees_file + " to map '" + options.name +
                        "' failed: " + upload_error.what() + "; the map is unchanged");

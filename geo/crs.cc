@@ -19,6 +19,23 @@ constexpr const char* kWgs84 = "EPSG:4979";  // WGS84 geographic 3-D (lat, lon, 
 using internal::Context;
 using internal::PjPtr;
 
+// On the WGS84 ellipsoid, from (lat0, lon0) to (lat1, lon1), degrees: the distance (m) and the
+// azimuth at the start (degrees clockwise from north).
+struct Geodesic {
+  double metres = 0, azimuth_deg = 0;
+};
+Geodesic Wgs84Inverse(double lat0, double lon0, double lat1, double lon1) {
+  static const geod_geodesic wgs84 = [] {
+    geod_geodesic g;
+    geod_init(&g, 6378137.0, 1 / 298.257223563);  // WGS84 ellipsoid
+    return g;
+  }();
+  Geodesic result;
+  double azimuth_end = 0;
+  geod_inverse(&wgs84, lat0, lon0, lat1, lon1, &result.metres, &result.azimuth_deg, &azimuth_end);
+  return result;
+}
+
 // The horizontal part of a CRS: a bound CRS's source, a compound CRS's first component.
 PjPtr HorizontalPart(PJ_CONTEXT* ctx, const PJ* crs) {
   PjPtr part(proj_clone(ctx, crs));
@@ -198,10 +215,7 @@ double GridScaleAt(const std::string& crs, double x, double y) {
   double lon0 = x, lat0 = y, z0 = 0, lon1 = x + kStep, lat1 = y, z1 = 0;
   to_wgs84.Apply(lon0, lat0, z0);
   to_wgs84.Apply(lon1, lat1, z1);
-  geod_geodesic wgs84;
-  geod_init(&wgs84, 6378137.0, 1 / 298.257223563);
-  double metres = 0, azimuth0 = 0, azimuth1 = 0;
-  geod_inverse(&wgs84, lat0, lon0, lat1, lon1, &metres, &azimuth0, &azimuth1);
+  const double metres = Wgs84Inverse(lat0, lon0, lat1, lon1).metres;
   if (!(metres > 0)) throw CrsError("no distance on the ground between two map points");
   return kStep / metres;
 }
@@ -220,10 +234,7 @@ GeodeticPose MapToWgs84::Convert(double x, double y, double z, double yaw_rad) c
   pose.latitude_deg = lat;
   pose.ellipsoidal_height_m = height;
   pose.transformation = used;
-  geod_geodesic wgs84;
-  geod_init(&wgs84, 6378137.0, 1 / 298.257223563);  // WGS84 ellipsoid
-  double distance = 0, azimuth = 0, azimuth_end = 0;
-  geod_inverse(&wgs84, lat, lon, ahead_lat, ahead_lon, &distance, &azimuth, &azimuth_end);
+  const double azimuth = Wgs84Inverse(lat, lon, ahead_lat, ahead_lon).azimuth_deg;
   pose.true_heading_deg = std::fmod(azimuth + 360.0, 360.0);
   const double grid_heading_deg = 90.0 - yaw_rad * 180.0 / M_PI;
   pose.grid_convergence_deg = std::remainder(pose.true_heading_deg - grid_heading_deg, 360.0);
