@@ -8,7 +8,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -163,28 +162,11 @@ CompareRegistration Register(std::vector<algorithms::DetectedTree>& detected,
   return out;
 }
 
-// The reference's --columns / --dbh-unit, with messages naming the --reference-* flags.
-TreeFileOptions ReferenceOptions(const CompareOptions& o) {
-  TreeFileOptions options;
-  options.columns_flag = "--reference-columns";
-  options.dbh_unit_flag = "--reference-dbh-unit";
-  try {
-    if (!o.reference_columns.empty()) {
-      options.columns = ParseColumnMapping(o.reference_columns, options.columns_flag);
-    }
-    if (!o.reference_dbh_unit.empty()) {
-      options.dbh_unit = ParseDbhUnit(o.reference_dbh_unit, options.dbh_unit_flag);
-    }
-  } catch (const std::invalid_argument& e) {
-    throw CommandError(e.what());
-  }
-  options.notes = &std::cerr;
-  return options;
-}
-
 void Run(const CompareOptions& o, const CliContext& context) {
   // The reference first: its errors come before a scan's detection work.
-  TreeFile reference_file = ReadTreeFile(o.reference, ReferenceOptions(o));
+  TreeFile reference_file = ReadTreeFile(
+      o.reference,
+      TreeFileOptionsFrom(o.reference_columns, o.reference_dbh_unit, "", "--reference-"));
   TreeFile detected_file = ReadDetections(o, context);
   AlignCrs(o, detected_file, reference_file, *context.err);
   const std::vector<MapTreeRow>& reference_rows = reference_file.rows;

@@ -32,12 +32,14 @@ void AddTreeFileOptions(CLI::App& command, std::string& columns, std::string& db
 }
 
 TreeFileOptions TreeFileOptionsFrom(const std::string& columns, const std::string& dbh_unit,
-                                    const std::string& layer) {
+                                    const std::string& layer, const std::string& flags) {
   TreeFileOptions options;
   options.layer = layer;
+  options.columns_flag = flags + "columns";
+  options.dbh_unit_flag = flags + "dbh-unit";
   try {
-    if (!columns.empty()) options.columns = ParseColumnMapping(columns);
-    if (!dbh_unit.empty()) options.dbh_unit = ParseDbhUnit(dbh_unit);
+    if (!columns.empty()) options.columns = ParseColumnMapping(columns, options.columns_flag);
+    if (!dbh_unit.empty()) options.dbh_unit = ParseDbhUnit(dbh_unit, options.dbh_unit_flag);
     options.notes = &std::cerr;  // text ids kept as attributes
   } catch (const std::invalid_argument& e) {
     throw CommandError(e.what());

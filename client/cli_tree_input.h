@@ -16,8 +16,10 @@ void AddTreeFileOptions(CLI::App& command, std::string& columns, std::string& db
                         std::string* layer = nullptr);
 
 // The options from their text; throws CommandError naming the flag.
+// `flags` is the prefix of the flags messages name: "--" (--columns, --dbh-unit), or
+// "--reference-" for compare's reference.
 TreeFileOptions TreeFileOptionsFrom(const std::string& columns, const std::string& dbh_unit,
-                                    const std::string& layer = "");
+                                    const std::string& layer = "", const std::string& flags = "--");
 
 // A tree file and the CRS it declares (empty when it declares none, as CSV never does).
 struct TreeFile {
