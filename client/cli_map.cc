@@ -291,7 +291,7 @@ void RunExport(const ExportOptions& options, const CliContext& context) {
                 [&](const std::string& temporary) { WriteMapTreesCsv(temporary, exported.trees); });
     // The CRS as WKT beside the CSV, as GIS tools keep it (map create --trees reads it back);
     // for a map without one, an old .prj is removed.
-    WriteCrsSidecar(options.out_file, map.crs_wkt().empty() ? map.crs() : map.crs_wkt());
+    WriteCrsSidecar(options.out_file, map.crs());
   } else {
     // A GeoPackage takes the map as its layer (others stay); other formats are replaced.
     for (const std::string& warning :
