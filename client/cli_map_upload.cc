@@ -17,7 +17,7 @@ namespace {
 struct UploadOptions {
   std::string name;
   std::string trees_file;
-  std::string crs;       // the trees' CRS when the file declares none (or another)
+  std::string crs;       // the trees' CRS when the file declares none
   std::string columns;   // --columns x=HEADER,... (io/tree_columns.h)
   std::string dbh_unit;  // --dbh-unit m|cm|mm
   std::string layer;     // --layer: a GIS file's layer; empty: the only one with points
@@ -87,8 +87,8 @@ void AddMapUploadCommand(CLI::App& map_app, CliContext& context) {
       ->required();
   AddTreeFileOptions(*sub, options->columns, options->dbh_unit, &options->layer);
   sub->add_option("--crs", options->crs,
-                  "CRS of the trees (EPSG code, WKT or PROJ string) when the file declares none "
-                  "or another: they are reprojected into the map's");
+                  "CRS of the trees (EPSG code, WKT or PROJ string) when the file declares none; "
+                  "trees in another CRS than the map's are reprojected into it");
   sub->add_flag("--replace", options->replace,
                 "Replace the map's trees by the file's (default: append; trees without an id get "
                 "new ones)");
