@@ -18,6 +18,7 @@ Exits 0 when all is well, else 1 with one line per finding (2 for a bad command 
 """
 
 import argparse
+import concurrent.futures
 import difflib
 import os
 import re
@@ -47,7 +48,9 @@ def run_help(binary, path):
     if result.returncode != 0:
         raise RuntimeError(f"{' '.join([binary, *path, '--help'])} exited {result.returncode}: "
                            f"{result.stderr.strip()}")
-    return "\n".join(line.rstrip() for line in result.stdout.rstrip().split("\n"))
+    # A program that names itself after argv[0] would print the build directory.
+    text = result.stdout.replace(binary, os.path.basename(binary))
+    return "\n".join(line.rstrip() for line in text.rstrip().split("\n"))
 
 
 def section(help_text, title):
@@ -81,16 +84,20 @@ def flags(help_text):
 
 def command_tree(binary, name):
     """[(path, help)] of a binary and all its subcommands, depth first in --help order."""
-    out = []
+    texts, frontier = {}, [()]
+    with concurrent.futures.ThreadPoolExecutor(max_workers=4) as pool:
+        while frontier:  # one level at a time, its --help calls in parallel
+            for path, text in zip(frontier, pool.map(lambda p: run_help(binary, list(p)),
+                                                     frontier)):
+                texts[path] = text
+            frontier = [path + (sub,) for path in frontier for sub in subcommands(texts[path])]
 
     def visit(path):
-        text = run_help(binary, path)
-        out.append((path, text))
-        for sub in subcommands(text):
-            visit(path + [sub])
+        yield [name, *path], texts[path]
+        for sub in subcommands(texts[path]):
+            yield from visit(path + (sub,))
 
-    visit([])
-    return [( [name] + path, text) for path, text in out]
+    return list(visit(()))
 
 
 def find_binaries(args):
