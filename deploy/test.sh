@@ -29,5 +29,5 @@ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=cl
   -DCMAKE_CXX_COMPILER=clang++ -DFORESTMAP_FUZZ=ON -DFORESTMAP_BUILD_TESTS=OFF >/dev/null
 cmake --build build-fuzz -j"$(nproc)" --target fuzz_targets
 # A fixed seed: this step checks that the corpus and a known sequence of mutations pass, the same
-# on every machine; exploration is the long runs with a new seed each (tests/fuzz/run.sh, README).
+# on every machine; exploration is the long runs with a new seed each (tests/fuzz/run.sh, docs/development.md "Fuzzing").
 FUZZ_SEED=1 bash tests/fuzz/run.sh build-fuzz 30 "$(nproc)"

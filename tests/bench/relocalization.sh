@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Every relocalization figure of the README (issue 3's bar), measured on this machine:
+# Every relocalization figure of docs/performance.md "Relocalization", measured on this machine:
 #   tests/bench/relocalization.sh [--quick]      (after ./deploy/build.sh; --quick: every 5th
 #                                                 frame, 200 views, a 100,000-tree map)
 # Prints one markdown row per case. Latency is wall time per query in one thread; a busy

@@ -132,7 +132,7 @@ run drone_scan_pair_test "$T/drone_scan_pair_test"
 run map_merge_test "$T/map_merge_test"
 run map_builder_test "$T/map_builder_test"
 
-# Merging and mapping (README "Shared maps and mapping"), timing fields stripped.
+# Merging and mapping (docs/performance.md "Shared maps and mapping"), timing fields stripped.
 run bench_mapping_survey "$F" bench-mapping --frames "$Q/Wild_V01/trees.csv" --poses "$Q/Wild_V01/poses.csv" \
   --use-poses --map "$Q/Wild_V01/map.csv" --json
 run bench_mapping_stein "$F" bench-mapping --frames "$Q/Oxford_Stein/trees.csv" \
