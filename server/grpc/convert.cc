@@ -79,13 +79,6 @@ algorithms::MapTree ToMapTree(const storage::TreeRecord& tree) {
   return out;
 }
 
-std::vector<algorithms::MapTree> ToMapTrees(const std::vector<storage::TreeRecord>& trees) {
-  std::vector<algorithms::MapTree> out;
-  out.reserve(trees.size());
-  for (const storage::TreeRecord& tree : trees) out.push_back(ToMapTree(tree));
-  return out;
-}
-
 algorithms::DetectedTree FromProto(const v1::DetectedTree& tree) {
   algorithms::DetectedTree out;
   out.position = FromProto(tree.position());

@@ -36,7 +36,6 @@ storage::Extent FromProto(const v1::Box2& box);
 
 // A stored tree as the relocalizer sees it: unknown z / dbh are NaN. Requires tree.id.
 algorithms::MapTree ToMapTree(const storage::TreeRecord& tree);
-std::vector<algorithms::MapTree> ToMapTrees(const std::vector<storage::TreeRecord>& trees);
 
 // Geometry.
 using forestmap::FromProto;  // Vector3 and Pose: proto/geometry_convert.h
@@ -47,8 +46,8 @@ algorithms::DetectedTree FromProto(const v1::DetectedTree& tree);
 algorithms::PriorPose FromProto(const v1::PriorPose& prior);
 algorithms::RelocalizeQuery FromProto(const v1::RelocalizeRequest& request);
 v1::RelocalizeResponse::Status ToProto(algorithms::RelocalizeStatus status);
-// Everything but server_time_ms and map_version, which the service fills in.
 v1::RelocalizeResponse::Reason ToProto(algorithms::RelocalizeReason reason);
+// Everything but server_time_ms and map_version, which the service fills in.
 v1::RelocalizeResponse ToProto(const algorithms::RelocalizeResult& result);
 
 // Tracking. The response lacks frame_id, server_time_ms and map_version (the stream fills them).

@@ -38,7 +38,4 @@ class RpcObserverFactory final : public grpc::experimental::ServerInterceptorFac
 // one).
 void NoteCallMap(const grpc::ServerContextBase& context, std::string_view map, int64_t token_id);
 
-// The request id of the call running on `context` ("" without an observer).
-std::string CallRequestId(const grpc::ServerContextBase& context);
-
 }  // namespace forestmap::server

@@ -99,7 +99,6 @@ TEST(ConvertTest, MapTreeUsesNanForUnknownValues) {
   const algorithms::MapTree unknown = ToMapTree(Record(4, 1, 2, std::nullopt, std::nullopt));
   EXPECT_TRUE(std::isnan(unknown.position.z()));
   EXPECT_TRUE(std::isnan(unknown.dbh));
-  EXPECT_EQ(ToMapTrees({Record(1, 0, 0, {}, {}), Record(2, 0, 0, {}, {})}).size(), 2u);
 }
 
 TEST(ConvertTest, DetectedTreeAbsentFieldsBecomeUnknown) {
