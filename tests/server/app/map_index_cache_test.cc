@@ -11,7 +11,7 @@
 #include <set>
 #include <thread>
 
-#include "server/grpc/status.h"
+#include "server/app/errors.h"
 #include "storage/sqlite_map_store.h"
 #include "tests/server/gated_store.h"
 

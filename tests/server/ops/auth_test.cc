@@ -14,6 +14,7 @@
 #include <string>
 
 #include "forestmap/v1/forestmap_service.pb.h"
+#include "proto/status_code_name.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
 #include "storage/sqlite_map_store.h"
