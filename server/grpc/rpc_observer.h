@@ -2,9 +2,9 @@
 // Watches every RPC of the server (a gRPC server interceptor): gives it a request id (the
 // client's "x-request-id" metadata when it sends a usable one, else a random one; returned to the
 // client in the initial metadata), and when the status is sent writes the RPC's log line
-// (server/logging.h: rpc, request_id, map, token, code, ms, peer, and the message of an error)
-// and updates the metrics (server/metrics.h). Handlers tell it the map a call is about through
-// NoteCallMap (server/auth.cc does, for every RPC).
+// (server/ops/logging.h: rpc, request_id, map, token, code, ms, peer, and the message of an error)
+// and updates the metrics (server/ops/metrics.h). Handlers tell it the map a call is about through
+// NoteCallMap (server/ops/auth.cc does, for every RPC).
 //
 // Thread-safety: all functions may be called concurrently.
 

@@ -156,7 +156,7 @@ void LogLine(std::string_view line) noexcept { Log(LogLevel::kInfo, line); }
 void LogStatus(std::string_view rpc, const grpc::Status& status) noexcept {
   if (status.ok()) return;
   try {
-    // Debug only: the RPC's own log line (server/rpc_observer.h) carries code and message.
+    // Debug only: the RPC's own log line (server/grpc/rpc_observer.h) carries code and message.
     Log(LogLevel::kDebug, "status",
         {{"rpc", std::string(rpc)},
          {"code", StatusCodeName(status.error_code())},

@@ -1,4 +1,4 @@
-// Issue 15 (robustness): findings that once crashed the server, cut uploads short, applied a
+// Robustness: findings that once crashed the server, cut uploads short, applied a
 // retried write twice or let a fault look like a bug, each checked end to end through a real
 // in-process gRPC server over a SQLite file.
 

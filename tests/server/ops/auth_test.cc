@@ -315,7 +315,7 @@ TEST(AuthRoles, EveryServiceMethodHasARole) {
   ASSERT_NE(service, nullptr);
   for (int i = 0; i < service->method_count(); ++i) {
     EXPECT_TRUE(RequiredRole(service->method(i)->name()).has_value())
-        << service->method(i)->name() << " has no role in server/auth.cc";
+        << service->method(i)->name() << " has no role in server/ops/auth.cc";
   }
   EXPECT_EQ(RequiredRole("CreateMap"), Role::kAdmin);
   EXPECT_EQ(RequiredRole("Observe"), Role::kWrite);
