@@ -24,7 +24,7 @@ echo "ThreadSanitizer: $passed passed, $failed failed"
 [ "$failed" -eq 0 ]
 
 echo "test: libFuzzer targets, 30 s each (build-fuzz, clang; see tests/fuzz/run.sh)"
-# Only the fuzz targets and what they link (client/io, the protos, server/validation.cc).
+# Only the fuzz targets and what they link (client/io, the protos, server/grpc/validation.cc).
 cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang \
   -DCMAKE_CXX_COMPILER=clang++ -DFORESTMAP_FUZZ=ON -DFORESTMAP_BUILD_TESTS=OFF >/dev/null
 cmake --build build-fuzz -j"$(nproc)" --target fuzz_targets

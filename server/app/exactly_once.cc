@@ -16,18 +16,15 @@ void ValidateRequestId(const std::string& id, const std::string& field) {
   }
 }
 
-bool ReplayRequest(storage::MapStore& store, const std::string& id, const char* rpc,
-                   google::protobuf::MessageLite& response) {
-  const std::optional<storage::StoredRequest> stored = store.FindRequest(id);
-  if (!stored) return false;
+std::optional<std::string> StoredAnswer(storage::MapStore& store, const std::string& id,
+                                        std::string_view rpc) {
+  std::optional<storage::StoredRequest> stored = store.FindRequest(id);
+  if (!stored) return std::nullopt;
   if (stored->rpc != rpc) {
     throw ValidationError("request_id '" + id + "' was already used for a " + stored->rpc +
                           " call; use a new id for every write");
   }
-  if (!response.ParseFromString(stored->response)) {
-    throw std::runtime_error("the stored answer of request id '" + id + "' cannot be decoded");
-  }
-  return true;
+  return std::move(stored->response);
 }
 
 }  // namespace forestmap::server

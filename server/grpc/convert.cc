@@ -71,21 +71,6 @@ storage::Extent FromProto(const v1::Box2& box) {
   return storage::Extent{box.min_x(), box.min_y(), box.max_x(), box.max_y()};
 }
 
-algorithms::MapTree ToMapTree(const storage::TreeRecord& tree) {
-  algorithms::MapTree out;
-  out.id = tree.id.value_or(0);
-  out.position = Eigen::Vector3d(tree.x, tree.y, tree.z.value_or(algorithms::kUnknown));
-  out.dbh = tree.dbh.value_or(algorithms::kUnknown);
-  return out;
-}
-
-std::vector<algorithms::MapTree> ToMapTrees(const std::vector<storage::TreeRecord>& trees) {
-  std::vector<algorithms::MapTree> out;
-  out.reserve(trees.size());
-  for (const storage::TreeRecord& tree : trees) out.push_back(ToMapTree(tree));
-  return out;
-}
-
 algorithms::DetectedTree FromProto(const v1::DetectedTree& tree) {
   algorithms::DetectedTree out;
   out.position = FromProto(tree.position());
@@ -250,73 +235,46 @@ v1::MapVersion ToProto(const storage::VersionRecord& record) {
   return out;
 }
 
-algorithms::TreeObservation ToTreeObservation(const storage::ObservationRecord& record) {
-  algorithms::TreeObservation out;
-  out.tree_id = record.tree_id;
-  out.source = record.source;
-  out.frame_id = record.frame_id;
-  out.detection_index = record.detection_index;
-  out.position = Eigen::Vector3d(record.x, record.y, record.z.value_or(algorithms::kUnknown));
-  out.dbh = record.dbh.value_or(algorithms::kUnknown);
-  out.weight_xy = record.weight_xy;
-  out.weight_dbh = record.weight_dbh;
-  out.sensor_position = Eigen::Vector3d(record.sensor_x, record.sensor_y, record.sensor_z);
-  out.prior = record.prior;
-  return out;
+ObserveCall FromProto(const v1::ObserveRequest& request) {
+  ObserveCall call;
+  call.map_name = request.map_name();
+  call.source = request.source();
+  if (request.conflict_policy() == v1::REJECT_IF_STALE) call.base_version = request.base_version();
+  call.frames.reserve(request.frames_size());
+  for (const v1::ObservationFrame& in : request.frames()) {
+    ObserveFrame& frame = call.frames.emplace_back();
+    frame.observations.source = request.source();
+    frame.observations.frame_id = in.frame_id();
+    frame.observations.trees.reserve(in.trees_size());
+    for (const v1::DetectedTree& tree : in.trees())
+      frame.observations.trees.push_back(FromProto(tree));
+    frame.has_pose = in.has_map_from_sensor();
+    if (frame.has_pose) frame.observations.map_from_sensor = FromProto(in.map_from_sensor());
+    if (in.has_gravity()) frame.gravity = FromProto(in.gravity());
+  }
+  return call;
 }
 
-namespace {
-std::optional<double> Known(double v) {
-  return std::isfinite(v) ? std::optional<double>(v) : std::nullopt;
-}
-}  // namespace
-
-storage::ObservationRecord ToObservationRecord(const algorithms::TreeObservation& observation) {
-  storage::ObservationRecord out;
-  out.tree_id = observation.tree_id;
-  out.source = observation.source;
-  out.frame_id = observation.frame_id;
-  out.detection_index = observation.detection_index;
-  out.x = observation.position.x();
-  out.y = observation.position.y();
-  out.z = Known(observation.position.z());
-  out.dbh = Known(observation.dbh);
-  out.weight_xy = observation.weight_xy;
-  out.weight_dbh = observation.weight_dbh;
-  out.sensor_x = observation.sensor_position.x();
-  out.sensor_y = observation.sensor_position.y();
-  out.sensor_z = observation.sensor_position.z();
-  out.prior = observation.prior;
-  return out;
-}
-
-storage::TreeRecord ToTreeRecord(const algorithms::TreeEstimate& tree,
-                                 const std::map<std::string, std::string>& attributes,
-                                 const std::set<std::string>& null_attributes) {
-  storage::TreeRecord out;
-  out.id = tree.id;
-  out.x = tree.position.x();
-  out.y = tree.position.y();
-  out.z = Known(tree.position.z());
-  out.dbh = Known(tree.dbh);
-  out.attributes = attributes;
-  out.null_attributes = null_attributes;
-  out.status = tree.status == algorithms::TreeStatus::kConfirmed ? storage::TreeStatus::kConfirmed
-                                                                 : storage::TreeStatus::kCandidate;
-  out.observations = tree.observations;
-  out.position_sigma = Known(tree.position_sigma);
-  out.dbh_sigma = Known(tree.dbh_sigma);
-  return out;
-}
-
-algorithms::FrameObservations FromProto(const v1::ObservationFrame& frame,
-                                        const std::string& source) {
-  algorithms::FrameObservations out;
-  out.source = source;
-  out.frame_id = frame.frame_id();
-  out.trees.reserve(frame.trees_size());
-  for (const v1::DetectedTree& tree : frame.trees()) out.trees.push_back(FromProto(tree));
-  if (frame.has_map_from_sensor()) out.map_from_sensor = FromProto(frame.map_from_sensor());
+v1::ObserveResponse ToProto(const ObserveOutcome& outcome) {
+  v1::ObserveResponse out;
+  for (const FrameOutcome& frame : outcome.frames) {
+    v1::FrameResult& result = *out.add_frames();
+    result.set_frame_id(frame.frame_id);
+    if (!frame.merged) {
+      result.set_status(v1::FrameResult::SKIPPED);
+      result.set_detail(frame.detail);
+      continue;
+    }
+    result.set_status(v1::FrameResult::MERGED);
+    result.set_relocalized(frame.relocalized);
+    *result.mutable_map_from_sensor() = ToProto(frame.map_from_sensor);
+    result.set_trees_associated(frame.counts.associated);
+    result.set_trees_added(frame.counts.added);
+    result.set_trees_promoted(frame.counts.promoted);
+    result.set_trees_ignored(frame.counts.ignored);
+  }
+  out.set_map_version(outcome.map.version);
+  *out.mutable_map() = ToProto(outcome.map);
   return out;
 }
 

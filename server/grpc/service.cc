@@ -1,19 +1,22 @@
 #include "server/grpc/service.h"
 
 #include <chrono>
+#include <optional>
 #include <stdexcept>
 #include <string_view>
 #include <utility>
 
 #include "algorithms/core/check.h"
-#include "server/app/exactly_once.h"
+#include "server/app/map_crs.h"
 #include "server/app/worker_pool.h"
+#include "server/grpc/authorize.h"
 #include "server/grpc/convert.h"
 #include "server/grpc/geo_convert.h"
+#include "server/grpc/replay.h"
 #include "server/grpc/status.h"
 #include "server/grpc/streams.h"
 #include "server/grpc/validation.h"
-#include "server/ops/auth.h"
+#include "server/ops/logging.h"
 
 namespace forestmap::server {
 namespace {
@@ -36,6 +39,10 @@ ServiceOptions Checked(ServiceOptions options) {
   options.Check();
   return options;
 }
+
+// What the application layer cannot answer to a caller (a retention failure after a committed
+// write, a pool job that threw) goes to the log.
+void LogFault(std::string_view message) { Log(LogLevel::kWarn, message); }
 
 }  // namespace
 
@@ -64,8 +71,9 @@ ForestMapService::ForestMapService(storage::MapStore& store, ServiceOptions opti
       options_(Checked(std::move(options))),
       index_cache_(store, options_.index_cache),
       stream_limits_(options_.streams),
-      admin_pool_(options_.admin_threads, options_.max_queued_requests),
-      work_pool_(options_.worker_threads, options_.max_queued_requests) {}
+      retention_(store, options_.keep_versions, LogFault),
+      admin_pool_(options_.admin_threads, options_.max_queued_requests, LogFault),
+      work_pool_(options_.worker_threads, options_.max_queued_requests, LogFault) {}
 
 grpc::ServerUnaryReactor* ForestMapService::CreateMap(grpc::CallbackServerContext* context,
                                                       const v1::CreateMapRequest* request,
@@ -118,14 +126,14 @@ grpc::ServerUnaryReactor* ForestMapService::DeleteMap(grpc::CallbackServerContex
 
 grpc::ServerReadReactor<grpc::ByteBuffer>* ForestMapService::UploadTrees(
     grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
-  return new UploadTreesReactor({store_, options_, admin_pool_, work_pool_, stream_limits_},
-                                context, response);
+  return new UploadTreesReactor(
+      {store_, options_, admin_pool_, work_pool_, stream_limits_, retention_}, context, response);
 }
 
 grpc::ServerWriteReactor<v1::ExportTreesResponse>* ForestMapService::ExportTrees(
     grpc::CallbackServerContext* context, const v1::ExportTreesRequest* request) {
-  return new ExportTreesReactor({store_, options_, admin_pool_, work_pool_, stream_limits_},
-                                context, request);
+  return new ExportTreesReactor(
+      {store_, options_, admin_pool_, work_pool_, stream_limits_, retention_}, context, request);
 }
 
 grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerContext* context,
@@ -138,15 +146,17 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
     if (context->IsCancelled()) return;  // the client is gone; its status is CANCELLED anyway
     // No lock around the relocalizer: concurrent queries share the immutable index.
     const MapIndexCache::Entry entry = index_cache_.Get(request->map_name());
-    *response =
-        ToProto(algorithms::Relocalize(*entry.index, FromProto(*request), options_.relocalizer));
+    const algorithms::RelocalizeResult result =
+        algorithms::Relocalize(*entry.index, FromProto(*request), options_.relocalizer);
+    *response = ToProto(result);
     response->set_map_version(entry.version);
     if (request->has_client_stamp_ns()) response->set_client_stamp_ns(request->client_stamp_ns());
-    if (entry.to_wgs84) AddGeodetic(*response, *entry.to_wgs84);
+    std::optional<geo::GeodeticPose> geodetic;
+    if (entry.to_wgs84) geodetic = AddGeodetic(*response, *entry.to_wgs84);
     const std::chrono::duration<double, std::milli> elapsed =
         std::chrono::steady_clock::now() - start;
     response->set_server_time_ms(elapsed.count());
-    recent_answers_.Add(request->map_name(), *response);
+    recent_answers_.Add(request->map_name(), result, geodetic);
   });
 }
 
@@ -161,7 +171,7 @@ grpc::ServerUnaryReactor* ForestMapService::Observe(grpc::CallbackServerContext*
   return AnswerOn(work_pool_, context, "Observe", [this, context, request, response] {
     Authorize(options_.authorizer, *context, "Observe", request->map_name());
     RunObserve(context, *request, *response);
-    ApplyRetention(request->map_name());
+    retention_.AfterWrite(request->map_name());
   });
 }
 
@@ -191,7 +201,7 @@ grpc::ServerUnaryReactor* ForestMapService::RestoreVersion(grpc::CallbackServerC
                      *response->mutable_map() =
                          ToProto(store_.RestoreVersion(request->map_name(), request->version()));
                    });
-    ApplyRetention(request->map_name());
+    retention_.AfterWrite(request->map_name());
   });
 }
 
@@ -201,7 +211,7 @@ grpc::ServerUnaryReactor* ForestMapService::RemoveSource(grpc::CallbackServerCon
   return AnswerOn(work_pool_, context, "RemoveSource", [this, context, request, response] {
     Authorize(options_.authorizer, *context, "RemoveSource", request->map_name());
     RunRemoveSource(context, *request, *response);
-    ApplyRetention(request->map_name());
+    retention_.AfterWrite(request->map_name());
   });
 }
 

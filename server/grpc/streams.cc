@@ -4,12 +4,11 @@
 #include <stdexcept>
 #include <utility>
 
-#include "server/app/exactly_once.h"
+#include "server/grpc/authorize.h"
 #include "server/grpc/convert.h"
 #include "server/grpc/geo_convert.h"
 #include "server/grpc/service.h"
 #include "server/grpc/status.h"
-#include "server/ops/auth.h"
 
 namespace forestmap::server {
 

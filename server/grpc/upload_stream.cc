@@ -1,18 +1,17 @@
-// UploadTreesReactor (server/streams.h): uploads staged in the database as they arrive.
+// UploadTreesReactor (server/grpc/streams.h): uploads staged in the database as they arrive.
 
 #include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
 
-#include "server/app/exactly_once.h"
+#include "server/app/map_crs.h"
+#include "server/grpc/authorize.h"
 #include "server/grpc/convert.h"
-#include "server/grpc/geo_convert.h"
+#include "server/grpc/replay.h"
 #include "server/grpc/service.h"
 #include "server/grpc/status.h"
 #include "server/grpc/streams.h"
-#include "server/ops/auth.h"
-#include "server/ops/logging.h"
 
 namespace forestmap::server {
 
@@ -161,7 +160,7 @@ void UploadTreesReactor::Commit() {
   // The client may have given up while the commit waited in the work queue. (A cancel during
   // the final transaction cannot be honoured: it then commits whole.)
   if (context_->IsCancelled()) {
-    throw ServiceError(grpc::StatusCode::CANCELLED, "upload cancelled; nothing was written");
+    throw ServiceError(ErrorCode::kCancelled, "upload cancelled; nothing was written");
   }
   validator_.Finish();
   StageChunk();
@@ -177,13 +176,7 @@ void UploadTreesReactor::Commit() {
                    upload_.reset();  // committed: nothing to abort
                    fill(info, response);
                  });
-  if (deps_.options.keep_versions > 0) {  // history retention (forestmapd --keep-versions)
-    try {
-      deps_.store.PruneVersions(validator_.map_name(), deps_.options.keep_versions);
-    } catch (const std::exception& e) {
-      LogLine("UploadTrees: retention failed (the upload stands): " + std::string(e.what()));
-    }
-  }
+  deps_.retention.AfterWrite(validator_.map_name());
   EncodeResponse(response);
 }
 

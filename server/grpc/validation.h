@@ -2,7 +2,7 @@
 // Validation of every request of the ForestMap API, before anything is converted or stored.
 //
 // Each function throws ValidationError (INVALID_ARGUMENT) or LimitError (RESOURCE_EXHAUSTED)
-// from server/status.h, with a message naming the field path and index, e.g.
+// from server/app/errors.h, with a message naming the field path and index, e.g.
 //   "trees[12].position.x is NaN"
 //   "prior.radius_m is -1; it must be > 0"
 //   "trees: 100000 trees exceed the limit of 20000 per query"
@@ -19,12 +19,12 @@
 #include "forestmap/v1/observations.pb.h"
 #include "forestmap/v1/relocalization.pb.h"
 #include "forestmap/v1/tracking.pb.h"
-#include "server/grpc/status.h"
+#include "server/app/errors.h"
+#include "server/app/limits.h"
 
 namespace forestmap::server {
 
 inline constexpr double kUnitQuaternionTolerance = 1e-3;  // | |q| - 1 | allowed
-inline constexpr int kMinQueryTrees = 3;
 // A map frame is a local frame (georeferenced offsets belong in the CRS): every coordinate that
 // reaches an index (trees, detected trees, poses, priors, odometry) must lie strictly within
 // these bounds, or the request is INVALID_ARGUMENT naming the field.

@@ -1,4 +1,4 @@
-// libFuzzer target for the server's request validation (server/validation.h): the first byte
+// libFuzzer target for the server's request validation (server/grpc/validation.h): the first byte
 // picks a request message, the rest is parsed as that message (bytes that do not parse are what
 // the server answers INVALID_ARGUMENT before validating), then validated. Validation must answer
 // with ServiceError; any other exception or a sanitizer report is a crash. A request that passes

@@ -4,6 +4,9 @@
 - no file under algorithms/ includes gRPC, Protobuf, SQLite or PCL headers;
 - includes between algorithm stages point down only (ALLOWED below, the CMake link graph);
 - a stage's *_internal.h headers are included only from that stage (and tests);
+- server/app (the application layer) includes no transport: no gRPC, Protobuf or httplib, and
+  nothing of server/grpc, server/http or server/ops; the transports do not include each other,
+  and server/ops includes neither of them (only forestmapd's main wires them together);
 - no source file outside tests/ is longer than MAX_LINES.
 """
 import pathlib
@@ -22,6 +25,14 @@ ALLOWED = {  # stage -> stages it may include (besides itself)
 }
 FORBIDDEN = re.compile(r'#include\s*[<"](grpc|google/protobuf|sqlite3|pcl/|[^">]*\.pb\.h)')
 INCLUDE = re.compile(r'#include\s*"([^"]+)"')
+SERVER_FORBIDDEN = {  # server/<folder> -> includes it may not have (server/CMakeLists.txt)
+    "app": re.compile(r'#include\s*[<"](grpc|google/protobuf|httplib|[^">]*\.pb\.h|'
+                      r'server/(grpc|http|ops)/)'),
+    "grpc": re.compile(r'#include\s*[<"](httplib|server/http/)'),
+    "http": re.compile(r'#include\s*[<"](grpc|google/protobuf|[^">]*\.pb\.h|server/(grpc|ops)/)'),
+    "ops": re.compile(r'#include\s*[<"](httplib|server/(grpc|http)/)'),
+}
+SERVER_WIRING = pathlib.PurePath("server/ops/main.cc")  # forestmapd: includes every folder
 
 
 def main(root: pathlib.Path) -> int:
@@ -38,6 +49,10 @@ def main(root: pathlib.Path) -> int:
         for number, line in enumerate(text.splitlines(), 1):
             if top == "algorithms" and FORBIDDEN.search(line):
                 problems.append(f"{rel}:{number}: algorithms/ may not include {line.strip()}")
+            layer = rel.parts[1] if top == "server" and len(rel.parts) > 2 else None
+            if layer in SERVER_FORBIDDEN and rel != SERVER_WIRING and \
+                    SERVER_FORBIDDEN[layer].search(line):
+                problems.append(f"{rel}:{number}: server/{layer} may not include {line.strip()}")
             match = INCLUDE.search(line)
             if not match:
                 continue

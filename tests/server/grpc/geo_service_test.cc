@@ -1,4 +1,4 @@
-// Maps with a real CRS (issue 14): CreateMap validates the CRS with PROJ and describes it (WKT,
+// Maps with a real CRS: CreateMap validates the CRS with PROJ and describes it (WKT,
 // EPSG); Relocalize answers on such a map carry the sensor's WGS84 pose, checked against PROJ's
 // own command line (cs2cs) and the transverse Mercator grid convergence.
 

@@ -1,4 +1,4 @@
-// Issue 15 (robustness): findings that once crashed the server, cut uploads short, applied a
+// Robustness: findings that once crashed the server, cut uploads short, applied a
 // retried write twice or let a fault look like a bug, each checked end to end through a real
 // in-process gRPC server over a SQLite file.
 
@@ -316,6 +316,40 @@ TEST_F(RetentionTest, KeepVersionsPolicyPrunesAfterEveryWrite) {
   }
   EXPECT_EQ(store_.GetMap("shared").version, 7);
   EXPECT_EQ(store_.ListVersions("shared", 0).front().version, 5);
+}
+
+// The upload stream commits apart from the unary writes; it applies the same retention.
+TEST_F(RetentionTest, UploadsArePrunedAfterTheirCommitToo) {
+  ASSERT_TRUE(CreateMap("plot").ok());
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_TRUE(Upload("plot", {TreeAt(10.0 * i, 0)}).ok());
+    EXPECT_LE(store_.ListVersions("plot", 0).size(), 3u) << "after upload " << i;
+  }
+  EXPECT_EQ(store_.GetMap("plot").version, 6);
+  EXPECT_EQ(store_.GetMap("plot").tree_count, 5);
+  EXPECT_EQ(store_.ListVersions("plot", 0).front().version, 4);
+}
+
+// A retention that fails after a committed write: the write stands and is answered OK (a retry
+// would find it applied), and the failure is in the log with its cause, from either path.
+TEST_F(RetentionTest, AFailedRetentionIsLoggedAndTheWriteStands) {
+  ASSERT_TRUE(CreateMap("shared").ok());
+  gated_.before_prune = [] {
+    throw storage::StorageError(storage::StorageError::Code::kFull, "disk full (injected)");
+  };
+  ::testing::internal::CaptureStderr();
+  v1::ObserveResponse observed;
+  const grpc::Status observe = stub_->Observe(Context().get(), ObserveFrames("obs-1"), &observed);
+  const grpc::Status upload = Upload("shared", {TreeAt(50, 50)});
+  const std::string log = ::testing::internal::GetCapturedStderr();
+  EXPECT_TRUE(observe.ok()) << observe.error_message();
+  EXPECT_TRUE(upload.ok()) << upload.error_message();
+  EXPECT_EQ(store_.GetMap("shared").version, 3);  // both writes are there
+  const std::string line =
+      "retention of map \"shared\" failed (the write stands): disk full (injected)";
+  const size_t first = log.find(line);
+  ASSERT_NE(first, std::string::npos) << log;
+  EXPECT_NE(log.find(line, first + 1), std::string::npos) << "one line per write: " << log;
 }
 
 }  // namespace

@@ -1,4 +1,4 @@
-// Issue 15 (bounded memory, writers per map, atomic create with trees), end to end through an
+// Bounded memory, writers per map and atomic create with trees, end to end through an
 // in-process gRPC server over a SQLite file: uploads are staged in the database while they
 // stream, other maps are written meanwhile, a cancelled create leaves no map and no staged rows,
 // exports follow a slow reader page by page, and streams over their limit are RESOURCE_EXHAUSTED.

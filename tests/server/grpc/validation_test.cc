@@ -154,7 +154,7 @@ TEST(ValidationTest, NullAttributes) {
               HasSubstr("trees[3].null_attributes: 66 attributes and null attributes exceed"));
 }
 
-// Issue 15: finite but huge coordinates crashed the index build; a map frame is a local frame.
+// Finite but huge coordinates crashed the index build; a map frame is a local frame.
 TEST(ValidationTest, CoordinatesMustLieInALocalFrame) {
   v1::Tree tree;
   tree.set_x(9.99e6);

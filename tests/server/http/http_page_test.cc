@@ -1,4 +1,4 @@
-// forestmapd's read-only web page (issue 14) in a real browser: Debian's headless Chromium loads
+// forestmapd's read-only web page in a real browser: Debian's headless Chromium loads
 // the page from an in-process server, waits for the trees to draw (<body data-drawn="N">), and a
 // screenshot must show the stems in their colour.
 

@@ -1,7 +1,8 @@
-// The web page's tree route (server/http_trees.h) and its listeners (server/http_listen.h):
-// /api/maps/NAME/trees is streamed in chunks read page by page and holds every tree exactly, at
-// the page boundaries too; --http and --metrics refuse a port in use (cpp-httplib's default
-// SO_REUSEPORT let a second server share it) and malformed addresses, naming flag and address.
+// The web page's tree route (server/http/http_trees.h) and its listeners
+// (server/http/http_listen.h): /api/maps/NAME/trees is streamed in chunks read page by page and
+// holds every tree exactly, at the page boundaries too; --http and --metrics refuse a port in use
+// (cpp-httplib's default SO_REUSEPORT let a second server share it) and malformed addresses, naming
+// flag and address.
 
 #include "server/http/http_trees.h"
 

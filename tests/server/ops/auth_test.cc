@@ -14,6 +14,7 @@
 #include <string>
 
 #include "forestmap/v1/forestmap_service.pb.h"
+#include "proto/status_code_name.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
 #include "storage/sqlite_map_store.h"
@@ -314,7 +315,7 @@ TEST(AuthRoles, EveryServiceMethodHasARole) {
   ASSERT_NE(service, nullptr);
   for (int i = 0; i < service->method_count(); ++i) {
     EXPECT_TRUE(RequiredRole(service->method(i)->name()).has_value())
-        << service->method(i)->name() << " has no role in server/auth.cc";
+        << service->method(i)->name() << " has no role in server/ops/auth.cc";
   }
   EXPECT_EQ(RequiredRole("CreateMap"), Role::kAdmin);
   EXPECT_EQ(RequiredRole("Observe"), Role::kWrite);
