@@ -18,7 +18,7 @@
 #include <vector>
 
 #include "cli_run.h"
-#include "client/forestmap_client.h"
+#include "client/lib/forestmap_client.h"
 #include "server/server.h"
 #include "server/service.h"
 #include "storage/sqlite_map_store.h"

@@ -13,7 +13,7 @@
 #include <filesystem>
 #include <string>
 
-#include "client/forestmap_client.h"
+#include "client/lib/forestmap_client.h"
 #include "server/auth.h"
 #include "server/server.h"
 #include "server/service.h"
