@@ -4,7 +4,7 @@
 #include <cstdio>
 #include <fstream>
 
-#include "client/cli/cli_commands.h"
+#include "client/cli/cli_context.h"
 
 namespace forestmap::client {
 namespace {

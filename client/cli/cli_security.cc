@@ -1,6 +1,6 @@
 // The global security flags of `forestmap`: TLS to the server and the bearer token.
 
-#include "client/cli/cli_commands.h"
+#include "client/cli/cli_context.h"
 
 namespace forestmap::client {
 

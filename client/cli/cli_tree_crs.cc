@@ -8,7 +8,7 @@
 #include <cmath>
 
 #include "algorithms/core/kdtree.h"
-#include "client/cli/cli_commands.h"
+#include "client/cli/cli_context.h"
 #include "geo/crs.h"
 
 namespace forestmap::client {

@@ -8,7 +8,7 @@
 #include <optional>
 #include <stdexcept>
 
-#include "client/cli/cli_commands.h"
+#include "client/cli/cli_context.h"
 #include "client/io/file_replace.h"
 #include "client/io/geo_io.h"
 #include "geo/crs.h"

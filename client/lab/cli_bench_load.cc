@@ -24,8 +24,8 @@
 #include <thread>
 
 #include "algorithms/evaluation/reloc_evaluation.h"
-#include "client/cli/cli_commands.h"
 #include "client/io/tree_csv.h"
+#include "client/lab/lab_commands.h"
 
 namespace forestmap::client {
 namespace {

@@ -26,8 +26,8 @@
 #include "algorithms/mapping/map_builder.h"
 #include "algorithms/merging/merged_map.h"
 #include "algorithms/relocalization/relocalizer.h"
-#include "client/cli/cli_commands.h"
 #include "client/io/tree_csv.h"
+#include "client/lab/lab_commands.h"
 
 namespace forestmap::client {
 namespace {

@@ -33,9 +33,9 @@
 #include "algorithms/relocalization/tracking.h"
 #include "algorithms/simulation/forest_generator.h"
 #include "algorithms/simulation/view_simulator.h"
-#include "client/cli/cli_commands.h"
 #include "client/io/tree_csv.h"
 #include "client/lab/cli_bench_reloc_maps.h"
+#include "client/lab/lab_commands.h"
 #include "client/lib/scan_trees.h"
 
 namespace forestmap::client {

@@ -6,8 +6,8 @@
 #include "algorithms/simulation/forest_generator.h"
 #include "algorithms/simulation/stand_cases.h"
 #include "algorithms/simulation/view_simulator.h"
-#include "client/cli/cli_commands.h"
 #include "client/io/tree_csv.h"
+#include "client/lab/lab_commands.h"
 
 namespace forestmap::client {
 namespace {

@@ -25,9 +25,9 @@
 #include "algorithms/simulation/forest_generator.h"
 #include "algorithms/simulation/scan_simulation.h"
 #include "algorithms/simulation/view_simulator.h"
-#include "client/cli/cli_commands.h"
 #include "client/io/scan_io.h"
 #include "client/io/tree_csv.h"
+#include "client/lab/lab_commands.h"
 
 namespace forestmap::client {
 namespace {

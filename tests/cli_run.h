@@ -1,6 +1,6 @@
 #pragma once
-// Running the built `forestmap` in integration tests: a temporary folder per test, and a shell
-// command's exit code, standard output and standard error.
+// Running the built `forestmap` and `forestmap-lab` in tests: a temporary folder per test, and a
+// shell command's exit code, standard output and standard error.
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>
