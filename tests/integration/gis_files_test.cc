@@ -18,8 +18,8 @@
 #include <vector>
 
 #include "client/lib/forestmap_client.h"
-#include "server/server.h"
-#include "server/service.h"
+#include "server/grpc/server.h"
+#include "server/grpc/service.h"
 #include "storage/sqlite_map_store.h"
 #include "tests/cli_run.h"
 

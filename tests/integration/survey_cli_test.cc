@@ -21,8 +21,8 @@
 
 #include "client/io/tree_csv.h"
 #include "client/lib/forestmap_client.h"
-#include "server/server.h"
-#include "server/service.h"
+#include "server/grpc/server.h"
+#include "server/grpc/service.h"
 #include "storage/sqlite_map_store.h"
 #include "tests/cli_run.h"
 
