@@ -1,7 +1,7 @@
 // `forestmap detect SCAN [--out trees.csv] [--format csv|json]`: trunk detection in one scan.
 //
 // The CSV has the columns of a detections file (x,y,z,dbh,score,axis_x,axis_y,axis_z; see
-// client/tree_csv.h), so `forestmap relocalize MAP --trees trees.csv` reads it, followed by the
+// client/io/tree_csv.h), so `forestmap relocalize MAP --trees trees.csv` reads it, followed by the
 // detector's diagnostics. Positions are in the scan's frame with its origin added back (full
 // georeferenced coordinates for clouds that had an offset subtracted). The summary line on stderr
 // gives the per-stage counts and times.

@@ -1,4 +1,4 @@
-// `forestmap plot`: an SVG or PNG picture of a map (client/map_plot.h), optionally with one
+// `forestmap plot`: an SVG or PNG picture of a map (client/cli/map_plot.h), optionally with one
 // relocalization answer or a tracked path drawn on it.
 
 #include <Eigen/Geometry>

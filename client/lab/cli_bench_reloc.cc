@@ -4,7 +4,7 @@
 // Simulated views: --map STEMMAP.csv --simulate N [--range M]   (views drawn from the map)
 // Scans:           --map MAP.csv --scans DIR (from `forestmap simulate`: DIR/poses.csv and
 //                  DIR/scan_NNN.pcd): each scan goes through the client's trunk detection
-//                  (client/scan_trees.h) and is relocalized, as `relocalize --scan` does
+//                  (client/lib/scan_trees.h) and is relocalized, as `relocalize --scan` does
 // Tracking:        --track with real frames: frames in order through one tracking session
 //                  (algorithms/relocalization/tracking.h), each frame's answer scored like a
 //                  relocalization

@@ -1,4 +1,4 @@
-// ChannelCredentialsFor (client/forestmap_client.h): plaintext or TLS from PEM files.
+// ChannelCredentialsFor (client/lib/forestmap_client.h): plaintext or TLS from PEM files.
 
 #include <grpcpp/security/credentials.h>
 

@@ -1,5 +1,8 @@
 #pragma once
-// A blocking client of the ForestMap service (see proto/forestmap/v1/forestmap_service.proto).
+// A blocking client of the ForestMap service (see proto/forestmap/v1/forestmap_service.proto),
+// the core of the embeddable client library (CMake: find_package(ForestMap CONFIG), target
+// ForestMap::client; pkg-config: forestmap-client). Units and frames are the API's: metres,
+// radians unless a name says deg, poses a_from_b.
 
 #include <grpcpp/grpcpp.h>
 
@@ -135,6 +138,12 @@ class TrackSession {
 using UploadProgress = std::function<void(int64_t sent, int64_t total)>;
 
 // Thread-compatible: one instance per thread, or external locking.
+//
+// Every call blocks until the server answers or the deadline passes (ClientOptions: call_timeout
+// for a unary call, stream_timeout for a whole upload or export) and throws RpcError for any
+// status but OK: code() for programs, what() for people. Writes are retried with one request id
+// (applied at most once, ClientOptions::write_attempts); reads and Relocalize move to the next
+// replica when one cannot be reached (see the constructor).
 class ForestMapClient {
  public:
   // Creates the channel; does not connect yet. `address` is a gRPC target ("host:port"), or
@@ -142,7 +151,9 @@ class ForestMapClient {
   // PostgreSQL). Calls go to the first; when it cannot be reached (UNAVAILABLE, or no connection
   // before the deadline), idempotent calls (ListMaps, GetMap, ExportTrees, ListVersions,
   // Relocalize) are retried on the next replica, which then stays the current one. Writes and
-  // Track are never retried: they fail with the replica's error.
+  // Track are never retried: they fail with the replica's error. Throws std::invalid_argument
+  // for options that fail ClientOptions::Check or no address, std::runtime_error for a TLS file
+  // that cannot be read.
   explicit ForestMapClient(std::string address, const ClientOptions& options = {});
 
   const std::string& address() const { return address_; }

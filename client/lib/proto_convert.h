@@ -1,6 +1,7 @@
 #pragma once
 // Conversions between the client's types and the API messages (units and frames are the same on
-// both sides: metres, radians, a_from_b poses).
+// both sides: metres, radians, a_from_b poses). Field by field: nothing is validated here (the
+// server validates what it receives) and nothing throws.
 
 #include <optional>
 

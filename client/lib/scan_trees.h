@@ -14,7 +14,7 @@ struct ScanTrees {
   algorithms::TrunkDetectionStats stats;
 };
 
-// Throws ScanError (client/scan_io.h) for an unreadable scan, or for a georeferenced cloud (one
+// Throws ScanError (client/io/scan_io.h) for an unreadable scan, or for a georeferenced cloud (one
 // read with an offset): a relocalization query must be in the sensor's own frame.
 ScanTrees DetectScanTrees(const std::string& path,
                           const algorithms::TrunkDetectionOptions& options = {});
