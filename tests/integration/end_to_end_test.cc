@@ -6,9 +6,9 @@
 #include <filesystem>
 
 #include "algorithms/evaluation/reloc_evaluation.h"
-#include "client/forestmap_client.h"
 #include "client/io/tree_csv.h"
-#include "client/proto_convert.h"
+#include "client/lib/forestmap_client.h"
+#include "client/lib/proto_convert.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
 #include "storage/sqlite_map_store.h"

@@ -20,8 +20,8 @@
 #include <thread>
 #include <tuple>
 
-#include "client/forestmap_client.h"
 #include "client/io/tree_csv.h"
+#include "client/lib/forestmap_client.h"
 #include "tests/pg_fixture.h"
 
 extern char** environ;

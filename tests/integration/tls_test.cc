@@ -13,7 +13,7 @@
 #include <filesystem>
 #include <string>
 
-#include "client/forestmap_client.h"
+#include "client/lib/forestmap_client.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
 #include "server/ops/auth.h"

@@ -14,8 +14,8 @@
 #include <fstream>
 #include <sstream>
 
-#include "client/forestmap_client.h"
 #include "client/io/tree_csv.h"
+#include "client/lib/forestmap_client.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
 #include "storage/sqlite_map_store.h"
