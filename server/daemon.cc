@@ -15,7 +15,7 @@
 #include "server/map_index_cache.h"
 #include "server/metrics.h"
 #include "server/tls.h"
-#include "storage/sqlite_backup.h"
+#include "storage/backup.h"
 #include "storage/token_store.h"
 
 namespace forestmap::server {

@@ -1,15 +1,28 @@
 #include "storage/store_steps.h"
 
 #include <algorithm>
+#include <chrono>
 #include <limits>
 #include <utility>
 
 #include "storage/attribute_json.h"
-#include "storage/sqlite_map_store_internal.h"  // backend-neutral helpers: NowUnixMs, Union, ...
 
 namespace forestmap::storage::internal {
 
 using Code = StorageError::Code;
+
+int64_t NowUnixMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+std::optional<Extent> Union(const std::optional<Extent>& a, const std::optional<Extent>& b) {
+  if (!a) return b;
+  if (!b) return a;
+  return Extent{std::min(a->min_x, b->min_x), std::min(a->min_y, b->min_y),
+                std::max(a->max_x, b->max_x), std::max(a->max_y, b->max_y)};
+}
 
 void SetStoredAttributes(TreeRecord& tree, const std::string& text, const std::string& map_name) {
   try {

@@ -9,11 +9,18 @@
 #include <string>
 #include <vector>
 
-#include "storage/batch_checks.h"
+#include "storage/checks.h"
 #include "storage/map_store.h"
 #include "storage/staged_writes.h"
 
 namespace forestmap::storage::internal {
+
+// ---- Time and extents ----
+
+// ms since 1970, the clock of created_unix_ms / updated_unix_ms.
+int64_t NowUnixMs();
+// The smallest extent holding both (an unset one holds nothing).
+std::optional<Extent> Union(const std::optional<Extent>& a, const std::optional<Extent>& b);
 
 // ---- Rows ----
 
@@ -75,6 +82,10 @@ StorageError TreeToRemoveMissing(const std::string& map_name, int64_t id);
 StorageError ObservationToRemoveMissing(const std::string& map_name, int64_t id);
 // Whether (x, y) lies on the border of `extent` (a closed row there may shrink it).
 bool OnBorder(const std::optional<Extent>& extent, double x, double y);
+
+// ---- Exactly-once writes ----
+
+inline constexpr int64_t kRequestLogRetentionMs = 7 * 24 * 3600 * 1000LL;  // ms an answer is kept
 
 // ---- Pages of an export ----
 

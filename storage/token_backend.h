@@ -1,7 +1,7 @@
 #pragma once
 // Where TokenStore (storage/token_store.h) keeps its rows: the SQLite file of the server
 // (table access_tokens of the map schema) or a PostgreSQL database (table access_tokens, created
-// on first use, storage/postgres_token_store.cc). Values come checked and hashed from TokenStore.
+// on first use, storage/postgres/tokens.cc). Values come checked and hashed from TokenStore.
 // Thread-safety: every method may be called from many threads at once.
 
 #include <cstdint>
@@ -26,7 +26,8 @@ class TokenBackend {
   virtual bool AnyToken() = 0;
 };
 
-// The backend on a PostgreSQL server (libpq connection string or URI). Throws StorageError.
-std::unique_ptr<TokenBackend> OpenPostgresTokens(const std::string& conninfo);
+// The backend of the database `db` names (as OpenMapStore: a postgresql:// URI or a SQLite file
+// path), storage/open_store.cc. Throws StorageError.
+std::unique_ptr<TokenBackend> OpenTokenBackend(const std::string& db, int busy_timeout_ms);
 
 }  // namespace forestmap::storage

@@ -5,7 +5,7 @@
 #include <limits>
 #include <utility>
 
-#include "storage/sqlite_map_store_internal.h"  // backend-neutral helpers: Union
+#include "storage/store_steps.h"
 
 namespace forestmap::storage::internal {
 

@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "storage/postgres_map_store.h"
+#include "storage/open_store.h"
 #include "storage/staged_writes.h"
 
 namespace {

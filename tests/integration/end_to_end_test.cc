@@ -11,7 +11,7 @@
 #include "client/proto_convert.h"
 #include "server/server.h"
 #include "server/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/shared_data.h"
 
 namespace forestmap {

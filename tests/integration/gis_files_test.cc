@@ -21,7 +21,7 @@
 #include "client/forestmap_client.h"
 #include "server/server.h"
 #include "server/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 
 namespace forestmap {
 namespace {

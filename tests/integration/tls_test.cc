@@ -17,7 +17,7 @@
 #include "server/auth.h"
 #include "server/server.h"
 #include "server/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "storage/token_store.h"
 
 namespace forestmap {

@@ -16,7 +16,7 @@
 #include "forestmap/v1/forestmap_service.pb.h"
 #include "server/server.h"
 #include "server/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "storage/token_store.h"
 
 namespace forestmap::server {

@@ -13,7 +13,7 @@
 
 #include "server/http_page.h"
 #include "server/recent_answers.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "storage/token_store.h"
 #include "tests/server/http_get.h"
 

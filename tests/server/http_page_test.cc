@@ -18,7 +18,7 @@
 #include "client/io/tree_csv.h"
 #include "server/server.h"
 #include "server/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 
 namespace forestmap::server {
 namespace {

@@ -17,7 +17,7 @@
 #include "server/http_page.h"
 #include "server/metrics_http.h"
 #include "server/recent_answers.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/http_get.h"
 
 namespace forestmap::server {

@@ -20,7 +20,7 @@
 #include "server/rpc_observer.h"
 #include "server/server.h"
 #include "server/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/http_get.h"
 
 namespace forestmap::server {

@@ -19,7 +19,7 @@
 #include "server/convert.h"
 #include "server/server.h"
 #include "server/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/gated_store.h"
 #include "tests/server/rpc_test_support.h"
 

@@ -12,9 +12,9 @@
 #include <iostream>
 #include <thread>
 
-#include "storage/sqlite.h"
-#include "storage/sqlite_backup.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/database.h"
+#include "storage/backup.h"
+#include "storage/sqlite/store.h"
 
 namespace forestmap::storage {
 namespace {

@@ -16,9 +16,9 @@
 #include <string>
 #include <vector>
 
-#include "storage/sqlite.h"
-#include "storage/sqlite_map_store.h"
-#include "storage/sqlite_map_store_internal.h"
+#include "storage/sqlite/database.h"
+#include "storage/sqlite/store.h"
+#include "storage/sqlite/internal.h"
 #include "storage/staged_writes.h"
 
 namespace forestmap::storage {

@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "storage/sqlite.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/database.h"
+#include "storage/sqlite/store.h"
 
 namespace forestmap::storage {
 namespace {

@@ -7,7 +7,7 @@
 #include <filesystem>
 #include <string>
 
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 
 namespace forestmap::storage {
 namespace {

@@ -14,7 +14,7 @@
 #include <string>
 
 #include "storage/map_store.h"
-#include "storage/postgres.h"
+#include "storage/postgres/connection.h"
 #include "tests/pg_fixture.h"
 
 namespace forestmap::testing {

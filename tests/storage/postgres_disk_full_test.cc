@@ -19,8 +19,8 @@
 #include <vector>
 
 #include "server/status.h"
-#include "storage/postgres.h"
-#include "storage/postgres_map_store.h"
+#include "storage/postgres/connection.h"
+#include "storage/postgres/store.h"
 #include "storage/staged_writes.h"
 #include "tests/pg_fixture.h"
 

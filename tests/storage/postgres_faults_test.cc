@@ -7,8 +7,8 @@
 
 #include <string>
 
-#include "storage/postgres.h"
-#include "storage/postgres_map_store.h"
+#include "storage/postgres/connection.h"
+#include "storage/postgres/store.h"
 #include "storage/token_store.h"
 #include "tests/pg_fixture.h"
 

@@ -1,7 +1,7 @@
 // PostgresMapStore specifics (the shared suite runs on it through store_backends.h): reopening,
 // schema versions, errors naming the server, deletion, and writes through several stores on one
 // database (forestmapd replicas) that serialize per map without losing an update.
-#include "storage/postgres_map_store.h"
+#include "storage/postgres/store.h"
 
 #include <gtest/gtest.h>
 
@@ -9,7 +9,7 @@
 #include <thread>
 #include <vector>
 
-#include "storage/postgres.h"
+#include "storage/postgres/connection.h"
 #include "tests/pg_fixture.h"
 #include "tests/storage/store_backends.h"
 

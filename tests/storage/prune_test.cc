@@ -3,7 +3,7 @@
 
 #include <gtest/gtest.h>
 
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 
 namespace forestmap::storage {
 namespace {

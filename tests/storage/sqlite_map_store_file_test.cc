@@ -15,8 +15,8 @@
 #include <thread>
 #include <vector>
 
-#include "storage/sqlite.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/database.h"
+#include "storage/sqlite/store.h"
 #include "tests/storage/store_backends.h"
 
 namespace forestmap::storage {

@@ -1,6 +1,6 @@
 // MapStore semantics on every backend (SQLite in memory, PostgreSQL on the test cluster): maps,
 // errors, versions, writes, ids, exact round trips and the spatial index against brute force.
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 
 #include <gtest/gtest.h>
 

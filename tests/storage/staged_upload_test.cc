@@ -11,9 +11,9 @@
 #include <string>
 #include <vector>
 
-#include "storage/sqlite.h"
-#include "storage/sqlite_backup.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/database.h"
+#include "storage/backup.h"
+#include "storage/sqlite/store.h"
 #include "storage/staged_writes.h"
 #include "tests/storage/store_backends.h"
 

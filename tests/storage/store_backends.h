@@ -8,8 +8,8 @@
 #include <memory>
 #include <string>
 
-#include "storage/postgres_map_store.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/postgres/store.h"
+#include "storage/sqlite/store.h"
 #include "tests/pg_fixture.h"
 
 namespace forestmap::storage {

@@ -11,8 +11,8 @@
 #include <set>
 #include <string>
 
-#include "storage/sqlite.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/database.h"
+#include "storage/sqlite/store.h"
 
 namespace forestmap::storage {
 namespace {

@@ -5,7 +5,7 @@
 
 #include <chrono>
 
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 
 namespace forestmap::storage {
 namespace {
