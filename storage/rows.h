@@ -158,7 +158,7 @@ void WriteObservationValues(Out& out, const ObservationRecord& o) {
 
 // ---- History ----
 
-#define FORESTMAP_VERSION_COLUMNS                                                        \
+#define FORESTMAP_VERSION_COLUMNS                                                      \
   "version, created_unix_ms, kind, source, tree_count, confirmed_count, trees_added, " \
   "trees_updated, trees_removed, observations_added, observations_removed, restored_from"
 template <typename Row>

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <utility>
 
 #include "storage/attribute_json.h"
@@ -34,6 +35,17 @@ void SetStoredAttributes(TreeRecord& tree, const std::string& text, const std::s
                                             ": stored attributes are not a JSON object of "
                                             "strings and nulls: " +
                                             e.what());
+  }
+}
+
+std::optional<std::string> StoredAttributes(const std::string& map_name,
+                                            const std::vector<TreeRecord>& trees, size_t index) {
+  try {
+    return EncodeAttributes(trees[index].attributes, trees[index].null_attributes);
+  } catch (const nlohmann::json::exception& e) {
+    throw StorageError(Code::kInvalidArgument, "map '" + map_name +
+                                                   "': " + TreeLabel(trees, index) +
+                                                   ": attributes are not valid UTF-8: " + e.what());
   }
 }
 

@@ -27,6 +27,10 @@ std::optional<Extent> Union(const std::optional<Extent>& a, const std::optional<
 // Sets the survey columns of `tree` (of map `map_name`, id set) from their stored JSON `text`;
 // kInternal naming the tree when the text is not a JSON object of strings and nulls.
 void SetStoredAttributes(TreeRecord& tree, const std::string& text, const std::string& map_name);
+// The survey columns of trees[index] as stored (EncodeAttributes); kInvalidArgument naming the
+// tree of map `map_name` when they are not valid UTF-8.
+std::optional<std::string> StoredAttributes(const std::string& map_name,
+                                            const std::vector<TreeRecord>& trees, size_t index);
 
 // ---- Versions ----
 

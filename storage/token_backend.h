@@ -14,6 +14,20 @@
 
 namespace forestmap::storage {
 
+// Columns of every token query, in the order ReadTokenRow expects; `Row` as in storage/rows.h.
+#define FORESTMAP_TOKEN_COLUMNS "id, map_pattern, role, note, created_unix_ms, revoked_unix_ms"
+template <typename Row>
+TokenRecord ReadTokenRow(const Row& row) {
+  TokenRecord record;
+  record.id = row.Int64(0);
+  record.map_pattern = row.Text(1);
+  record.role = static_cast<Role>(row.Int64(2));
+  record.note = row.Text(3);
+  record.created_unix_ms = row.Int64(4);
+  record.revoked_unix_ms = row.IsNull(5) ? 0 : row.Int64(5);
+  return record;
+}
+
 class TokenBackend {
  public:
   virtual ~TokenBackend() = default;

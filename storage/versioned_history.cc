@@ -64,8 +64,7 @@ MapSnapshot VersionedMapStore::ReadMapVersion(const std::string& name, int64_t v
   return snapshot;
 }
 
-std::vector<VersionRecord> VersionedMapStore::ListVersions(const std::string& name,
-                                                           int64_t limit) {
+std::vector<VersionRecord> VersionedMapStore::ListVersions(const std::string& name, int64_t limit) {
   internal::CheckName(name);
   std::vector<VersionRecord> versions;
   backend_->WithReader([&](StoreSession& session) {

@@ -66,8 +66,8 @@ void VersionedMapStore::DeleteMap(const std::string& name) {
 
 // ---- Trees ----
 
-MapInfo VersionedMapStore::WriteTrees(const std::string& name,
-                                      const std::vector<TreeRecord>& trees, WriteMode mode) {
+MapInfo VersionedMapStore::WriteTrees(const std::string& name, const std::vector<TreeRecord>& trees,
+                                      WriteMode mode) {
   internal::CheckName(name);
   const internal::BatchSummary batch = internal::CheckBatch(name, trees);
   MapInfo result;

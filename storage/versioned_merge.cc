@@ -112,8 +112,8 @@ void ApplyChanges(StoreSession& session, MapRow& map, const MergeNote& note,
   record.observations_added = static_cast<int64_t>(changes.added_observations.size());
   record.observations_removed = static_cast<int64_t>(closed.size());
 
-  std::optional<Extent> extent = boundary ? session.ScanExtent(map.id)
-                                          : internal::Union(map.info.extent, put.extent);
+  std::optional<Extent> extent =
+      boundary ? session.ScanExtent(map.id) : internal::Union(map.info.extent, put.extent);
   if (map.info.tree_count == 0) extent.reset();
   internal::StampVersion(map.info, record, std::move(extent));
   session.UpdateMap(map);

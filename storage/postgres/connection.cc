@@ -246,53 +246,6 @@ void Transaction::Commit() {
   done_ = true;
 }
 
-// ---- Pool ----
-
-ConnectionPool::ConnectionPool(std::string conninfo, int max_size)
-    : conninfo_(std::move(conninfo)), max_size_(max_size) {}
-ConnectionPool::~ConnectionPool() = default;
-
-std::unique_ptr<Connection> ConnectionPool::Borrow() {
-  std::unique_lock<std::mutex> lock(mutex_);
-  returned_.wait(lock, [&] { return !idle_.empty() || open_count_ < max_size_; });
-  if (!idle_.empty()) {
-    std::unique_ptr<Connection> conn = std::move(idle_.back());
-    idle_.pop_back();
-    return conn;
-  }
-  ++open_count_;  // reserve the slot, connect without the lock
-  lock.unlock();
-  try {
-    return std::make_unique<Connection>(conninfo_);
-  } catch (...) {
-    std::lock_guard<std::mutex> relock(mutex_);
-    --open_count_;
-    returned_.notify_one();
-    throw;
-  }
-}
-
-void ConnectionPool::Return(std::unique_ptr<Connection> conn) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  if (conn->healthy()) {
-    idle_.push_back(std::move(conn));
-  } else {
-    --open_count_;  // dropped: the next Borrow connects anew
-  }
-  returned_.notify_one();
-}
-
-void ConnectionPool::With(const std::function<void(Connection&)>& body) {
-  std::unique_ptr<Connection> conn = Borrow();
-  try {
-    body(*conn);
-  } catch (...) {
-    Return(std::move(conn));
-    throw;
-  }
-  Return(std::move(conn));
-}
-
 // ---- Schema ----
 
 void MigrateSchema(Connection& conn, const std::vector<const char*>& steps) {

@@ -1,7 +1,7 @@
 #pragma once
 // The one wrapper around libpq (PostgreSQL's C client): RAII connections and results, bound
 // parameters in text form (never SQL built from values), array literals for bulk writes through
-// unnest(), a RAII transaction, a connection pool and the schema migration. Every libpq failure
+// unnest(), a RAII transaction and the schema migration. Every libpq failure
 // becomes a StorageError whose code follows the SQLSTATE (unique violation -> kAlreadyExists,
 // serialization failure / deadlock -> kConflict, lock timeout / lost or refused connection /
 // server shutting down -> kUnavailable, disk_full -> kFull, read-only transaction -> kReadOnly,
@@ -11,11 +11,7 @@
 // to the same bits) and PostgreSQL 12+ prints float8 the same way (extra_float_digits = 1), so
 // values round-trip bit for bit, -0.0 included.
 
-#include <condition_variable>
 #include <cstdint>
-#include <functional>
-#include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -123,29 +119,6 @@ class Transaction {
  private:
   Connection& conn_;
   bool done_ = false;
-};
-
-// Up to `max_size` connections made on demand, each lent to one caller at a time. A connection
-// that lost its server is closed instead of returned, so the next call opens a fresh one.
-class ConnectionPool {
- public:
-  ConnectionPool(std::string conninfo, int max_size);
-  ~ConnectionPool();
-  ConnectionPool(const ConnectionPool&) = delete;
-  ConnectionPool& operator=(const ConnectionPool&) = delete;
-
-  void With(const std::function<void(Connection&)>& body);
-
- private:
-  std::unique_ptr<Connection> Borrow();
-  void Return(std::unique_ptr<Connection> conn);
-
-  std::string conninfo_;
-  int max_size_;
-  std::mutex mutex_;
-  std::condition_variable returned_;
-  std::vector<std::unique_ptr<Connection>> idle_;
-  int open_count_ = 0;  // idle + lent out
 };
 
 // Brings the schema to steps.size() (table forestmap_schema holds the version). Step i takes the

@@ -2,24 +2,19 @@
 // MapStore on PostgreSQL: the same tables and versioning as the SQLite store (maps, trees and
 // observations whose rows carry the version range [valid_from, valid_to) they belong to,
 // map_versions as the history), so that several forestmapd replicas can serve the same maps.
-// Schema versioned in table forestmap_schema (storage/postgres_schema.cc).
+// Schema versioned in table forestmap_schema (storage/postgres/schema.cc). What a store does is
+// VersionedMapStore's (storage/versioned_map_store.h); this backend gives it connections,
+// statements and locks.
 
 #include <cstdint>
-#include <functional>
 #include <memory>
 #include <string>
-#include <vector>
 
-#include "storage/map_store.h"
+#include "storage/versioned_map_store.h"
 
 namespace forestmap::storage {
 
 class TokenBackend;  // storage/token_backend.h
-
-namespace pg {
-class Connection;
-class ConnectionPool;
-}  // namespace pg
 
 struct PostgresMapStoreOptions {
   int max_connections = 8;  // connections to the server this store opens at most (count)
@@ -36,7 +31,9 @@ struct PostgresMapStoreOptions {
 // (as the SQLite store serializes all writes), writes to different maps run in parallel, and
 // what a merge reads is the version its changes apply to. Readers never wait for writers (MVCC).
 // Doubles round-trip bit for bit (-0.0 too); attributes are JSON object text as in SQLite.
-class PostgresMapStore final : public MapStore {
+// An upload is staged in a TEMP table of the upload's own session and copied into trees at Commit
+// under the map's advisory lock (storage/postgres/upload.cc).
+class PostgresMapStore final : public VersionedMapStore {
  public:
   static constexpr int64_t kSchemaVersion = 2;
   // Trees or observation rows per INSERT ... SELECT FROM unnest(...) statement.
@@ -46,40 +43,6 @@ class PostgresMapStore final : public MapStore {
   // kSchemaVersion. Throws StorageError naming the server on failure.
   explicit PostgresMapStore(const std::string& conninfo,
                             const PostgresMapStoreOptions& options = {});
-  ~PostgresMapStore() override;
-  PostgresMapStore(const PostgresMapStore&) = delete;
-  PostgresMapStore& operator=(const PostgresMapStore&) = delete;
-
-  MapInfo CreateMap(const std::string& name, const std::string& description,
-                    const std::string& crs) override;
-  std::vector<MapInfo> ListMaps() override;
-  MapInfo GetMap(const std::string& name) override;
-  void DeleteMap(const std::string& name) override;
-  MapInfo WriteTrees(const std::string& name, const std::vector<TreeRecord>& trees,
-                     WriteMode mode) override;
-  MapSnapshot ReadMap(const std::string& name) override;
-  std::vector<TreeRecord> TreesInBox(const std::string& name, const Extent& box) override;
-
-  MapSnapshot ReadMapVersion(const std::string& name, int64_t version) override;
-  std::vector<VersionRecord> ListVersions(const std::string& name, int64_t limit) override;
-  MapInfo RestoreVersion(const std::string& name, int64_t version) override;
-  MapInfo Merge(const std::string& name, const MergeNote& note,
-                const MergeFunction& merge) override;
-  std::optional<StoredRequest> FindRequest(const std::string& request_id) override;
-  PruneResult PruneVersions(const std::string& name, int64_t keep) override;
-  // Staged in a TEMP table of the upload's own session; copied into trees at Commit under the
-  // map's advisory lock (storage/postgres_upload.cc).
-  std::unique_ptr<TreeUpload> BeginUpload(const std::string& name, const UploadPlan& plan) override;
-  std::vector<TreeRecord> ReadTreesPage(const std::string& name,
-                                        const TreePageQuery& query) override;
-
- private:
-  using Body = std::function<void(pg::Connection&)>;
-  void With(const Body& body);
-
-  PostgresMapStoreOptions options_;
-  std::string conninfo_;  // for the uploads' own sessions
-  std::unique_ptr<pg::ConnectionPool> pool_;
 };
 
 // Access tokens (storage/token_store.h) in the PostgreSQL database `conninfo` names, in a table

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "storage/map_store.h"
-#include "storage/postgres/connection.h"
+#include "storage/postgres/internal.h"
 #include "storage/token_backend.h"
 
 namespace forestmap::storage {
@@ -31,22 +31,11 @@ constexpr const char* kCreateTable =
     " created_unix_ms BIGINT NOT NULL,"
     " revoked_unix_ms BIGINT)";
 
-#define FORESTMAP_PG_TOKEN_COLUMNS "id, map_pattern, role, note, created_unix_ms, revoked_unix_ms"
-
-TokenRecord ReadToken(const pg::Result& rows, int row) {
-  TokenRecord record;
-  record.id = rows.Int64(row, 0);
-  record.map_pattern = rows.Text(row, 1);
-  record.role = static_cast<Role>(rows.Int64(row, 2));
-  record.note = rows.Text(row, 3);
-  record.created_unix_ms = rows.Int64(row, 4);
-  record.revoked_unix_ms = rows.IsNull(row, 5) ? 0 : rows.Int64(row, 5);
-  return record;
-}
-
 class PostgresTokens final : public TokenBackend {
  public:
-  explicit PostgresTokens(const std::string& conninfo) : pool_(conninfo, kConnections) {
+  explicit PostgresTokens(const std::string& conninfo)
+      : pool_([conninfo] { return std::make_unique<Connection>(conninfo); }, kConnections,
+              [](const Connection& conn) { return conn.healthy(); }) {
     pool_.With([](Connection& conn) {
       pg::Transaction transaction(conn, pg::Transaction::Kind::kWrite);
       conn.Exec("SELECT pg_advisory_xact_lock($1)", Params().Int64(kTableLockKey));
@@ -76,8 +65,8 @@ class PostgresTokens final : public TokenBackend {
     std::vector<TokenRecord> records;
     pool_.With([&](Connection& conn) {
       const pg::Result rows =
-          conn.Exec("SELECT " FORESTMAP_PG_TOKEN_COLUMNS " FROM access_tokens ORDER BY id");
-      for (int row = 0; row < rows.rows(); ++row) records.push_back(ReadToken(rows, row));
+          conn.Exec("SELECT " FORESTMAP_TOKEN_COLUMNS " FROM access_tokens ORDER BY id");
+      records = pg::ReadAll(rows, [](const pg::Row& row) { return ReadTokenRow(row); });
     });
     return records;
   }
@@ -97,11 +86,11 @@ class PostgresTokens final : public TokenBackend {
   std::optional<TokenRecord> FindValid(const std::string& secret_sha256) override {
     std::optional<TokenRecord> found;
     pool_.With([&](Connection& conn) {
-      const pg::Result rows = conn.Exec("SELECT " FORESTMAP_PG_TOKEN_COLUMNS
+      const pg::Result rows = conn.Exec("SELECT " FORESTMAP_TOKEN_COLUMNS
                                         " FROM access_tokens WHERE secret_sha256 = $1 AND "
                                         "revoked_unix_ms IS NULL",
                                         Params().Text(secret_sha256));
-      if (rows.rows() > 0) found = ReadToken(rows, 0);
+      if (rows.rows() > 0) found = ReadTokenRow(pg::Row(rows, 0));
     });
     return found;
   }
@@ -115,7 +104,7 @@ class PostgresTokens final : public TokenBackend {
   }
 
  private:
-  pg::ConnectionPool pool_;
+  ConnectionPool<Connection> pool_;
 };
 
 }  // namespace

@@ -7,13 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "storage/sqlite/database.h"
 #include "storage/sqlite/internal.h"
 
-namespace forestmap::storage::internal {
-
-using sqlite::Database;
-using sqlite::Statement;
+namespace forestmap::storage::sqlite {
 
 void RecordChunk(Database& db, int64_t upload_id, int64_t first_rowid, int64_t first_index,
                  const std::vector<size_t>& order) {
@@ -81,4 +77,4 @@ void ForgetChunks(Database& db, int64_t upload_id) {
   restore();
 }
 
-}  // namespace forestmap::storage::internal
+}  // namespace forestmap::storage::sqlite

@@ -3,7 +3,6 @@
 #include <sqlite3.h>
 
 #include <string>
-#include <utility>
 
 namespace forestmap::storage::sqlite {
 namespace {
@@ -140,52 +139,6 @@ void MigrateSchema(Database& db, const std::vector<const char*>& steps) {
     }
     transaction.Commit();
   }
-}
-
-// ---- ConnectionPool ----
-
-ConnectionPool::ConnectionPool(Opener open, int max_size)
-    : open_(std::move(open)), max_size_(max_size) {}
-
-ConnectionPool::~ConnectionPool() = default;
-
-void ConnectionPool::With(const std::function<void(Database&)>& body) {
-  std::unique_ptr<Database> db = Borrow();
-  try {
-    body(*db);
-  } catch (...) {
-    Return(std::move(db));
-    throw;
-  }
-  Return(std::move(db));
-}
-
-std::unique_ptr<Database> ConnectionPool::Borrow() {
-  std::unique_lock<std::mutex> lock(mutex_);
-  returned_.wait(lock, [&] { return !idle_.empty() || open_count_ < max_size_; });
-  if (!idle_.empty()) {
-    std::unique_ptr<Database> db = std::move(idle_.back());
-    idle_.pop_back();
-    return db;
-  }
-  ++open_count_;  // reserve the slot, then open without holding the lock
-  lock.unlock();
-  try {
-    return open_();
-  } catch (...) {
-    lock.lock();
-    --open_count_;
-    returned_.notify_one();
-    throw;
-  }
-}
-
-void ConnectionPool::Return(std::unique_ptr<Database> db) {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    idle_.push_back(std::move(db));
-  }
-  returned_.notify_one();
 }
 
 // ---- Statement ----

@@ -3,11 +3,7 @@
 // transaction. Every failing sqlite3 call throws StorageError with "<what>: <sqlite3_errmsg>".
 // SQL text is always a constant of the caller; values go through bound parameters only.
 
-#include <condition_variable>
 #include <cstdint>
-#include <functional>
-#include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -68,32 +64,6 @@ class Database {
 // own write transaction, re-checking the version under the lock (another process may be migrating
 // too). A database newer than steps.size() is refused before anything is touched.
 void MigrateSchema(Database& db, const std::vector<const char*>& steps);
-
-// Up to `max_size` connections, made on demand by `open`, each lent to one caller at a time: the
-// reader side of a WAL database, where every reader needs its own connection.
-class ConnectionPool {
- public:
-  using Opener = std::function<std::unique_ptr<Database>()>;
-  ConnectionPool(Opener open, int max_size);
-  ~ConnectionPool();
-  ConnectionPool(const ConnectionPool&) = delete;
-  ConnectionPool& operator=(const ConnectionPool&) = delete;
-
-  // Runs `body` on a borrowed connection, waiting while all are lent out. The connection goes back
-  // to the pool afterwards, also when `body` throws (its RAII transaction has rolled back by then).
-  void With(const std::function<void(Database&)>& body);
-
- private:
-  std::unique_ptr<Database> Borrow();
-  void Return(std::unique_ptr<Database> db);
-
-  Opener open_;
-  int max_size_;
-  std::mutex mutex_;
-  std::condition_variable returned_;
-  std::vector<std::unique_ptr<Database>> idle_;
-  int open_count_ = 0;  // idle + lent out
-};
 
 // One prepared statement. Parameter and column indices follow SQLite: parameters from 1,
 // columns from 0.

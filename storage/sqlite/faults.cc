@@ -9,10 +9,9 @@
 #include <filesystem>
 #include <string>
 
-#include "storage/sqlite/database.h"
 #include "storage/sqlite/internal.h"
 
-namespace forestmap::storage::internal {
+namespace forestmap::storage::sqlite {
 namespace {
 
 constexpr int64_t kBytesPerMib = 1 << 20;
@@ -46,7 +45,7 @@ void ThrowReadOnly(const std::string& path, const std::string& detail) {
                          detail + "]");
 }
 
-void RefuseReadOnlyDatabase(sqlite::Database& db) {
+void RefuseReadOnlyDatabase(Database& db) {
   if (sqlite3_db_readonly(db.handle(), "main") == 1) {
     throw StorageError(StorageError::Code::kReadOnly, "opened read-only by the operating system");
   }
@@ -63,7 +62,7 @@ void RefuseReadOnlyDatabase(sqlite::Database& db) {
   }
 }
 
-void LimitDatabaseSize(sqlite::Database& db, int64_t max_mib) {
+void LimitDatabaseSize(Database& db, int64_t max_mib) {
   if (max_mib <= 0) return;
   const int64_t page_bytes = db.QueryInt64("PRAGMA page_size");
   const int64_t pages = std::max<int64_t>(1, max_mib * kBytesPerMib / page_bytes);
@@ -72,4 +71,4 @@ void LimitDatabaseSize(sqlite::Database& db, int64_t max_mib) {
   db.QueryInt64(sql.c_str());  // returns the limit in force (never below the current size)
 }
 
-}  // namespace forestmap::storage::internal
+}  // namespace forestmap::storage::sqlite

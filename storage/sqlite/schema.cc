@@ -5,7 +5,7 @@
 
 #include "storage/sqlite/internal.h"
 
-namespace forestmap::storage::internal {
+namespace forestmap::storage::sqlite {
 namespace {
 
 // Step i takes a database from user_version i to i + 1 (see sqlite::MigrateSchema). Never edit a
@@ -217,8 +217,7 @@ const std::vector<const char*>& SchemaSteps() {
   return steps;
 }
 
-void ConfigureConnection(sqlite::Database& db, const SqliteMapStoreOptions& options,
-                         bool read_only) {
+void ConfigureConnection(Database& db, const SqliteMapStoreOptions& options, bool read_only) {
   // synchronous = NORMAL is durable against application crashes in WAL mode; a power loss may
   // only drop the last commits, never corrupt the file.
   db.Execute("PRAGMA foreign_keys = ON; PRAGMA synchronous = NORMAL");
@@ -230,11 +229,11 @@ void ConfigureConnection(sqlite::Database& db, const SqliteMapStoreOptions& opti
   LimitDatabaseSize(db, options.max_db_mib);
 }
 
-void RefuseForeignDatabase(sqlite::Database& db) {
+void RefuseForeignDatabase(Database& db) {
   if (db.QueryInt64("PRAGMA user_version") != 0) return;
-  sqlite::Statement tables(db,
-                           "SELECT name FROM sqlite_master WHERE type = 'table' AND name NOT LIKE "
-                           "'sqlite_%' ORDER BY name LIMIT 5");
+  Statement tables(db,
+                   "SELECT name FROM sqlite_master WHERE type = 'table' AND name NOT LIKE "
+                   "'sqlite_%' ORDER BY name LIMIT 5");
   std::string names;
   while (tables.Step()) names += (names.empty() ? "" : ", ") + tables.ColumnText(0);
   if (names.empty()) return;  // a new, empty file: ours to initialise
@@ -245,4 +244,4 @@ void RefuseForeignDatabase(sqlite::Database& db) {
                          "forestmapd a new file or a ForestMap database");
 }
 
-}  // namespace forestmap::storage::internal
+}  // namespace forestmap::storage::sqlite

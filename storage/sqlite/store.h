@@ -1,26 +1,18 @@
 #pragma once
 // MapStore on SQLite: one database file holds every map (tables maps, trees, observations,
 // map_versions, and an R*Tree index over blocks of nearby trees), schema versioned with PRAGMA
-// user_version. Every map version stays readable: tree and observation rows carry the version
-// range [valid_from, valid_to) they belong to (see storage/sqlite_schema.cc).
+// user_version (storage/sqlite/schema.cc). What a store does is VersionedMapStore's
+// (storage/versioned_map_store.h); this backend gives it connections, statements and locks.
 
 #include <cstdint>
-#include <functional>
 #include <memory>
-#include <mutex>
 #include <string>
-#include <vector>
 
-#include "storage/map_store.h"
+#include "storage/versioned_map_store.h"
 
 namespace forestmap::storage {
 
 class TokenBackend;  // storage/token_backend.h
-
-namespace sqlite {
-class Database;
-class ConnectionPool;
-}  // namespace sqlite
 
 struct SqliteMapStoreOptions {
   int busy_timeout_ms = 5000;  // ms a statement waits for a lock held by another process
@@ -54,8 +46,10 @@ struct SqliteMapStoreOptions {
 // their rowid ranges and old versions stay readable; queries filter by version.
 // Merge runs its callback on the writer connection inside BEGIN IMMEDIATE, holding the writer
 // mutex: merges (and all other writes) serialize, and readers keep reading the last committed
-// version meanwhile (WAL).
-class SqliteMapStore final : public MapStore {
+// version meanwhile (WAL). Pruning leaves free pages that later writes reuse; the file does not
+// shrink (VACUUM). An upload is staged in table trees as pending rows (valid_to = -upload id) by
+// short transactions; its Commit turns them current in one UPDATE (storage/sqlite/upload.cc).
+class SqliteMapStore final : public VersionedMapStore {
  public:
   // Schema version this code writes; a database with a newer PRAGMA user_version is refused.
   static constexpr int64_t kSchemaVersion = 7;
@@ -66,48 +60,6 @@ class SqliteMapStore final : public MapStore {
   // kReadOnly, naming the cause, for a database this process cannot write (read-only file,
   // directory or file system): a server that could only fail its writes refuses to start.
   explicit SqliteMapStore(const std::string& path, const SqliteMapStoreOptions& options = {});
-  ~SqliteMapStore() override;
-  SqliteMapStore(const SqliteMapStore&) = delete;
-  SqliteMapStore& operator=(const SqliteMapStore&) = delete;
-
-  MapInfo CreateMap(const std::string& name, const std::string& description,
-                    const std::string& crs) override;
-  std::vector<MapInfo> ListMaps() override;
-  MapInfo GetMap(const std::string& name) override;
-  void DeleteMap(const std::string& name) override;
-  // A write that cannot change anything (kAppend of no trees, kReplace of no trees on an empty
-  // map) does not bump the version.
-  MapInfo WriteTrees(const std::string& name, const std::vector<TreeRecord>& trees,
-                     WriteMode mode) override;
-  MapSnapshot ReadMap(const std::string& name) override;
-  // Throws kInvalidArgument for a NaN bound or min > max; infinite bounds are allowed.
-  std::vector<TreeRecord> TreesInBox(const std::string& name, const Extent& box) override;
-
-  MapSnapshot ReadMapVersion(const std::string& name, int64_t version) override;
-  std::vector<VersionRecord> ListVersions(const std::string& name, int64_t limit) override;
-  MapInfo RestoreVersion(const std::string& name, int64_t version) override;
-  MapInfo Merge(const std::string& name, const MergeNote& note,
-                const MergeFunction& merge) override;
-  std::optional<StoredRequest> FindRequest(const std::string& request_id) override;
-  // Deleted rows leave free pages that later writes reuse; the file does not shrink (VACUUM).
-  PruneResult PruneVersions(const std::string& name, int64_t keep) override;
-  // Staged in table trees as pending rows (valid_to = -upload id) by short transactions; Commit
-  // turns them current in one UPDATE (storage/sqlite_upload.cc).
-  std::unique_ptr<TreeUpload> BeginUpload(const std::string& name, const UploadPlan& plan) override;
-  // One short read transaction per page, through the index of current or closed rows.
-  std::vector<TreeRecord> ReadTreesPage(const std::string& name,
-                                        const TreePageQuery& query) override;
-
- private:
-  friend class SqliteTreeUpload;
-  using Body = std::function<void(sqlite::Database&)>;
-  void WithWriter(const Body& body);
-  void WithReader(const Body& body);
-
-  SqliteMapStoreOptions options_;
-  std::mutex writer_mutex_;
-  std::unique_ptr<sqlite::Database> writer_;
-  std::unique_ptr<sqlite::ConnectionPool> readers_;  // null for ":memory:"
 };
 
 // Access tokens (storage/token_store.h) in the SQLite file at `path` (table access_tokens of the

@@ -9,26 +9,13 @@
 #include <string>
 #include <vector>
 
-#include "storage/sqlite/database.h"
 #include "storage/sqlite/internal.h"
-#include "storage/sqlite/store.h"
 #include "storage/token_backend.h"
 
 namespace forestmap::storage {
 namespace {
 
-#define FORESTMAP_TOKEN_COLUMNS "id, map_pattern, role, note, created_unix_ms, revoked_unix_ms"
-
-TokenRecord ReadToken(const sqlite::Statement& row) {
-  TokenRecord record;
-  record.id = row.ColumnInt64(0);
-  record.map_pattern = row.ColumnText(1);
-  record.role = static_cast<Role>(row.ColumnInt64(2));
-  record.note = row.ColumnText(3);
-  record.created_unix_ms = row.ColumnInt64(4);
-  record.revoked_unix_ms = row.ColumnIsNull(5) ? 0 : row.ColumnInt64(5);
-  return record;
-}
+using sqlite::Row;
 
 // Tokens in the server's SQLite file: one connection, one mutex.
 class SqliteTokens final : public TokenBackend {
@@ -36,7 +23,7 @@ class SqliteTokens final : public TokenBackend {
   SqliteTokens(const std::string& path, int busy_timeout_ms) {
     db_ = std::make_unique<sqlite::Database>(
         path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, busy_timeout_ms);
-    sqlite::MigrateSchema(*db_, internal::SchemaSteps());
+    sqlite::MigrateSchema(*db_, sqlite::SchemaSteps());
     if (path != ":memory:") db_->EnableWal();
   }
 
@@ -58,9 +45,7 @@ class SqliteTokens final : public TokenBackend {
     std::lock_guard<std::mutex> lock(mutex_);
     sqlite::Statement query(*db_,
                             "SELECT " FORESTMAP_TOKEN_COLUMNS " FROM access_tokens ORDER BY id");
-    std::vector<TokenRecord> records;
-    while (query.Step()) records.push_back(ReadToken(query));
-    return records;
+    return sqlite::ReadAll(query, [](const Row& row) { return ReadTokenRow(row); });
   }
 
   bool Revoke(int64_t id, int64_t now_unix_ms) override {
@@ -71,7 +56,7 @@ class SqliteTokens final : public TokenBackend {
     update.BindInt64(1, now_unix_ms);
     update.BindInt64(2, id);
     update.Run();
-    return sqlite3_changes(db_->handle()) == 1;
+    return db_->Changes() == 1;
   }
 
   std::optional<TokenRecord> FindValid(const std::string& secret_sha256) override {
@@ -81,7 +66,7 @@ class SqliteTokens final : public TokenBackend {
                                   "revoked_unix_ms IS NULL");
     query.BindText(1, secret_sha256);
     if (!query.Step()) return std::nullopt;
-    return ReadToken(query);
+    return ReadTokenRow(Row(query));
   }
 
   bool AnyToken() override {

@@ -1,4 +1,4 @@
-// SqliteMapStore: uploads staged in the database (schema steps 6 and 7, storage/staged_writes.h).
+// SQLite: uploads staged in the database (schema steps 6 and 7, storage/staged_upload.h).
 //
 // Append writes the trees of a chunk with their R*Tree blocks in its own short transaction.
 // An upload that creates its map writes them as the final rows of the hidden map (step 7), so
@@ -10,27 +10,18 @@
 // on while an upload streams.
 
 #include <algorithm>
-#include <cmath>
-#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
-#include "storage/sqlite/database.h"
 #include "storage/sqlite/internal.h"
-#include "storage/sqlite/store.h"
-#include "storage/staged_writes.h"
-#include "storage/upload_chunks.h"
+#include "storage/staged_upload.h"
 
-namespace forestmap::storage {
+namespace forestmap::storage::sqlite {
 namespace {
 
-using sqlite::Database;
-using sqlite::Statement;
-using sqlite::Transaction;
 using Code = StorageError::Code;
-using internal::MapRow;
 
 struct UploadRow {
   int64_t id = 0;
@@ -79,7 +70,7 @@ void RemoveUpload(Database& db, const UploadRow& upload) {
   Statement row(db, "DELETE FROM uploads WHERE id = ?1");
   row.BindInt64(1, upload.id);
   row.Run();
-  internal::ForgetChunks(db, upload.id);
+  ForgetChunks(db, upload.id);
 }
 
 std::optional<int64_t> MaxRowid(Database& db) {
@@ -88,98 +79,64 @@ std::optional<int64_t> MaxRowid(Database& db) {
   return select.ColumnInt64(0);
 }
 
-std::optional<int64_t> MaxCurrentId(Database& db, int64_t map_id) {
-  Statement select(db,
-                   "SELECT MAX(tree_id) FROM trees INDEXED BY trees_current WHERE "
-                   "map_id = ?1 AND valid_to = " FORESTMAP_CURRENT);
-  select.BindInt64(1, map_id);
-  if (!select.Step() || select.ColumnIsNull(0)) return std::nullopt;
-  return select.ColumnInt64(0);
-}
-
 // "trees[k]" of the upload.
 std::string Label(int64_t index) { return "trees[" + std::to_string(index) + "]"; }
 
-}  // namespace
-
-void internal::RemoveAbandonedUploads(Database& db) {
-  Transaction transaction(db, Transaction::Kind::kWrite);
-  std::vector<UploadRow> uploads;
-  {
-    Statement select(db, "SELECT id, map_id, creates_map, first_rowid, last_rowid FROM uploads");
-    while (select.Step()) {
-      UploadRow row{select.ColumnInt64(0), select.ColumnInt64(1), select.ColumnInt64(2) != 0,
-                    std::nullopt, std::nullopt};
-      if (!select.ColumnIsNull(3)) row.first_rowid = select.ColumnInt64(3);
-      if (!select.ColumnIsNull(4)) row.last_rowid = select.ColumnInt64(4);
-      uploads.push_back(row);
-    }
-  }
-  for (const UploadRow& upload : uploads) RemoveUpload(db, upload);
-  internal::ForgetChunks(db, -1);  // of uploads committed just before the process stopped
-  transaction.Commit();
-}
-
-class SqliteTreeUpload final : public TreeUpload {
+class Upload final : public StagedUpload {
  public:
-  SqliteTreeUpload(SqliteMapStore& store, std::string name, UploadPlan plan);
-  ~SqliteTreeUpload() override { Abort(); }
-  SqliteTreeUpload(const SqliteTreeUpload&) = delete;
-  SqliteTreeUpload& operator=(const SqliteTreeUpload&) = delete;
-
-  void Append(const std::vector<TreeRecord>& trees) override;
-  MapInfo Commit() override;
-  int64_t staged() const override { return chunks_.staged(); }
+  Upload(Backend& backend, std::string name, UploadPlan plan);
+  ~Upload() override { Discard(); }
+  Upload(const Upload&) = delete;
+  Upload& operator=(const Upload&) = delete;
 
  private:
   void Begin(Database& db);
   MapRow RequireOwnMap(Database& db) const;
   [[noreturn]] void ThrowDuplicate(Database& db, const std::vector<TreeRecord>& trees,
-                                   size_t index) const;
-  void Stage(const std::vector<TreeRecord>& trees);  // one transaction
-  void Reveal(Database& db, MapRow& map);  // the map it creates becomes visible, version 1
-  void Flip(Database& db, const MapRow& map, int64_t version);
-  void Abort() noexcept;
+                                   size_t index);
 
-  SqliteMapStore& store_;
-  std::string name_;
-  UploadPlan plan_;
+  void Stage(const std::vector<TreeRecord>& trees) override;  // one transaction
+  void WithSession(const std::function<void(StoreSession&)>& body) override;
+  MapRow Target(StoreSession& session) override;
+  void MakeCurrent(StoreSession& session, const MapRow& map, int64_t version) override;
+  void Forget(StoreSession& session) override;
+  void Abort() noexcept override;
+  void Finished() noexcept override;
+
+  Backend& backend_;
   UploadRow row_;
-  internal::UploadChunks chunks_;
-  bool done_ = false;  // committed or aborted
 };
 
-SqliteTreeUpload::SqliteTreeUpload(SqliteMapStore& store, std::string name, UploadPlan plan)
-    : store_(store), name_(std::move(name)), plan_(std::move(plan)), chunks_(name_, plan_.mode) {
-  internal::CheckName(name_);
-  store_.WithWriter([&](Database& db) { Begin(db); });
+Upload::Upload(Backend& backend, std::string name, UploadPlan plan)
+    : StagedUpload(std::move(name), std::move(plan)), backend_(backend) {
+  backend_.WithWriterDatabase([&](Database& db) { Begin(db); });
 }
 
-void SqliteTreeUpload::Begin(Database& db) {
+void Upload::Begin(Database& db) {
   Transaction transaction(db, Transaction::Kind::kWrite);
-  if (plan_.create_map) {
+  if (plan().create_map) {
     // Hidden (creating_upload set) until Commit; its name is taken meanwhile.
     Statement insert(db,
                      "INSERT INTO maps (name, description, crs, version, tree_count, "
                      "created_unix_ms, updated_unix_ms, creating_upload) VALUES (?1, ?2, ?3, 1, 0, "
                      "?4, ?4, 0)");
-    insert.BindText(1, name_);
-    insert.BindText(2, plan_.description);
-    insert.BindText(3, plan_.crs);
+    insert.BindText(1, name());
+    insert.BindText(2, plan().description);
+    insert.BindText(3, plan().crs);
     insert.BindInt64(4, internal::NowUnixMs());
     try {
       insert.Run();
     } catch (const StorageError& e) {
       if (e.code() != Code::kAlreadyExists) throw;
-      throw StorageError(Code::kAlreadyExists, "map '" + name_ +
+      throw StorageError(Code::kAlreadyExists, "map '" + name() +
                                                    "' already exists (or another upload is "
                                                    "creating it)");
     }
     row_.map_id = db.LastInsertRowId();
     row_.creates_map = true;
   } else {
-    const MapRow map = internal::RequireMap(db, name_);
-    row_.map_id = map.id;
+    Session session(db);
+    row_.map_id = RequireMap(session, name()).id;
   }
   Statement insert(
       db, "INSERT INTO uploads (map_id, creates_map, started_unix_ms) VALUES (?1, ?2, ?3)");
@@ -197,23 +154,21 @@ void SqliteTreeUpload::Begin(Database& db) {
   transaction.Commit();
 }
 
-MapRow SqliteTreeUpload::RequireOwnMap(Database& db) const {
-  Statement select(db, "SELECT " FORESTMAP_MAP_COLUMNS " FROM maps WHERE id = ?1");
-  select.BindInt64(1, row_.map_id);
-  if (!select.Step()) {
+MapRow Upload::RequireOwnMap(Database& db) const {
+  std::optional<MapRow> map = FindMapById(db, row_.map_id);
+  if (!map) {
     throw StorageError(Code::kNotFound,
-                       "map '" + name_ + "' was deleted during the upload; nothing was written");
+                       "map '" + name() + "' was deleted during the upload; nothing was written");
   }
-  return internal::ReadMapRow(select);
+  return std::move(*map);
 }
 
-void SqliteTreeUpload::ThrowDuplicate(Database& db, const std::vector<TreeRecord>& trees,
-                                      size_t index) const {
+void Upload::ThrowDuplicate(Database& db, const std::vector<TreeRecord>& trees, size_t index) {
   // The earlier row with the same id holds its index in valid_from (pending) or upload_chunks.
   const int64_t id = trees[index].id.value_or(-1);
   std::optional<int64_t> earlier_index;
   if (row_.creates_map) {
-    earlier_index = internal::StagedIndex(db, row_.id, row_.map_id, id);
+    earlier_index = StagedIndex(db, row_.id, row_.map_id, id);
   } else {
     Statement earlier(db,
                       "SELECT valid_from FROM trees WHERE valid_to = ?1 AND valid_to < 0 AND "
@@ -224,42 +179,28 @@ void SqliteTreeUpload::ThrowDuplicate(Database& db, const std::vector<TreeRecord
   }
   const std::string other = earlier_index ? Label(*earlier_index) : "an earlier tree";
   throw StorageError(Code::kInvalidArgument,
-                     chunks_.Label(chunks_.staged() + static_cast<int64_t>(index)) + ".id " +
+                     chunks().Label(chunks().staged() + static_cast<int64_t>(index)) + ".id " +
                          std::to_string(id) + " duplicates " + other +
                          ".id (an explicit id, or one the server gave a tree without id)");
 }
 
-void SqliteTreeUpload::Append(const std::vector<TreeRecord>& trees) {
-  if (done_) throw StorageError(Code::kInternal, "upload to '" + name_ + "' already finished");
-  if (trees.empty()) return;
-  try {
-    chunks_.Check(trees);
-    Stage(trees);
-  } catch (...) {
-    Abort();  // a failed upload is over: its staged rows go now
-    throw;
-  }
-  chunks_.Staged(trees);
-}
-
-void SqliteTreeUpload::Stage(const std::vector<TreeRecord>& trees) {
-  store_.WithWriter([&](Database& db) {
+void Upload::Stage(const std::vector<TreeRecord>& trees) {
+  backend_.WithWriterDatabase([&](Database& db) {
     Transaction transaction(db, Transaction::Kind::kWrite);
     const MapRow map = RequireOwnMap(db);
-    const bool append = plan_.mode == WriteMode::kAppend && !row_.creates_map;
+    const bool append = plan().mode == WriteMode::kAppend && !row_.creates_map;
     const std::vector<int64_t> ids =
-        chunks_.Assign(trees, append ? MaxCurrentId(db, row_.map_id) : std::nullopt);
+        chunks().Assign(trees, append ? MaxCurrentTreeId(db, row_.map_id) : std::nullopt);
     const int64_t before = MaxRowid(db).value_or(0);
     try {
       if (row_.creates_map) {  // final rows of the hidden map
         const std::vector<size_t> order =
-            internal::InsertTrees(db, map, trees, ids, internal::kCreatedTreesVersion,
-                                  internal::kForever, chunks_.staged());
-        internal::RecordChunk(db, row_.id, before + 1, chunks_.staged(), order);
+            InsertTrees(db, map, trees, ids, kCreatedTreesVersion, kForever, chunks().staged());
+        RecordChunk(db, row_.id, before + 1, chunks().staged(), order);
       } else {
-        internal::InsertTrees(db, map, trees, ids, 0, -row_.id, chunks_.staged());
+        InsertTrees(db, map, trees, ids, 0, -row_.id, chunks().staged());
       }
-    } catch (const internal::StagedDuplicate& duplicate) {
+    } catch (const StagedDuplicate& duplicate) {
       ThrowDuplicate(db, trees, duplicate.index);
     }
     const int64_t last = MaxRowid(db).value_or(before);
@@ -276,8 +217,30 @@ void SqliteTreeUpload::Stage(const std::vector<TreeRecord>& trees) {
   });
 }
 
-void SqliteTreeUpload::Flip(Database& db, const MapRow& map, int64_t version) {
+void Upload::WithSession(const std::function<void(StoreSession&)>& body) {
+  backend_.WithWriter(body);
+}
+
+// The map's row (hidden until now when the upload creates it: then revealed as version 1).
+MapRow Upload::Target(StoreSession& session) {
+  Database& db = Session::DatabaseOf(session);
+  MapRow map = RequireOwnMap(db);
+  if (!row_.creates_map) return map;
+  MapInfo& info = map.info;
+  info.created_unix_ms = info.updated_unix_ms = internal::NowUnixMs();
+  Statement reveal(db,
+                   "UPDATE maps SET creating_upload = NULL, created_unix_ms = ?2 WHERE id = ?1");
+  reveal.BindInt64(1, map.id);
+  reveal.BindInt64(2, info.created_unix_ms);
+  reveal.Run();
+  session.UpdateMap(map);
+  session.InsertVersion(map.id, internal::CreationRecord(info));
+  return map;
+}
+
+void Upload::MakeCurrent(StoreSession& session, const MapRow& map, int64_t version) {
   if (!row_.first_rowid || row_.creates_map) return;  // the created map's rows are final
+  Database& db = Session::DatabaseOf(session);
   Statement flip(db, "UPDATE trees SET valid_from = ?4, valid_to = " FORESTMAP_CURRENT
                      " WHERE rowid BETWEEN ?1 AND ?2 AND valid_to = ?3");
   flip.BindInt64(1, *row_.first_rowid);
@@ -305,80 +268,33 @@ void SqliteTreeUpload::Flip(Database& db, const MapRow& map, int64_t version) {
             std::to_string(clash.ColumnInt64(1)) + ")";
   }
   throw StorageError(Code::kInvalidArgument,
-                     "map '" + name_ + "': " + which + ": tree id already exists in the map");
+                     "map '" + name() + "': " + which + ": tree id already exists in the map");
 }
 
-void SqliteTreeUpload::Reveal(Database& db, MapRow& map) {
-  MapInfo& info = map.info;
-  info.created_unix_ms = info.updated_unix_ms = internal::NowUnixMs();
-  Statement reveal(db,
-                   "UPDATE maps SET creating_upload = NULL, created_unix_ms = ?2 WHERE id = ?1");
-  reveal.BindInt64(1, map.id);
-  reveal.BindInt64(2, info.created_unix_ms);
-  reveal.Run();
-  internal::UpdateMapRow(db, map);
-  VersionRecord created;
-  created.version = 1;
-  created.created_unix_ms = info.created_unix_ms;
-  created.kind = VersionKind::kCreate;
-  internal::InsertVersion(db, map.id, created);
+void Upload::Forget(StoreSession& session) {
+  Statement remove(Session::DatabaseOf(session), "DELETE FROM uploads WHERE id = ?1");
+  remove.BindInt64(1, row_.id);
+  remove.Run();
 }
 
-MapInfo SqliteTreeUpload::Commit() {
-  if (done_) throw StorageError(Code::kInternal, "upload to '" + name_ + "' already finished");
-  MapInfo result;
-  try {
-    store_.WithWriter([&](Database& db) {
-      Transaction transaction(db, Transaction::Kind::kWrite);
-      MapRow map = RequireOwnMap(db);
-      const bool replace = plan_.mode == WriteMode::kReplace;
-      const bool changes = chunks_.staged() > 0 || (replace && map.info.tree_count > 0);
-      if (row_.creates_map) Reveal(db, map);
-      if (changes) {
-        const int64_t version = map.info.version + 1;
-        // A created map has no old rows: its current rows are the upload's.
-        const int64_t closed =
-            replace && !row_.creates_map ? internal::CloseAllCurrentRows(db, map.id, version) : 0;
-        Flip(db, map, version);
-        const VersionRecord record = chunks_.Apply(map.info, closed);
-        internal::UpdateMapRow(db, map);
-        internal::InsertVersion(db, map.id, record);
-      }
-      Statement remove(db, "DELETE FROM uploads WHERE id = ?1");
-      remove.BindInt64(1, row_.id);
-      remove.Run();
-      if (changes || row_.creates_map) {
-        internal::CommitWrite(db, transaction, map.info);
-      } else {
-        transaction.Commit();  // nothing changed: no version, no answer stored
-      }
-      result = map.info;
-    });
-  } catch (...) {
-    Abort();
-    throw;
-  }
-  done_ = true;
+void Upload::Finished() noexcept {
   try {  // after the commit, in its own transaction; left for the next open if it fails
-    store_.WithWriter([&](Database& db) {
+    backend_.WithWriterDatabase([&](Database& db) {
       Transaction transaction(db, Transaction::Kind::kWrite);
-      internal::ForgetChunks(db, row_.id);
+      ForgetChunks(db, row_.id);
       transaction.Commit();
     });
   } catch (const StorageError&) {
   }
-  return result;
 }
 
-void SqliteTreeUpload::Abort() noexcept {
-  if (done_) return;
-  done_ = true;
+void Upload::Abort() noexcept {
   try {
     // The staged rows slice by slice (no read sees them), then the rest in one transaction.
     for (int64_t from = row_.first_rowid.value_or(1); row_.first_rowid && from <= *row_.last_rowid;
          from += kAbortSliceRows) {
       const int64_t to = std::min(*row_.last_rowid, from + kAbortSliceRows - 1);
-      store_.WithWriter([&](Database& db) {
+      backend_.WithWriterDatabase([&](Database& db) {
         Transaction transaction(db, Transaction::Kind::kWrite);
         RemovePendingRows(db, row_, from, to);
         transaction.Commit();
@@ -386,7 +302,7 @@ void SqliteTreeUpload::Abort() noexcept {
     }
     UploadRow rest = row_;
     rest.first_rowid.reset();  // its rows are gone
-    store_.WithWriter([&](Database& db) {
+    backend_.WithWriterDatabase([&](Database& db) {
       Transaction transaction(db, Transaction::Kind::kWrite);
       RemoveUpload(db, rest);
       transaction.Commit();
@@ -396,9 +312,28 @@ void SqliteTreeUpload::Abort() noexcept {
   }
 }
 
-std::unique_ptr<TreeUpload> SqliteMapStore::BeginUpload(const std::string& name,
-                                                        const UploadPlan& plan) {
-  return std::make_unique<SqliteTreeUpload>(*this, name, plan);
+}  // namespace
+
+void RemoveAbandonedUploads(Database& db) {
+  Transaction transaction(db, Transaction::Kind::kWrite);
+  std::vector<UploadRow> uploads;
+  {
+    Statement select(db, "SELECT id, map_id, creates_map, first_rowid, last_rowid FROM uploads");
+    while (select.Step()) {
+      UploadRow row{select.ColumnInt64(0), select.ColumnInt64(1), select.ColumnInt64(2) != 0,
+                    std::nullopt, std::nullopt};
+      if (!select.ColumnIsNull(3)) row.first_rowid = select.ColumnInt64(3);
+      if (!select.ColumnIsNull(4)) row.last_rowid = select.ColumnInt64(4);
+      uploads.push_back(row);
+    }
+  }
+  for (const UploadRow& upload : uploads) RemoveUpload(db, upload);
+  ForgetChunks(db, -1);  // of uploads committed just before the process stopped
+  transaction.Commit();
 }
 
-}  // namespace forestmap::storage
+std::unique_ptr<TreeUpload> Backend::BeginUpload(const std::string& name, const UploadPlan& plan) {
+  return std::make_unique<Upload>(*this, name, plan);
+}
+
+}  // namespace forestmap::storage::sqlite

@@ -143,7 +143,7 @@ INSERT INTO tree_blocks VALUES (2, 2, 2, 5, 6, 5, 6, 2, 3, 4);
 TEST_F(CreatedUploadTest, MigratesAStep6DatabaseAndRemovesTheUploadAKilledServerLeft) {
   {
     sqlite::Database db(path_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, 1000);
-    const std::vector<const char*>& all = internal::SchemaSteps();
+    const std::vector<const char*>& all = sqlite::SchemaSteps();
     sqlite::MigrateSchema(db, std::vector<const char*>(all.begin(), all.begin() + 6));
     ASSERT_EQ(db.QueryInt64("PRAGMA user_version"), 6);
     db.Execute(kStep6Data);

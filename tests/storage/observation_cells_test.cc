@@ -139,8 +139,8 @@ TEST(ObservationCells, MigrationFromSchemaTwoIndexesExistingRows) {
   const std::string path = (dir / "maps.db").string();
   {
     sqlite::Database db(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, 1000);
-    db.Execute(internal::SchemaSteps().at(0));
-    db.Execute(internal::SchemaSteps().at(1));
+    db.Execute(sqlite::SchemaSteps().at(0));
+    db.Execute(sqlite::SchemaSteps().at(1));
     ASSERT_EQ(db.QueryInt64("PRAGMA user_version"), 2);
     db.Execute(
         "INSERT INTO maps (id, name, description, crs, version, tree_count, created_unix_ms, "
