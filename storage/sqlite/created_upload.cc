@@ -21,10 +21,8 @@ void RecordChunk(Database& db, int64_t upload_id, int64_t first_rowid, int64_t f
   }
   Statement insert(db,
                    "INSERT INTO upload_chunks (upload_id, first_rowid, first_index, packing) "
-                   "VALUES (?1, ?2, ?3, ?4)");
-  insert.BindInt64(1, upload_id);
-  insert.BindInt64(2, first_rowid);
-  insert.BindInt64(3, first_index);
+                   "VALUES (?1, ?2, ?3, ?4)",
+                   upload_id, first_rowid, first_index);
   insert.BindBlob(4, packing);
   insert.Run();
 }
@@ -33,16 +31,14 @@ std::optional<int64_t> StagedIndex(Database& db, int64_t upload_id, int64_t map_
                                    int64_t tree_id) {
   Statement row(db,
                 "SELECT rowid FROM trees INDEXED BY trees_current WHERE map_id = ?1 AND "
-                "tree_id = ?2 AND valid_to = " FORESTMAP_CURRENT);
-  row.BindInt64(1, map_id);
-  row.BindInt64(2, tree_id);
+                "tree_id = ?2 AND valid_to = " FORESTMAP_CURRENT,
+                map_id, tree_id);
   if (!row.Step()) return std::nullopt;
   const int64_t rowid = row.ColumnInt64(0);
   Statement chunk(db,
                   "SELECT first_rowid, first_index, packing FROM upload_chunks WHERE "
-                  "upload_id = ?1 AND first_rowid <= ?2 ORDER BY first_rowid DESC LIMIT 1");
-  chunk.BindInt64(1, upload_id);
-  chunk.BindInt64(2, rowid);
+                  "upload_id = ?1 AND first_rowid <= ?2 ORDER BY first_rowid DESC LIMIT 1",
+                  upload_id, rowid);
   if (!chunk.Step()) return std::nullopt;
   const std::string packing = chunk.ColumnBlob(2);
   const auto at = static_cast<size_t>(rowid - chunk.ColumnInt64(0)) * 4;
@@ -64,9 +60,7 @@ void ForgetChunks(Database& db, int64_t upload_id) {
   db.Execute("PRAGMA secure_delete = OFF");
   try {
     if (upload_id >= 0) {
-      Statement remove(db, "DELETE FROM upload_chunks WHERE upload_id = ?1");
-      remove.BindInt64(1, upload_id);
-      remove.Run();
+      Statement(db, "DELETE FROM upload_chunks WHERE upload_id = ?1", upload_id).Run();
     } else {
       db.Execute("DELETE FROM upload_chunks WHERE upload_id NOT IN (SELECT id FROM uploads)");
     }

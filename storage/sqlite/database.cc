@@ -207,6 +207,11 @@ void Statement::Run() {
 
 void Statement::Reset() { sqlite3_reset(stmt_); }
 
+std::optional<int64_t> Statement::OptionalInt64() {
+  if (!Step() || ColumnIsNull(0)) return std::nullopt;
+  return ColumnInt64(0);
+}
+
 bool Statement::ColumnIsNull(int column) const {
   return sqlite3_column_type(stmt_, column) == SQLITE_NULL;
 }

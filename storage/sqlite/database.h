@@ -7,6 +7,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "storage/map_store.h"
@@ -70,6 +71,13 @@ void MigrateSchema(Database& db, const std::vector<const char*>& steps);
 class Statement {
  public:
   Statement(Database& db, const char* sql);
+  // Prepares `sql` and binds `values` to ?1, ?2, ... in order: integers, doubles,
+  // std::optional<double> (nullopt -> NULL) and text.
+  template <typename... Values>
+  Statement(Database& db, const char* sql, const Values&... values) : Statement(db, sql) {
+    int index = 0;
+    (Bind(++index, values), ...);
+  }
   ~Statement();
   Statement(const Statement&) = delete;
   Statement& operator=(const Statement&) = delete;
@@ -80,6 +88,18 @@ class Statement {
   void BindText(int index, std::string_view value);  // copied by SQLite (SQLITE_TRANSIENT)
   void BindNull(int index);
   void BindBlob(int index, std::string_view bytes);  // copied by SQLite
+  template <typename T>
+  void Bind(int index, const T& value) {
+    if constexpr (std::is_integral_v<T>) {
+      BindInt64(index, value);
+    } else if constexpr (std::is_floating_point_v<T>) {
+      BindDouble(index, value);
+    } else if constexpr (std::is_same_v<T, std::optional<double>>) {
+      BindOptionalDouble(index, value);
+    } else {
+      BindText(index, value);
+    }
+  }
 
   // Advances: true when a row is available, false when the statement is done.
   bool Step();
@@ -95,6 +115,8 @@ class Statement {
   std::optional<double> ColumnOptionalDouble(int column) const;  // NULL -> nullopt
   std::string ColumnText(int column) const;                      // NULL -> ""
   std::string ColumnBlob(int column) const;                      // NULL -> ""
+  // Steps once: the first column of the row, unset when there is none or it is NULL (MAX, MIN).
+  std::optional<int64_t> OptionalInt64();
 
  private:
   void CheckBind(int result_code, int index);

@@ -79,9 +79,6 @@ auto ReadAll(Statement& select, const Read& read) {
   return rows;
 }
 
-// The map's row by id, hidden maps (of an upload creating them) included.
-std::optional<MapRow> FindMapById(Database& db, int64_t map_id);
-
 // Inserts trees[i] with id ids[i], valid from `valid_from` to `valid_to`, block by block with
 // their R*Tree rows, in the returned order (consecutive rowids). A current id of the map ->
 // kInvalidArgument naming the tree. Rows staged by an upload (upload.cc) pass
@@ -93,10 +90,6 @@ std::vector<size_t> InsertTrees(Database& db, const MapRow& map,
                                 const std::vector<TreeRecord>& trees,
                                 const std::vector<int64_t>& ids, int64_t valid_from,
                                 int64_t valid_to = kForever, int64_t pending_base = -1);
-// Closes every current tree and observation row of a map at `version`; returns the number of
-// observation rows closed.
-int64_t CloseAllRows(Database& db, int64_t map_id, int64_t version);
-std::optional<int64_t> MaxCurrentTreeId(Database& db, int64_t map_id);
 
 // ---- The backend ----
 

@@ -173,7 +173,7 @@ CREATE TABLE access_tokens (
 PRAGMA user_version = 5;
 )sql";
 
-// Version 6: uploads staged in the database (storage/sqlite_upload.cc). An upload's trees are
+// Version 6: uploads staged in the database (storage/sqlite/upload.cc). An upload's trees are
 // written in short transactions as pending rows of `trees`: valid_to = -(upload id), so no read
 // sees them (every query asks for valid_to = 2^63-1 or valid_to > a version), and valid_from =
 // the tree's index in the upload (for error messages). Its commit turns them current in one
@@ -193,7 +193,7 @@ CREATE UNIQUE INDEX trees_pending ON trees (valid_to, tree_id) WHERE valid_to < 
 PRAGMA user_version = 6;
 )sql";
 
-// Version 7: an upload that creates its map (storage/sqlite_created_upload.cc) writes its trees
+// Version 7: an upload that creates its map (storage/sqlite/created_upload.cc) writes its trees
 // as the final rows of the hidden map (valid_from 2, valid_to current), so its commit changes a
 // few rows whatever its size: the map row is revealed. Its chunks are written in packing order;
 // upload_chunks keeps, per chunk, the index in the upload of each row (to name the earlier tree

@@ -1,5 +1,5 @@
 // The SQLite session (storage/store_backend.h): transactions, maps, history, prune and the
-// request log. Tree and observation rows are in trees.cc.
+// request log. Tree and observation rows are in trees.cc and observations.cc.
 
 #include <optional>
 #include <string>
@@ -12,10 +12,7 @@ namespace {
 
 // Runs a DELETE with ?1 = map id and ?2 = the first kept version; returns the rows deleted.
 int64_t DeleteBefore(Database& db, const char* sql, int64_t map_id, int64_t first_kept) {
-  Statement remove(db, sql);
-  remove.BindInt64(1, map_id);
-  remove.BindInt64(2, first_kept);
-  remove.Run();
+  Statement(db, sql, map_id, first_kept).Run();
   return db.Changes();
 }
 
@@ -47,16 +44,9 @@ std::vector<MapInfo> Session::ListMaps() {
 }
 
 std::optional<MapRow> Session::FindMap(const std::string& name) {
-  Statement select(db_, "SELECT " FORESTMAP_MAP_COLUMNS
-                        " FROM maps WHERE name = ?1 AND creating_upload IS NULL");
-  select.BindText(1, name);
-  if (!select.Step()) return std::nullopt;
-  return internal::ReadMapRow(Row(select));
-}
-
-std::optional<MapRow> FindMapById(Database& db, int64_t map_id) {
-  Statement select(db, "SELECT " FORESTMAP_MAP_COLUMNS " FROM maps WHERE id = ?1");
-  select.BindInt64(1, map_id);
+  Statement select(
+      db_, "SELECT " FORESTMAP_MAP_COLUMNS " FROM maps WHERE name = ?1 AND creating_upload IS NULL",
+      name);
   if (!select.Step()) return std::nullopt;
   return internal::ReadMapRow(Row(select));
 }
@@ -64,14 +54,11 @@ std::optional<MapRow> FindMapById(Database& db, int64_t map_id) {
 bool Session::LockMap(int64_t /*map_id*/) { return false; }  // BEGIN IMMEDIATE holds it
 
 int64_t Session::InsertMap(const MapInfo& info) {
-  Statement insert(db_,
-                   "INSERT INTO maps (name, description, crs, version, tree_count, "
-                   "created_unix_ms, updated_unix_ms) VALUES (?1, ?2, ?3, 1, 0, ?4, ?4)");
-  insert.BindText(1, info.name);
-  insert.BindText(2, info.description);
-  insert.BindText(3, info.crs);
-  insert.BindInt64(4, info.created_unix_ms);
-  insert.Run();
+  Statement(db_,
+            "INSERT INTO maps (name, description, crs, version, tree_count, created_unix_ms, "
+            "updated_unix_ms) VALUES (?1, ?2, ?3, 1, 0, ?4, ?4)",
+            info.name, info.description, info.crs, info.created_unix_ms)
+      .Run();
   return db_.LastInsertRowId();
 }
 
@@ -81,9 +68,7 @@ void Session::DeleteMap(const MapRow& map) {
        {"DELETE FROM tree_blocks WHERE min_map <= ?1 AND max_map >= ?1 AND map_id = ?1",
         "DELETE FROM trees WHERE map_id = ?1", "DELETE FROM observations WHERE map_id = ?1",
         "DELETE FROM map_versions WHERE map_id = ?1", "DELETE FROM maps WHERE id = ?1"}) {
-    Statement remove(db_, sql);
-    remove.BindInt64(1, map.id);
-    remove.Run();
+    Statement(db_, sql, map.id).Run();
   }
 }
 
@@ -91,8 +76,8 @@ void Session::UpdateMap(const MapRow& map) {
   Statement update(db_,
                    "UPDATE maps SET version = ?2, tree_count = ?3, min_x = ?4, min_y = ?5, "
                    "max_x = ?6, max_y = ?7, updated_unix_ms = ?8, confirmed_count = ?9 "
-                   "WHERE id = ?1");
-  update.BindInt64(1, map.id);
+                   "WHERE id = ?1",
+                   map.id);
   Binder values(update, 2);
   internal::WriteMapValues(values, map.info);
   update.Run();
@@ -101,8 +86,8 @@ void Session::UpdateMap(const MapRow& map) {
 std::optional<Extent> Session::ScanExtent(int64_t map_id) {
   Statement scan(db_,
                  "SELECT MIN(x), MIN(y), MAX(x), MAX(y) FROM trees INDEXED BY trees_current "
-                 "WHERE map_id = ?1 AND valid_to = " FORESTMAP_CURRENT);
-  scan.BindInt64(1, map_id);
+                 "WHERE map_id = ?1 AND valid_to = " FORESTMAP_CURRENT,
+                 map_id);
   if (!scan.Step() || scan.ColumnIsNull(0)) return std::nullopt;
   return Extent{scan.ColumnDouble(0), scan.ColumnDouble(1), scan.ColumnDouble(2),
                 scan.ColumnDouble(3)};
@@ -111,36 +96,33 @@ std::optional<Extent> Session::ScanExtent(int64_t map_id) {
 // ---- History ----
 
 void Session::InsertVersion(int64_t map_id, const VersionRecord& record) {
-  Statement insert(db_, "INSERT INTO map_versions (map_id, " FORESTMAP_VERSION_COLUMNS
-                        ") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)");
-  insert.BindInt64(1, map_id);
+  Statement insert(db_,
+                   "INSERT INTO map_versions (map_id, " FORESTMAP_VERSION_COLUMNS
+                   ") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)",
+                   map_id);
   Binder values(insert, 2);
   internal::WriteVersionValues(values, record);
   insert.Run();
 }
 
 std::optional<VersionRecord> Session::FindVersion(int64_t map_id, int64_t version) {
-  Statement select(db_, "SELECT " FORESTMAP_VERSION_COLUMNS
-                        " FROM map_versions WHERE map_id = ?1 AND version = ?2");
-  select.BindInt64(1, map_id);
-  select.BindInt64(2, version);
+  Statement select(db_,
+                   "SELECT " FORESTMAP_VERSION_COLUMNS
+                   " FROM map_versions WHERE map_id = ?1 AND version = ?2",
+                   map_id, version);
   if (!select.Step()) return std::nullopt;
   return internal::ReadVersionRow(Row(select));
 }
 
 std::optional<int64_t> Session::OldestVersion(int64_t map_id) {
-  Statement first(db_, "SELECT MIN(version) FROM map_versions WHERE map_id = ?1");
-  first.BindInt64(1, map_id);
-  if (!first.Step() || first.ColumnIsNull(0)) return std::nullopt;
-  return first.ColumnInt64(0);
+  return Statement(db_, "SELECT MIN(version) FROM map_versions WHERE map_id = ?1", map_id)
+      .OptionalInt64();
 }
 
 std::vector<int64_t> Session::NewestVersions(int64_t map_id, int64_t limit) {
-  Statement select(db_,
-                   "SELECT version FROM map_versions WHERE map_id = ?1 ORDER BY version DESC "
-                   "LIMIT ?2");
-  select.BindInt64(1, map_id);
-  select.BindInt64(2, limit > 0 ? limit : -1);
+  Statement select(
+      db_, "SELECT version FROM map_versions WHERE map_id = ?1 ORDER BY version DESC LIMIT ?2",
+      map_id, limit > 0 ? limit : -1);
   return ReadAll(select, [](const Row& row) { return row.Int64(0); });
 }
 
@@ -156,30 +138,26 @@ PrunedRows Session::PruneBefore(int64_t map_id, int64_t first_kept) {
   pruned.versions = DeleteBefore(db_, "DELETE FROM map_versions WHERE map_id = ?1 AND version < ?2",
                                  map_id, first_kept);
   // Spatial blocks whose rows are all gone.
-  Statement blocks(db_,
-                   "DELETE FROM tree_blocks WHERE id IN (SELECT b.id FROM tree_blocks AS b "
-                   "WHERE b.min_map <= ?1 AND b.max_map >= ?1 AND b.map_id = ?1 AND NOT EXISTS "
-                   "(SELECT 1 FROM trees AS t WHERE t.rowid BETWEEN b.first_rowid AND "
-                   "b.last_rowid))");
-  blocks.BindInt64(1, map_id);
-  blocks.Run();
+  Statement(db_,
+            "DELETE FROM tree_blocks WHERE id IN (SELECT b.id FROM tree_blocks AS b WHERE "
+            "b.min_map <= ?1 AND b.max_map >= ?1 AND b.map_id = ?1 AND NOT EXISTS (SELECT 1 "
+            "FROM trees AS t WHERE t.rowid BETWEEN b.first_rowid AND b.last_rowid))",
+            map_id)
+      .Run();
   return pruned;
 }
 
 // ---- Request log ----
 
 void Session::ExpireRequests(int64_t before_unix_ms) {
-  Statement expire(db_, "DELETE FROM request_log WHERE created_unix_ms < ?1");
-  expire.BindInt64(1, before_unix_ms);
-  expire.Run();
+  Statement(db_, "DELETE FROM request_log WHERE created_unix_ms < ?1", before_unix_ms).Run();
 }
 
 bool Session::InsertRequest(const std::string& id, const StoredRequest& answer) {
   Statement insert(db_,
                    "INSERT INTO request_log (request_id, rpc, response, created_unix_ms) "
-                   "VALUES (?1, ?2, ?3, ?4) ON CONFLICT (request_id) DO NOTHING");
-  insert.BindText(1, id);
-  insert.BindText(2, answer.rpc);
+                   "VALUES (?1, ?2, ?3, ?4) ON CONFLICT (request_id) DO NOTHING",
+                   id, answer.rpc);
   insert.BindBlob(3, answer.response);
   insert.BindInt64(4, answer.created_unix_ms);
   insert.Run();
@@ -187,9 +165,8 @@ bool Session::InsertRequest(const std::string& id, const StoredRequest& answer) 
 }
 
 std::optional<StoredRequest> Session::FindRequest(const std::string& id) {
-  Statement select(db_,
-                   "SELECT rpc, response, created_unix_ms FROM request_log WHERE request_id = ?1");
-  select.BindText(1, id);
+  Statement select(
+      db_, "SELECT rpc, response, created_unix_ms FROM request_log WHERE request_id = ?1", id);
   if (!select.Step()) return std::nullopt;
   return StoredRequest{select.ColumnText(0), select.ColumnBlob(1), select.ColumnInt64(2)};
 }

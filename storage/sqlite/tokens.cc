@@ -29,15 +29,12 @@ class SqliteTokens final : public TokenBackend {
 
   int64_t Insert(const std::string& secret_sha256, const TokenRecord& record) override {
     std::lock_guard<std::mutex> lock(mutex_);
-    sqlite::Statement insert(*db_,
-                             "INSERT INTO access_tokens (secret_sha256, map_pattern, role, note, "
-                             "created_unix_ms) VALUES (?1, ?2, ?3, ?4, ?5)");
-    insert.BindText(1, secret_sha256);
-    insert.BindText(2, record.map_pattern);
-    insert.BindInt64(3, static_cast<int64_t>(record.role));
-    insert.BindText(4, record.note);
-    insert.BindInt64(5, record.created_unix_ms);
-    insert.Run();
+    sqlite::Statement(*db_,
+                      "INSERT INTO access_tokens (secret_sha256, map_pattern, role, note, "
+                      "created_unix_ms) VALUES (?1, ?2, ?3, ?4, ?5)",
+                      secret_sha256, record.map_pattern, static_cast<int64_t>(record.role),
+                      record.note, record.created_unix_ms)
+        .Run();
     return db_->LastInsertRowId();
   }
 
@@ -50,21 +47,21 @@ class SqliteTokens final : public TokenBackend {
 
   bool Revoke(int64_t id, int64_t now_unix_ms) override {
     std::lock_guard<std::mutex> lock(mutex_);
-    sqlite::Statement update(*db_,
-                             "UPDATE access_tokens SET revoked_unix_ms = ?1 "
-                             "WHERE id = ?2 AND revoked_unix_ms IS NULL");
-    update.BindInt64(1, now_unix_ms);
-    update.BindInt64(2, id);
-    update.Run();
+    sqlite::Statement(*db_,
+                      "UPDATE access_tokens SET revoked_unix_ms = ?1 WHERE id = ?2 AND "
+                      "revoked_unix_ms IS NULL",
+                      now_unix_ms, id)
+        .Run();
     return db_->Changes() == 1;
   }
 
   std::optional<TokenRecord> FindValid(const std::string& secret_sha256) override {
     std::lock_guard<std::mutex> lock(mutex_);
-    sqlite::Statement query(*db_, "SELECT " FORESTMAP_TOKEN_COLUMNS
-                                  " FROM access_tokens WHERE secret_sha256 = ?1 AND "
-                                  "revoked_unix_ms IS NULL");
-    query.BindText(1, secret_sha256);
+    sqlite::Statement query(*db_,
+                            "SELECT " FORESTMAP_TOKEN_COLUMNS
+                            " FROM access_tokens WHERE secret_sha256 = ?1 AND "
+                            "revoked_unix_ms IS NULL",
+                            secret_sha256);
     if (!query.Step()) return std::nullopt;
     return ReadTokenRow(Row(query));
   }

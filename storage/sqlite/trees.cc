@@ -127,37 +127,14 @@ std::vector<size_t> InsertTrees(Database& db, const MapRow& map,
   return order;
 }
 
-int64_t CloseAllRows(Database& db, int64_t map_id, int64_t version) {
-  Statement trees(
-      db, "UPDATE trees SET valid_to = ?2 WHERE map_id = ?1 AND valid_to = " FORESTMAP_CURRENT);
-  trees.BindInt64(1, map_id);
-  trees.BindInt64(2, version);
-  trees.Run();
-  Statement observations(db,
-                         "UPDATE observations SET valid_to = ?2 WHERE map_id = ?1 AND "
-                         "valid_to = " FORESTMAP_CURRENT);
-  observations.BindInt64(1, map_id);
-  observations.BindInt64(2, version);
-  observations.Run();
-  return db.Changes();
-}
-
-std::optional<int64_t> MaxCurrentTreeId(Database& db, int64_t map_id) {
-  Statement select(db,
-                   "SELECT MAX(tree_id) FROM trees INDEXED BY trees_current WHERE map_id = ?1 AND "
-                   "valid_to = " FORESTMAP_CURRENT);
-  select.BindInt64(1, map_id);
-  if (!select.Step() || select.ColumnIsNull(0)) return std::nullopt;
-  return select.ColumnInt64(0);
-}
-
 // ---- Trees ----
 
 std::vector<TreeRecord> Session::CurrentTrees(const MapRow& map) {
-  Statement select(db_, "SELECT " FORESTMAP_TREE_COLUMNS
-                        " FROM trees AS t INDEXED BY trees_current WHERE t.map_id = ?1 AND "
-                        "t.valid_to = " FORESTMAP_CURRENT " ORDER BY t.tree_id");
-  select.BindInt64(1, map.id);
+  Statement select(db_,
+                   "SELECT " FORESTMAP_TREE_COLUMNS
+                   " FROM trees AS t INDEXED BY trees_current WHERE t.map_id = ?1 AND "
+                   "t.valid_to = " FORESTMAP_CURRENT " ORDER BY t.tree_id",
+                   map.id);
   std::vector<TreeRecord> trees;
   trees.reserve(static_cast<size_t>(map.info.tree_count));
   while (select.Step()) trees.push_back(internal::ReadTreeRow(Row(select), map.info.name));
@@ -165,15 +142,15 @@ std::vector<TreeRecord> Session::CurrentTrees(const MapRow& map) {
 }
 
 std::vector<TreeRecord> Session::TreesAtVersion(const MapRow& map, int64_t version) {
-  Statement select(db_, "SELECT " FORESTMAP_TREE_COLUMNS
-                        " FROM trees AS t INDEXED BY trees_current "
-                        "WHERE t.map_id = ?1 AND t.valid_to = " FORESTMAP_CURRENT
-                        " AND t.valid_from <= ?2 UNION ALL SELECT " FORESTMAP_TREE_COLUMNS
-                        " FROM trees AS t INDEXED BY trees_history WHERE t.map_id = ?1 AND "
-                        "t.valid_to != " FORESTMAP_CURRENT
-                        " AND t.valid_from <= ?2 AND t.valid_to > ?2 ORDER BY 1");
-  select.BindInt64(1, map.id);
-  select.BindInt64(2, version);
+  Statement select(db_,
+                   "SELECT " FORESTMAP_TREE_COLUMNS
+                   " FROM trees AS t INDEXED BY trees_current "
+                   "WHERE t.map_id = ?1 AND t.valid_to = " FORESTMAP_CURRENT
+                   " AND t.valid_from <= ?2 UNION ALL SELECT " FORESTMAP_TREE_COLUMNS
+                   " FROM trees AS t INDEXED BY trees_history WHERE t.map_id = ?1 AND "
+                   "t.valid_to != " FORESTMAP_CURRENT
+                   " AND t.valid_from <= ?2 AND t.valid_to > ?2 ORDER BY 1",
+                   map.id, version);
   return ReadTrees(select, map);
 }
 
@@ -182,19 +159,16 @@ std::vector<TreeRecord> Session::TreesInBox(const MapRow& map, const Extent& box
   // range. The conditions on t filter the float32 superset exactly and drop rows of older
   // versions; the unary + keeps SQLite from walking all trees of the map by an index on map_id
   // instead of the range.
-  Statement select(db_, "SELECT " FORESTMAP_TREE_COLUMNS
-                        " FROM tree_blocks AS b "
-                        "CROSS JOIN trees AS t ON t.rowid BETWEEN b.first_rowid AND b.last_rowid "
-                        "WHERE b.min_map <= ?1 AND b.max_map >= ?1 AND b.min_x <= ?3 AND "
-                        "b.max_x >= ?2 AND b.min_y <= ?5 AND b.max_y >= ?4 AND b.map_id = ?1 AND "
-                        "+t.map_id = ?1 AND +t.valid_to = " FORESTMAP_CURRENT
-                        " AND t.x >= ?2 AND t.x <= ?3 AND t.y >= ?4 AND t.y <= ?5 "
-                        "ORDER BY t.tree_id");
-  select.BindInt64(1, map.id);
-  select.BindDouble(2, box.min_x);
-  select.BindDouble(3, box.max_x);
-  select.BindDouble(4, box.min_y);
-  select.BindDouble(5, box.max_y);
+  Statement select(db_,
+                   "SELECT " FORESTMAP_TREE_COLUMNS
+                   " FROM tree_blocks AS b "
+                   "CROSS JOIN trees AS t ON t.rowid BETWEEN b.first_rowid AND b.last_rowid "
+                   "WHERE b.min_map <= ?1 AND b.max_map >= ?1 AND b.min_x <= ?3 AND "
+                   "b.max_x >= ?2 AND b.min_y <= ?5 AND b.max_y >= ?4 AND b.map_id = ?1 AND "
+                   "+t.map_id = ?1 AND +t.valid_to = " FORESTMAP_CURRENT
+                   " AND t.x >= ?2 AND t.x <= ?3 AND t.y >= ?4 AND t.y <= ?5 "
+                   "ORDER BY t.tree_id",
+                   map.id, box.min_x, box.max_x, box.min_y, box.max_y);
   std::vector<TreeRecord> trees;
   while (select.Step()) {
     // Blocks never share rows, but should rowids ever be reused out of order (SQLite does so
@@ -209,8 +183,8 @@ std::vector<TreeRecord> Session::TreesById(const MapRow& map, std::span<const in
   Statement select(db_,
                    "SELECT " FORESTMAP_TREE_COLUMNS
                    " FROM trees AS t INDEXED BY trees_current "
-                   "WHERE t.map_id = ?1 AND t.tree_id = ?2 AND t.valid_to = " FORESTMAP_CURRENT);
-  select.BindInt64(1, map.id);
+                   "WHERE t.map_id = ?1 AND t.tree_id = ?2 AND t.valid_to = " FORESTMAP_CURRENT,
+                   map.id);
   std::vector<TreeRecord> trees;
   for (const int64_t id : std::set<int64_t>(ids.begin(), ids.end())) {
     select.BindInt64(2, id);
@@ -243,7 +217,11 @@ std::vector<TreeRecord> Session::ClosedPage(const MapRow& map, const TreePageQue
 }
 
 std::optional<int64_t> Session::MaxCurrentTreeId(int64_t map_id) {
-  return sqlite::MaxCurrentTreeId(db_, map_id);
+  return Statement(db_,
+                   "SELECT MAX(tree_id) FROM trees INDEXED BY trees_current WHERE map_id = ?1 "
+                   "AND valid_to = " FORESTMAP_CURRENT,
+                   map_id)
+      .OptionalInt64();
 }
 
 std::optional<int64_t> Session::MaxTreeIdEver(int64_t map_id) {
@@ -252,10 +230,9 @@ std::optional<int64_t> Session::MaxTreeIdEver(int64_t map_id) {
                    "SELECT MAX(m) FROM (SELECT MAX(tree_id) AS m FROM trees INDEXED BY "
                    "trees_current WHERE map_id = ?1 AND valid_to = " FORESTMAP_CURRENT
                    " UNION ALL SELECT MAX(tree_id) FROM trees INDEXED BY trees_history WHERE "
-                   "map_id = ?1 AND valid_to != " FORESTMAP_CURRENT ")");
-  select.BindInt64(1, map_id);
-  if (!select.Step() || select.ColumnIsNull(0)) return std::nullopt;
-  return select.ColumnInt64(0);
+                   "map_id = ?1 AND valid_to != " FORESTMAP_CURRENT ")",
+                   map_id);
+  return select.OptionalInt64();
 }
 
 void Session::InsertTrees(const MapRow& map, const std::vector<TreeRecord>& trees,
@@ -266,13 +243,12 @@ void Session::InsertTrees(const MapRow& map, const std::vector<TreeRecord>& tree
 std::vector<ClosedTree> Session::CloseTrees(int64_t map_id, std::span<const int64_t> ids,
                                             int64_t version) {
   Statement close(db_,
-                  "UPDATE trees SET valid_to = ?3 WHERE map_id = ?1 AND tree_id = ?2 AND "
-                  "valid_to = " FORESTMAP_CURRENT " RETURNING status, x, y");
-  close.BindInt64(1, map_id);
-  close.BindInt64(3, version);
+                  "UPDATE trees SET valid_to = ?2 WHERE map_id = ?1 AND tree_id = ?3 AND "
+                  "valid_to = " FORESTMAP_CURRENT " RETURNING status, x, y",
+                  map_id, version);
   std::vector<ClosedTree> closed;
   for (const int64_t id : ids) {
-    close.BindInt64(2, id);
+    close.BindInt64(3, id);
     if (close.Step()) {
       closed.push_back(
           {id, close.ColumnInt64(0) != 0, close.ColumnDouble(1), close.ColumnDouble(2)});
@@ -283,26 +259,32 @@ std::vector<ClosedTree> Session::CloseTrees(int64_t map_id, std::span<const int6
 }
 
 int64_t Session::CloseAllRows(int64_t map_id, int64_t version) {
-  return sqlite::CloseAllRows(db_, map_id, version);
+  Statement(db_,
+            "UPDATE trees SET valid_to = ?2 WHERE map_id = ?1 AND valid_to = " FORESTMAP_CURRENT,
+            map_id, version)
+      .Run();
+  Statement(
+      db_,
+      "UPDATE observations SET valid_to = ?2 WHERE map_id = ?1 AND valid_to = " FORESTMAP_CURRENT,
+      map_id, version)
+      .Run();
+  return db_.Changes();
 }
 
 std::vector<TreeRecord> Session::ClosedTreesAt(const MapRow& map, int64_t version) {
-  Statement select(db_, "SELECT " FORESTMAP_TREE_COLUMNS
-                        " FROM trees AS t INDEXED BY trees_history WHERE t.map_id = ?1 AND "
-                        "t.valid_to != " FORESTMAP_CURRENT
-                        " AND t.valid_from <= ?2 AND t.valid_to > ?2");
-  select.BindInt64(1, map.id);
-  select.BindInt64(2, version);
+  Statement select(db_,
+                   "SELECT " FORESTMAP_TREE_COLUMNS
+                   " FROM trees AS t INDEXED BY trees_history WHERE t.map_id = ?1 AND "
+                   "t.valid_to != " FORESTMAP_CURRENT " AND t.valid_from <= ?2 AND t.valid_to > ?2",
+                   map.id, version);
   return ReadTrees(select, map);
 }
 
 std::vector<int64_t> Session::CloseTreesAddedAfter(int64_t map_id, int64_t version, int64_t at) {
   Statement close(db_,
                   "UPDATE trees SET valid_to = ?3 WHERE map_id = ?1 AND valid_from > ?2 AND "
-                  "valid_to = " FORESTMAP_CURRENT " RETURNING tree_id");
-  close.BindInt64(1, map_id);
-  close.BindInt64(2, version);
-  close.BindInt64(3, at);
+                  "valid_to = " FORESTMAP_CURRENT " RETURNING tree_id",
+                  map_id, version, at);
   return ReadAll(close, [](const Row& row) { return row.Int64(0); });
 }
 

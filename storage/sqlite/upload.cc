@@ -40,43 +40,30 @@ void RemovePendingRows(Database& db, const UploadRow& upload, int64_t first, int
                    "DELETE FROM tree_blocks WHERE id IN (SELECT b.id FROM tree_blocks AS b "
                    "WHERE b.min_map <= ?1 AND b.max_map >= ?1 AND b.map_id = ?1 AND "
                    "b.first_rowid BETWEEN ?2 AND ?3 AND (?5 OR EXISTS (SELECT 1 FROM trees AS t "
-                   "WHERE t.rowid = b.first_rowid AND t.valid_to = ?4)))");
-  blocks.BindInt64(1, upload.map_id);
-  blocks.BindInt64(2, first);
-  blocks.BindInt64(3, last);
-  blocks.BindInt64(4, -upload.id);
-  blocks.BindInt64(5, upload.creates_map ? 1 : 0);
+                   "WHERE t.rowid = b.first_rowid AND t.valid_to = ?4)))",
+                   upload.map_id, first, last, -upload.id, upload.creates_map);
   blocks.Run();
-  Statement rows(db,
-                 "DELETE FROM trees WHERE rowid BETWEEN ?1 AND ?2 AND (valid_to = ?3 OR "
-                 "(?4 AND map_id = ?5))");
-  rows.BindInt64(1, first);
-  rows.BindInt64(2, last);
-  rows.BindInt64(3, -upload.id);
-  rows.BindInt64(4, upload.creates_map ? 1 : 0);
-  rows.BindInt64(5, upload.map_id);
-  rows.Run();
+  Statement(db,
+            "DELETE FROM trees WHERE rowid BETWEEN ?1 AND ?2 AND (valid_to = ?3 OR (?4 AND "
+            "map_id = ?5))",
+            first, last, -upload.id, upload.creates_map, upload.map_id)
+      .Run();
 }
 
 // Removes an upload's pending rows, their blocks, the map it was creating and its own row.
 void RemoveUpload(Database& db, const UploadRow& upload) {
   if (upload.first_rowid) RemovePendingRows(db, upload, *upload.first_rowid, *upload.last_rowid);
   if (upload.creates_map) {
-    Statement map(db, "DELETE FROM maps WHERE id = ?1 AND creating_upload = ?2");
-    map.BindInt64(1, upload.map_id);
-    map.BindInt64(2, upload.id);
-    map.Run();
+    Statement(db, "DELETE FROM maps WHERE id = ?1 AND creating_upload = ?2", upload.map_id,
+              upload.id)
+        .Run();
   }
-  Statement row(db, "DELETE FROM uploads WHERE id = ?1");
-  row.BindInt64(1, upload.id);
-  row.Run();
+  Statement(db, "DELETE FROM uploads WHERE id = ?1", upload.id).Run();
   ForgetChunks(db, upload.id);
 }
 
 std::optional<int64_t> MaxRowid(Database& db) {
-  Statement select(db, "SELECT MAX(rowid) FROM trees");
-  if (!select.Step() || select.ColumnIsNull(0)) return std::nullopt;
-  return select.ColumnInt64(0);
+  return Statement(db, "SELECT MAX(rowid) FROM trees").OptionalInt64();
 }
 
 // "trees[k]" of the upload.
@@ -119,11 +106,8 @@ void Upload::Begin(Database& db) {
     Statement insert(db,
                      "INSERT INTO maps (name, description, crs, version, tree_count, "
                      "created_unix_ms, updated_unix_ms, creating_upload) VALUES (?1, ?2, ?3, 1, 0, "
-                     "?4, ?4, 0)");
-    insert.BindText(1, name());
-    insert.BindText(2, plan().description);
-    insert.BindText(3, plan().crs);
-    insert.BindInt64(4, internal::NowUnixMs());
+                     "?4, ?4, 0)",
+                     name(), plan().description, plan().crs, internal::NowUnixMs());
     try {
       insert.Run();
     } catch (const StorageError& e) {
@@ -138,29 +122,24 @@ void Upload::Begin(Database& db) {
     Session session(db);
     row_.map_id = RequireMap(session, name()).id;
   }
-  Statement insert(
-      db, "INSERT INTO uploads (map_id, creates_map, started_unix_ms) VALUES (?1, ?2, ?3)");
-  insert.BindInt64(1, row_.map_id);
-  insert.BindInt64(2, row_.creates_map ? 1 : 0);
-  insert.BindInt64(3, internal::NowUnixMs());
-  insert.Run();
+  Statement(db, "INSERT INTO uploads (map_id, creates_map, started_unix_ms) VALUES (?1, ?2, ?3)",
+            row_.map_id, row_.creates_map, internal::NowUnixMs())
+      .Run();
   row_.id = db.LastInsertRowId();
   if (row_.creates_map) {
-    Statement mark(db, "UPDATE maps SET creating_upload = ?2 WHERE id = ?1");
-    mark.BindInt64(1, row_.map_id);
-    mark.BindInt64(2, row_.id);
-    mark.Run();
+    Statement(db, "UPDATE maps SET creating_upload = ?2 WHERE id = ?1", row_.map_id, row_.id).Run();
   }
   transaction.Commit();
 }
 
+// The map's row by id, hidden (an upload creating it) or not.
 MapRow Upload::RequireOwnMap(Database& db) const {
-  std::optional<MapRow> map = FindMapById(db, row_.map_id);
-  if (!map) {
+  Statement select(db, "SELECT " FORESTMAP_MAP_COLUMNS " FROM maps WHERE id = ?1", row_.map_id);
+  if (!select.Step()) {
     throw StorageError(Code::kNotFound,
                        "map '" + name() + "' was deleted during the upload; nothing was written");
   }
-  return std::move(*map);
+  return internal::ReadMapRow(Row(select));
 }
 
 void Upload::ThrowDuplicate(Database& db, const std::vector<TreeRecord>& trees, size_t index) {
@@ -172,9 +151,8 @@ void Upload::ThrowDuplicate(Database& db, const std::vector<TreeRecord>& trees, 
   } else {
     Statement earlier(db,
                       "SELECT valid_from FROM trees WHERE valid_to = ?1 AND valid_to < 0 AND "
-                      "tree_id = ?2");
-    earlier.BindInt64(1, -row_.id);
-    earlier.BindInt64(2, id);
+                      "tree_id = ?2",
+                      -row_.id, id);
     if (earlier.Step()) earlier_index = earlier.ColumnInt64(0);
   }
   const std::string other = earlier_index ? Label(*earlier_index) : "an earlier tree";
@@ -190,7 +168,7 @@ void Upload::Stage(const std::vector<TreeRecord>& trees) {
     const MapRow map = RequireOwnMap(db);
     const bool append = plan().mode == WriteMode::kAppend && !row_.creates_map;
     const std::vector<int64_t> ids =
-        chunks().Assign(trees, append ? MaxCurrentTreeId(db, row_.map_id) : std::nullopt);
+        chunks().Assign(trees, append ? Session(db).MaxCurrentTreeId(row_.map_id) : std::nullopt);
     const int64_t before = MaxRowid(db).value_or(0);
     try {
       if (row_.creates_map) {  // final rows of the hidden map
@@ -204,13 +182,11 @@ void Upload::Stage(const std::vector<TreeRecord>& trees) {
       ThrowDuplicate(db, trees, duplicate.index);
     }
     const int64_t last = MaxRowid(db).value_or(before);
-    Statement update(db,
-                     "UPDATE uploads SET first_rowid = COALESCE(first_rowid, ?2), last_rowid = ?3 "
-                     "WHERE id = ?1");
-    update.BindInt64(1, row_.id);
-    update.BindInt64(2, before + 1);
-    update.BindInt64(3, last);
-    update.Run();
+    Statement(db,
+              "UPDATE uploads SET first_rowid = COALESCE(first_rowid, ?2), last_rowid = ?3 WHERE "
+              "id = ?1",
+              row_.id, before + 1, last)
+        .Run();
     transaction.Commit();
     if (!row_.first_rowid) row_.first_rowid = before + 1;
     row_.last_rowid = last;
@@ -228,11 +204,9 @@ MapRow Upload::Target(StoreSession& session) {
   if (!row_.creates_map) return map;
   MapInfo& info = map.info;
   info.created_unix_ms = info.updated_unix_ms = internal::NowUnixMs();
-  Statement reveal(db,
-                   "UPDATE maps SET creating_upload = NULL, created_unix_ms = ?2 WHERE id = ?1");
-  reveal.BindInt64(1, map.id);
-  reveal.BindInt64(2, info.created_unix_ms);
-  reveal.Run();
+  Statement(db, "UPDATE maps SET creating_upload = NULL, created_unix_ms = ?2 WHERE id = ?1",
+            map.id, info.created_unix_ms)
+      .Run();
   session.UpdateMap(map);
   session.InsertVersion(map.id, internal::CreationRecord(info));
   return map;
@@ -241,12 +215,10 @@ MapRow Upload::Target(StoreSession& session) {
 void Upload::MakeCurrent(StoreSession& session, const MapRow& map, int64_t version) {
   if (!row_.first_rowid || row_.creates_map) return;  // the created map's rows are final
   Database& db = Session::DatabaseOf(session);
-  Statement flip(db, "UPDATE trees SET valid_from = ?4, valid_to = " FORESTMAP_CURRENT
-                     " WHERE rowid BETWEEN ?1 AND ?2 AND valid_to = ?3");
-  flip.BindInt64(1, *row_.first_rowid);
-  flip.BindInt64(2, *row_.last_rowid);
-  flip.BindInt64(3, -row_.id);
-  flip.BindInt64(4, version);
+  Statement flip(db,
+                 "UPDATE trees SET valid_from = ?4, valid_to = " FORESTMAP_CURRENT
+                 " WHERE rowid BETWEEN ?1 AND ?2 AND valid_to = ?3",
+                 *row_.first_rowid, *row_.last_rowid, -row_.id, version);
   try {
     flip.Run();
     return;
@@ -257,11 +229,8 @@ void Upload::MakeCurrent(StoreSession& session, const MapRow& map, int64_t versi
                   "SELECT p.valid_from, p.tree_id FROM trees AS p WHERE p.rowid BETWEEN ?1 "
                   "AND ?2 AND p.valid_to = ?3 AND EXISTS (SELECT 1 FROM trees AS c INDEXED BY "
                   "trees_current WHERE c.map_id = ?4 AND c.tree_id = p.tree_id AND "
-                  "c.valid_to = " FORESTMAP_CURRENT ") LIMIT 1");
-  clash.BindInt64(1, *row_.first_rowid);
-  clash.BindInt64(2, *row_.last_rowid);
-  clash.BindInt64(3, -row_.id);
-  clash.BindInt64(4, map.id);
+                  "c.valid_to = " FORESTMAP_CURRENT ") LIMIT 1",
+                  *row_.first_rowid, *row_.last_rowid, -row_.id, map.id);
   std::string which = "a tree";
   if (clash.Step()) {
     which = "tree at index " + std::to_string(clash.ColumnInt64(0)) + " (id " +
@@ -272,9 +241,7 @@ void Upload::MakeCurrent(StoreSession& session, const MapRow& map, int64_t versi
 }
 
 void Upload::Forget(StoreSession& session) {
-  Statement remove(Session::DatabaseOf(session), "DELETE FROM uploads WHERE id = ?1");
-  remove.BindInt64(1, row_.id);
-  remove.Run();
+  Statement(Session::DatabaseOf(session), "DELETE FROM uploads WHERE id = ?1", row_.id).Run();
 }
 
 void Upload::Finished() noexcept {

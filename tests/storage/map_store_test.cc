@@ -1,7 +1,5 @@
 // MapStore semantics on every backend (SQLite in memory, PostgreSQL on the test cluster): maps,
 // errors, versions, writes, ids, exact round trips and the spatial index against brute force.
-#include "storage/sqlite/store.h"
-
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -14,37 +12,12 @@
 #include <vector>
 
 #include "tests/storage/store_backends.h"
+#include "tests/storage/store_test_util.h"
 
 namespace forestmap::storage {
 namespace {
 
 using Code = StorageError::Code;
-
-TreeRecord Tree(std::optional<int64_t> id, double x, double y) {
-  TreeRecord tree;
-  tree.id = id;
-  tree.x = x;
-  tree.y = y;
-  return tree;
-}
-
-// Runs `call`, expects a StorageError with `code` whose message contains `fragment`.
-template <typename Call>
-void ExpectError(Call call, Code code, const std::string& fragment) {
-  try {
-    call();
-    ADD_FAILURE() << "no error; expected one containing '" << fragment << "'";
-  } catch (const StorageError& e) {
-    EXPECT_EQ(e.code(), code) << e.what();
-    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
-  }
-}
-
-std::vector<int64_t> Ids(const std::vector<TreeRecord>& trees) {
-  std::vector<int64_t> ids;
-  for (const TreeRecord& tree : trees) ids.push_back(*tree.id);
-  return ids;
-}
 
 class MapStoreTest : public ::testing::TestWithParam<Backend> {
  protected:

@@ -12,19 +12,12 @@
 #include "storage/postgres/connection.h"
 #include "tests/pg_fixture.h"
 #include "tests/storage/store_backends.h"
+#include "tests/storage/store_test_util.h"
 
 namespace forestmap::storage {
 namespace {
 
 using Code = StorageError::Code;
-
-TreeRecord Tree(int64_t id, double x, double y) {
-  TreeRecord tree;
-  tree.id = id;
-  tree.x = x;
-  tree.y = y;
-  return tree;
-}
 
 TEST(PostgresMapStore, ReopeningKeepsDataAndSchemaVersion) {
   testing::TestDatabase database;

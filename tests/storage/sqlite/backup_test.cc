@@ -1,6 +1,8 @@
 // BackupDatabase: a copy made while another thread keeps replacing a map's trees holds exactly
 // one complete version, passes integrity_check and opens as a map database.
 
+#include "storage/backup.h"
+
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 #include <unistd.h>
@@ -13,7 +15,6 @@
 #include <thread>
 
 #include "storage/sqlite/database.h"
-#include "storage/backup.h"
 #include "storage/sqlite/store.h"
 
 namespace forestmap::storage {

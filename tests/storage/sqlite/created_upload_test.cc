@@ -17,9 +17,10 @@
 #include <vector>
 
 #include "storage/sqlite/database.h"
-#include "storage/sqlite/store.h"
 #include "storage/sqlite/internal.h"
+#include "storage/sqlite/store.h"
 #include "storage/staged_writes.h"
+#include "tests/storage/test_directory.h"
 
 namespace forestmap::storage {
 namespace {
@@ -50,19 +51,8 @@ std::unique_ptr<TreeUpload> StagedCreate(SqliteMapStore& store, const std::strin
 
 class CreatedUploadTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    // The pid too: another build's run of the same test (another worktree) shares /tmp.
-    dir_ = fs::temp_directory_path() /
-           ("created_upload_" + std::to_string(getpid()) + "_" +
-            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    path_ = (dir_ / "maps.db").string();
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
-  fs::path dir_;
-  std::string path_;
+  TestDirectory dir_;
+  const std::string path_ = dir_.File("maps.db");
 };
 
 // The commit's pages in the write-ahead log: the WAL is emptied (TRUNCATE checkpoint) just
