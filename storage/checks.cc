@@ -51,6 +51,7 @@ BatchSummary CheckBatch(const std::string& map_name, const std::vector<TreeRecor
     if (tree.z && !std::isfinite(*tree.z)) reject("z", *tree.z);
     if (tree.dbh && !std::isfinite(*tree.dbh)) reject("dbh", *tree.dbh);
     summary.extent = Union(summary.extent, Extent{tree.x, tree.y, tree.x, tree.y});
+    summary.confirmed += tree.status == TreeStatus::kConfirmed ? 1 : 0;
     if (tree.id) {
       ids.emplace_back(*tree.id, i);
     } else {

@@ -23,6 +23,7 @@ std::string TreeLabel(const std::vector<TreeRecord>& trees, size_t index);
 struct BatchSummary {
   std::optional<int64_t> max_explicit_id;
   size_t auto_id_count = 0;
+  int64_t confirmed = 0;  // trees with status kConfirmed
   std::optional<Extent> extent;
 };
 

@@ -14,6 +14,43 @@ namespace {
 
 using Code = StorageError::Code;
 
+// kInvalidArgument for a negative version number (0 reads the current version).
+void CheckVersionNumber(const std::string& name, int64_t version) {
+  if (version < 0) {
+    throw StorageError(Code::kInvalidArgument,
+                       "map '" + name + "': version " + std::to_string(version) + " is negative");
+  }
+}
+
+// The map as it was at `record.version`, whose trees were `trees`: the current map's name,
+// description and CRS with that version's number, time, counts and extent.
+MapInfo InfoAtVersion(MapInfo current, const VersionRecord& record,
+                      const std::vector<TreeRecord>& trees) {
+  MapInfo info = std::move(current);
+  info.version = record.version;
+  info.updated_unix_ms = record.created_unix_ms;
+  info.tree_count = static_cast<int64_t>(trees.size());
+  info.confirmed_count = 0;
+  info.extent.reset();
+  for (const TreeRecord& tree : trees) {
+    info.confirmed_count += tree.status == TreeStatus::kConfirmed ? 1 : 0;
+    info.extent = internal::Union(info.extent, Extent{tree.x, tree.y, tree.x, tree.y});
+  }
+  return info;
+}
+
+// StampVersion for restoring `old` as the version after `info`'s: counts of `old`,
+// `extent` scanned after the restore.
+void StampRestore(MapInfo& info, VersionRecord& record, const VersionRecord& old,
+                  std::optional<Extent> extent) {
+  record.version = info.version + 1;
+  record.kind = VersionKind::kRestore;
+  record.restored_from = old.version;
+  info.tree_count = old.tree_count;
+  info.confirmed_count = old.confirmed_count;
+  internal::StampVersion(info, record, std::move(extent));
+}
+
 // Restore's tree rows: rows valid at `version` but closed since come back as copies valid from
 // `next`; current rows added after `version` are closed. Counts go into `record`.
 void RestoreTrees(StoreSession& session, const MapRow& map, int64_t version, int64_t next,
@@ -44,7 +81,7 @@ void RestoreObservations(StoreSession& session, const MapRow& map, int64_t versi
 
 MapSnapshot VersionedMapStore::ReadMapVersion(const std::string& name, int64_t version) {
   internal::CheckName(name);
-  internal::CheckVersionNumber(name, version);
+  CheckVersionNumber(name, version);
   MapSnapshot snapshot;
   backend_->WithReader([&](StoreSession& session) {
     // Info and trees of one version.
@@ -59,7 +96,7 @@ MapSnapshot VersionedMapStore::ReadMapVersion(const std::string& name, int64_t v
     const VersionRecord record = RequireVersion(session, map, version);
     snapshot.trees = session.TreesAtVersion(map, version);
     transaction.Commit();
-    snapshot.info = internal::InfoAtVersion(map.info, record, snapshot.trees);
+    snapshot.info = InfoAtVersion(map.info, record, snapshot.trees);
   });
   return snapshot;
 }
@@ -93,7 +130,7 @@ MapInfo VersionedMapStore::RestoreVersion(const std::string& name, int64_t versi
     VersionRecord record;
     RestoreTrees(session, map, version, next, record);
     RestoreObservations(session, map, version, next, record);
-    internal::StampRestore(map.info, record, old, session.ScanExtent(map.id));
+    StampRestore(map.info, record, old, session.ScanExtent(map.id));
     session.UpdateMap(map);
     session.InsertVersion(map.id, record);
     CommitWrite(session, transaction, map.info);

@@ -4,6 +4,8 @@
 
 #include "storage/versioned_map_store.h"
 
+#include <algorithm>
+#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
@@ -14,6 +16,70 @@
 namespace forestmap::storage {
 
 using Code = StorageError::Code;
+
+namespace {
+
+// Whether WriteTrees of `trees` changes nothing (no version is made): nothing to append, or a
+// replace of an empty map by nothing.
+bool WriteChangesNothing(const std::vector<TreeRecord>& trees, bool replace, const MapInfo& map) {
+  return trees.empty() && (!replace || map.tree_count == 0);
+}
+
+// The larger of an optional id and `id`.
+std::optional<int64_t> MaxId(std::optional<int64_t> max_id, int64_t id) {
+  return std::max(max_id.value_or(std::numeric_limits<int64_t>::min()), id);
+}
+
+// Ids of the batch in batch order: explicit ones, then the next free ones above `max_id` (and
+// at least 1) for the `auto_count` trees without one. kInvalidArgument when they run out.
+std::vector<int64_t> AssignIds(const std::string& map_name, const std::vector<TreeRecord>& trees,
+                               std::optional<int64_t> max_id, size_t auto_count) {
+  const int64_t above = std::max<int64_t>(max_id.value_or(0), 0);
+  constexpr int64_t kMax = std::numeric_limits<int64_t>::max();
+  if (auto_count > 0 && static_cast<uint64_t>(kMax - above) < auto_count) {
+    throw StorageError(Code::kInvalidArgument,
+                       "map '" + map_name + "': no free tree ids left above " +
+                           std::to_string(above) + " for " + std::to_string(auto_count) +
+                           " trees without an id");
+  }
+  std::vector<int64_t> ids(trees.size());
+  int64_t assigned = 0;  // counted apart so the last id may be INT64_MAX without overflow
+  for (size_t i = 0; i < trees.size(); ++i)
+    ids[i] = trees[i].id ? *trees[i].id : above + ++assigned;
+  return ids;
+}
+
+// kInvalidArgument for a version or limit below 1, or an invalid box.
+void CheckPageQuery(const std::string& name, const TreePageQuery& query) {
+  if (query.version < 1 || query.limit < 1) {
+    throw StorageError(Code::kInvalidArgument,
+                       "map '" + name + "': a page needs version >= 1 and limit >= 1");
+  }
+  if (query.box) internal::CheckBox(name, *query.box);
+}
+
+// kConflict when the map was created again since the export began, kNotFound for a version the
+// map does not have yet.
+void CheckPageTarget(const std::string& name, const TreePageQuery& query, const MapInfo& map) {
+  if (query.created_unix_ms != 0 && map.created_unix_ms != query.created_unix_ms) {
+    throw StorageError(Code::kConflict, "map '" + name +
+                                            "' was deleted and created again during the "
+                                            "export; retry");
+  }
+  if (query.version > map.version) {
+    throw StorageError(Code::kNotFound, "map '" + name + "' has no version " +
+                                            std::to_string(query.version) + " yet");
+  }
+}
+
+// Sorts a page read from current and closed rows by id and keeps the first `limit`.
+void SortAndTrimPage(std::vector<TreeRecord>& trees, int64_t limit) {
+  std::sort(trees.begin(), trees.end(),
+            [](const TreeRecord& a, const TreeRecord& b) { return *a.id < *b.id; });
+  if (static_cast<int64_t>(trees.size()) > limit) trees.resize(static_cast<size_t>(limit));
+}
+
+}  // namespace
 
 VersionedMapStore::VersionedMapStore(std::unique_ptr<StoreBackend> backend)
     : backend_(std::move(backend)) {}
@@ -75,7 +141,7 @@ MapInfo VersionedMapStore::WriteTrees(const std::string& name, const std::vector
     StoreTransaction transaction(session, TransactionKind::kWrite);
     MapRow map = LockMap(session, name);
     const bool replace = mode == WriteMode::kReplace;
-    if (internal::WriteChangesNothing(trees, replace, map.info)) {
+    if (WriteChangesNothing(trees, replace, map.info)) {
       result = map.info;  // nothing can change: keep the version
       return;
     }
@@ -83,14 +149,14 @@ MapInfo VersionedMapStore::WriteTrees(const std::string& name, const std::vector
         internal::NextVersion(map.info, replace ? VersionKind::kReplace : VersionKind::kUpload);
     std::optional<int64_t> max_id = batch.max_explicit_id;
     if (replace) {
-      record.trees_removed = map.info.tree_count;
       record.observations_removed = session.CloseAllRows(map.id, record.version);
     } else if (const std::optional<int64_t> max_current = session.MaxCurrentTreeId(map.id)) {
-      max_id = internal::MaxId(max_id, *max_current);
+      max_id = MaxId(max_id, *max_current);
     }
-    const std::vector<int64_t> ids = internal::AssignIds(name, trees, max_id, batch.auto_id_count);
+    const std::vector<int64_t> ids = AssignIds(name, trees, max_id, batch.auto_id_count);
     session.InsertTrees(map, trees, ids, record.version);
-    internal::StampWrittenBatch(map.info, record, trees, batch, replace);
+    internal::StampWrite(map.info, record, static_cast<int64_t>(trees.size()), batch.confirmed,
+                         batch.extent, replace);
     session.UpdateMap(map);
     session.InsertVersion(map.id, record);
     CommitWrite(session, transaction, map.info);
@@ -125,12 +191,12 @@ std::unique_ptr<TreeUpload> VersionedMapStore::BeginUpload(const std::string& na
 std::vector<TreeRecord> VersionedMapStore::ReadTreesPage(const std::string& name,
                                                          const TreePageQuery& query) {
   internal::CheckName(name);
-  internal::CheckPageQuery(name, query);
+  CheckPageQuery(name, query);
   std::vector<TreeRecord> trees;
   backend_->WithReader([&](StoreSession& session) {
     StoreTransaction transaction(session, TransactionKind::kRead);  // the page and its checks agree
     const MapRow map = RequireMap(session, name);
-    internal::CheckPageTarget(name, query, map.info);
+    CheckPageTarget(name, query, map.info);
     if (query.version == map.info.version) {
       trees = session.CurrentPage(map, query);
     } else {
@@ -141,7 +207,7 @@ std::vector<TreeRecord> VersionedMapStore::ReadTreesPage(const std::string& name
       std::vector<TreeRecord> closed = session.ClosedPage(map, query);
       trees.insert(trees.end(), std::make_move_iterator(closed.begin()),
                    std::make_move_iterator(closed.end()));
-      internal::SortAndTrimPage(trees, query.limit);
+      SortAndTrimPage(trees, query.limit);
     }
     transaction.Commit();
   });

@@ -50,9 +50,6 @@ class VersionedMapStore : public MapStore {
   std::vector<TreeRecord> ReadTreesPage(const std::string& name,
                                         const TreePageQuery& query) override;
 
- protected:
-  StoreBackend& backend() { return *backend_; }
-
  private:
   std::unique_ptr<StoreBackend> backend_;
 };

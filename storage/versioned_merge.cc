@@ -16,6 +16,54 @@ namespace {
 
 using Code = StorageError::Code;
 
+// The trees a merge puts, counted into `info` (each as a new row: the caller subtracts the rows
+// it closes): their ids in order and their extent.
+struct PutTrees {
+  std::vector<int64_t> ids;
+  std::optional<Extent> extent;
+};
+
+// kConflict (stale) when `note` expects another version than `map`'s current one.
+void CheckExpectedVersion(const MergeNote& note, const MapInfo& map) {
+  if (note.expected_version && *note.expected_version != map.version) {
+    throw StorageError(Code::kConflict,
+                       "map '" + map.name + "' is at version " + std::to_string(map.version) +
+                           ", not at the base version " + std::to_string(*note.expected_version) +
+                           " (rejected as stale; fetch the map and retry, or merge anyway)");
+  }
+}
+
+PutTrees CountPutTrees(MapInfo& info, const std::vector<TreeRecord>& put_trees) {
+  PutTrees put;
+  put.ids.reserve(put_trees.size());
+  for (const TreeRecord& tree : put_trees) {
+    put.ids.push_back(*tree.id);
+    info.tree_count += 1;
+    info.confirmed_count += tree.status == TreeStatus::kConfirmed ? 1 : 0;
+    put.extent = internal::Union(put.extent, Extent{tree.x, tree.y, tree.x, tree.y});
+  }
+  return put;
+}
+
+// kInvalidArgument for a merge's tree or observation to remove that is not current in the map.
+StorageError TreeToRemoveMissing(const std::string& map_name, int64_t id) {
+  return StorageError(
+      Code::kInvalidArgument,
+      "map '" + map_name + "': merge: tree " + std::to_string(id) + " to remove is not in the map");
+}
+
+StorageError ObservationToRemoveMissing(const std::string& map_name, int64_t id) {
+  return StorageError(Code::kInvalidArgument, "map '" + map_name + "': merge: observation " +
+                                                  std::to_string(id) +
+                                                  " to remove is not current in the map");
+}
+
+// Whether (x, y) lies on the border of `extent` (a closed row there may shrink it).
+bool OnBorder(const std::optional<Extent>& extent, double x, double y) {
+  return extent &&
+         (x == extent->min_x || x == extent->max_x || y == extent->min_y || y == extent->max_y);
+}
+
 // Read access of a merge: the writer's session inside its write transaction.
 class SessionMergeReader final : public MergeReader {
  public:
@@ -67,7 +115,7 @@ std::vector<int64_t> CloseTrees(StoreSession& session, MapRow& map, std::span<co
     closed_ids.push_back(closed.id);
     info.tree_count -= 1;
     info.confirmed_count -= closed.confirmed ? 1 : 0;
-    if (internal::OnBorder(info.extent, closed.x, closed.y)) boundary = true;
+    if (OnBorder(info.extent, closed.x, closed.y)) boundary = true;
   }
   return closed_ids;
 }
@@ -94,10 +142,10 @@ void ApplyChanges(StoreSession& session, MapRow& map, const MergeNote& note,
   const std::vector<int64_t> removed =
       CloseTrees(session, map, changes.removed_trees, record.version, boundary);
   if (const std::optional<int64_t> id = FirstNotClosed(changes.removed_trees, removed)) {
-    throw internal::TreeToRemoveMissing(map.info.name, *id);
+    throw TreeToRemoveMissing(map.info.name, *id);
   }
   record.trees_removed = static_cast<int64_t>(removed.size());
-  const internal::PutTrees put = internal::CountPutTrees(map.info, changes.put_trees);
+  const PutTrees put = CountPutTrees(map.info, changes.put_trees);
   record.trees_updated =
       static_cast<int64_t>(CloseTrees(session, map, put.ids, record.version, boundary).size());
   record.trees_added = static_cast<int64_t>(put.ids.size()) - record.trees_updated;
@@ -106,7 +154,7 @@ void ApplyChanges(StoreSession& session, MapRow& map, const MergeNote& note,
   const std::vector<int64_t> closed =
       session.CloseObservations(map.id, changes.removed_observations, record.version);
   if (const std::optional<int64_t> id = FirstNotClosed(changes.removed_observations, closed)) {
-    throw internal::ObservationToRemoveMissing(map.info.name, *id);
+    throw ObservationToRemoveMissing(map.info.name, *id);
   }
   session.InsertObservations(map.id, changes.added_observations, record.version);
   record.observations_added = static_cast<int64_t>(changes.added_observations.size());
@@ -131,7 +179,7 @@ MapInfo VersionedMapStore::Merge(const std::string& name, const MergeNote& note,
     // The map's write lock is held to the commit: what `merge` reads is the version its changes
     // apply to (no other writer of this map, in this process or another, in between).
     MapRow map = LockMap(session, name);
-    internal::CheckExpectedVersion(note, map.info);
+    CheckExpectedVersion(note, map.info);
     SessionMergeReader reader(session, map);
     const MapChanges changes = merge(reader);
     if (changes.empty()) {

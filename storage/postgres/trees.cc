@@ -41,6 +41,24 @@ std::optional<size_t> FirstTakenId(Connection& conn, int64_t map_id,
   return std::nullopt;
 }
 
+// Runs the INSERT ... SELECT FROM unnest(...) `sql` ($1 map id, $2 valid_from, then one array
+// per column) over rows 0 .. count - 1, kRowsPerInsert at a time; `add(columns, i)` writes row i.
+template <typename AddRow>
+void InsertRows(Connection& conn, const char* sql, int64_t map_id, int64_t valid_from, size_t count,
+                size_t column_count, const AddRow& add) {
+  for (size_t begin = 0; begin < count; begin += kRowsPerInsert) {
+    ColumnArrays columns(column_count);
+    for (size_t i = begin; i < std::min(count, begin + kRowsPerInsert); ++i) {
+      add(columns, i);
+      columns.EndRow();
+    }
+    Params params;
+    params.Int64(map_id).Int64(valid_from);
+    columns.AppendTo(params);
+    conn.Exec(sql, params);
+  }
+}
+
 // $1 map id, $2 version, $3 after id, $4 limit, $5..$8 the box (infinite without one).
 Params PageParams(int64_t map_id, const TreePageQuery& query) {
   const Extent box = internal::PageBox(query);
@@ -141,25 +159,16 @@ void Session::InsertTrees(const MapRow& map, const std::vector<TreeRecord>& tree
                                                    "': " + internal::TreeLabel(trees, *taken) +
                                                    ": tree id already exists in the map");
   }
-  for (size_t begin = 0; begin < trees.size(); begin += kRowsPerInsert) {
-    const size_t end = std::min(trees.size(), begin + kRowsPerInsert);
-    ColumnArrays columns(10);
-    for (size_t i = begin; i < end; ++i) {
-      internal::WriteTreeValues(columns, ids[i], trees[i],
-                                internal::StoredAttributes(map.info.name, trees, i));
-      columns.EndRow();
-    }
-    Params params;
-    params.Int64(map.id).Int64(valid_from);
-    columns.AppendTo(params);
-    conn_.Exec(
-        "INSERT INTO trees (map_id, valid_from, valid_to, tree_id, x, y, z, dbh, attributes, "
-        "status, observations, position_sigma, dbh_sigma) SELECT $1, $2, " FORESTMAP_CURRENT
-        ", u.* FROM unnest($3::bigint[], $4::float8[], $5::float8[], $6::float8[], "
-        "$7::float8[], $8::text[], $9::smallint[], $10::bigint[], $11::float8[], "
-        "$12::float8[]) AS u",
-        params);
-  }
+  InsertRows(
+      conn_,
+      "INSERT INTO trees (map_id, valid_from, valid_to, tree_id, x, y, z, dbh, attributes, status, "
+      "observations, position_sigma, dbh_sigma) SELECT $1, $2, " FORESTMAP_CURRENT
+      ", u.* FROM unnest($3::bigint[], $4::float8[], $5::float8[], $6::float8[], $7::float8[], "
+      "$8::text[], $9::smallint[], $10::bigint[], $11::float8[], $12::float8[]) AS u",
+      map.id, valid_from, trees.size(), 10, [&](ColumnArrays& columns, size_t i) {
+        internal::WriteTreeValues(columns, ids[i], trees[i],
+                                  internal::StoredAttributes(map.info.name, trees, i));
+      });
 }
 
 std::vector<ClosedTree> Session::CloseTrees(int64_t map_id, std::span<const int64_t> ids,
@@ -239,31 +248,23 @@ std::vector<ObservationRecord> Session::ObservationsOfSource(int64_t map_id,
 
 void Session::InsertObservations(int64_t map_id, const std::vector<ObservationRecord>& rows,
                                  int64_t valid_from) {
-  for (size_t begin = 0; begin < rows.size(); begin += kRowsPerInsert) {
-    const size_t end = std::min(rows.size(), begin + kRowsPerInsert);
-    ColumnArrays columns(17);
-    for (size_t i = begin; i < end; ++i) {
-      internal::WriteObservationValues(columns, rows[i]);
-      columns.Int64(static_cast<int64_t>(i));  // keeps the ids in the order of the rows
-      columns.EndRow();
-    }
-    Params params;
-    params.Int64(map_id).Int64(valid_from);
-    columns.AppendTo(params);
-    conn_.Exec(
-        "INSERT INTO observations (map_id, valid_from, valid_to, tree_id, source, frame_id, "
-        "detection_index, x, y, z, dbh, weight_xy, weight_dbh, sensor_x, sensor_y, sensor_z, "
-        "prior, cell_x, cell_y) SELECT $1, $2, " FORESTMAP_CURRENT
-        ", u.tree_id, u.source, u.frame_id, u.detection_index, u.x, u.y, u.z, u.dbh, "
-        "u.weight_xy, u.weight_dbh, u.sensor_x, u.sensor_y, u.sensor_z, u.prior, u.cell_x, "
-        "u.cell_y FROM unnest($3::bigint[], $4::text[], $5::bigint[], $6::integer[], "
-        "$7::float8[], $8::float8[], $9::float8[], $10::float8[], $11::float8[], $12::float8[], "
-        "$13::float8[], $14::float8[], $15::float8[], $16::boolean[], $17::bigint[], "
-        "$18::bigint[], $19::bigint[]) AS u(tree_id, source, frame_id, detection_index, x, y, z, "
-        "dbh, weight_xy, weight_dbh, sensor_x, sensor_y, sensor_z, prior, cell_x, cell_y, ord) "
-        "ORDER BY u.ord",
-        params);
-  }
+  InsertRows(
+      conn_,
+      "INSERT INTO observations (map_id, valid_from, valid_to, tree_id, source, frame_id, "
+      "detection_index, x, y, z, dbh, weight_xy, weight_dbh, sensor_x, sensor_y, sensor_z, "
+      "prior, cell_x, cell_y) SELECT $1, $2, " FORESTMAP_CURRENT
+      ", u.tree_id, u.source, u.frame_id, u.detection_index, u.x, u.y, u.z, u.dbh, "
+      "u.weight_xy, u.weight_dbh, u.sensor_x, u.sensor_y, u.sensor_z, u.prior, u.cell_x, "
+      "u.cell_y FROM unnest($3::bigint[], $4::text[], $5::bigint[], $6::integer[], "
+      "$7::float8[], $8::float8[], $9::float8[], $10::float8[], $11::float8[], $12::float8[], "
+      "$13::float8[], $14::float8[], $15::float8[], $16::boolean[], $17::bigint[], "
+      "$18::bigint[], $19::bigint[]) AS u(tree_id, source, frame_id, detection_index, x, y, z, "
+      "dbh, weight_xy, weight_dbh, sensor_x, sensor_y, sensor_z, prior, cell_x, cell_y, ord) "
+      "ORDER BY u.ord",
+      map_id, valid_from, rows.size(), 17, [&](ColumnArrays& columns, size_t i) {
+        internal::WriteObservationValues(columns, rows[i]);
+        columns.Int64(static_cast<int64_t>(i));  // keeps the ids in the order of the rows
+      });
 }
 
 std::vector<int64_t> Session::CloseObservations(int64_t map_id, std::span<const int64_t> ids,

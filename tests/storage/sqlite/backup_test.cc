@@ -16,6 +16,7 @@
 
 #include "storage/sqlite/database.h"
 #include "storage/sqlite/store.h"
+#include "tests/storage/test_directory.h"
 
 namespace forestmap::storage {
 namespace {
@@ -38,15 +39,9 @@ std::vector<TreeRecord> Version(int k) {
 
 class BackupTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() / ("backup_test_" + std::to_string(getpid()));
-    std::filesystem::remove_all(dir_);
-    std::filesystem::create_directories(dir_);
-  }
-  void TearDown() override { std::filesystem::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  std::string Path(const std::string& name) const { return dir_.File(name); }
 
-  std::filesystem::path dir_;
+  TestDirectory dir_;
 };
 
 std::string IntegrityCheck(const std::string& path) {
