@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "server/status.h"
+#include "server/grpc/status.h"
 #include "storage/postgres/connection.h"
 #include "storage/postgres/store.h"
 #include "storage/staged_writes.h"
