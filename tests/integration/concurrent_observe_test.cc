@@ -16,7 +16,7 @@
 #include "client/lib/forestmap_client.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/shared_data.h"
 
 namespace forestmap {

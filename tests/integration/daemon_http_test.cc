@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "daemon_process.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/http_get.h"
 
 namespace forestmap {

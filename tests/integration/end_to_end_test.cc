@@ -11,7 +11,7 @@
 #include "client/lib/proto_convert.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/shared_data.h"
 
 namespace forestmap {

@@ -23,7 +23,7 @@
 #include "client/lib/forestmap_client.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/cli_run.h"
 
 namespace forestmap {

@@ -17,7 +17,7 @@
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
 #include "server/ops/auth.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "storage/token_store.h"
 
 namespace forestmap {

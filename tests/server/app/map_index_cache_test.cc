@@ -12,7 +12,7 @@
 #include <thread>
 
 #include "server/app/errors.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/gated_store.h"
 
 namespace forestmap::server {

@@ -8,7 +8,7 @@
 #include <set>
 #include <vector>
 
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 
 namespace forestmap::server {
 namespace {

@@ -12,7 +12,7 @@
 #include <string_view>
 #include <vector>
 
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/gated_store.h"
 
 namespace forestmap::server {

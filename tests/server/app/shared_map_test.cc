@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 
 namespace forestmap::server {
 namespace {

@@ -18,7 +18,7 @@
 #include "proto/geometry_convert.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/rpc_test_support.h"
 
 namespace forestmap::server {

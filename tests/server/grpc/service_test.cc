@@ -13,7 +13,7 @@
 #include <random>
 
 #include "server/grpc/server.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/rpc_test_support.h"
 
 namespace forestmap::server {

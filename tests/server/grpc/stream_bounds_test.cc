@@ -18,8 +18,8 @@
 
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/database.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/gated_store.h"
 #include "tests/server/rpc_test_support.h"
 

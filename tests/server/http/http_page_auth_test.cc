@@ -13,7 +13,7 @@
 
 #include "server/app/recent_answers.h"
 #include "server/http/http_page.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "storage/token_store.h"
 #include "tests/server/http_get.h"
 

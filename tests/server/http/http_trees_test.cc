@@ -18,7 +18,7 @@
 #include "server/app/recent_answers.h"
 #include "server/http/http_page.h"
 #include "server/http/metrics_http.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/http_get.h"
 
 namespace forestmap::server {

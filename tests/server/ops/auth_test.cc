@@ -17,7 +17,7 @@
 #include "proto/status_code_name.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "storage/token_store.h"
 
 namespace forestmap::server {

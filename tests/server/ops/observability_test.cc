@@ -20,7 +20,7 @@
 #include "server/ops/daemon.h"
 #include "server/ops/logging.h"
 #include "server/ops/metrics.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/http_get.h"
 
 namespace forestmap::server {
