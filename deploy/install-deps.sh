@@ -13,6 +13,7 @@ PACKAGES=(
   libproj-dev proj-bin    # CRSs (geo/crs.cc); cs2cs checks the WGS84 answers in the tests
   libgdal-dev gdal-bin    # GeoPackage / GeoJSON / shapefile trees (client/io/geo_io.cc); ogrinfo
   libcairo2-dev           # forestmap plot: SVG and PNG pictures (client/map_plot.cc)
+  golang-github-gogo-googleapis-dev  # google/rpc/*.proto: error details (proto/error_details.h)
   libcpp-httplib-dev      # forestmapd --http: the read-only web page (server/http_page.cc)
   chromium                # the web page's browser test (tests/server/http_page_test.cc)
   clang-format  # tests/tools/check_format.sh (the format check in the test run)
