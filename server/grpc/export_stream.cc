@@ -27,9 +27,9 @@ ExportTreesReactor::ExportTreesReactor(const StreamDeps& deps, grpc::CallbackSer
 
 void ExportTreesReactor::Start() {
   const v1::ExportTreesRequest& request = *request_;
-  Authorize(deps_.options.authorizer, *context_, "ExportTrees", request.map_name());
+  Authorize(deps_.options.authorizer, *context_, "ExportTrees", request.name());
   Validate(request);
-  const storage::MapInfo info = deps_.store.GetMap(request.map_name());
+  const storage::MapInfo info = deps_.store.GetMap(request.name());
   version_ = request.version() != 0 ? request.version() : info.version;
   created_unix_ms_ = info.created_unix_ms;
 }
@@ -42,11 +42,11 @@ void ExportTreesReactor::LoadPage() {
   query.limit = deps_.options.export_chunk_trees;
   if (request_->has_box()) query.box = FromProto(request_->box());
   try {
-    page_ = deps_.store.ReadTreesPage(request_->map_name(), query);
+    page_ = deps_.store.ReadTreesPage(request_->name(), query);
   } catch (const storage::StorageError& e) {
     // After the first page, a missing map or version was deleted or pruned meanwhile.
     if (!after_id_ || e.code() != storage::StorageError::Code::kNotFound) throw;
-    throw ServiceError(grpc::StatusCode::ABORTED, "map \"" + request_->map_name() + "\" (version " +
+    throw ServiceError(grpc::StatusCode::ABORTED, "map \"" + request_->name() + "\" (version " +
                                                       std::to_string(version_) +
                                                       ") was deleted or pruned during the " +
                                                       "export (" + e.what() + "); retry");

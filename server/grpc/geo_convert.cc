@@ -15,15 +15,15 @@ std::string CanonicalCrs(const std::string& crs) {
   try {
     info = geo::ParseCrs(crs);
   } catch (const geo::CrsError& error) {
-    throw ValidationError("crs \"" + shown +
-                          "\" is not a coordinate reference system PROJ knows (" + error.what() +
-                          "); give an EPSG code (EPSG:2959), WKT or a PROJ string");
+    throw ValidationError(
+        "crs", " \"" + shown + "\" is not a coordinate reference system PROJ knows (" +
+                   error.what() + "); give an EPSG code (EPSG:2959), WKT or a PROJ string");
   }
   if (!info.map_problem.empty()) {
-    throw ValidationError("crs \"" + shown + "\" (" + info.name +
-                          ") cannot be a map's: " + info.map_problem +
-                          ", and a map's x and y are metres; reproject the trees to a projected "
-                          "CRS in metres (forestmap map create --to-crs utm)");
+    throw ValidationError("crs", " \"" + shown + "\" (" + info.name +
+                                     ") cannot be a map's: " + info.map_problem +
+                                     ", and a map's x and y are metres; reproject the trees to a "
+                                     "projected CRS in metres (forestmap map create --to-crs utm)");
   }
   return info.Canonical();
 }
@@ -40,7 +40,7 @@ void DescribeCrs(v1::Map& map) {
 }
 
 void AddGeodetic(v1::RelocalizeResponse& response, const geo::MapToWgs84& to_wgs84) {
-  if (response.status() != v1::RelocalizeResponse::LOCALIZED) return;
+  if (response.status() != v1::RelocalizeResponse::STATUS_LOCALIZED) return;
   const Eigen::Isometry3d map_from_sensor = FromProto(response.map_from_sensor());
   const Eigen::Vector3d forward = map_from_sensor.linear() * Eigen::Vector3d::UnitX();
   const Eigen::Vector3d at = map_from_sensor.translation();

@@ -19,7 +19,7 @@ namespace forestmap::server {
 namespace {
 
 v1::FrameResult& Skip(v1::FrameResult& result, const std::string& detail) {
-  result.set_status(v1::FrameResult::SKIPPED);
+  result.set_status(v1::FrameResult::STATUS_SKIPPED);
   result.set_detail(detail);
   result.clear_map_from_sensor();
   return result;
@@ -74,8 +74,8 @@ void ForestMapService::RunObserve(grpc::CallbackServerContext* context,
       ReplayRequest(store_, request.request_id(), "Observe", response)) {
     return;
   }
-  const std::string& name = request.map_name();
-  const bool reject_stale = request.conflict_policy() == v1::REJECT_IF_STALE;
+  const std::string& name = request.name();
+  const bool reject_stale = request.conflict_policy() == v1::CONFLICT_POLICY_REJECT_IF_STALE;
   // Fail fast (unknown map, stale base) before relocalizing; the merge checks again.
   const storage::MapInfo before = store_.GetMap(name);
   if (reject_stale && before.version != request.base_version()) {
@@ -100,7 +100,7 @@ void ForestMapService::RunObserve(grpc::CallbackServerContext* context,
       }
       result.set_relocalized(true);
     }
-    result.set_status(v1::FrameResult::MERGED);
+    result.set_status(v1::FrameResult::STATUS_MERGED);
     *result.mutable_map_from_sensor() = ToProto(observations.map_from_sensor);
     frames.push_back(std::move(observations));
     merged_results.push_back(&result);
@@ -127,7 +127,7 @@ bool ForestMapService::MergeObserved(grpc::CallbackServerContext* context,
   storage::MergeNote note;
   note.kind = storage::VersionKind::kObserve;
   note.source = request.source();
-  if (request.conflict_policy() == v1::REJECT_IF_STALE) {
+  if (request.conflict_policy() == v1::CONFLICT_POLICY_REJECT_IF_STALE) {
     note.expected_version = request.base_version();
   }
   FramesMerge merge;
@@ -150,7 +150,7 @@ bool ForestMapService::MergeObserved(grpc::CallbackServerContext* context,
   };
   bool replayed = true;
   RunExactlyOnce(store_, context, request.request_id(), "Observe", response, encode, [&] {
-    after = store_.Merge(request.map_name(), note, [&](storage::MergeReader& reader) {
+    after = store_.Merge(request.name(), note, [&](storage::MergeReader& reader) {
       merge = MergeFrames(reader, frames, options_.merge, options_.consolidate);
       return merge.changes;
     });
@@ -182,7 +182,7 @@ void ForestMapService::RunRemoveSource(grpc::CallbackServerContext* context,
     return answer.SerializeAsString();
   };
   RunExactlyOnce(store_, context, request.request_id(), "RemoveSource", response, encode, [&] {
-    fill(store_.Merge(request.map_name(), note,
+    fill(store_.Merge(request.name(), note,
                       [&](storage::MergeReader& reader) {
                         removal = RemoveSourceChanges(reader, request.source(), options_.merge);
                         return removal.changes;

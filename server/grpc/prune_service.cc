@@ -4,6 +4,7 @@
 
 #include "server/app/exactly_once.h"
 #include "server/grpc/convert.h"
+#include "server/grpc/legacy_layout.h"
 #include "server/grpc/service.h"
 #include "server/grpc/status.h"
 #include "server/grpc/validation.h"
@@ -23,16 +24,17 @@ void Fill(const storage::PruneResult& result, v1::PruneVersionsResponse& respons
 void ForestMapService::RunPrune(grpc::CallbackServerContext* context,
                                 const v1::PruneVersionsRequest& request,
                                 v1::PruneVersionsResponse& response) {
-  ValidateMapName(request.map_name(), "map_name");
+  ValidateMapName(request.name(), "name");
   if (request.keep() < 1) {
-    throw ValidationError("keep is " + std::to_string(request.keep()) +
-                          "; at least the current version must stay (keep >= 1)");
+    throw ValidationError("keep", " is " + std::to_string(request.keep()) +
+                                      "; at least the current version must stay (keep >= 1)");
   }
+  const std::string request_id = RequestId(request);  // field 50, or 3 of release 0.1.0
   // The stored answer of a request id holds the map; a repeat removes nothing, its counts are 0.
   const auto encode = Encoder<v1::PruneVersionsResponse>(
       [](const storage::MapInfo& info, auto& answer) { *answer.mutable_map() = ToProto(info); });
-  RunExactlyOnce(store_, context, request.request_id(), "PruneVersions", response, encode,
-                 [&] { Fill(store_.PruneVersions(request.map_name(), request.keep()), response); });
+  RunExactlyOnce(store_, context, request_id, "PruneVersions", response, encode,
+                 [&] { Fill(store_.PruneVersions(request.name(), request.keep()), response); });
 }
 
 void ForestMapService::ApplyRetention(const std::string& map) noexcept {

@@ -3,7 +3,8 @@
 // for outcomes whose status code is known where they are detected.
 //
 // Mapping (see StatusFromCurrentException):
-//   ServiceError (and subclasses)       -> its code, its message
+//   ServiceError (and subclasses)       -> its code, its message; a ValidationError also with a
+//                                          google.rpc.BadRequest naming its field (details)
 //   storage::StorageError kNotFound      -> NOT_FOUND
 //                         kAlreadyExists -> ALREADY_EXISTS
 //                         kInvalidArgument -> INVALID_ARGUMENT
@@ -44,12 +45,17 @@ class ServiceError : public std::runtime_error {
   grpc::StatusCode code_;
 };
 
-// A request that is invalid in itself: INVALID_ARGUMENT. The message names the field path,
-// e.g. "trees[12].position.x is NaN".
+// A request that is invalid in itself: INVALID_ARGUMENT, with a google.rpc.BadRequest naming
+// `field` (AIP-193) beside the message. The message is the field path followed by `problem`:
+// ValidationError("trees[12].position.x", " is NaN") reads "trees[12].position.x is NaN".
 class ValidationError : public ServiceError {
  public:
-  explicit ValidationError(const std::string& message)
-      : ServiceError(grpc::StatusCode::INVALID_ARGUMENT, message) {}
+  ValidationError(const std::string& field, const std::string& problem)
+      : ServiceError(grpc::StatusCode::INVALID_ARGUMENT, field + problem), field_(field) {}
+  const std::string& field() const { return field_; }
+
+ private:
+  std::string field_;
 };
 
 // A request over a configured size limit: RESOURCE_EXHAUSTED.

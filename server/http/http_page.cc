@@ -2,6 +2,7 @@
 
 // Eigen (through convert.h) before httplib.h: httplib pulls in <resolv.h>, whose `_res` macro
 // breaks Eigen's headers when they come after it.
+#include "proto/enum_label.h"
 #include "server/grpc/convert.h"
 #include "server/http/http_listen.h"
 #include "server/http/http_trees.h"
@@ -98,7 +99,7 @@ Json VersionsJson(const std::vector<storage::VersionRecord>& records) {
   for (const storage::VersionRecord& v : records) {
     const v1::MapVersion version = ToProto(v);
     versions.push_back({{"version", version.version()},
-                        {"kind", v1::MapVersion::Kind_Name(version.kind())},
+                        {"kind", EnumLabel(*v1::MapVersion::Kind_descriptor(), version.kind())},
                         {"source", version.source()},
                         {"trees", version.tree_count()},
                         {"time_ms", version.created_unix_ms()}});
@@ -113,7 +114,7 @@ Json AnswersJson(const RecentAnswers& answers, const PageCaller& caller) {
     const v1::RelocalizeResponse& r = a.response;
     Json item = {{"map", a.map_name},
                  {"time_ms", a.unix_ms},
-                 {"status", v1::RelocalizeResponse::Status_Name(r.status())},
+                 {"status", EnumLabel(*v1::RelocalizeResponse::Status_descriptor(), r.status())},
                  {"inliers", r.inliers()}};
     if (r.has_map_from_sensor()) {
       item["x"] = r.map_from_sensor().translation().x();
