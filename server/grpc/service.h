@@ -7,9 +7,9 @@
 // Every RPC first checks the caller's token (server/auth.h): UNAUTHENTICATED, PERMISSION_DENIED.
 // Statuses per RPC (besides INTERNAL for server faults and RESOURCE_EXHAUSTED from gRPC itself
 // for a message over the server's receive limit); an INVALID_ARGUMENT of a check carries a
-// google.rpc.BadRequest naming the field (server/status.h):
+// google.rpc.BadRequest naming the field (server/grpc/status.h):
 //   CreateMap    INVALID_ARGUMENT (name, description, crs), ALREADY_EXISTS
-//   ListMaps     INVALID_ARGUMENT (page_size < 0, page_token; server/list_pages.h)
+//   ListMaps     INVALID_ARGUMENT (page_size < 0, page_token; server/grpc/list_pages.h)
 //   GetMap       INVALID_ARGUMENT (name), NOT_FOUND
 //   DeleteMap    INVALID_ARGUMENT (name), NOT_FOUND
 //   UploadTrees  INVALID_ARGUMENT (first message not a header naming the map, a later header or

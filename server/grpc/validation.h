@@ -51,7 +51,7 @@ void Validate(const v1::RelocalizeRequest& request, int max_query_trees);
 // A prior: x and y, or the deprecated pose of release 0.1.0 (not both); radius_m > 0.
 void ValidatePrior(const v1::PriorPose& prior, const std::string& path);
 
-// One message of a Track stream, in either layout (server/legacy_layout.h), checked: a header
+// One message of a Track stream, in either layout (server/grpc/legacy_layout.h), checked: a header
 // first, then frames of any number of trees up to the limit. `session_map` is the map the first
 // message named ("" while reading that one).
 struct TrackMessage {
@@ -83,7 +83,7 @@ void ValidatePose(const v1::Pose& pose, const std::string& path);
 void ValidateBox(const v1::Box2& box, const std::string& path);
 
 // Checks the messages of one UploadTrees stream, in order, in either layout
-// (server/legacy_layout.h): a header naming a valid map first, then chunks (in the 0.1.0
+// (server/grpc/legacy_layout.h): a header naming a valid map first, then chunks (in the 0.1.0
 // layout: later messages repeat the map's name or leave it empty and set no other header field);
 // every tree is valid; the tree total stays within the limit. Ids unique across the stream are
 // checked by the store as it stages the trees (in constant memory here). Tree indices count

@@ -225,7 +225,7 @@ TEST_F(CliTest, FailedCreateWithTreesLeavesNoMap) {
   EXPECT_TRUE(server.service().maps.empty());
   // One upload stream that creates the map: no CreateMap call that could leave a map behind.
   ASSERT_FALSE(server.service().upload_messages.empty());
-  EXPECT_TRUE(server.service().upload_messages[0].create_map());
+  EXPECT_TRUE(server.service().upload_messages[0].header().create_map());
 }
 
 TEST_F(CliTest, RelocalizePrintsOneJsonLine) {

@@ -84,8 +84,7 @@ TEST(ListPagesTest, MapPagesConcatenateToAllMapsByName) {
 
 TEST(ListPagesTest, PageSizeHasADefaultAndAMaximum) {
   storage::SqliteMapStore store(":memory:");
-  for (int i = 0; i < kMaxPageSize + 1; ++i)
-    store.CreateMap(std::string("m") + std::to_string(i), "", "");
+  for (int i = 0; i < kMaxPageSize + 1; ++i) store.CreateMap(std::to_string(i) + "m", "", "");
   v1::ListMapsRequest request;
   EXPECT_EQ(ListMapsPage(store, kEveryone, request).maps_size(), kDefaultPageSize);
   request.set_page_size(kMaxPageSize + 500);  // more than the maximum gets the maximum
