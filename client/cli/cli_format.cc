@@ -11,6 +11,7 @@
 
 #include "client/io/csv_columns.h"
 #include "client/lib/proto_convert.h"
+#include "proto/enum_label.h"
 
 namespace forestmap::client {
 namespace {
@@ -27,40 +28,39 @@ std::string PadRight(const std::string& text, size_t width) {
 
 }  // namespace
 
-PriorXyYaw ParsePrior(std::string_view text) {
-  static constexpr std::array<const char*, 4> kNames = {"X", "Y", "YAW_DEG", "RADIUS_M"};
+PriorPosition ParsePrior(std::string_view text) {
   const std::string expected =
-      "expected X,Y,YAW_DEG,RADIUS_M (4 numbers; m, m, deg, m), got '" + std::string(text) + "'";
-  std::array<double, 4> values{};
-  size_t start = 0;
-  for (size_t i = 0; i < values.size(); ++i) {
-    const size_t comma = text.find(',', start);
-    if ((i + 1 < values.size()) == (comma == std::string_view::npos)) {
-      throw std::invalid_argument(expected);
-    }
-    const std::string_view part =
-        Trim(text.substr(start, comma == std::string_view::npos ? text.npos : comma - start));
-    const auto [end, ec] = std::from_chars(part.data(), part.data() + part.size(), values[i]);
+      "expected X,Y,RADIUS_M (3 numbers, m) or X,Y,YAW_DEG,RADIUS_M, got '" + std::string(text) +
+      "'";
+  std::vector<double> values;
+  for (size_t start = 0; start <= text.size();) {
+    const size_t comma = std::min(text.find(',', start), text.size());
+    const std::string_view part = Trim(text.substr(start, comma - start));
+    double value = 0;
+    const auto [end, ec] = std::from_chars(part.data(), part.data() + part.size(), value);
     if (part.empty() || ec != std::errc() || end != part.data() + part.size() ||
-        !std::isfinite(values[i])) {
-      throw std::invalid_argument(std::string(kNames[i]) + " '" + std::string(part) +
-                                  "' is not a number; " + expected);
+        !std::isfinite(value)) {
+      throw std::invalid_argument("'" + std::string(part) + "' is not a number; " + expected);
     }
+    values.push_back(value);
     start = comma + 1;
   }
-  if (!(values[3] > 0)) {
+  if (values.size() != 3 && values.size() != 4) throw std::invalid_argument(expected);
+  // Four numbers: the form of older versions, whose heading the server never used.
+  const PriorPosition prior{values[0], values[1], values.back()};
+  if (!(prior.radius_m > 0)) {
     throw std::invalid_argument("RADIUS_M must be > 0, got '" + std::string(text) + "'");
   }
-  return PriorXyYaw{values[0], values[1], values[2] * M_PI / 180.0, values[3]};
+  return prior;
 }
 
 const char* RelocalizeStatusName(v1::RelocalizeResponse::Status status) {
   switch (status) {
-    case v1::RelocalizeResponse::LOCALIZED:
+    case v1::RelocalizeResponse::STATUS_LOCALIZED:
       return "localized";
-    case v1::RelocalizeResponse::AMBIGUOUS:
+    case v1::RelocalizeResponse::STATUS_AMBIGUOUS:
       return "ambiguous";
-    case v1::RelocalizeResponse::NOT_FOUND:
+    case v1::RelocalizeResponse::STATUS_NOT_FOUND:
       return "not_found";
     default:
       return "unspecified";
@@ -77,7 +77,7 @@ nlohmann::ordered_json RelocalizeJson(const v1::RelocalizeResponse& response,
   nlohmann::ordered_json line;
   if (frame) line["frame"] = *frame;
   line["status"] = RelocalizeStatusName(response.status());
-  if (response.status() == v1::RelocalizeResponse::LOCALIZED) {
+  if (response.status() == v1::RelocalizeResponse::STATUS_LOCALIZED) {
     const v1::Pose& pose = response.map_from_sensor();
     line["x"] = pose.translation().x();
     line["y"] = pose.translation().y();
@@ -102,17 +102,18 @@ nlohmann::ordered_json RelocalizeJson(const v1::RelocalizeResponse& response,
   line["rmse_m"] = response.rmse_m();
   line["confidence"] = response.confidence();
   line["server_ms"] = response.server_time_ms();
-  if (response.status() == v1::RelocalizeResponse::LOCALIZED && response.covariance_size() == 36) {
+  if (response.status() == v1::RelocalizeResponse::STATUS_LOCALIZED &&
+      response.covariance_size() == 36) {
     line["sigma_xy_m"] = std::sqrt(response.covariance(0) + response.covariance(7));
     line["sigma_yaw_deg"] = std::sqrt(response.covariance(35)) * 180.0 / M_PI;
   }
-  if (response.status() != v1::RelocalizeResponse::LOCALIZED &&
+  if (response.status() != v1::RelocalizeResponse::STATUS_LOCALIZED &&
       response.reason() != v1::RelocalizeResponse::REASON_UNSPECIFIED) {
-    std::string reason = v1::RelocalizeResponse::Reason_Name(response.reason());
+    std::string reason = EnumLabel(*v1::RelocalizeResponse::Reason_descriptor(), response.reason());
     for (char& c : reason) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
     line["reason"] = reason;
   }
-  if (response.status() != v1::RelocalizeResponse::LOCALIZED && !response.detail().empty()) {
+  if (response.status() != v1::RelocalizeResponse::STATUS_LOCALIZED && !response.detail().empty()) {
     line["detail"] = response.detail();  // why not: worth showing the user
   }
   if (response.has_client_stamp_ns()) line["client_stamp_ns"] = response.client_stamp_ns();

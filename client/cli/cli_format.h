@@ -14,9 +14,9 @@
 
 namespace forestmap::client {
 
-// Parses "X,Y,YAW_DEG,RADIUS_M" (metres, degrees). Throws std::invalid_argument saying what is
-// wrong, without the flag name.
-PriorXyYaw ParsePrior(std::string_view text);
+// Parses "X,Y,RADIUS_M" (metres), or "X,Y,YAW_DEG,RADIUS_M" of older versions (the heading is not
+// used). Throws std::invalid_argument saying what is wrong, without the flag name.
+PriorPosition ParsePrior(std::string_view text);
 
 // "localized", "ambiguous", "not_found" (or "unspecified").
 const char* RelocalizeStatusName(v1::RelocalizeResponse::Status status);

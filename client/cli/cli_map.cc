@@ -325,19 +325,19 @@ void AddExport(CLI::App& map_app, CliContext& context) {
 
 const char* KindName(v1::MapVersion::Kind kind) {
   switch (kind) {
-    case v1::MapVersion::CREATE:
+    case v1::MapVersion::KIND_CREATE:
       return "create";
-    case v1::MapVersion::UPLOAD:
+    case v1::MapVersion::KIND_UPLOAD:
       return "upload";
-    case v1::MapVersion::REPLACE:
+    case v1::MapVersion::KIND_REPLACE:
       return "replace";
-    case v1::MapVersion::OBSERVE:
+    case v1::MapVersion::KIND_OBSERVE:
       return "observe";
-    case v1::MapVersion::RESTORE:
+    case v1::MapVersion::KIND_RESTORE:
       return "restore";
-    case v1::MapVersion::REMOVE_SOURCE:
+    case v1::MapVersion::KIND_REMOVE_SOURCE:
       return "remove-source";
-    case v1::MapVersion::MIGRATED:
+    case v1::MapVersion::KIND_MIGRATED:
       return "migrated";
     default:
       return "?";
@@ -352,7 +352,7 @@ void PrintHistory(const std::vector<v1::MapVersion>& versions, std::ostream& out
       << "\n";
   for (const v1::MapVersion& v : versions) {
     std::string source = v.source().empty() ? "-" : v.source();
-    if (v.kind() == v1::MapVersion::RESTORE) source = "from v" + std::to_string(v.restored_from());
+    if (v.kind() == v1::MapVersion::KIND_RESTORE) source = "from v" + std::to_string(v.restored_from());
     out << std::left << std::setw(8) << v.version() << std::setw(22)
         << FormatUnixMs(v.created_unix_ms()) << std::setw(14) << KindName(v.kind()) << std::setw(16)
         << source << std::right << std::setw(9) << v.tree_count() << std::setw(10)

@@ -41,7 +41,7 @@ struct Totals {
 void Count(const v1::ObserveResponse& response, Totals& totals) {
   for (const v1::FrameResult& frame : response.frames()) {
     ++totals.frames;
-    if (frame.status() == v1::FrameResult::MERGED) {
+    if (frame.status() == v1::FrameResult::STATUS_MERGED) {
       ++totals.merged;
     } else {
       ++totals.skipped;

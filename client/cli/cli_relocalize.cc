@@ -1,4 +1,4 @@
-// `forestmap relocalize NAME --trees FILE [--prior X,Y,YAW_DEG,RADIUS_M]`,
+// `forestmap relocalize NAME --trees FILE [--prior X,Y,RADIUS_M]`,
 // `forestmap relocalize NAME --scan SCAN [--prior ...]` (trunks detected here, on the client) and
 // `forestmap relocalize NAME --frames FILE`.
 
@@ -26,7 +26,7 @@ struct RelocalizeOptions {
   std::string frames_file;
   std::string scan_file;
   std::string prior_text;
-  std::optional<PriorXyYaw> prior;  // parsed from prior_text
+  std::optional<PriorPosition> prior;  // parsed from prior_text
   std::vector<double> gravity_values;
   std::optional<Eigen::Vector3d> gravity;  // down, sensor frame (the drone's IMU)
 };
@@ -72,9 +72,9 @@ struct FrameCounts {
   std::vector<double> server_ms;
 
   void Add(const v1::RelocalizeResponse& response) {
-    localized += response.status() == v1::RelocalizeResponse::LOCALIZED;
-    ambiguous += response.status() == v1::RelocalizeResponse::AMBIGUOUS;
-    not_found += response.status() == v1::RelocalizeResponse::NOT_FOUND;
+    localized += response.status() == v1::RelocalizeResponse::STATUS_LOCALIZED;
+    ambiguous += response.status() == v1::RelocalizeResponse::STATUS_AMBIGUOUS;
+    not_found += response.status() == v1::RelocalizeResponse::STATUS_NOT_FOUND;
     server_ms.push_back(response.server_time_ms());
   }
   std::string Describe() const {
@@ -129,8 +129,8 @@ void RunFrames(const RelocalizeOptions& options, const CliContext& context) {
   }
 }
 
-// --prior X,Y,YAW_DEG,RADIUS_M, parsed; a CLI11 error naming the flag otherwise.
-PriorXyYaw PriorFlag(const std::string& text) {
+// --prior X,Y,RADIUS_M, parsed; a CLI11 error naming the flag otherwise.
+PriorPosition PriorFlag(const std::string& text) {
   try {
     return ParsePrior(text);
   } catch (const std::invalid_argument& error) {
@@ -164,9 +164,9 @@ void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
                       "CSV of many scans with a frame column (frame,x,y,...): one query per frame");
   CLI::Option* prior = sub->add_option(
       "--prior", options->prior_text,
-      "Prior pose X,Y,YAW_DEG,RADIUS_M: the sensor is within RADIUS_M of (X,Y) (map frame, m) "
-      "(YAW_DEG, deg counter-clockwise from map x, is accepted but not used: only the position "
-      "bounds the search)");
+      "Prior position X,Y,RADIUS_M: the sensor is within RADIUS_M of (X,Y) (map frame, m); "
+      "X,Y,YAW_DEG,RADIUS_M of older versions is accepted too (the heading bounds nothing: the "
+      "search covers every heading)");
   CLI::Option* scan = sub->add_option("--scan", options->scan_file,
                                       "LiDAR scan in the sensor frame (.pcd .ply .las .csv .xyz): "
                                       "trunks are detected here and "

@@ -26,11 +26,11 @@ struct TrackOptions {
 
 const char* StateName(v1::TrackResponse::State state) {
   switch (state) {
-    case v1::TrackResponse::TRACKING:
+    case v1::TrackResponse::STATE_TRACKING:
       return "tracking";
-    case v1::TrackResponse::RECOVERED:
+    case v1::TrackResponse::STATE_RECOVERED:
       return "recovered";
-    case v1::TrackResponse::LOST:
+    case v1::TrackResponse::STATE_LOST:
       return "lost";
     default:
       return "unspecified";
@@ -39,11 +39,11 @@ const char* StateName(v1::TrackResponse::State state) {
 
 const char* MethodName(v1::TrackResponse::Method method) {
   switch (method) {
-    case v1::TrackResponse::LOCAL:
+    case v1::TrackResponse::METHOD_LOCAL:
       return "local";
-    case v1::TrackResponse::PRIOR:
+    case v1::TrackResponse::METHOD_PRIOR:
       return "prior";
-    case v1::TrackResponse::GLOBAL:
+    case v1::TrackResponse::METHOD_GLOBAL:
       return "global";
     default:
       return "unspecified";
@@ -83,9 +83,9 @@ void Run(const TrackOptions& options, const CliContext& context) {
   char times[96];
   std::snprintf(times, sizeof times, "server time p50 %.2f ms, p95 %.2f ms",
                 algorithms::Percentile(server_ms, 0.5), algorithms::Percentile(server_ms, 0.95));
-  *context.err << "track: " << frames.size() << " frames: " << counts[v1::TrackResponse::TRACKING]
-               << " tracking, " << counts[v1::TrackResponse::RECOVERED] << " recovered, "
-               << counts[v1::TrackResponse::LOST] << " lost (longest loss " << longest_loss
+  *context.err << "track: " << frames.size() << " frames: " << counts[v1::TrackResponse::STATE_TRACKING]
+               << " tracking, " << counts[v1::TrackResponse::STATE_RECOVERED] << " recovered, "
+               << counts[v1::TrackResponse::STATE_LOST] << " lost (longest loss " << longest_loss
                << " frames); " << times << std::endl;
 }
 

@@ -157,8 +157,8 @@ void Track(Client& c, ForestMapClient& rpc, const Input& input, const LoadBenchO
     // A failed step ends the session (the server closed it; the destructor cancels ours).
     v1::TrackResponse answer;
     if (!Measure(stats, [&] { answer = session->Step(step); })) return;
-    stats.localized += answer.state() == v1::TrackResponse::TRACKING ||
-                       answer.state() == v1::TrackResponse::RECOVERED;
+    stats.localized += answer.state() == v1::TrackResponse::STATE_TRACKING ||
+                       answer.state() == v1::TrackResponse::STATE_RECOVERED;
   }
   Attempt(stats, [&] { session->Finish(); });
 }
@@ -187,7 +187,7 @@ void OneCall(Client& c, ForestMapClient& rpc, const Input& input, const LoadBenc
       KindStats& stats = c.stats[kRelocalize];
       Measure(stats, [&] {
         stats.localized +=
-            rpc.Relocalize(o.map_name, frame.trees).status() == v1::RelocalizeResponse::LOCALIZED;
+            rpc.Relocalize(o.map_name, frame.trees).status() == v1::RelocalizeResponse::STATUS_LOCALIZED;
       });
       break;
     }

@@ -60,7 +60,7 @@ void Run(const ServerBenchOptions& o, CliContext& context) {
           latencies[t].push_back(
               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - sent)
                   .count());
-          localized += response.status() == v1::RelocalizeResponse::LOCALIZED;
+          localized += response.status() == v1::RelocalizeResponse::STATUS_LOCALIZED;
         }
         retries += client.retries();
       } catch (...) {

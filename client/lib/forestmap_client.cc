@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "client/lib/proto_convert.h"
+#include "proto/error_details.h"
 
 namespace forestmap::client {
 namespace {
@@ -25,7 +26,7 @@ constexpr double kUnconnectedCallTimeout = 1.0;  // s
 
 TreeState StateOf(const v1::Tree& tree) {
   TreeState state;
-  state.confirmed = tree.status() != v1::CANDIDATE;
+  state.confirmed = tree.status() != v1::TREE_STATUS_CANDIDATE;
   state.observations = tree.observations();
   if (tree.has_position_sigma_m()) state.position_sigma_m = tree.position_sigma_m();
   if (tree.has_dbh_sigma_m()) state.dbh_sigma_m = tree.dbh_sigma_m();
@@ -39,6 +40,18 @@ std::string NewRequestId() {
   std::snprintf(id, sizeof(id), "fm-%016llx%016llx", static_cast<unsigned long long>(rng()),
                 static_cast<unsigned long long>(rng()));
   return id;
+}
+
+// " (field: trees[3].position.x)": the fields the server named in its error details
+// (google.rpc.BadRequest), shown after its message.
+std::string ViolatedFields(const grpc::Status& status) {
+  const std::vector<FieldViolation> violations = BadRequestViolations(status);
+  if (violations.empty()) return "";
+  std::string fields;
+  for (const FieldViolation& violation : violations) {
+    fields += (fields.empty() ? "" : ", ") + violation.field;
+  }
+  return (violations.size() == 1 ? " (field: " : " (fields: ") + fields + ")";
 }
 
 bool Retriable(const grpc::Status& status) {
@@ -146,8 +159,8 @@ void ForestMapClient::Check(const grpc::Status& status, const char* call) const 
     throw RpcError(code, "cannot reach forestmapd at " + addresses_[current_] + ": " +
                              detail.str() + " (is it running? use --server)");
   }
-  throw RpcError(code,
-                 std::string(call) + ": " + StatusCodeName(code) + ": " + status.error_message());
+  throw RpcError(code, std::string(call) + ": " + StatusCodeName(code) + ": " +
+                           status.error_message() + ViolatedFields(status));
 }
 
 template <typename Response, typename Method, typename Request>
@@ -194,11 +207,16 @@ v1::Map ForestMapClient::CreateMap(const std::string& name, const std::string& d
 }
 
 std::vector<v1::Map> ForestMapClient::ListMaps() {
-  const auto response = WithFailover([&] {
-    return Unary<v1::ListMapsResponse>(&v1::ForestMap::Stub::ListMaps, v1::ListMapsRequest(),
-                                       "ListMaps");
-  });
-  return {response.maps().begin(), response.maps().end()};
+  std::vector<v1::Map> maps;
+  v1::ListMapsRequest request;
+  do {  // page by page (the server's page size), each page from any replica
+    const auto page = WithFailover([&] {
+      return Unary<v1::ListMapsResponse>(&v1::ForestMap::Stub::ListMaps, request, "ListMaps");
+    });
+    maps.insert(maps.end(), page.maps().begin(), page.maps().end());
+    request.set_page_token(page.next_page_token());
+  } while (!request.page_token().empty());
+  return maps;
 }
 
 v1::Map ForestMapClient::GetMap(const std::string& name) {
@@ -217,9 +235,10 @@ void ForestMapClient::DeleteMap(const std::string& name) {
 v1::UploadTreesResponse ForestMapClient::UploadTrees(const std::string& name,
                                                      const std::vector<MapTreeRow>& rows,
                                                      bool replace, const UploadProgress& progress) {
-  v1::UploadTreesRequest head;
-  head.set_replace(replace);
-  return Upload(name, rows, head, progress);
+  v1::UploadTreesHeader header;
+  header.set_name(name);
+  header.set_replace(replace);
+  return Upload(header, rows, progress);
 }
 
 v1::UploadTreesResponse ForestMapClient::CreateMapWithTrees(const std::string& name,
@@ -227,52 +246,48 @@ v1::UploadTreesResponse ForestMapClient::CreateMapWithTrees(const std::string& n
                                                             const std::string& crs,
                                                             const std::vector<MapTreeRow>& rows,
                                                             const UploadProgress& progress) {
-  v1::UploadTreesRequest head;
-  head.set_create_map(true);
-  head.set_description(description);
-  head.set_crs(crs);
-  return Upload(name, rows, head, progress);
+  v1::UploadTreesHeader header;
+  header.set_name(name);
+  header.set_create_map(true);
+  header.set_description(description);
+  header.set_crs(crs);
+  return Upload(header, rows, progress);
 }
 
-v1::UploadTreesResponse ForestMapClient::Upload(const std::string& name,
+v1::UploadTreesResponse ForestMapClient::Upload(v1::UploadTreesHeader header,
                                                 const std::vector<MapTreeRow>& rows,
-                                                const v1::UploadTreesRequest& head,
                                                 const UploadProgress& progress) {
   v1::UploadTreesResponse response;
   WriteWithRetries(
       [&](const std::string& request_id) {
-        return UploadOnce(name, rows, head, request_id, progress, response);
+        header.set_request_id(request_id);
+        return UploadOnce(header, rows, progress, response);
       },
       "UploadTrees");
   return response;
 }
 
-grpc::Status ForestMapClient::UploadOnce(const std::string& name,
+grpc::Status ForestMapClient::UploadOnce(const v1::UploadTreesHeader& header,
                                          const std::vector<MapTreeRow>& rows,
-                                         const v1::UploadTreesRequest& head,
-                                         const std::string& request_id,
                                          const UploadProgress& progress,
                                          v1::UploadTreesResponse& response) {
   const auto context = NewContext(options_.stream_timeout);
   const auto writer = stub_->UploadTrees(context.get(), &response);
   const size_t chunk = static_cast<size_t>(options_.upload_chunk_trees);
-  size_t sent = 0;
-  // At least one message, so that an empty upload with `replace` clears the map.
-  do {
-    v1::UploadTreesRequest request;
-    if (sent == 0) {
-      request = head;
-      request.set_request_id(request_id);
-    }
-    request.set_map_name(name);
+  v1::UploadTreesRequest request;
+  *request.mutable_header() = header;
+  // A failed write means the server ended the call; Finish() says why.
+  bool open = writer->Write(request);
+  for (size_t sent = 0; open && sent < rows.size();) {
     const size_t end = std::min(rows.size(), sent + chunk);
-    request.mutable_trees()->Reserve(static_cast<int>(end - sent));
-    for (size_t i = sent; i < end; ++i) *request.add_trees() = ToProto(rows[i]);
-    // A failed write means the server ended the call; Finish() says why.
-    if (!writer->Write(request)) break;
+    google::protobuf::RepeatedPtrField<v1::Tree>& trees = *request.mutable_chunk()->mutable_trees();
+    trees.Clear();
+    trees.Reserve(static_cast<int>(end - sent));
+    for (size_t i = sent; i < end; ++i) *trees.Add() = ToProto(rows[i]);
+    open = writer->Write(request);
     sent = end;
-    if (progress) progress(static_cast<int64_t>(sent), static_cast<int64_t>(rows.size()));
-  } while (sent < rows.size());
+    if (open && progress) progress(static_cast<int64_t>(sent), static_cast<int64_t>(rows.size()));
+  }
   writer->WritesDone();
   return writer->Finish();
 }
@@ -280,7 +295,7 @@ grpc::Status ForestMapClient::UploadOnce(const std::string& name,
 ExportedTrees ForestMapClient::ExportTrees(const std::string& name, const std::optional<Box2>& box,
                                            int64_t version) {
   v1::ExportTreesRequest request;
-  request.set_map_name(name);
+  request.set_name(name);
   request.set_version(version);
   if (box) {
     request.mutable_box()->set_min_x(box->min_x);
@@ -319,14 +334,14 @@ ExportedTrees ForestMapClient::ExportTreesOnce(const v1::ExportTreesRequest& req
 
 v1::RelocalizeResponse ForestMapClient::Relocalize(
     const std::string& name, const std::vector<algorithms::DetectedTree>& trees,
-    const std::optional<PriorXyYaw>& prior, const std::optional<Eigen::Vector3d>& gravity) {
+    const std::optional<PriorPosition>& prior, const std::optional<Eigen::Vector3d>& gravity) {
   v1::RelocalizeRequest request;
-  request.set_map_name(name);
+  request.set_name(name);
   request.mutable_trees()->Reserve(static_cast<int>(trees.size()));
   for (const algorithms::DetectedTree& tree : trees) *request.add_trees() = ToProto(tree);
   if (prior) {
-    *request.mutable_prior()->mutable_map_from_sensor() =
-        ToProto(algorithms::PoseFromXyzYaw(prior->x, prior->y, 0.0, prior->yaw_rad));
+    request.mutable_prior()->set_x(prior->x);
+    request.mutable_prior()->set_y(prior->y);
     request.mutable_prior()->set_radius_m(prior->radius_m);
   }
   if (gravity) {
@@ -361,15 +376,18 @@ TrackSession::~TrackSession() {
 
 v1::TrackResponse TrackSession::Step(const TrackFrame& frame) {
   if (!stream_) throw std::logic_error("TrackSession::Step after Finish");
+  v1::TrackRequest header;  // the first message names the map, and gets no answer
+  header.mutable_header()->set_name(map_name_);
   v1::TrackRequest request;
-  if (first_) request.set_map_name(map_name_);
-  request.set_frame_id(frame.frame_id);
-  request.mutable_trees()->Reserve(static_cast<int>(frame.trees.size()));
-  for (const algorithms::DetectedTree& tree : frame.trees) *request.add_trees() = ToProto(tree);
-  if (frame.gravity) *request.mutable_gravity() = ToProto(*frame.gravity);
-  if (frame.odometry) *request.mutable_odometry() = ToProto(*frame.odometry);
+  v1::TrackFrame& out = *request.mutable_frame();
+  out.set_frame_id(frame.frame_id);
+  out.mutable_trees()->Reserve(static_cast<int>(frame.trees.size()));
+  for (const algorithms::DetectedTree& tree : frame.trees) *out.add_trees() = ToProto(tree);
+  if (frame.gravity) *out.mutable_gravity() = ToProto(*frame.gravity);
+  if (frame.odometry) *out.mutable_odometry() = ToProto(*frame.odometry);
   v1::TrackResponse response;
-  if (!stream_->Write(request) || !stream_->Read(&response)) {
+  if ((first_ && !stream_->Write(header)) || !stream_->Write(request) ||
+      !stream_->Read(&response)) {
     // The server ended the session: its status says why.
     const grpc::Status status = stream_->Finish();
     stream_.reset();
@@ -395,10 +413,11 @@ v1::ObserveResponse ForestMapClient::Observe(const std::string& name,
                                              const std::vector<ObservedFrame>& frames,
                                              const ObserveOptions& options) {
   v1::ObserveRequest request;
-  request.set_map_name(name);
+  request.set_name(name);
   request.set_source(options.source);
   request.set_base_version(options.base_version);
-  request.set_conflict_policy(options.reject_stale ? v1::REJECT_IF_STALE : v1::MERGE);
+  request.set_conflict_policy(options.reject_stale ? v1::CONFLICT_POLICY_REJECT_IF_STALE
+                                                   : v1::CONFLICT_POLICY_MERGE);
   request.mutable_frames()->Reserve(static_cast<int>(frames.size()));
   for (const ObservedFrame& frame : frames) {
     v1::ObservationFrame* out = request.add_frames();
@@ -411,19 +430,24 @@ v1::ObserveResponse ForestMapClient::Observe(const std::string& name,
 }
 
 std::vector<v1::MapVersion> ForestMapClient::ListVersions(const std::string& name, int limit) {
+  std::vector<v1::MapVersion> versions;
   v1::ListVersionsRequest request;
-  request.set_map_name(name);
+  request.set_name(name);
   request.set_limit(limit);
-  const auto response = WithFailover([&] {
-    return Unary<v1::ListVersionsResponse>(&v1::ForestMap::Stub::ListVersions, request,
-                                           "ListVersions");
-  });
-  return {response.versions().begin(), response.versions().end()};
+  do {  // page by page (the server's page size), each page from any replica
+    const auto page = WithFailover([&] {
+      return Unary<v1::ListVersionsResponse>(&v1::ForestMap::Stub::ListVersions, request,
+                                             "ListVersions");
+    });
+    versions.insert(versions.end(), page.versions().begin(), page.versions().end());
+    request.set_page_token(page.next_page_token());
+  } while (!request.page_token().empty());
+  return versions;
 }
 
 v1::Map ForestMapClient::RestoreVersion(const std::string& name, int64_t version) {
   v1::RestoreVersionRequest request;
-  request.set_map_name(name);
+  request.set_name(name);
   request.set_version(version);
   return UnaryWrite<v1::RestoreVersionResponse>(&v1::ForestMap::Stub::RestoreVersion, request,
                                                 "RestoreVersion")
@@ -433,7 +457,7 @@ v1::Map ForestMapClient::RestoreVersion(const std::string& name, int64_t version
 v1::RemoveSourceResponse ForestMapClient::RemoveSource(const std::string& name,
                                                        const std::string& source) {
   v1::RemoveSourceRequest request;
-  request.set_map_name(name);
+  request.set_name(name);
   request.set_source(source);
   return UnaryWrite<v1::RemoveSourceResponse>(&v1::ForestMap::Stub::RemoveSource, request,
                                               "RemoveSource");
@@ -441,7 +465,7 @@ v1::RemoveSourceResponse ForestMapClient::RemoveSource(const std::string& name,
 
 v1::PruneVersionsResponse ForestMapClient::PruneVersions(const std::string& name, int64_t keep) {
   v1::PruneVersionsRequest request;
-  request.set_map_name(name);
+  request.set_name(name);
   request.set_keep(keep);
   return UnaryWrite<v1::PruneVersionsResponse>(&v1::ForestMap::Stub::PruneVersions, request,
                                                "PruneVersions");

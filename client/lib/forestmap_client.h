@@ -24,7 +24,8 @@ namespace forestmap::client {
 // A failed call. The message is ready for a user: for an unreachable server it reads
 // "cannot reach forestmapd at ADDR: <detail> (is it running? use --server)"; otherwise it is the
 // server's message prefixed with the call and the status name, e.g.
-// "GetMap: NOT_FOUND: no map named 'x'".
+// "GetMap: NOT_FOUND: no map named 'x'", followed by the fields the server named in its error
+// details (google.rpc.BadRequest) when it did: "... is NaN; ... (field: trees[3].position.x)".
 class RpcError : public std::runtime_error {
  public:
   RpcError(grpc::StatusCode code, const std::string& message)
@@ -59,11 +60,10 @@ struct ClientOptions {
 // certificate. Throws std::runtime_error naming a file that cannot be read.
 std::shared_ptr<grpc::ChannelCredentials> ChannelCredentialsFor(const ClientOptions& options);
 
-// A prior pose given as a horizontal position and heading, for Relocalize.
-struct PriorXyYaw {
+// Where the sensor is about, for Relocalize: only poses within radius_m of (x, y) are searched.
+struct PriorPosition {
   double x = 0;          // m, map frame
   double y = 0;          // m, map frame
-  double yaw_rad = 0;    // rad, heading of the sensor x axis, counter-clockwise from map x
   double radius_m = 10;  // m, the sensor is within this distance of (x, y)
 };
 
@@ -197,7 +197,7 @@ class ForestMapClient {
   // `gravity`: direction of gravity (down) in the sensor frame, when known.
   v1::RelocalizeResponse Relocalize(const std::string& name,
                                     const std::vector<algorithms::DetectedTree>& trees,
-                                    const std::optional<PriorXyYaw>& prior = {},
+                                    const std::optional<PriorPosition>& prior = {},
                                     const std::optional<Eigen::Vector3d>& gravity = {});
 
  private:
@@ -222,13 +222,11 @@ class ForestMapClient {
                         const char* call);
   template <typename Response, typename Method, typename Request>
   Response UnaryWrite(Method method, Request request, const char* call);
-  // One try of an upload stream; the status of the call.
-  // `head`: the first message's fields besides map_name, request_id and trees.
-  grpc::Status UploadOnce(const std::string& name, const std::vector<MapTreeRow>& rows,
-                          const v1::UploadTreesRequest& head, const std::string& request_id,
+  // One try of an upload stream (the header, then chunks of rows); the status of the call.
+  grpc::Status UploadOnce(const v1::UploadTreesHeader& header, const std::vector<MapTreeRow>& rows,
                           const UploadProgress& progress, v1::UploadTreesResponse& response);
-  v1::UploadTreesResponse Upload(const std::string& name, const std::vector<MapTreeRow>& rows,
-                                 const v1::UploadTreesRequest& head,
+  // The upload with retries; each try's header gets the same request id.
+  v1::UploadTreesResponse Upload(v1::UploadTreesHeader header, const std::vector<MapTreeRow>& rows,
                                  const UploadProgress& progress);
 
   std::string address_;

@@ -35,12 +35,17 @@ class ServiceError : public std::runtime_error {
   ErrorCode code_;
 };
 
-// A request that is invalid in itself: kInvalidArgument. The message names the field path,
-// e.g. "trees[12].position.x is NaN".
+// A request that is invalid in itself: kInvalidArgument, naming `field` (a transport may say so
+// apart: gRPC attaches a google.rpc.BadRequest). The message is the field path followed by
+// `problem`: ValidationError("trees[12].position.x", " is NaN") reads "trees[12].position.x is NaN".
 class ValidationError : public ServiceError {
  public:
-  explicit ValidationError(const std::string& message)
-      : ServiceError(ErrorCode::kInvalidArgument, message) {}
+  ValidationError(const std::string& field, const std::string& problem)
+      : ServiceError(ErrorCode::kInvalidArgument, field + problem), field_(field) {}
+  const std::string& field() const { return field_; }
+
+ private:
+  std::string field_;
 };
 
 // A request over a configured size limit: kResourceExhausted.

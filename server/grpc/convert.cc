@@ -4,6 +4,7 @@
 #include <optional>
 
 #include "server/grpc/geo_convert.h"
+#include "server/grpc/legacy_layout.h"
 
 namespace forestmap::server {
 namespace {
@@ -39,7 +40,8 @@ v1::Tree ToProto(const storage::TreeRecord& tree) {
   if (tree.dbh) out.set_dbh(*tree.dbh);
   out.mutable_attributes()->insert(tree.attributes.begin(), tree.attributes.end());
   for (const std::string& name : tree.null_attributes) out.add_null_attributes(name);
-  out.set_status(tree.status == storage::TreeStatus::kConfirmed ? v1::CONFIRMED : v1::CANDIDATE);
+  out.set_status(tree.status == storage::TreeStatus::kConfirmed ? v1::TREE_STATUS_CONFIRMED
+                                                                : v1::TREE_STATUS_CANDIDATE);
   out.set_observations(tree.observations);
   if (tree.position_sigma) out.set_position_sigma_m(*tree.position_sigma);
   if (tree.dbh_sigma) out.set_dbh_sigma_m(*tree.dbh_sigma);
@@ -81,8 +83,12 @@ algorithms::DetectedTree FromProto(const v1::DetectedTree& tree) {
 }
 
 algorithms::PriorPose FromProto(const v1::PriorPose& prior) {
-  algorithms::PriorPose out;
-  out.map_from_sensor = FromProto(prior.map_from_sensor());
+  algorithms::PriorPose out;  // the relocalizer uses the position's x and y only
+  if (const v1::Pose* pose = LegacyPose(prior)) {
+    out.map_from_sensor = FromProto(*pose);
+  } else {
+    out.map_from_sensor.translation() = Eigen::Vector3d(prior.x(), prior.y(), 0.0);
+  }
   out.radius = prior.radius_m();
   return out;
 }
@@ -99,11 +105,11 @@ algorithms::RelocalizeQuery FromProto(const v1::RelocalizeRequest& request) {
 v1::RelocalizeResponse::Status ToProto(algorithms::RelocalizeStatus status) {
   switch (status) {
     case algorithms::RelocalizeStatus::kLocalized:
-      return v1::RelocalizeResponse::LOCALIZED;
+      return v1::RelocalizeResponse::STATUS_LOCALIZED;
     case algorithms::RelocalizeStatus::kAmbiguous:
-      return v1::RelocalizeResponse::AMBIGUOUS;
+      return v1::RelocalizeResponse::STATUS_AMBIGUOUS;
     case algorithms::RelocalizeStatus::kNotFound:
-      return v1::RelocalizeResponse::NOT_FOUND;
+      return v1::RelocalizeResponse::STATUS_NOT_FOUND;
   }
   return v1::RelocalizeResponse::STATUS_UNSPECIFIED;
 }
@@ -114,17 +120,17 @@ v1::RelocalizeResponse::Reason ToProto(algorithms::RelocalizeReason reason) {
     case R::kNone:
       return v1::RelocalizeResponse::REASON_NONE;
     case R::kTooFewTrees:
-      return v1::RelocalizeResponse::TOO_FEW_TREES;
+      return v1::RelocalizeResponse::REASON_TOO_FEW_TREES;
     case R::kNoMatchingConstellation:
-      return v1::RelocalizeResponse::NO_MATCHING_CONSTELLATION;
+      return v1::RelocalizeResponse::REASON_NO_MATCHING_CONSTELLATION;
     case R::kNotSignificant:
-      return v1::RelocalizeResponse::NOT_SIGNIFICANT;
+      return v1::RelocalizeResponse::REASON_NOT_SIGNIFICANT;
     case R::kTooFewInliers:
-      return v1::RelocalizeResponse::TOO_FEW_INLIERS;
+      return v1::RelocalizeResponse::REASON_TOO_FEW_INLIERS;
     case R::kAmbiguous:
-      return v1::RelocalizeResponse::AMBIGUOUS_RIVAL;
+      return v1::RelocalizeResponse::REASON_AMBIGUOUS_RIVAL;
     case R::kOutsidePrior:
-      return v1::RelocalizeResponse::OUTSIDE_PRIOR;
+      return v1::RelocalizeResponse::REASON_OUTSIDE_PRIOR;
   }
   return v1::RelocalizeResponse::REASON_UNSPECIFIED;
 }
@@ -159,12 +165,12 @@ v1::RelocalizeResponse ToProto(const algorithms::RelocalizeResult& result) {
   return out;
 }
 
-algorithms::TrackingFrame FromProto(const v1::TrackRequest& request) {
+algorithms::TrackingFrame FromProto(const v1::TrackFrame& message) {
   algorithms::TrackingFrame frame;
-  frame.query.trees.reserve(request.trees_size());
-  for (const v1::DetectedTree& tree : request.trees()) frame.query.trees.push_back(FromProto(tree));
-  if (request.has_gravity()) frame.query.gravity = Direction(FromProto(request.gravity()));
-  if (request.has_odometry()) frame.odometry = FromProto(request.odometry());
+  frame.query.trees.reserve(message.trees_size());
+  for (const v1::DetectedTree& tree : message.trees()) frame.query.trees.push_back(FromProto(tree));
+  if (message.has_gravity()) frame.query.gravity = Direction(FromProto(message.gravity()));
+  if (message.has_odometry()) frame.odometry = FromProto(message.odometry());
   return frame;
 }
 
@@ -172,24 +178,24 @@ v1::TrackResponse ToProto(const algorithms::TrackingStep& step) {
   v1::TrackResponse out;
   switch (step.state) {
     case algorithms::TrackState::kTracking:
-      out.set_state(v1::TrackResponse::TRACKING);
+      out.set_state(v1::TrackResponse::STATE_TRACKING);
       break;
     case algorithms::TrackState::kRecovered:
-      out.set_state(v1::TrackResponse::RECOVERED);
+      out.set_state(v1::TrackResponse::STATE_RECOVERED);
       break;
     case algorithms::TrackState::kLost:
-      out.set_state(v1::TrackResponse::LOST);
+      out.set_state(v1::TrackResponse::STATE_LOST);
       break;
   }
   switch (step.method) {
     case algorithms::TrackMethod::kLocal:
-      out.set_method(v1::TrackResponse::LOCAL);
+      out.set_method(v1::TrackResponse::METHOD_LOCAL);
       break;
     case algorithms::TrackMethod::kPrior:
-      out.set_method(v1::TrackResponse::PRIOR);
+      out.set_method(v1::TrackResponse::METHOD_PRIOR);
       break;
     case algorithms::TrackMethod::kGlobal:
-      out.set_method(v1::TrackResponse::GLOBAL);
+      out.set_method(v1::TrackResponse::METHOD_GLOBAL);
       break;
   }
   out.set_frames_lost(step.frames_lost);
@@ -201,19 +207,19 @@ v1::MapVersion::Kind ToProto(storage::VersionKind kind) {
   using Kind = storage::VersionKind;
   switch (kind) {
     case Kind::kCreate:
-      return v1::MapVersion::CREATE;
+      return v1::MapVersion::KIND_CREATE;
     case Kind::kUpload:
-      return v1::MapVersion::UPLOAD;
+      return v1::MapVersion::KIND_UPLOAD;
     case Kind::kReplace:
-      return v1::MapVersion::REPLACE;
+      return v1::MapVersion::KIND_REPLACE;
     case Kind::kObserve:
-      return v1::MapVersion::OBSERVE;
+      return v1::MapVersion::KIND_OBSERVE;
     case Kind::kRestore:
-      return v1::MapVersion::RESTORE;
+      return v1::MapVersion::KIND_RESTORE;
     case Kind::kRemoveSource:
-      return v1::MapVersion::REMOVE_SOURCE;
+      return v1::MapVersion::KIND_REMOVE_SOURCE;
     case Kind::kMigrated:
-      return v1::MapVersion::MIGRATED;
+      return v1::MapVersion::KIND_MIGRATED;
   }
   return v1::MapVersion::KIND_UNSPECIFIED;
 }

@@ -39,6 +39,7 @@ using forestmap::ToProto;
 
 // Relocalization.
 algorithms::DetectedTree FromProto(const v1::DetectedTree& tree);
+// A prior at (x, y), or from the deprecated pose of release 0.1.0 (only its x, y are used).
 algorithms::PriorPose FromProto(const v1::PriorPose& prior);
 algorithms::RelocalizeQuery FromProto(const v1::RelocalizeRequest& request);
 v1::RelocalizeResponse::Status ToProto(algorithms::RelocalizeStatus status);
@@ -47,7 +48,7 @@ v1::RelocalizeResponse::Reason ToProto(algorithms::RelocalizeReason reason);
 v1::RelocalizeResponse ToProto(const algorithms::RelocalizeResult& result);
 
 // Tracking. The response lacks frame_id, server_time_ms and map_version (the stream fills them).
-algorithms::TrackingFrame FromProto(const v1::TrackRequest& request);
+algorithms::TrackingFrame FromProto(const v1::TrackFrame& frame);
 v1::TrackResponse ToProto(const algorithms::TrackingStep& step);
 
 // Shared maps.

@@ -27,9 +27,9 @@ ExportTreesReactor::ExportTreesReactor(const StreamDeps& deps, grpc::CallbackSer
 
 void ExportTreesReactor::Start() {
   const v1::ExportTreesRequest& request = *request_;
-  Authorize(deps_.options.authorizer, *context_, "ExportTrees", request.map_name());
+  Authorize(deps_.options.authorizer, *context_, "ExportTrees", request.name());
   Validate(request);
-  storage::MapInfo info = deps_.store.GetMap(request.map_name());
+  storage::MapInfo info = deps_.store.GetMap(request.name());
   if (request.version() != 0) info.version = request.version();
   version_ = info.version;
   std::optional<storage::Extent> box;

@@ -18,7 +18,7 @@ void DescribeCrs(v1::Map& map) {
 
 std::optional<geo::GeodeticPose> AddGeodetic(v1::RelocalizeResponse& response,
                                              const geo::MapToWgs84& to_wgs84) {
-  if (response.status() != v1::RelocalizeResponse::LOCALIZED) return std::nullopt;
+  if (response.status() != v1::RelocalizeResponse::STATUS_LOCALIZED) return std::nullopt;
   // The pose as the answer carries it (a unit quaternion), so the heading is the client's.
   const std::optional<geo::GeodeticPose> g =
       GeodeticPoseOf(FromProto(response.map_from_sensor()), to_wgs84);

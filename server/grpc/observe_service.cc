@@ -61,7 +61,7 @@ void ForestMapService::RunRemoveSource(grpc::CallbackServerContext* context,
     return answer;
   };
   const Written<SourceRemovalOutcome> written = ApplyRemoveSource(
-      store_, WriteCallOf(context, request.request_id(), "RemoveSource"), request.map_name(),
+      store_, WriteCallOf(context, request.request_id(), "RemoveSource"), request.name(),
       request.source(), options_.merge,
       [&fill](const SourceRemovalOutcome& outcome) { return fill(outcome).SerializeAsString(); });
   if (written.replayed) {

@@ -3,6 +3,7 @@
 
 #include "server/app/retention.h"
 #include "server/grpc/convert.h"
+#include "server/grpc/legacy_layout.h"
 #include "server/grpc/replay.h"
 #include "server/grpc/service.h"
 #include "server/grpc/validation.h"
@@ -22,13 +23,14 @@ void Fill(const storage::PruneResult& result, v1::PruneVersionsResponse& respons
 void ForestMapService::RunPrune(grpc::CallbackServerContext* context,
                                 const v1::PruneVersionsRequest& request,
                                 v1::PruneVersionsResponse& response) {
-  ValidateMapName(request.map_name(), "map_name");
+  ValidateMapName(request.name(), "name");
   CheckKeep(request.keep());
+  const std::string request_id = RequestId(request);  // field 50, or 3 of release 0.1.0
   // The stored answer of a request id holds the map; a repeat removes nothing, its counts are 0.
   const auto encode = Encoder<v1::PruneVersionsResponse>(
       [](const storage::MapInfo& info, auto& answer) { *answer.mutable_map() = ToProto(info); });
-  RunExactlyOnce(store_, context, request.request_id(), "PruneVersions", response, encode,
-                 [&] { Fill(PruneHistory(store_, request.map_name(), request.keep()), response); });
+  RunExactlyOnce(store_, context, request_id, "PruneVersions", response, encode,
+                 [&] { Fill(PruneHistory(store_, request.name(), request.keep()), response); });
 }
 
 }  // namespace forestmap::server

@@ -8,20 +8,21 @@
 // Every RPC first checks the caller's token (server/grpc/authorize.h): UNAUTHENTICATED,
 // PERMISSION_DENIED.
 // Statuses per RPC (besides INTERNAL for server faults and RESOURCE_EXHAUSTED from gRPC itself
-// for a message over the server's receive limit):
+// for a message over the server's receive limit); an INVALID_ARGUMENT of a check carries a
+// google.rpc.BadRequest naming the field (server/grpc/status.h):
 //   CreateMap    INVALID_ARGUMENT (name, description, crs), ALREADY_EXISTS
-//   ListMaps     -
+//   ListMaps     INVALID_ARGUMENT (page_size < 0, page_token; server/grpc/list_pages.h)
 //   GetMap       INVALID_ARGUMENT (name), NOT_FOUND
 //   DeleteMap    INVALID_ARGUMENT (name), NOT_FOUND
-//   UploadTrees  INVALID_ARGUMENT (first message without map_name, other map name, replace
-//                after the first message, a bad tree "trees[k]...", duplicate id within the
+//   UploadTrees  INVALID_ARGUMENT (first message not a header naming the map, a later header or
+//                other map name, a bad tree "trees[k]...", duplicate id within the
 //                upload or, when appending, against the map), NOT_FOUND (map; checked on the
 //                first message), RESOURCE_EXHAUSTED (more than max_upload_trees), CANCELLED
 //                (client cancelled); ABORTED (write conflict); INVALID_ARGUMENT for a message
 //                that cannot be decoded (e.g. a string that is not UTF-8). Nothing is written
 //                unless OK.
 //                With create_map: ALREADY_EXISTS, and the map exists only if the upload is OK.
-//   ExportTrees  INVALID_ARGUMENT (map_name, box), NOT_FOUND, ABORTED (the map was deleted or the
+//   ExportTrees  INVALID_ARGUMENT (name, box), NOT_FOUND, ABORTED (the map was deleted or the
 //                version pruned during the export), CANCELLED (client stopped reading)
 //   UploadTrees, ExportTrees: RESOURCE_EXHAUSTED when the client or the server has its limit of
 //                open streams (ServiceOptions::streams)
@@ -30,23 +31,24 @@
 //                (server/grpc/decode_guard.h); RESOURCE_EXHAUSTED "database full",
 //                FAILED_PRECONDITION "database read-only", DATA_LOSS, UNAVAILABLE for faults of the
 //                database
-//   Relocalize   INVALID_ARGUMENT (map_name, fewer than 3 trees, a bad tree / prior / gravity),
+//   Relocalize   INVALID_ARGUMENT (name, fewer than 3 trees, a bad tree / prior / gravity),
 //                RESOURCE_EXHAUSTED (more than max_query_trees), NOT_FOUND (map),
 //                FAILED_PRECONDITION (the map has no confirmed trees). "Not localized" is not an
 //                error: it is OK with status AMBIGUOUS or NOT_FOUND in the response.
-//   Observe      INVALID_ARGUMENT (map_name, source, no frames, duplicate frame ids, a bad tree
+//   Observe      INVALID_ARGUMENT (name, source, no frames, duplicate frame ids, a bad tree
 //                "frames[f].trees[i]..." / pose / gravity), RESOURCE_EXHAUSTED (observe limits),
 //                NOT_FOUND (map), ABORTED (REJECT_IF_STALE and the map is past base_version).
 //                A frame that cannot be relocalized is not an error: it is SKIPPED in the reply.
-//   Track        per frame, ending the stream: INVALID_ARGUMENT (first frame without map_name,
-//                another map's name, a bad tree / gravity / odometry), RESOURCE_EXHAUSTED (more
+//   Track        per message, ending the stream: INVALID_ARGUMENT (first message not a header
+//                naming the map, a later header or another map's name, a bad tree / gravity /
+//                odometry), RESOURCE_EXHAUSTED (more
 //                than max_query_trees), NOT_FOUND (map), FAILED_PRECONDITION (no confirmed
 //                trees). A frame without a pose is not an error: it is answered LOST.
-//   ListVersions INVALID_ARGUMENT (map_name, limit), NOT_FOUND (map)
-//   RestoreVersion INVALID_ARGUMENT (map_name, version < 1), NOT_FOUND (map, or a version that
+//   ListVersions INVALID_ARGUMENT (name, limit, page_size, page_token), NOT_FOUND (map)
+//   RestoreVersion INVALID_ARGUMENT (name, version < 1), NOT_FOUND (map, or a version that
 //                does not exist or predates the history)
-//   RemoveSource INVALID_ARGUMENT (map_name, source), NOT_FOUND (map, or no observation of it)
-//   PruneVersions INVALID_ARGUMENT (map_name, keep < 1), NOT_FOUND (map)
+//   RemoveSource INVALID_ARGUMENT (name, source), NOT_FOUND (map, or no observation of it)
+//   PruneVersions INVALID_ARGUMENT (name, keep < 1), NOT_FOUND (map)
 //   every write  INVALID_ARGUMENT (request_id malformed or used for another RPC),
 //                DEADLINE_EXCEEDED (the deadline passed before the commit: nothing written)
 

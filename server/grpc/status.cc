@@ -5,6 +5,7 @@
 #include <mutex>
 #include <new>
 
+#include "proto/error_details.h"
 #include "server/ops/logging.h"
 #include "storage/map_store.h"
 
@@ -100,6 +101,8 @@ grpc::Status InternalFault(std::string_view rpc, std::string_view what) {
 grpc::Status Classify(std::string_view rpc) {
   try {
     throw;
+  } catch (const ValidationError& e) {
+    return StatusWithBadRequest(e.code(), e.what(), {{e.field(), e.what()}});
   } catch (const ServiceError& e) {
     return grpc::Status(CodeOf(e.code()), e.what());
   } catch (const storage::StorageError& e) {

@@ -4,7 +4,9 @@
 // (server/app/errors.h).
 //
 // Mapping (see StatusFromCurrentException):
-//   ServiceError (and subclasses)       -> the status of its ErrorCode, its message
+//   ServiceError (and subclasses)       -> the status of its ErrorCode, its message; a
+//                                          ValidationError also with a google.rpc.BadRequest
+//                                          naming its field (details)
 //   storage::StorageError kNotFound      -> NOT_FOUND
 //                         kAlreadyExists -> ALREADY_EXISTS
 //                         kInvalidArgument -> INVALID_ARGUMENT

@@ -115,11 +115,12 @@ class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTrees
   v1::ExportTreesResponse response_;
 };
 
-// Track: one frame at a time, in order: read a frame, answer it on `work_pool` (the session's
-// Tracker, algorithms/relocalization/tracking.h), write the answer, read the next. The index comes
-// from the cache for every frame, so a session moves on to a new map version as soon as there is
-// one. A bad frame, an unknown map or a map without trees ends the stream with its status, the
-// message prefixed with the frame ("frame 12: trees[3].position.x is NaN").
+// Track: the header (which names the map), then one frame at a time, in order: read a frame,
+// answer it on `work_pool` (the session's Tracker, algorithms/relocalization/tracking.h), write
+// the answer, read the next. The index comes from the cache for every frame, so a session moves
+// on to a new map version as soon as there is one. A bad message, an unknown map or a map without
+// trees ends the stream with its status, the message prefixed with the frame when it is one
+// ("frame 12: frame.trees[3].position.x is NaN").
 class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse> {
  public:
   TrackReactor(MapIndexCache& index_cache, const ServiceOptions& options, WorkerPool& work_pool,
@@ -130,15 +131,15 @@ class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::
   void OnDone() override { delete this; }
 
  private:
-  void Answer();  // request_ -> response_; throws
+  bool Answer();  // request_ -> response_ (true), or a header read (false); throws
 
   MapIndexCache& index_cache_;
   WorkerPool& work_pool_;
-  const Authorizer* authorizer_;  // checked on the first frame
+  const Authorizer* authorizer_;  // checked on the first message
   grpc::CallbackServerContext* context_;
   int max_query_trees_;
   algorithms::Tracker tracker_;
-  std::string map_name_;  // from the first frame
+  std::string map_name_;  // from the first message
   v1::TrackRequest request_;
   v1::TrackResponse response_;
 };

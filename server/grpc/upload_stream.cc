@@ -106,28 +106,28 @@ void UploadTreesReactor::Accept() {
       grpc::SerializationTraits<v1::UploadTreesRequest>::Deserialize(&buffer_, &request_);
   buffer_.Clear();
   if (!decoded.ok()) {
-    throw ValidationError("upload message " + std::to_string(validator_.messages()) + " (after " +
-                          std::to_string(validator_.trees()) +
-                          " trees) cannot be decoded as an UploadTreesRequest (a string that is "
-                          "not UTF-8, or corrupt bytes); nothing was written");
+    throw ServiceError(grpc::StatusCode::INVALID_ARGUMENT,
+                       "upload message " + std::to_string(validator_.messages()) + " (after " +
+                           std::to_string(validator_.trees()) +
+                           " trees) cannot be decoded as an UploadTreesRequest (a string that is "
+                           "not UTF-8, or corrupt bytes); nothing was written");
   }
-  if (validator_.messages() == 0) {
-    request_id_ = request_.request_id();
-    ValidateRequestId(request_id_);
-    plan_.create_map = request_.create_map();
-    plan_.description = request_.description();
-    plan_.crs = request_.crs();
-  } else if (!request_.request_id().empty() && request_.request_id() != request_id_) {
-    throw ValidationError("request_id (upload message " + std::to_string(validator_.messages()) +
-                          ") differs from the first message's; only the first sets it");
-  }
-  validator_.Accept(request_);
-  for (const v1::Tree& tree : request_.trees()) chunk_.push_back(FromProto(tree));
+  const bool first = validator_.messages() == 0;
+  const google::protobuf::RepeatedPtrField<v1::Tree> trees = validator_.Accept(request_);
   request_.Clear();
+  if (first) {
+    const v1::UploadTreesHeader& header = validator_.header();
+    request_id_ = header.request_id();
+    ValidateRequestId(request_id_);
+    plan_.create_map = header.create_map();
+    plan_.description = header.description();
+    plan_.crs = header.crs();
+  }
+  for (const v1::Tree& tree : trees) chunk_.push_back(FromProto(tree));
 }
 
 bool UploadTreesReactor::Begin() {
-  const std::string& name = validator_.map_name();
+  const std::string& name = validator_.header().name();
   Authorize(authorizer_, *context_, "UploadTrees", name);
   if (plan_.create_map) {
     Authorize(authorizer_, *context_, "CreateMap", name);  // creating needs CreateMap's role
@@ -144,7 +144,8 @@ bool UploadTreesReactor::Begin() {
     chunk_ = {};
     return false;
   }
-  plan_.mode = validator_.replace() ? storage::WriteMode::kReplace : storage::WriteMode::kAppend;
+  plan_.mode =
+      validator_.header().replace() ? storage::WriteMode::kReplace : storage::WriteMode::kAppend;
   upload_ = deps_.store.BeginUpload(name, plan_);
   return true;
 }
@@ -176,7 +177,7 @@ void UploadTreesReactor::Commit() {
                    upload_.reset();  // committed: nothing to abort
                    fill(info, response);
                  });
-  deps_.retention.AfterWrite(validator_.map_name());
+  deps_.retention.AfterWrite(validator_.header().name());
   EncodeResponse(response);
 }
 

@@ -18,29 +18,33 @@ std::string PriorError(const std::string& text) {
   return "";
 }
 
-TEST(CliFormatTest, ParsesPriorInMetresAndDegrees) {
-  const PriorXyYaw prior = ParsePrior("12.5, -3,90,20");
+TEST(CliFormatTest, ParsesPriorPositionInMetres) {
+  const PriorPosition prior = ParsePrior("12.5, -3,20");
   EXPECT_EQ(prior.x, 12.5);
   EXPECT_EQ(prior.y, -3);
-  EXPECT_NEAR(prior.yaw_rad, M_PI / 2, 1e-15);
   EXPECT_EQ(prior.radius_m, 20);
+  // The four numbers of older versions: X,Y,YAW_DEG,RADIUS_M, the heading unused.
+  const PriorPosition old = ParsePrior("12.5,-3,90,20");
+  EXPECT_EQ(old.x, 12.5);
+  EXPECT_EQ(old.y, -3);
+  EXPECT_EQ(old.radius_m, 20);
 }
 
 TEST(CliFormatTest, RejectsMalformedPriors) {
-  const std::string expected = "expected X,Y,YAW_DEG,RADIUS_M (4 numbers; m, m, deg, m), got ";
-  EXPECT_EQ(PriorError("1,2,3"), expected + "'1,2,3'");
+  const std::string expected = "expected X,Y,RADIUS_M (3 numbers, m) or X,Y,YAW_DEG,RADIUS_M, got ";
+  EXPECT_EQ(PriorError("1,2"), expected + "'1,2'");
   EXPECT_EQ(PriorError("1,2,3,4,5"), expected + "'1,2,3,4,5'");
-  EXPECT_EQ(PriorError(""), expected + "''");
-  EXPECT_EQ(PriorError("1,,3,4"), "Y '' is not a number; " + expected + "'1,,3,4'");
-  EXPECT_EQ(PriorError("1,2,north,4"),
-            "YAW_DEG 'north' is not a number; " + expected + "'1,2,north,4'");
-  EXPECT_EQ(PriorError("1,2,3,inf"), "RADIUS_M 'inf' is not a number; " + expected + "'1,2,3,inf'");
+  EXPECT_EQ(PriorError(""), "'' is not a number; " + expected + "''");
+  EXPECT_EQ(PriorError("1,,3,4"), "'' is not a number; " + expected + "'1,,3,4'");
+  EXPECT_EQ(PriorError("1,2,north,4"), "'north' is not a number; " + expected + "'1,2,north,4'");
+  EXPECT_EQ(PriorError("1,2,3,inf"), "'inf' is not a number; " + expected + "'1,2,3,inf'");
+  EXPECT_EQ(PriorError("1,2,0"), "RADIUS_M must be > 0, got '1,2,0'");
   EXPECT_EQ(PriorError("1,2,3,0"), "RADIUS_M must be > 0, got '1,2,3,0'");
 }
 
 v1::RelocalizeResponse Localized(double yaw_deg) {
   v1::RelocalizeResponse response;
-  response.set_status(v1::RelocalizeResponse::LOCALIZED);
+  response.set_status(v1::RelocalizeResponse::STATUS_LOCALIZED);
   v1::Pose* pose = response.mutable_map_from_sensor();
   pose->mutable_translation()->set_x(1.5);
   pose->mutable_translation()->set_y(-2);
@@ -74,11 +78,11 @@ TEST(CliFormatTest, RelocalizeJsonHasTheDocumentedKeysInOrder) {
 
 TEST(CliFormatTest, RelocalizeJsonWithoutPoseUnlessLocalized) {
   v1::RelocalizeResponse response;
-  response.set_status(v1::RelocalizeResponse::AMBIGUOUS);
+  response.set_status(v1::RelocalizeResponse::STATUS_AMBIGUOUS);
   response.set_inliers(8);
   EXPECT_EQ(RelocalizeJson(response).dump(),
             R"({"status":"ambiguous","inliers":8,"rmse_m":0.0,"confidence":0.0,"server_ms":0.0})");
-  response.set_status(v1::RelocalizeResponse::NOT_FOUND);
+  response.set_status(v1::RelocalizeResponse::STATUS_NOT_FOUND);
   response.set_detail("best pose matches 3 trees");
   EXPECT_EQ(RelocalizeJson(response)["status"], "not_found");
   EXPECT_EQ(RelocalizeJson(response)["detail"], "best pose matches 3 trees");

@@ -114,9 +114,9 @@ TEST_F(CliTest, InvalidCommandLinesExitNonZeroWithAMessage) {
            {"relocalize m", "--trees FILE, --scan SCAN or --frames FILE is required"},
            {"relocalize m --trees a.csv --frames b.csv", "--trees excludes --frames"},
            {"relocalize m --frames b.csv --prior 1,2,3,4", "excludes"},
-           {"relocalize m --trees a.csv --prior 1,2,3", "--prior: expected X,Y,YAW_DEG,RADIUS_M"},
-           {"relocalize m --trees a.csv --prior 1,2,x,4", "--prior: YAW_DEG 'x' is not a number"},
-           {"relocalize m --trees a.csv --prior 1,2,3,-5", "--prior: RADIUS_M must be > 0"},
+           {"relocalize m --trees a.csv --prior 1,2", "--prior: expected X,Y,RADIUS_M"},
+           {"relocalize m --trees a.csv --prior 1,2,x,4", "--prior: 'x' is not a number"},
+           {"relocalize m --trees a.csv --prior 1,2,-5", "--prior: RADIUS_M must be > 0"},
            {"--server '' map list", "--server"},
            {"track m", "--frames is required"},
            {"map build m", "--frames is required"},
@@ -230,7 +230,7 @@ TEST_F(CliTest, FailedCreateWithTreesLeavesNoMap) {
   EXPECT_TRUE(server.service().maps.empty());
   // One upload stream that creates the map: no CreateMap call that could leave a map behind.
   ASSERT_FALSE(server.service().upload_messages.empty());
-  EXPECT_TRUE(server.service().upload_messages[0].create_map());
+  EXPECT_TRUE(server.service().upload_messages[0].header().create_map());
 }
 
 TEST_F(CliTest, RelocalizePrintsOneJsonLine) {
@@ -251,12 +251,12 @@ TEST_F(CliTest, RelocalizePrintsOneJsonLine) {
   EXPECT_EQ(line["inliers"], 12);
   EXPECT_EQ(line["server_ms"], 2.5);
 
-  // The fake answers at the prior pose: the flag's degrees arrive as the right heading.
-  const Result prior = Run(s + "relocalize m --trees '" + scan.string() + "' --prior 5,6,-45,12");
+  // The fake answers at the prior position: the flag's numbers arrive as x, y and radius.
+  const Result prior = Run(s + "relocalize m --trees '" + scan.string() + "' --prior 5,6,12");
   EXPECT_EQ(prior.exit_code, 0) << prior.err;
   const auto at_prior = nlohmann::json::parse(prior.out);
   EXPECT_EQ(at_prior["x"], 5.0);
-  EXPECT_NEAR(at_prior["yaw_deg"].get<double>(), -45.0, 1e-9);
+  EXPECT_EQ(at_prior["y"], 6.0);
   EXPECT_EQ(server.service().last_relocalize.prior().radius_m(), 12.0);
 
   // not_found is an answer, not a failure: exit 0, no pose.

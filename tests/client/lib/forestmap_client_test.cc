@@ -63,6 +63,19 @@ TEST(ForestMapClientTest, ServerErrorsBecomeRpcErrorsWithTheServersMessage) {
   }
 }
 
+// The fields the server names in its error details (google.rpc.BadRequest) follow its message.
+TEST(ForestMapClientTest, RpcErrorsShowTheBadFieldsOfTheErrorDetails) {
+  FakeForestMapServer server;
+  ForestMapClient client(server.address());
+  try {
+    client.CreateMap("");
+    FAIL() << "expected RpcError";
+  } catch (const RpcError& error) {
+    EXPECT_EQ(error.code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_STREQ(error.what(), "CreateMap: INVALID_ARGUMENT: name is empty (field: name)");
+  }
+}
+
 TEST(ForestMapClientTest, UploadStreamsChunksOf5000AndReportsProgress) {
   FakeForestMapServer server;
   ForestMapClient client(server.address());
@@ -76,13 +89,14 @@ TEST(ForestMapClientTest, UploadStreamsChunksOf5000AndReportsProgress) {
   EXPECT_EQ(response.map().tree_count(), 12345);
   EXPECT_EQ(response.map().version(), 2);
   const auto& messages = server.service().upload_messages;
-  ASSERT_EQ(messages.size(), 3u);
-  EXPECT_EQ(messages[0].trees_size(), 5000);
-  EXPECT_EQ(messages[1].trees_size(), 5000);
-  EXPECT_EQ(messages[2].trees_size(), 2345);
-  EXPECT_TRUE(messages[0].replace());
-  EXPECT_FALSE(messages[1].replace());
-  for (const auto& message : messages) EXPECT_EQ(message.map_name(), "big");
+  ASSERT_EQ(messages.size(), 4u);  // the header, then the chunks
+  ASSERT_TRUE(messages[0].has_header());
+  EXPECT_EQ(messages[0].header().name(), "big");
+  EXPECT_TRUE(messages[0].header().replace());
+  EXPECT_FALSE(messages[0].header().request_id().empty());  // exactly-once
+  EXPECT_EQ(messages[1].chunk().trees_size(), 5000);
+  EXPECT_EQ(messages[2].chunk().trees_size(), 5000);
+  EXPECT_EQ(messages[3].chunk().trees_size(), 2345);
   const std::vector<std::pair<int64_t, int64_t>> expected = {
       {5000, 12345}, {10000, 12345}, {12345, 12345}};
   EXPECT_EQ(progress, expected);
@@ -111,15 +125,24 @@ TEST(ForestMapClientTest, UploadExportRoundTripKeepsIdsAndAttributes) {
   EXPECT_EQ(boxed.trees.back().x, 2.0);
 }
 
-TEST(ForestMapClientTest, EmptyReplacingUploadStillSendsOneMessage) {
+TEST(ForestMapClientTest, EmptyReplacingUploadSendsItsHeader) {
   FakeForestMapServer server;
   ForestMapClient client(server.address());
   client.CreateMap("m");
   client.UploadTrees("m", MakeRows(10, true), false);
   const v1::UploadTreesResponse response = client.UploadTrees("m", {}, /*replace=*/true);
   ASSERT_EQ(server.service().upload_messages.size(), 1u);
-  EXPECT_TRUE(server.service().upload_messages[0].replace());
+  EXPECT_TRUE(server.service().upload_messages[0].header().replace());
   EXPECT_EQ(response.map().tree_count(), 0);
+}
+
+TEST(ForestMapClientTest, ListMapsFollowsThePages) {
+  FakeForestMapServer server;  // pages of kListPage (2) maps
+  ForestMapClient client(server.address());
+  for (const char* name : {"e", "a", "d", "b", "c"}) client.CreateMap(name);
+  std::vector<std::string> names;
+  for (const v1::Map& map : client.ListMaps()) names.push_back(map.name());
+  EXPECT_EQ(names, (std::vector<std::string>{"a", "b", "c", "d", "e"}));
 }
 
 TEST(ForestMapClientTest, RelocalizeSendsTreesPriorAndGravity) {
@@ -131,10 +154,10 @@ TEST(ForestMapClientTest, RelocalizeSendsTreesPriorAndGravity) {
   trees[0].dbh = 0.3;
   trees[0].axis = {0, 0, 1};
   trees[0].score = 0.9;
-  const PriorXyYaw prior{5, 6, M_PI / 2, 15};
+  const PriorPosition prior{5, 6, 15};
   const v1::RelocalizeResponse response =
       client.Relocalize("m", trees, prior, Eigen::Vector3d(0, 0, -1));
-  EXPECT_EQ(response.status(), v1::RelocalizeResponse::LOCALIZED);
+  EXPECT_EQ(response.status(), v1::RelocalizeResponse::STATUS_LOCALIZED);
   const v1::RelocalizeRequest& request = server.service().last_relocalize;
   ASSERT_EQ(request.trees_size(), 12);
   EXPECT_EQ(request.trees(3).position().x(), 3.0);
@@ -146,11 +169,8 @@ TEST(ForestMapClientTest, RelocalizeSendsTreesPriorAndGravity) {
   EXPECT_FALSE(request.trees(1).has_score());
   ASSERT_TRUE(request.has_prior());
   EXPECT_EQ(request.prior().radius_m(), 15);
-  const v1::Pose& pose = request.prior().map_from_sensor();
-  EXPECT_EQ(pose.translation().x(), 5);
-  EXPECT_EQ(pose.translation().y(), 6);
-  EXPECT_NEAR(pose.rotation().z(), std::sqrt(0.5), 1e-12);
-  EXPECT_NEAR(pose.rotation().w(), std::sqrt(0.5), 1e-12);
+  EXPECT_EQ(request.prior().x(), 5);
+  EXPECT_EQ(request.prior().y(), 6);
   ASSERT_TRUE(request.has_gravity());
   EXPECT_EQ(request.gravity().z(), -1);
 

@@ -149,7 +149,7 @@ TEST(ConvertTest, PoseDefaultsAndNormalisation) {
 
 TEST(ConvertTest, RelocalizeRequestToQuery) {
   v1::RelocalizeRequest request;
-  request.set_map_name("m");
+  request.set_name("m");
   for (int i = 0; i < 4; ++i) request.add_trees()->mutable_position()->set_x(i);
   EXPECT_EQ(FromProto(request).trees.size(), 4u);
   EXPECT_FALSE(FromProto(request).gravity.has_value());
@@ -157,15 +157,14 @@ TEST(ConvertTest, RelocalizeRequestToQuery) {
 
   request.mutable_gravity()->set_z(-9.81);
   request.mutable_prior()->set_radius_m(25);
-  *request.mutable_prior()->mutable_map_from_sensor() =
-      ToProto(algorithms::PoseFromXyzYaw(10, 20, 1, 0.5));
+  request.mutable_prior()->set_x(10);
+  request.mutable_prior()->set_y(20);
   const algorithms::RelocalizeQuery query = FromProto(request);
   ASSERT_TRUE(query.gravity.has_value());
   EXPECT_EQ(*query.gravity, Eigen::Vector3d(0, 0, -1));
   ASSERT_TRUE(query.prior.has_value());
   EXPECT_EQ(query.prior->radius, 25);
-  EXPECT_NEAR(algorithms::YawOf(query.prior->map_from_sensor.linear()), 0.5, 1e-12);
-  EXPECT_EQ(query.prior->map_from_sensor.translation(), Eigen::Vector3d(10, 20, 1));
+  EXPECT_EQ(query.prior->map_from_sensor.translation().head<2>(), Eigen::Vector2d(10, 20));
 }
 
 TEST(ConvertTest, RelocalizeResultToResponse) {
@@ -179,7 +178,7 @@ TEST(ConvertTest, RelocalizeResultToResponse) {
   result.detail = "fine";
 
   const v1::RelocalizeResponse response = ToProto(result);
-  EXPECT_EQ(response.status(), v1::RelocalizeResponse::LOCALIZED);
+  EXPECT_EQ(response.status(), v1::RelocalizeResponse::STATUS_LOCALIZED);
   ASSERT_TRUE(response.has_map_from_sensor());
   EXPECT_TRUE(FromProto(response.map_from_sensor()).isApprox(result.map_from_sensor, 1e-12));
   EXPECT_EQ(response.inliers(), 2);
@@ -192,10 +191,10 @@ TEST(ConvertTest, RelocalizeResultToResponse) {
   EXPECT_EQ(response.detail(), "fine");
 
   result.status = algorithms::RelocalizeStatus::kAmbiguous;
-  EXPECT_EQ(ToProto(result).status(), v1::RelocalizeResponse::AMBIGUOUS);
+  EXPECT_EQ(ToProto(result).status(), v1::RelocalizeResponse::STATUS_AMBIGUOUS);
   EXPECT_FALSE(ToProto(result).has_map_from_sensor());  // a pose only when localized
   result.status = algorithms::RelocalizeStatus::kNotFound;
-  EXPECT_EQ(ToProto(result).status(), v1::RelocalizeResponse::NOT_FOUND);
+  EXPECT_EQ(ToProto(result).status(), v1::RelocalizeResponse::STATUS_NOT_FOUND);
   EXPECT_FALSE(ToProto(result).has_map_from_sensor());
 }
 

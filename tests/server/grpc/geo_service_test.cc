@@ -134,7 +134,7 @@ TEST_F(GeoServiceTest, RelocalizationOnPrf025AgreesWithCs2cs) {
   }
   ASSERT_GE(query.size(), 8u);
   const v1::RelocalizeResponse answer = client_.Relocalize("prf025", query);
-  ASSERT_EQ(answer.status(), v1::RelocalizeResponse::LOCALIZED) << answer.detail();
+  ASSERT_EQ(answer.status(), v1::RelocalizeResponse::STATUS_LOCALIZED) << answer.detail();
   const v1::Vector3& t = answer.map_from_sensor().translation();
   EXPECT_NEAR(t.x(), centre.x(), kPoseTolerance);
   EXPECT_NEAR(t.y(), centre.y(), kPoseTolerance);
