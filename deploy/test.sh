@@ -2,7 +2,7 @@
 # Command 2 of the README: installs dependencies, builds everything and runs every test (CTest:
 # unit, real-data, integration, lint), then builds the threaded code with ThreadSanitizer and runs
 # those tests again (build-tsan), then the unit tests with AddressSanitizer and
-# UndefinedBehaviorSanitizer (build-asan), then runs every libFuzzer target for 30 s (build-fuzz). Tests
+# UndefinedBehaviorSanitizer (build-asan), then every libFuzzer target for 30 s (build-fuzz). Tests
 # read the real forest data from ../shared/data (CI always has it; under CI=true a test that needs
 # it fails instead of skipping).
 set -euo pipefail
