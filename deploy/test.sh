@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Command 2 of the README: installs dependencies, builds everything and runs every test (CTest:
 # unit, real-data, integration, lint), then builds the threaded code with ThreadSanitizer and runs
-# those tests again (build-tsan), then runs every libFuzzer target for 30 s (build-fuzz). Tests
+# those tests again (build-tsan), then the unit tests with AddressSanitizer and
+# UndefinedBehaviorSanitizer (build-asan), then every libFuzzer target for 30 s (build-fuzz). Tests
 # read the real forest data from ../shared/data (CI always has it; under CI=true a test that needs
 # it fails instead of skipping).
 set -euo pipefail
@@ -22,6 +23,17 @@ while read -r test; do
 done < build-tsan/threaded_tests.txt
 echo "ThreadSanitizer: $passed passed, $failed failed"
 [ "$failed" -eq 0 ]
+
+echo "test: AddressSanitizer + UndefinedBehaviorSanitizer build of the unit tests (build-asan)"
+# Memory errors, leaks and undefined behaviour in our code fail the run (Debian's libraries are
+# not instrumented; their allocations are still checked for leaks and overflows by ASan).
+export ASAN_OPTIONS="halt_on_error=1 detect_leaks=1 detect_stack_use_after_return=1"
+export UBSAN_OPTIONS="halt_on_error=1 print_stacktrace=1"
+export LSAN_OPTIONS="suppressions=$PWD/tests/lsan.supp"
+cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DFORESTMAP_SANITIZE=address,undefined \
+  >/dev/null
+cmake --build build-asan -j"$(nproc)" --target unit_tests
+ctest --test-dir build-asan -L unit --output-on-failure -j"$(nproc)" --timeout 1200
 
 echo "test: libFuzzer targets, 30 s each (build-fuzz, clang; see tests/fuzz/run.sh)"
 # Only the fuzz targets and what they link (client/io, the protos, server/grpc/validation.cc).

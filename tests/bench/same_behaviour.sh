@@ -8,7 +8,7 @@
 #
 # BASE_BUILD, NEW_BUILD: CMake build directories holding client/cli/forestmap and
 # client/lab/forestmap-lab (or, built before the lab was apart, client/forestmap doing both) and
-# tests/algorithms/{trunk_detection_sim_test,trunk_detection_real_data_test,drone_scan_pair_test,
+# tests/algorithms/**/{trunk_detection_sim_test,trunk_detection_real_data_test,drone_scan_pair_test,
 # map_merge_test,map_builder_test}. Data from FORESTMAP_SHARED_DATA (default ../shared/data).
 # FORESTMAP_SAME_QUICK=1 skips the slow runs (the 120-pose detection test, bench-mapping without
 # poses). Exits 0 when every output is identical, 1 on any difference, 2 on a usage error.
@@ -87,6 +87,8 @@ run() {
       a=${a//@CLI@/$(cli_of "$build")}
       a=${a//@LAB@/$(lab_of "$build")}
       a=${a//@B@/$build}
+      # @TEST@/NAME: the test executable NAME wherever that build's tree keeps it.
+      [[ $a == @TEST@/* ]] && a=$(find "$build/tests" -type f -perm -u+x -name "${a#@TEST@/}" | head -1)
       a=${a//@OUT@/$WORK/$side}
       args+=("$a")
     done
@@ -113,7 +115,7 @@ compare() {
 }
 
 F=@CLI@ L=@LAB@
-T=@B@/tests/algorithms
+T=@TEST@
 
 # Trunk detection on real scans (CSV: positions, DBH, diagnostics).
 run detect_lidr "$F" detect "$SC/lidr_dbh_slice/dbh.las" --format json

@@ -8,7 +8,7 @@
 #include "algorithms/relocalization/relocalizer.h"
 #include "algorithms/simulation/stand_cases.h"
 #include "algorithms/simulation/view_simulator.h"
-#include "tests/algorithms/generated_forest.h"
+#include "tests/algorithms/relocalization/generated_forest.h"
 
 namespace forestmap::algorithms {
 namespace {

@@ -13,7 +13,7 @@
 #include "algorithms/simulation/stand_cases.h"
 #include "algorithms/simulation/view_simulator.h"
 #include "client/io/tree_csv.h"
-#include "tests/algorithms/generated_forest.h"
+#include "tests/algorithms/relocalization/generated_forest.h"
 #include "tests/shared_data.h"
 
 namespace forestmap::algorithms {
