@@ -22,6 +22,11 @@
 
 namespace forestmap::server {
 
+// The error of a message that mixes the 0.1.0 layout with a header, chunk or frame.
+inline constexpr const char* kMixedLayouts =
+    ": a message holds either the fields of release 0.1.0 (name, trees, ...) or a header / "
+    "chunk / frame, not both";
+
 // True when the message sets any field of the 0.1.0 layout.
 bool HasLegacyFields(const v1::UploadTreesRequest& message);
 bool HasLegacyFields(const v1::TrackRequest& message);

@@ -18,6 +18,7 @@
 #include "server/app/tree_pages.h"
 #include "server/app/worker_pool.h"
 #include "server/grpc/stream_limits.h"
+#include "server/grpc/upload_validator.h"
 #include "server/grpc/validation.h"
 #include "storage/map_store.h"
 #include "storage/staged_writes.h"

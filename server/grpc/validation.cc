@@ -11,37 +11,11 @@
 namespace forestmap::server {
 namespace {
 
-constexpr const char* kMixedLayouts =
-    ": a message holds either the fields of release 0.1.0 (name, trees, ...) or a header / "
-    "chunk / frame, not both";
-
 std::string Number(double v) {
   std::ostringstream out;
   out.precision(10);
   out << v;
   return out.str();
-}
-
-// A user-supplied string made safe to quote in an error message: printable ASCII, bounded.
-std::string Quoted(const std::string& s) {
-  constexpr size_t kMaxShown = 48;
-  std::string out = "\"";
-  for (size_t i = 0; i < s.size() && i < kMaxShown; ++i) {
-    const unsigned char c = static_cast<unsigned char>(s[i]);
-    if (c >= 0x20 && c < 0x7f && c != '"' && c != '\\') {
-      out += static_cast<char>(c);
-    } else {
-      char escaped[8];
-      std::snprintf(escaped, sizeof(escaped), "\\x%02x", c);
-      out += escaped;
-    }
-  }
-  if (s.size() > kMaxShown) out += "...";
-  return out + "\"";
-}
-
-std::string Indexed(std::string_view field, int64_t index) {
-  return std::string(field) + "[" + std::to_string(index) + "]";
 }
 
 void CheckFinite(double v, const std::string& path) {
@@ -126,6 +100,27 @@ void CheckAttributes(const v1::Tree& tree, const std::string& path) {
 }
 
 }  // namespace
+
+std::string Quoted(const std::string& s) {
+  constexpr size_t kMaxShown = 48;
+  std::string out = "\"";
+  for (size_t i = 0; i < s.size() && i < kMaxShown; ++i) {
+    const unsigned char c = static_cast<unsigned char>(s[i]);
+    if (c >= 0x20 && c < 0x7f && c != '"' && c != '\\') {
+      out += static_cast<char>(c);
+    } else {
+      char escaped[8];
+      std::snprintf(escaped, sizeof(escaped), "\\x%02x", c);
+      out += escaped;
+    }
+  }
+  if (s.size() > kMaxShown) out += "...";
+  return out + "\"";
+}
+
+std::string Indexed(std::string_view field, int64_t index) {
+  return std::string(field) + "[" + std::to_string(index) + "]";
+}
 
 void ValidateMapName(const std::string& name, std::string_view field) {
   const std::string problem = storage::ValidateMapName(name);
@@ -386,76 +381,6 @@ void ValidateBox(const v1::Box2& box, const std::string& path) {
   CheckFinite(box.max_y(), path + ".max_y");
   if (box.min_x() > box.max_x() || box.min_y() > box.max_y()) {
     throw ValidationError(path, " is empty: min_x <= max_x and min_y <= max_y are required");
-  }
-}
-
-google::protobuf::RepeatedPtrField<v1::Tree> UploadValidator::Accept(
-    v1::UploadTreesRequest& message) {
-  const std::string where = " (upload message " + std::to_string(messages_) + ")";
-  const bool legacy = HasLegacyFields(message);
-  if (legacy && message.part_case() != v1::UploadTreesRequest::PART_NOT_SET) {
-    throw ValidationError(message.has_header() ? "header" : "chunk", where + kMixedLayouts);
-  }
-  google::protobuf::RepeatedPtrField<v1::Tree> trees;
-  if (message.has_header()) {
-    if (messages_ > 0) {
-      throw ValidationError("header", where + ": only the first message of an upload is a header");
-    }
-    header_ = message.header();
-    ValidateMapName(header_.name(), "header.name");
-  } else if (message.has_chunk()) {
-    if (messages_ == 0) {
-      throw ValidationError("header", " is missing: the first message of an upload names the map");
-    }
-    trees.Swap(message.mutable_chunk()->mutable_trees());
-  } else {  // the 0.1.0 layout: the first message names the map, every message holds trees
-    if (messages_ == 0) {
-      header_ = LegacyHeader(message);
-      ValidateMapName(header_.name(), "name");
-    } else {
-      CheckRepeatedHeader(LegacyHeader(message), where);
-    }
-    trees = TakeLegacyTrees(message);
-  }
-  ++messages_;
-  if (trees.size() > max_trees_ - trees_) {
-    throw LimitError("trees: the upload exceeds the limit of " + std::to_string(max_trees_) +
-                     " trees per stream");
-  }
-  for (const v1::Tree& tree : trees) ValidateTree(tree, Indexed("trees", trees_++));
-  return trees;
-}
-
-// A later message of the 0.1.0 layout may repeat the map's name and request id, nothing else.
-void UploadValidator::CheckRepeatedHeader(const v1::UploadTreesHeader& repeated,
-                                          const std::string& where) const {
-  if (!repeated.name().empty() && repeated.name() != header_.name()) {
-    throw ValidationError("name", " " + Quoted(repeated.name()) + where +
-                                      " differs from the upload's map " + Quoted(header_.name()));
-  }
-  if (!repeated.request_id().empty() && repeated.request_id() != header_.request_id()) {
-    throw ValidationError("request_id", where +
-                                            " differs from the first message's; only the "
-                                            "first sets it");
-  }
-  if (repeated.replace() && !header_.replace()) {
-    throw ValidationError("replace", where + ": only the first message may set replace");
-  }
-  if (repeated.create_map() || !repeated.description().empty() || !repeated.crs().empty()) {
-    throw ValidationError(repeated.create_map()    ? "create_map"
-                          : repeated.crs().empty() ? "description"
-                                                   : "crs",
-                          where +
-                              ": only the first message may set create_map, description "
-                              "and crs");
-  }
-}
-
-void UploadValidator::Finish() const {
-  if (messages_ == 0) {
-    throw ValidationError("header",
-                          " is missing: the upload stream was empty; its first message names the "
-                          "map");
   }
 }
 

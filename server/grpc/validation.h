@@ -40,6 +40,11 @@ inline constexpr size_t kMaxAttributes = 64;              // per tree
 inline constexpr size_t kMaxAttributeKeyLength = 128;     // bytes
 inline constexpr size_t kMaxAttributeValueLength = 4096;  // bytes
 
+// A user-supplied string made safe to quote in an error message: printable ASCII, bounded.
+std::string Quoted(const std::string& s);
+// A field path of a repeated field's element: Indexed("trees", 12) is "trees[12]".
+std::string Indexed(std::string_view field, int64_t index);
+
 // `field` is the path to report, e.g. "name" or "header.name".
 void ValidateMapName(const std::string& name, std::string_view field);
 
@@ -81,33 +86,5 @@ void ValidateTree(const v1::Tree& tree, const std::string& path);
 void ValidateDetectedTree(const v1::DetectedTree& tree, const std::string& path);
 void ValidatePose(const v1::Pose& pose, const std::string& path);
 void ValidateBox(const v1::Box2& box, const std::string& path);
-
-// Checks the messages of one UploadTrees stream, in order, in either layout
-// (server/grpc/legacy_layout.h): a header naming a valid map first, then chunks (in the 0.1.0
-// layout: later messages repeat the map's name or leave it empty and set no other header field);
-// every tree is valid; the tree total stays within the limit. Ids unique across the stream are
-// checked by the store as it stages the trees (in constant memory here). Tree indices count
-// across the whole stream ("trees[k]" = k-th tree uploaded).
-class UploadValidator {
- public:
-  explicit UploadValidator(int64_t max_trees) : max_trees_(max_trees) {}
-
-  // Checks the next message and returns its trees (moved out of it).
-  google::protobuf::RepeatedPtrField<v1::Tree> Accept(v1::UploadTreesRequest& message);
-  // Call when the client has closed the stream; throws if it sent no message.
-  void Finish() const;
-
-  const v1::UploadTreesHeader& header() const { return header_; }  // of the first message
-  int64_t messages() const { return messages_; }
-  int64_t trees() const { return trees_; }
-
- private:
-  void CheckRepeatedHeader(const v1::UploadTreesHeader& repeated, const std::string& where) const;
-
-  int64_t max_trees_;
-  v1::UploadTreesHeader header_;
-  int64_t messages_ = 0;
-  int64_t trees_ = 0;
-};
 
 }  // namespace forestmap::server

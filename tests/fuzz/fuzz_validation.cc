@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <string>
 
+#include "server/grpc/upload_validator.h"
 #include "server/grpc/validation.h"
 
 namespace fs = forestmap::server;

@@ -15,6 +15,7 @@
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
 #include "server/grpc/status.h"
+#include "server/grpc/upload_validator.h"
 #include "server/grpc/validation.h"
 #include "storage/sqlite_map_store.h"
 #include "tests/server/rpc_test_support.h"

@@ -1,3 +1,4 @@
+#include "server/grpc/upload_validator.h"
 #include "server/grpc/validation.h"
 
 #include <gmock/gmock.h>
