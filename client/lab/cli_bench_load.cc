@@ -1,4 +1,4 @@
-// forestmap bench-load: a mixed load on a running forestmapd for a fixed time. N client threads,
+// forestmap-lab bench-load: a mixed load on a running forestmapd for a fixed time. N client threads,
 // each with its own channel, loop over four kinds of call chosen at random by weight:
 //   relocalize  one frame of --frames in the shared map NAME (no prior);
 //   track       a Track session of --track-frames consecutive frames with odometry from --poses;
@@ -276,7 +276,7 @@ std::vector<Client> SetUp(const Input& input, const LoadBenchOptions& o, CliCont
     } catch (const RpcError& error) {
       if (error.code() != grpc::StatusCode::NOT_FOUND) throw;
     }
-    admin.CreateMap(c.own_map, "forestmap bench-load client map");
+    admin.CreateMap(c.own_map, "forestmap-lab bench-load client map");
     if (!c.patch.empty()) admin.UploadTrees(c.own_map, c.patch, /*replace=*/true);
   }
   return clients;

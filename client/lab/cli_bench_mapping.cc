@@ -1,4 +1,4 @@
-// forestmap bench-mapping: building tree maps from frame sequences, in process, against truth.
+// forestmap-lab bench-mapping: building tree maps from frame sequences, in process, against truth.
 //
 // Survey merge:  --frames F --poses P --use-poses --map map.csv
 //   merges every frame with its ground-truth pose (algorithms/merging/map_merge.h), rebuilds the

@@ -1,8 +1,8 @@
-// forestmap bench-reloc: relocalization accuracy and latency against ground truth, in process.
+// forestmap-lab bench-reloc: relocalization accuracy and latency against ground truth, in process.
 //
 // Real sequences:  --map MAP.csv --frames trees.csv --poses poses.csv [--truth-offset ...]
 // Simulated views: --map STEMMAP.csv --simulate N [--range M]   (views drawn from the map)
-// Scans:           --map MAP.csv --scans DIR (from `forestmap simulate`: DIR/poses.csv and
+// Scans:           --map MAP.csv --scans DIR (from `forestmap-lab simulate`: DIR/poses.csv and
 //                  DIR/scan_NNN.pcd): each scan goes through the client's trunk detection
 //                  (client/lib/scan_trees.h) and is relocalized, as `relocalize --scan` does
 // Tracking:        --track with real frames: frames in order through one tracking session
@@ -420,7 +420,7 @@ void AddBenchRelocCommand(CLI::App& app, CliContext& context) {
       ->capture_default_str();
   cmd->add_option("--seed", options->maps.seed, "Random seed")->capture_default_str();
   cmd->add_option("--scans", options->scans_dir,
-                  "Folder from `forestmap simulate` (poses.csv, scan_NNN.pcd): detect the trunks "
+                  "Folder from `forestmap-lab simulate` (poses.csv, scan_NNN.pcd): detect the trunks "
                   "of every scan, then relocalize")
       ->check(CLI::ExistingDirectory);
   cmd->add_option("--within", options->within,

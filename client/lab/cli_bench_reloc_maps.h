@@ -1,5 +1,5 @@
 #pragma once
-// The maps `forestmap bench-reloc` measures against: a stem map, a generated forest, a mosaic
+// The maps `forestmap-lab bench-reloc` measures against: a stem map, a generated forest, a mosaic
 // of stem maps, a plantation; and the map the views are relocalized in (the same one, or a
 // foreign one where every LOCALIZED answer is wrong).
 

@@ -1,4 +1,4 @@
-// forestmap bench-server: relocalization throughput of a running forestmapd. Several client
+// forestmap-lab bench-server: relocalization throughput of a running forestmapd. Several client
 // threads, each with its own channel, send the frames of a file round-robin for a fixed number
 // of requests; prints requests per second, client-side latency percentiles and the outcomes.
 

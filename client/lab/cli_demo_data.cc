@@ -1,4 +1,4 @@
-// forestmap demo-data: a forest map and one drone's view of it, with the true pose, for the
+// forestmap-lab demo-data: a forest map and one drone's view of it, with the true pose, for the
 // README's end-to-end demo. Uses a real surveyed stem map when given one (e.g.
 // ../shared/data/stemmaps/spatstat_longleaf.csv), else generates a forest.
 

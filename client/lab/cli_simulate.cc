@@ -1,4 +1,4 @@
-// forestmap simulate: simulated LiDAR scans of a forest, with exact truth, for testing trunk
+// forestmap-lab simulate: simulated LiDAR scans of a forest, with exact truth, for testing trunk
 // detection and relocalization end to end (algorithms/simulation/scan_simulation.h).
 //
 // Output folder:

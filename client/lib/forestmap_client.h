@@ -44,7 +44,7 @@ struct ClientOptions {
   int max_receive_bytes = 64 << 20;  // largest message accepted from the server
   bool own_connection = false;       // a TCP connection not shared with same-target channels
   // Tries of a write call (CreateMap, DeleteMap, UploadTrees, Observe, RestoreVersion,
-  // RemoveSource) that timed out or lost its connection: every try carries the same request id,
+  // RemoveSource, PruneVersions) that timed out or lost its connection: every try carries the same request id,
   // so the server applies the write at most once (exactly-once writes).
   int write_attempts = 3;
   // Security (server side: README "Security"). TLS is on when `tls` is set or `tls_ca` given.

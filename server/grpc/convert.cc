@@ -243,9 +243,9 @@ v1::MapVersion ToProto(const storage::VersionRecord& record) {
 
 ObserveCall FromProto(const v1::ObserveRequest& request) {
   ObserveCall call;
-  call.map_name = request.map_name();
+  call.map_name = request.name();
   call.source = request.source();
-  if (request.conflict_policy() == v1::REJECT_IF_STALE) call.base_version = request.base_version();
+  if (request.conflict_policy() == v1::CONFLICT_POLICY_REJECT_IF_STALE) call.base_version = request.base_version();
   call.frames.reserve(request.frames_size());
   for (const v1::ObservationFrame& in : request.frames()) {
     ObserveFrame& frame = call.frames.emplace_back();
@@ -267,11 +267,11 @@ v1::ObserveResponse ToProto(const ObserveOutcome& outcome) {
     v1::FrameResult& result = *out.add_frames();
     result.set_frame_id(frame.frame_id);
     if (!frame.merged) {
-      result.set_status(v1::FrameResult::SKIPPED);
+      result.set_status(v1::FrameResult::STATUS_SKIPPED);
       result.set_detail(frame.detail);
       continue;
     }
-    result.set_status(v1::FrameResult::MERGED);
+    result.set_status(v1::FrameResult::STATUS_MERGED);
     result.set_relocalized(frame.relocalized);
     *result.mutable_map_from_sensor() = ToProto(frame.map_from_sensor);
     result.set_trees_associated(frame.counts.associated);

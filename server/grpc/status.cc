@@ -102,7 +102,7 @@ grpc::Status Classify(std::string_view rpc) {
   try {
     throw;
   } catch (const ValidationError& e) {
-    return StatusWithBadRequest(e.code(), e.what(), {{e.field(), e.what()}});
+    return StatusWithBadRequest(CodeOf(e.code()), e.what(), {{e.field(), e.what()}});
   } catch (const ServiceError& e) {
     return grpc::Status(CodeOf(e.code()), e.what());
   } catch (const storage::StorageError& e) {

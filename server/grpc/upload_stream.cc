@@ -106,7 +106,7 @@ void UploadTreesReactor::Accept() {
       grpc::SerializationTraits<v1::UploadTreesRequest>::Deserialize(&buffer_, &request_);
   buffer_.Clear();
   if (!decoded.ok()) {
-    throw ServiceError(grpc::StatusCode::INVALID_ARGUMENT,
+    throw ServiceError(ErrorCode::kInvalidArgument,
                        "upload message " + std::to_string(validator_.messages()) + " (after " +
                            std::to_string(validator_.trees()) +
                            " trees) cannot be decoded as an UploadTreesRequest (a string that is "

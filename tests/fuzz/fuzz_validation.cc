@@ -2,8 +2,8 @@
 // picks a request message, the rest is parsed as that message (bytes that do not parse are what
 // the server answers INVALID_ARGUMENT before validating), then validated. Validation must answer
 // with ServiceError; any other exception or a sanitizer report is a crash. A request that passes
-// must keep every tree coordinate within the documented local-frame bounds (issue 15: a tree at
-// 1e308 used to reach the index).
+// must keep every tree coordinate within the documented local-frame bounds (a tree at 1e308
+// must never reach the index).
 #include <google/protobuf/stubs/logging.h>
 
 #include <cmath>

@@ -456,7 +456,7 @@ TEST(ScanSimulationTest, UnknownDbhIsDrawnAndInvalidInputThrows) {
                std::invalid_argument);
 }
 
-// What `forestmap simulate` writes reads back as the same organised scan (client/scan_io.h).
+// What `forestmap-lab simulate` writes reads back as the same organised scan (client/io/scan_io.h).
 TEST(ScanSimulationTest, ScansRoundTripThroughPcd) {
   const ForestScene scene(SmallForest(30, 8), SceneOptions{});
   const ScanSimulationResult scan =

@@ -200,7 +200,7 @@ TEST(ConvertTest, RelocalizeResultToResponse) {
 
 TEST(ConvertTest, ObserveRequestToCall) {
   v1::ObserveRequest request;
-  request.set_map_name("shared");
+  request.set_name("shared");
   request.set_source("drone-7");
   request.set_base_version(4);
   v1::ObservationFrame* posed = request.add_frames();
@@ -229,7 +229,7 @@ TEST(ConvertTest, ObserveRequestToCall) {
   EXPECT_FALSE(call.frames[1].has_pose);
   EXPECT_EQ(call.frames[1].gravity, Eigen::Vector3d(0, 0, -9.81));  // normalised when used
 
-  request.set_conflict_policy(v1::REJECT_IF_STALE);
+  request.set_conflict_policy(v1::CONFLICT_POLICY_REJECT_IF_STALE);
   call = FromProto(request);
   EXPECT_EQ(call.base_version, 4);
 }
@@ -254,7 +254,7 @@ TEST(ConvertTest, ObserveOutcomeToResponse) {
   ASSERT_EQ(response.frames_size(), 2);
   const v1::FrameResult& first = response.frames(0);
   EXPECT_EQ(first.frame_id(), 11);
-  EXPECT_EQ(first.status(), v1::FrameResult::MERGED);
+  EXPECT_EQ(first.status(), v1::FrameResult::STATUS_MERGED);
   EXPECT_TRUE(first.relocalized());
   EXPECT_TRUE(FromProto(first.map_from_sensor()).isApprox(merged.map_from_sensor, 1e-12));
   EXPECT_EQ(first.trees_associated(), 4);
@@ -263,7 +263,7 @@ TEST(ConvertTest, ObserveOutcomeToResponse) {
   EXPECT_EQ(first.trees_ignored(), 1);
   const v1::FrameResult& second = response.frames(1);
   EXPECT_EQ(second.frame_id(), 12);
-  EXPECT_EQ(second.status(), v1::FrameResult::SKIPPED);
+  EXPECT_EQ(second.status(), v1::FrameResult::STATUS_SKIPPED);
   EXPECT_EQ(second.detail(), "the frame has no trees");
   EXPECT_FALSE(second.has_map_from_sensor());
   EXPECT_EQ(response.server_time_ms(), 0);  // the service's to fill in

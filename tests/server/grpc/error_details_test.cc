@@ -15,7 +15,7 @@
 
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/rpc_test_support.h"
 
 namespace forestmap::server {

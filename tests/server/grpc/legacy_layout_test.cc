@@ -17,7 +17,7 @@
 #include "server/grpc/status.h"
 #include "server/grpc/upload_validator.h"
 #include "server/grpc/validation.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/rpc_test_support.h"
 
 // Old clients set these fields; so do these tests.

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "server/grpc/status.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 
 namespace forestmap::server {
 namespace {
