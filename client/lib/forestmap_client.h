@@ -47,7 +47,7 @@ struct ClientOptions {
   // RemoveSource, PruneVersions) that timed out or lost its connection: every try carries the same request id,
   // so the server applies the write at most once (exactly-once writes).
   int write_attempts = 3;
-  // Security (server side: README "Security"). TLS is on when `tls` is set or `tls_ca` given.
+  // Security (the server's side: docs/operations.md). TLS is on when `tls` or `tls_ca` is set.
   bool tls = false;      // TLS with the system's root certificates (unless tls_ca is set)
   std::string tls_ca;    // PEM file: CA that signed the server's certificate (implies TLS)
   std::string tls_cert;  // PEM file: client certificate, for servers that require one
