@@ -352,7 +352,8 @@ void PrintHistory(const std::vector<v1::MapVersion>& versions, std::ostream& out
       << "\n";
   for (const v1::MapVersion& v : versions) {
     std::string source = v.source().empty() ? "-" : v.source();
-    if (v.kind() == v1::MapVersion::KIND_RESTORE) source = "from v" + std::to_string(v.restored_from());
+    if (v.kind() == v1::MapVersion::KIND_RESTORE)
+      source = "from v" + std::to_string(v.restored_from());
     out << std::left << std::setw(8) << v.version() << std::setw(22)
         << FormatUnixMs(v.created_unix_ms()) << std::setw(14) << KindName(v.kind()) << std::setw(16)
         << source << std::right << std::setw(9) << v.tree_count() << std::setw(10)

@@ -83,8 +83,9 @@ void Run(const TrackOptions& options, const CliContext& context) {
   char times[96];
   std::snprintf(times, sizeof times, "server time p50 %.2f ms, p95 %.2f ms",
                 algorithms::Percentile(server_ms, 0.5), algorithms::Percentile(server_ms, 0.95));
-  *context.err << "track: " << frames.size() << " frames: " << counts[v1::TrackResponse::STATE_TRACKING]
-               << " tracking, " << counts[v1::TrackResponse::STATE_RECOVERED] << " recovered, "
+  *context.err << "track: " << frames.size()
+               << " frames: " << counts[v1::TrackResponse::STATE_TRACKING] << " tracking, "
+               << counts[v1::TrackResponse::STATE_RECOVERED] << " recovered, "
                << counts[v1::TrackResponse::STATE_LOST] << " lost (longest loss " << longest_loss
                << " frames); " << times << std::endl;
 }

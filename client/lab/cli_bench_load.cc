@@ -1,5 +1,5 @@
-// forestmap-lab bench-load: a mixed load on a running forestmapd for a fixed time. N client threads,
-// each with its own channel, loop over four kinds of call chosen at random by weight:
+// forestmap-lab bench-load: a mixed load on a running forestmapd for a fixed time. N client
+// threads, each with its own channel, loop over four kinds of call chosen at random by weight:
 //   relocalize  one frame of --frames in the shared map NAME (no prior);
 //   track       a Track session of --track-frames consecutive frames with odometry from --poses;
 //   observe     --observe-frames frames with their poses into the client's own map;
@@ -186,8 +186,8 @@ void OneCall(Client& c, ForestMapClient& rpc, const Input& input, const LoadBenc
       const Frame& frame = input.frames[c.random() % input.frames.size()];
       KindStats& stats = c.stats[kRelocalize];
       Measure(stats, [&] {
-        stats.localized +=
-            rpc.Relocalize(o.map_name, frame.trees).status() == v1::RelocalizeResponse::STATUS_LOCALIZED;
+        stats.localized += rpc.Relocalize(o.map_name, frame.trees).status() ==
+                           v1::RelocalizeResponse::STATUS_LOCALIZED;
       });
       break;
     }

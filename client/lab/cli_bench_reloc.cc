@@ -419,9 +419,10 @@ void AddBenchRelocCommand(CLI::App& app, CliContext& context) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   cmd->add_option("--seed", options->maps.seed, "Random seed")->capture_default_str();
-  cmd->add_option("--scans", options->scans_dir,
-                  "Folder from `forestmap-lab simulate` (poses.csv, scan_NNN.pcd): detect the trunks "
-                  "of every scan, then relocalize")
+  cmd->add_option(
+         "--scans", options->scans_dir,
+         "Folder from `forestmap-lab simulate` (poses.csv, scan_NNN.pcd): detect the trunks "
+         "of every scan, then relocalize")
       ->check(CLI::ExistingDirectory);
   cmd->add_option("--within", options->within,
                   "Also report the share of all frames localized within this distance (m)")

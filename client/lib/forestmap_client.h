@@ -44,8 +44,8 @@ struct ClientOptions {
   int max_receive_bytes = 64 << 20;  // largest message accepted from the server
   bool own_connection = false;       // a TCP connection not shared with same-target channels
   // Tries of a write call (CreateMap, DeleteMap, UploadTrees, Observe, RestoreVersion,
-  // RemoveSource, PruneVersions) that timed out or lost its connection: every try carries the same request id,
-  // so the server applies the write at most once (exactly-once writes).
+  // RemoveSource, PruneVersions) that timed out or lost its connection: every try carries the same
+  // request id, so the server applies the write at most once (exactly-once writes).
   int write_attempts = 3;
   // Security (the server's side: docs/operations.md). TLS is on when `tls` or `tls_ca` is set.
   bool tls = false;      // TLS with the system's root certificates (unless tls_ca is set)

@@ -37,7 +37,8 @@ class ServiceError : public std::runtime_error {
 
 // A request that is invalid in itself: kInvalidArgument, naming `field` (a transport may say so
 // apart: gRPC attaches a google.rpc.BadRequest). The message is the field path followed by
-// `problem`: ValidationError("trees[12].position.x", " is NaN") reads "trees[12].position.x is NaN".
+// `problem`: ValidationError("trees[12].position.x", " is NaN") reads "trees[12].position.x is
+// NaN".
 class ValidationError : public ServiceError {
  public:
   ValidationError(const std::string& field, const std::string& problem)

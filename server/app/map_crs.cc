@@ -14,15 +14,15 @@ std::string CanonicalCrs(const std::string& crs) {
   try {
     info = geo::ParseCrs(crs);
   } catch (const geo::CrsError& error) {
-    throw ValidationError("crs", " \"" + shown +
-                          "\" is not a coordinate reference system PROJ knows (" + error.what() +
-                          "); give an EPSG code (EPSG:2959), WKT or a PROJ string");
+    throw ValidationError(
+        "crs", " \"" + shown + "\" is not a coordinate reference system PROJ knows (" +
+                   error.what() + "); give an EPSG code (EPSG:2959), WKT or a PROJ string");
   }
   if (!info.map_problem.empty()) {
-    throw ValidationError("crs", " \"" + shown + "\" (" + info.name +
-                          ") cannot be a map's: " + info.map_problem +
-                          ", and a map's x and y are metres; reproject the trees to a projected "
-                          "CRS in metres (forestmap map create --to-crs utm)");
+    throw ValidationError(
+        "crs", " \"" + shown + "\" (" + info.name + ") cannot be a map's: " + info.map_problem +
+                   ", and a map's x and y are metres; reproject the trees to a projected "
+                   "CRS in metres (forestmap map create --to-crs utm)");
   }
   return info.Canonical();
 }

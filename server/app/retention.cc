@@ -9,7 +9,7 @@ namespace forestmap::server {
 void CheckKeep(int64_t keep) {
   if (keep < 1) {
     throw ValidationError("keep", " is " + std::to_string(keep) +
-                          "; at least the current version must stay (keep >= 1)");
+                                      "; at least the current version must stay (keep >= 1)");
   }
 }
 

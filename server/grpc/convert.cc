@@ -245,7 +245,8 @@ ObserveCall FromProto(const v1::ObserveRequest& request) {
   ObserveCall call;
   call.map_name = request.name();
   call.source = request.source();
-  if (request.conflict_policy() == v1::CONFLICT_POLICY_REJECT_IF_STALE) call.base_version = request.base_version();
+  if (request.conflict_policy() == v1::CONFLICT_POLICY_REJECT_IF_STALE)
+    call.base_version = request.base_version();
   call.frames.reserve(request.frames_size());
   for (const v1::ObservationFrame& in : request.frames()) {
     ObserveFrame& frame = call.frames.emplace_back();

@@ -1,4 +1,3 @@
-#include "server/grpc/upload_validator.h"
 #include "server/grpc/validation.h"
 
 #include <gmock/gmock.h>
@@ -6,6 +5,8 @@
 
 #include <limits>
 #include <string>
+
+#include "server/grpc/upload_validator.h"
 
 namespace forestmap::server {
 namespace {
