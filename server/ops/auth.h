@@ -9,7 +9,7 @@
 //          Track, ListVersions
 //   write  UploadTrees, Observe, RemoveSource
 //   admin  CreateMap, DeleteMap, RestoreVersion, PruneVersions
-// A token is sent as gRPC metadata "authorization: Bearer <secret>".
+// A token is sent as gRPC metadata "authorization: Bearer <secret>" (the scheme in any case).
 //
 // Open or closed: without a token store, or while the store has never held a token, every call
 // is allowed (as before tokens existed). Once a token was created (revoked ones count), every

@@ -305,6 +305,23 @@ TEST_F(AuthTest, AMalformedAuthorizationHeaderIsUnauthenticated) {
   EXPECT_NE(status.error_message().find("Bearer"), std::string::npos);
 }
 
+TEST_F(AuthTest, TheBearerSchemeIsCaseInsensitive) {
+  SetUpMaps();
+  const std::string token = tokens_.Create("*", Role::kRead).secret;
+  for (const std::string scheme : {"Bearer", "bearer", "BEARER", "bEaReR"}) {
+    auto context = Context("");
+    context->AddMetadata("authorization", scheme + " " + token);
+    v1::ListMapsResponse response;
+    const grpc::Status status = stub_->ListMaps(context.get(), {}, &response);
+    EXPECT_TRUE(status.ok()) << scheme << ": " << status.error_message();
+  }
+  auto context = Context("");
+  context->AddMetadata("authorization", "Bearertoken " + token);
+  v1::ListMapsResponse response;
+  EXPECT_EQ(stub_->ListMaps(context.get(), {}, &response).error_code(),
+            grpc::StatusCode::UNAUTHENTICATED);
+}
+
 // A new RPC without an entry in the role table would be refused to everyone: this catches it.
 TEST(AuthRoles, EveryServiceMethodHasARole) {
   // Nothing else references forestmap_service.pb.o (the service file has no messages): without
