@@ -71,6 +71,10 @@ bool Caller::CanRead(std::string_view map) const {
   return !token || token->Allows(Role::kRead, map);
 }
 
+std::string Caller::Name() const {
+  return token ? "token " + std::to_string(token->id) : std::string();
+}
+
 void Require(const Caller& caller, std::string_view rpc, std::string_view map) {
   const std::optional<Role> needed = RequiredRole(rpc);
   if (!needed) {
