@@ -72,7 +72,7 @@ ForestMapService::ForestMapService(storage::MapStore& store, ServiceOptions opti
       options_(Checked(std::move(options))),
       index_cache_(store, options_.index_cache),
       stream_limits_(options_.streams),
-      idle_streams_(options_.streams.idle_timeout),
+      idle_streams_(options_.streams, options_.authorizer),
       retention_(store, options_.keep_versions, LogFault),
       admin_pool_(options_.admin_threads, options_.max_queued_requests, LogFault),
       work_pool_(options_.worker_threads, options_.max_queued_requests, LogFault) {}

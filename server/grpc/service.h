@@ -28,7 +28,8 @@
 //                open streams (ServiceOptions::streams)
 //   UploadTrees, ExportTrees, Track: UNAUTHENTICATED / PERMISSION_DENIED as the stream opens,
 //                before it takes a place; CANCELLED when it waits longer than
-//                streams.idle_timeout for its client (server/grpc/stream_limits.h)
+//                streams.idle_timeout for its client, or when its token is revoked
+//                (server/grpc/stream_limits.h)
 //   any RPC      RESOURCE_EXHAUSTED "server busy" when max_queued_requests calls are waiting;
 //                INVALID_ARGUMENT for a request message that cannot be decoded
 //                (server/grpc/decode_guard.h); RESOURCE_EXHAUSTED "database full",
@@ -173,7 +174,7 @@ class ForestMapService final
   MapIndexCache index_cache_;
   RecentAnswers recent_answers_;
   StreamLimits stream_limits_;
-  IdleStreams idle_streams_;   // cancels upload, export and Track streams idle too long
+  IdleStreams idle_streams_;   // cancels upload, export and Track streams idle or revoked
   RetentionPolicy retention_;  // --keep-versions, after every write (unary and upload)
   // Declared last: destroyed (drained and joined) first, while what their jobs use is alive.
   WorkerPool admin_pool_;

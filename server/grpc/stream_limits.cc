@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -19,6 +20,9 @@ void StreamLimitOptions::Check() const {
   }
   if (idle_timeout.count() < 1) {
     throw std::invalid_argument("StreamLimitOptions.idle_timeout must be >= 1 ms");
+  }
+  if (token_recheck.count() < 1) {
+    throw std::invalid_argument("StreamLimitOptions.token_recheck must be >= 1 ms");
   }
 }
 
@@ -97,8 +101,11 @@ int64_t NowNs() {
 
 }  // namespace
 
-IdleStreams::IdleStreams(std::chrono::milliseconds timeout)
-    : timeout_(timeout), thread_([this] { Run(); }) {}
+IdleStreams::IdleStreams(const StreamLimitOptions& options, const Authorizer* authorizer)
+    : timeout_(options.idle_timeout),
+      token_recheck_(options.token_recheck),
+      authorizer_(authorizer),
+      thread_([this] { Run(); }) {}
 
 IdleStreams::~IdleStreams() {
   {
@@ -143,26 +150,54 @@ void IdleStreams::Run() {
   }
 }
 
+std::string IdleStreams::Unauthenticated(const grpc::ServerContextBase& context) const {
+  if (authorizer_ == nullptr) return "";
+  std::optional<std::string_view> authorization;
+  const auto& metadata = context.client_metadata();
+  const auto it = metadata.find("authorization");
+  if (it != metadata.end()) authorization.emplace(it->second.data(), it->second.size());
+  try {
+    authorizer_->Authenticate(authorization);
+    return "";
+  } catch (const ServiceError& e) {
+    return e.code() == ErrorCode::kUnauthenticated ? e.what() : "";
+  } catch (...) {
+    return "";  // a fault of the token store: the stream's own calls will report it
+  }
+}
+
 void IdleStreams::CancelIdle() {
-  const int64_t deadline = NowNs() - std::chrono::nanoseconds(timeout_).count();
-  std::vector<std::shared_ptr<State>> idle;
+  const int64_t now = NowNs();
+  const int64_t deadline = now - std::chrono::nanoseconds(timeout_).count();
+  const int64_t token_period = std::chrono::nanoseconds(token_recheck_).count();
+  const bool check_tokens = now - last_token_check_ns_ >= token_period;
+  if (check_tokens) last_token_check_ns_ = now;
+  std::vector<std::shared_ptr<State>> watched;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     for (const auto& [key, state] : streams_) {
-      const int64_t since = state->waiting_since_ns;
-      if (since != 0 && since < deadline && !state->cancelled) {
-        state->cancelled = true;
-        idle.push_back(state);
-      }
+      if (!state->cancelled) watched.push_back(state);
     }
   }
   // Without mutex_: a stream cancelled here may end (and drop its Watch) on this thread.
-  for (const std::shared_ptr<State>& state : idle) {
+  for (const std::shared_ptr<State>& state : watched) {
     std::lock_guard<std::recursive_mutex> lock(state->cancel_mutex);
     if (!state->alive) continue;
-    LogLine(std::string(state->rpc) + ": cancelled a stream of " + state->context->peer() +
-            " idle for " + std::to_string(timeout_.count()) +
-            " ms (forestmapd --stream-idle-timeout-s)");
+    const int64_t since = state->waiting_since_ns;
+    std::string why;
+    if (since != 0 && since < deadline) {
+      why = "idle for " + std::to_string(timeout_.count()) +
+            " ms (forestmapd --stream-idle-timeout-s)";
+    } else if (check_tokens) {
+      why = Unauthenticated(*state->context);
+    }
+    if (why.empty()) continue;
+    {
+      std::lock_guard<std::mutex> guard(mutex_);
+      state->cancelled = true;
+    }
+    LogLine(std::string(state->rpc) + ": cancelled a stream of " + state->context->peer() + ": " +
+            why);
     state->context->TryCancel();
   }
 }

@@ -8,7 +8,9 @@
 //     caller holds at most max_streams_per_client places and never more than half of them all.
 //   - idle streams (IdleStreams): a stream waiting longer than idle_timeout for its client (the
 //     next message of an upload or a Track session, or an export's client taking the last one)
-//     is cancelled, which frees its place. Upload, export and Track streams are watched.
+//     is cancelled, which frees its place. Upload, export and Track streams are watched. The
+//     watch also checks each stream's token again every token_recheck (5 s): a stream whose token
+//     was revoked (or the server closed since) is cancelled too.
 
 #include <grpcpp/grpcpp.h>
 
@@ -32,6 +34,8 @@ struct StreamLimitOptions {
   int max_streams_per_client = 8;  // ... of one caller, count (at most half of max_streams, up)
   // A stream waiting this long for its client is cancelled (ms, >= 1).
   std::chrono::milliseconds idle_timeout{30'000};
+  // An open stream's token is checked again this often (ms, >= 1): revoked, it is cancelled.
+  std::chrono::milliseconds token_recheck{5'000};
   void Check() const;     // throws std::invalid_argument
   int PerCaller() const;  // the places one caller may hold
 };
@@ -76,11 +80,13 @@ std::unique_ptr<StreamLimits::Slot> OpenStream(const Authorizer* authorizer, Str
                                                const grpc::ServerContextBase& context,
                                                const char* rpc, std::string_view map);
 
-// Cancels streams that wait for their client longer than a timeout. A watching thread checks
-// every quarter of the timeout (at most every second). Thread-safe.
+// Cancels streams that wait for their client longer than a timeout, and streams whose caller is
+// no longer authenticated (a revoked token). A watching thread checks every quarter of the
+// shorter of the two periods (at most every second). Thread-safe.
 class IdleStreams {
  public:
-  explicit IdleStreams(std::chrono::milliseconds timeout);
+  // `authorizer` null: no token checks; else it must outlive this.
+  IdleStreams(const StreamLimitOptions& options, const Authorizer* authorizer);
   ~IdleStreams();  // stops the watching thread; every Watch must be gone before
   IdleStreams(const IdleStreams&) = delete;
   IdleStreams& operator=(const IdleStreams&) = delete;
@@ -108,8 +114,13 @@ class IdleStreams {
  private:
   void Run();
   void CancelIdle();
+  // A stream whose call's token no longer authenticates ("" when it does).
+  std::string Unauthenticated(const grpc::ServerContextBase& context) const;
 
   const std::chrono::milliseconds timeout_;
+  const std::chrono::milliseconds token_recheck_;
+  const Authorizer* authorizer_;
+  int64_t last_token_check_ns_ = 0;  // steady clock; only the watching thread uses it
   std::mutex mutex_;
   std::condition_variable wake_;
   bool stop_ = false;

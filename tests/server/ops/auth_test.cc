@@ -343,6 +343,16 @@ TEST_F(AuthTest, ARequestIdOfOneTokenIsRefusedToAnother) {
   EXPECT_NE(other.error_message().find("different request"), std::string::npos);
 }
 
+// Waits (at most kCallDeadline) until `condition` holds; returns whether it did.
+template <typename Condition>
+bool Eventually(Condition condition) {
+  const auto give_up = std::chrono::steady_clock::now() + kCallDeadline;
+  while (!condition() && std::chrono::steady_clock::now() < give_up) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return condition();
+}
+
 // A server with few stream places, and metrics to learn when it has seen a call.
 class StreamAuthTest : public ::testing::Test {
  protected:
@@ -447,20 +457,17 @@ TEST_F(StreamAuthTest, SilentStreamsWithoutATokenOrWithAReadTokenTakeNoStreamPla
 TEST_F(StreamAuthTest, OneCallerHoldsAtMostHalfOfTheStreamPlaces) {
   std::vector<SilentUpload> writer = OpenSilentUploads(write_, kMaxStreams);
   AwaitUploadCalls(kMaxStreams);
-  EXPECT_EQ(service_.stream_limits().open(), kMaxStreams / 2);
+  // Half of them get a place (as their token is checked, on a pool); the rest are refused.
+  const std::string refused = R"(forestmap_rpc_requests_total{rpc="UploadTrees",)"
+                              R"(code="RESOURCE_EXHAUSTED"} )" +
+                              std::to_string(kMaxStreams / 2) + "\n";
+  EXPECT_TRUE(Eventually([&] {
+    return service_.stream_limits().open() == kMaxStreams / 2 &&
+           metrics_.Render().find(refused) != std::string::npos;
+  })) << metrics_.Render();
   const grpc::Status admin = Upload(*stub_, admin_, kMap, 1);
   EXPECT_TRUE(admin.ok()) << StatusCodeName(admin.error_code()) << ": " << admin.error_message();
   Close(writer);
-}
-
-// Waits (at most kCallDeadline) until `condition` holds; returns whether it did.
-template <typename Condition>
-bool Eventually(Condition condition) {
-  const auto give_up = std::chrono::steady_clock::now() + kCallDeadline;
-  while (!condition() && std::chrono::steady_clock::now() < give_up) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
-  return condition();
 }
 
 TEST_F(StreamAuthTest, IdleStreamsAreEndedAndTheirPlacesFreed) {
@@ -490,6 +497,45 @@ TEST_F(StreamAuthTest, IdleStreamsAreEndedAndTheirPlacesFreed) {
   EXPECT_TRUE(Eventually([&] { return service.stream_limits().open() == 0; }));
   const grpc::Status upload = Upload(*stub, write_, kMap, 1);
   EXPECT_TRUE(upload.ok()) << StatusCodeName(upload.error_code()) << ": " << upload.error_message();
+}
+
+TEST_F(StreamAuthTest, RevokingATokenEndsItsOpenStreams) {
+  ServiceOptions options = Options(&authorizer_);
+  options.streams.idle_timeout = std::chrono::minutes(10);  // not why these streams end
+  options.streams.token_recheck = std::chrono::milliseconds(100);
+  ForestMapService service(store_, options);
+  ServerRunner runner("127.0.0.1:0", service);
+  auto stub = v1::ForestMap::NewStub(
+      grpc::CreateChannel(runner.address(), grpc::InsecureChannelCredentials()));
+  ASSERT_TRUE(Upload(*stub, admin_, kMap, 1).ok());
+  const storage::NewToken doomed = tokens_.Create("*", Role::kWrite);
+  auto upload_context = Context(doomed.secret);
+  v1::UploadTreesResponse response;
+  auto upload = stub->UploadTrees(upload_context.get(), &response);
+  ASSERT_TRUE(upload->Write(test::UploadHeader(kMap)));
+  // A tracking session known to be under way: its first frame is answered.
+  auto track_context = Context(doomed.secret);
+  auto track = stub->Track(track_context.get());
+  v1::TrackRequest header;
+  header.mutable_header()->set_name(kMap);
+  v1::TrackRequest frame;
+  frame.mutable_frame()->set_frame_id(1);
+  AddQueryTrees(frame.mutable_frame()->mutable_trees());
+  v1::TrackResponse answer;
+  ASSERT_TRUE(track->Write(header) && track->Write(frame) && track->Read(&answer));
+  ASSERT_TRUE(Eventually([&] { return service.stream_limits().open() == 1; }));
+
+  ASSERT_TRUE(tokens_.Revoke(doomed.record.id));
+  while (track->Read(&answer)) {
+  }
+  EXPECT_EQ(track->Finish().error_code(), grpc::StatusCode::CANCELLED);
+  // The upload ends too: cancelled, or refused on its header if the server reads it only now.
+  const grpc::StatusCode upload_code = upload->Finish().error_code();
+  EXPECT_TRUE(upload_code == grpc::StatusCode::CANCELLED ||
+              upload_code == grpc::StatusCode::UNAUTHENTICATED)
+      << StatusCodeName(upload_code);
+  EXPECT_TRUE(Eventually([&] { return service.stream_limits().open() == 0; }));
+  EXPECT_EQ(store_.GetMap(kMap).tree_count, static_cast<int64_t>(std::size(kPlot)));
 }
 
 // A new RPC without an entry in the role table would be refused to everyone: this catches it.
