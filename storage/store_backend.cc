@@ -41,7 +41,8 @@ void CommitWrite(StoreSession& session, StoreTransaction& transaction, const Map
       const int64_t now = internal::NowUnixMs();
       session.ExpireRequests(now - internal::kRequestLogRetentionMs);
       const StoredRequest answer{request->rpc,
-                                 request->encode ? request->encode(info) : std::string(), now};
+                                 request->encode ? request->encode(info) : std::string(), now,
+                                 request->fingerprint};
       if (!session.InsertRequest(request->id, answer)) ThrowAppliedConcurrently(*request);
     }
     CheckDeadlineBeforeCommit(*request);  // as close to COMMIT as possible

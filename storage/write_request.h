@@ -23,6 +23,9 @@ struct MapInfo;
 struct WriteRequest {
   std::string id;   // the client's request id; empty: none (no record is stored)
   std::string rpc;  // the call, e.g. "UploadTrees": an id is never answered for another call
+  // What the id is bound to, stored with the answer (opaque here: the server's hash of the call,
+  // map, caller and request content); empty: nothing but `rpc`.
+  std::string fingerprint;
   // The encoded answer of the call for the map state the write leaves (called inside the
   // transaction, so it must not call the store).
   std::function<std::string(const MapInfo&)> encode;
@@ -34,6 +37,7 @@ struct StoredRequest {
   std::string rpc;
   std::string response;  // what WriteRequest::encode returned
   int64_t created_unix_ms = 0;
+  std::string fingerprint;  // WriteRequest::fingerprint; empty for answers stored before it
 };
 
 // Makes `request` the current write request of this thread for the scope's lifetime (not

@@ -200,11 +200,42 @@ std::string ListedCrs(const std::string& crs) {
   return shown;
 }
 
+std::string TerminalSafe(std::string_view text) {
+  std::string out;
+  out.reserve(text.size());
+  for (size_t i = 0; i < text.size(); ++i) {
+    const unsigned char c = static_cast<unsigned char>(text[i]);
+    const unsigned char next = i + 1 < text.size() ? static_cast<unsigned char>(text[i + 1]) : 0;
+    if (c == '\\') {
+      out += "\\\\";
+    } else if (c == '\n') {
+      out += "\\n";
+    } else if (c == '\r') {
+      out += "\\r";
+    } else if (c == '\t') {
+      out += "\\t";
+    } else if (c < 0x20 || c == 0x7f) {
+      char escaped[8];
+      std::snprintf(escaped, sizeof escaped, "\\x%02x", c);
+      out += escaped;
+    } else if (c == 0xc2 && next >= 0x80 && next <= 0x9f) {  // U+0080..U+009F in UTF-8
+      char escaped[8];
+      std::snprintf(escaped, sizeof escaped, "\\u%04x", next);
+      out += escaped;
+      ++i;
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  return out;
+}
+
 std::string FormatMapTable(const std::vector<v1::Map>& maps) {
   std::vector<std::array<std::string, 5>> cells = {{"NAME", "TREES", "VERSION", "CRS", "EXTENT"}};
   for (const v1::Map& map : maps) {
-    cells.push_back({map.name(), std::to_string(map.tree_count()), std::to_string(map.version()),
-                     ListedCrs(map.crs()), FormatExtent(map)});
+    cells.push_back({TerminalSafe(map.name()), std::to_string(map.tree_count()),
+                     std::to_string(map.version()), TerminalSafe(ListedCrs(map.crs())),
+                     FormatExtent(map)});
   }
   std::array<size_t, 5> width{};
   for (const auto& row : cells) {
@@ -224,9 +255,9 @@ std::string FormatMapDetails(const v1::Map& map) {
   auto field = [&text](const char* name, const std::string& value) {
     text += PadRight(std::string(name) + ":", 13) + value + "\n";
   };
-  field("name", map.name());
-  field("description", map.description().empty() ? "-" : map.description());
-  field("crs", map.crs().empty() ? "-" : map.crs());
+  field("name", TerminalSafe(map.name()));
+  field("description", map.description().empty() ? "-" : TerminalSafe(map.description()));
+  field("crs", map.crs().empty() ? "-" : TerminalSafe(map.crs()));
   field("version", std::to_string(map.version()));
   field("trees", std::to_string(map.tree_count()));
   field("extent", FormatExtent(map));

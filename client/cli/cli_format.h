@@ -36,6 +36,11 @@ nlohmann::ordered_json RelocalizeJson(const v1::RelocalizeResponse& response,
 // short CRS as given, "-" for none; cut to 32 characters ("..."). `map show` shows it whole.
 std::string ListedCrs(const std::string& crs);
 
+// `text` (from the server) made safe to print on a terminal: control characters (C0, DEL and the
+// C1 range U+0080..U+009F) and backslashes escaped as \n, \r, \t, \xNN, \u00NN, \\; other
+// UTF-8 kept. `map list` and `map show` print names, descriptions and CRSs through it.
+std::string TerminalSafe(std::string_view text);
+
 // The `map list` table: NAME TREES VERSION CRS (ListedCrs) EXTENT, one map per line, aligned.
 std::string FormatMapTable(const std::vector<v1::Map>& maps);
 

@@ -4,6 +4,11 @@
 // (storage/write_request.h). Every write also carries its caller's deadline into the store, which
 // refuses to commit once it has passed (DEADLINE_EXCEEDED, nothing written). Answers are bytes
 // here; the transport encodes and decodes them (gRPC: server/grpc/replay.h).
+//
+// A request id is bound to the request it was first used for: its RPC, its map, its caller and a
+// digest of its content (Fingerprint, stored with the answer). The same id with another RPC, map,
+// caller or content is refused (ValidationError naming request_id), never answered with the other
+// request's answer; only the identical request gets the stored answer.
 
 #include <chrono>
 #include <functional>
@@ -25,7 +30,14 @@ struct WriteCall {
   std::string request_id;  // the client's id; empty: none
   std::string rpc;         // the call, e.g. "UploadTrees": an id is never answered for another
   std::chrono::system_clock::time_point deadline = std::chrono::system_clock::time_point::max();
+  std::string map{};             // the map the request writes
+  std::string caller{};          // who asks ("token 7"; empty on a server without tokens)
+  std::string content_digest{};  // of the request's content, from the transport
 };
+
+// What `call`'s request id is bound to: the SHA-256 (hex) of its RPC, map, caller and content
+// digest.
+std::string Fingerprint(const WriteCall& call);
 
 // What a write under exactly-once did: `outcome` when this call applied it, or else the stored
 // answer of the earlier call with the same request id in `replayed` (`outcome` is then empty).
@@ -39,10 +51,15 @@ struct Written {
 // naming `field` otherwise.
 void ValidateRequestId(const std::string& id, const std::string& field = "request_id");
 
-// The answer stored for `id` by an earlier write, or nullopt. An id answered for another call
-// than `rpc` is a ValidationError.
-std::optional<std::string> StoredAnswer(storage::MapStore& store, const std::string& id,
-                                        std::string_view rpc);
+// The request stored for `id`, or nullopt. An id stored for another call than `rpc` is a
+// ValidationError.
+std::optional<storage::StoredRequest> FindStoredRequest(storage::MapStore& store,
+                                                        const std::string& id,
+                                                        std::string_view rpc);
+
+// The answer stored for `call`'s request id by an earlier write, or nullopt. An id stored for
+// another RPC, or for a request of another map, caller or content, is a ValidationError.
+std::optional<std::string> StoredAnswer(storage::MapStore& store, const WriteCall& call);
 
 // Runs `write` (which calls the store's write methods on this thread) under a WriteRequestScope
 // of `call`; `encode(info)` gives the bytes of the answer stored with the write. Returns the
@@ -54,13 +71,14 @@ std::optional<std::string> WriteExactlyOnce(
     std::function<std::string(const storage::MapInfo&)> encode, Write&& write) {
   ValidateRequestId(call.request_id);
   if (!call.request_id.empty()) {
-    if (std::optional<std::string> stored = StoredAnswer(store, call.request_id, call.rpc)) {
+    if (std::optional<std::string> stored = StoredAnswer(store, call)) {
       return stored;
     }
   }
   storage::WriteRequest request;
   request.id = call.request_id;
   request.rpc = call.rpc;
+  if (!call.request_id.empty()) request.fingerprint = Fingerprint(call);
   request.encode = std::move(encode);
   request.deadline = call.deadline;
   const storage::WriteRequestScope scope(request);
@@ -68,7 +86,7 @@ std::optional<std::string> WriteExactlyOnce(
     std::forward<Write>(write)();
   } catch (const storage::StorageError& e) {
     if (e.code() != storage::StorageError::Code::kConflict || call.request_id.empty()) throw;
-    std::optional<std::string> stored = StoredAnswer(store, call.request_id, call.rpc);
+    std::optional<std::string> stored = StoredAnswer(store, call);
     if (!stored) throw;
     return stored;
   }

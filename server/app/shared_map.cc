@@ -91,7 +91,7 @@ Written<ObserveOutcome> ApplyObserve(
   Written<ObserveOutcome> written;
   // A repeated request id: the first answer, before any relocalization or merge.
   if (!call.write.request_id.empty()) {
-    written.replayed = StoredAnswer(store, call.write.request_id, call.write.rpc);
+    written.replayed = StoredAnswer(store, call.write);
     if (written.replayed) return written;
   }
   ObserveOutcome& outcome = written.outcome;

@@ -33,7 +33,7 @@ struct SharedMapOptions {
 struct ObserveFrame {
   algorithms::FrameObservations observations;  // its map_from_sensor is the pose, when it has one
   bool has_pose = false;                       // false: relocalized in the map first
-  std::optional<Eigen::Vector3d> gravity;      // sensor frame, any length: for that relocalization
+  std::optional<Eigen::Vector3d> gravity;      // sensor frame, unit: for that relocalization
 };
 
 struct ObserveCall {

@@ -9,10 +9,13 @@
 namespace forestmap::server {
 namespace {
 
-// Normalises a direction; a (near) zero vector stays zero, meaning "unknown".
+// The unit vector of `v`, scaled by its largest component first, so that vectors of any finite
+// length (1e308 long, whose norm overflows, or 1e-300, whose squares underflow) keep their
+// direction. Zero for a zero or non-finite vector (validation refuses those where it matters).
 Eigen::Vector3d Direction(const Eigen::Vector3d& v) {
-  const double norm = v.norm();
-  return norm > 0 ? Eigen::Vector3d(v / norm) : Eigen::Vector3d::Zero();
+  const double largest = v.cwiseAbs().maxCoeff();
+  if (!(largest > 0) || !std::isfinite(largest)) return Eigen::Vector3d::Zero();
+  return (v / largest).normalized();
 }
 
 }  // namespace
@@ -257,7 +260,7 @@ ObserveCall FromProto(const v1::ObserveRequest& request) {
       frame.observations.trees.push_back(FromProto(tree));
     frame.has_pose = in.has_map_from_sensor();
     if (frame.has_pose) frame.observations.map_from_sensor = FromProto(in.map_from_sensor());
-    if (in.has_gravity()) frame.gravity = FromProto(in.gravity());
+    if (in.has_gravity()) frame.gravity = Direction(FromProto(in.gravity()));
   }
   return call;
 }

@@ -13,21 +13,18 @@ namespace forestmap::server {
 
 ExportTreesReactor::ExportTreesReactor(const StreamDeps& deps, grpc::CallbackServerContext* context,
                                        const v1::ExportTreesRequest* request)
-    : deps_(deps), context_(context), request_(request) {
-  std::string refusal;
-  slot_ = deps_.limits.TryAcquire(context->peer(), "ExportTrees", refusal);
-  if (!slot_) {
-    const grpc::Status refused(grpc::StatusCode::RESOURCE_EXHAUSTED, refusal);
-    LogStatus("ExportTrees", refused);
-    End(refused);
-    return;
-  }
+    : deps_(deps),
+      context_(context),
+      request_(request),
+      watch_(deps.idle.Add(*context, "ExportTrees")) {
   ReadThenWrite(/*start=*/true);
 }
 
 void ExportTreesReactor::Start() {
   const v1::ExportTreesRequest& request = *request_;
-  Authorize(deps_.options.authorizer, *context_, "ExportTrees", request.name());
+  // The map is known as the stream opens: the whole check before it takes a place.
+  slot_ =
+      OpenStream(deps_.options.authorizer, deps_.limits, *context_, "ExportTrees", request.name());
   Validate(request);
   storage::MapInfo info = deps_.store.GetMap(request.name());
   if (request.version() != 0) info.version = request.version();
@@ -80,10 +77,12 @@ void ExportTreesReactor::WriteNext() {
     bytes += static_cast<int64_t>(tree->ByteSizeLong());
   }
   wrote_any_ = true;
+  watch_->Waiting();  // until the client takes the message
   StartWrite(&response_);
 }
 
 void ExportTreesReactor::OnWriteDone(bool ok) {
+  watch_->Working();
   if (!ok) {
     const grpc::Status cancelled(grpc::StatusCode::CANCELLED, "the client stopped reading");
     LogStatus("ExportTrees", cancelled);

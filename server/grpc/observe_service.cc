@@ -23,13 +23,14 @@ SharedMapOptions SharedMapOptionsOf(const ServiceOptions& options) {
 
 }  // namespace
 
-void ForestMapService::RunObserve(grpc::CallbackServerContext* context,
+void ForestMapService::RunObserve(grpc::CallbackServerContext* context, const Caller& caller,
                                   const v1::ObserveRequest& request,
                                   v1::ObserveResponse& response) {
   const auto start = std::chrono::steady_clock::now();
   Validate(request, options_.observe);
   ObserveCall call = FromProto(request);
-  call.write = WriteCallOf(context, request.request_id(), "Observe");
+  call.write = WriteCallOf(context, caller, "Observe", request.name(), request.request_id(),
+                           ContentDigest(request));
   const auto encode = [](const ObserveOutcome& outcome) {
     return ToProto(outcome).SerializeAsString();
   };
@@ -48,7 +49,7 @@ void ForestMapService::RunObserve(grpc::CallbackServerContext* context,
   response.set_server_time_ms(elapsed.count());
 }
 
-void ForestMapService::RunRemoveSource(grpc::CallbackServerContext* context,
+void ForestMapService::RunRemoveSource(grpc::CallbackServerContext* context, const Caller& caller,
                                        const v1::RemoveSourceRequest& request,
                                        v1::RemoveSourceResponse& response) {
   Validate(request);
@@ -61,8 +62,10 @@ void ForestMapService::RunRemoveSource(grpc::CallbackServerContext* context,
     return answer;
   };
   const Written<SourceRemovalOutcome> written = ApplyRemoveSource(
-      store_, WriteCallOf(context, request.request_id(), "RemoveSource"), request.name(),
-      request.source(), options_.merge,
+      store_,
+      WriteCallOf(context, caller, "RemoveSource", request.name(), request.request_id(),
+                  ContentDigest(request)),
+      request.name(), request.source(), options_.merge,
       [&fill](const SourceRemovalOutcome& outcome) { return fill(outcome).SerializeAsString(); });
   if (written.replayed) {
     ParseStoredAnswer(request.request_id(), *written.replayed, response);

@@ -20,7 +20,7 @@ void Fill(const storage::PruneResult& result, v1::PruneVersionsResponse& respons
 
 }  // namespace
 
-void ForestMapService::RunPrune(grpc::CallbackServerContext* context,
+void ForestMapService::RunPrune(grpc::CallbackServerContext* context, const Caller& caller,
                                 const v1::PruneVersionsRequest& request,
                                 v1::PruneVersionsResponse& response) {
   ValidateMapName(request.name(), "name");
@@ -29,7 +29,9 @@ void ForestMapService::RunPrune(grpc::CallbackServerContext* context,
   // The stored answer of a request id holds the map; a repeat removes nothing, its counts are 0.
   const auto encode = Encoder<v1::PruneVersionsResponse>(
       [](const storage::MapInfo& info, auto& answer) { *answer.mutable_map() = ToProto(info); });
-  RunExactlyOnce(store_, context, request_id, "PruneVersions", response, encode,
+  const WriteCall call = WriteCallOf(context, caller, "PruneVersions", request.name(), request_id,
+                                     ContentDigest(request));
+  RunExactlyOnce(store_, call, response, encode,
                  [&] { Fill(PruneHistory(store_, request.name(), request.keep()), response); });
 }
 

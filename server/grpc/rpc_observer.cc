@@ -1,5 +1,6 @@
 #include "server/grpc/rpc_observer.h"
 
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <mutex>
@@ -7,6 +8,7 @@
 #include <unordered_map>
 
 #include "proto/status_code_name.h"
+#include "server/ops/auth.h"
 #include "server/ops/logging.h"
 #include "server/ops/metrics.h"
 
@@ -19,11 +21,36 @@ using grpc::experimental::ServerRpcInfo;
 constexpr std::string_view kServicePrefix = "/forestmap.v1.ForestMap/";
 constexpr std::string_view kHealthPrefix = "/grpc.health.v1.Health/";
 
-// "CreateMap" for our service, "grpc.health.v1.Health/Check" for others.
+// Methods of the other services the server carries (server/grpc/server.h).
+constexpr std::array<std::string_view, 3> kOtherMethods = {
+    "/grpc.health.v1.Health/Check",
+    "/grpc.health.v1.Health/Watch",
+    "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo",
+};
+
+// The rpc label and log field of a method path: "CreateMap" for a method of our service (one the
+// role table of server/ops/auth.h knows), "grpc.health.v1.Health/Check" for the health and
+// reflection services, and "unknown" for any other path. The path comes from the caller: only
+// names of this fixed set become labels.
 std::string RpcName(std::string_view method) {
-  if (method.starts_with(kServicePrefix)) return std::string(method.substr(kServicePrefix.size()));
-  if (method.starts_with("/")) method.remove_prefix(1);
-  return std::string(method);
+  if (method.starts_with(kServicePrefix)) {
+    const std::string_view name = method.substr(kServicePrefix.size());
+    return RequiredRole(name) ? std::string(name) : kUnknownRpc;
+  }
+  for (const std::string_view known : kOtherMethods) {
+    if (method == known) return std::string(method.substr(1));
+  }
+  return kUnknownRpc;
+}
+
+std::string_view MethodOf(const ServerRpcInfo& info) {
+  return info.method() == nullptr ? std::string_view() : std::string_view(info.method());
+}
+
+// The method path of an unknown call, for its log line: bounded (the logger escapes it).
+std::string LoggedMethod(std::string_view method) {
+  constexpr size_t kMaxLoggedMethod = 200;  // bytes
+  return std::string(method.substr(0, kMaxLoggedMethod));
 }
 
 std::string NewRequestId() {
@@ -74,10 +101,11 @@ class RpcObserver final : public grpc::experimental::Interceptor {
   RpcObserver(ServerRpcInfo* info, Metrics* metrics)
       : context_(info->server_context()),
         metrics_(metrics),
-        rpc_(RpcName(info->method())),
-        health_(std::string_view(info->method()).starts_with(kHealthPrefix)),
+        rpc_(RpcName(MethodOf(*info))),
+        unknown_method_(rpc_ == kUnknownRpc ? LoggedMethod(MethodOf(*info)) : ""),
+        health_(MethodOf(*info).starts_with(kHealthPrefix)),
         streaming_(info->type() != ServerRpcInfo::Type::UNARY &&
-                   std::string_view(info->method()).starts_with(kServicePrefix)),
+                   MethodOf(*info).starts_with(kServicePrefix)),
         start_(std::chrono::steady_clock::now()) {
     {
       std::lock_guard<std::mutex> lock(Calls().mutex);
@@ -140,6 +168,7 @@ class RpcObserver final : public grpc::experimental::Interceptor {
     char ms[32];
     std::snprintf(ms, sizeof ms, "%.3f", seconds * 1e3);
     std::vector<LogField> fields = {{"rpc", rpc_}, {"request_id", RequestId()}};
+    if (!unknown_method_.empty()) fields.push_back({"method", unknown_method_});
     {
       std::lock_guard<std::mutex> lock(mutex_);
       if (!map_.empty()) fields.push_back({"map", map_});
@@ -155,6 +184,7 @@ class RpcObserver final : public grpc::experimental::Interceptor {
   grpc::ServerContextBase* context_;
   Metrics* metrics_;
   const std::string rpc_;
+  const std::string unknown_method_;  // the path of a call to an unknown method, for the log
   const bool health_;
   const bool streaming_;
   const std::chrono::steady_clock::time_point start_;

@@ -4,7 +4,10 @@
 // client in the initial metadata), and when the status is sent writes the RPC's log line
 // (server/ops/logging.h: rpc, request_id, map, token, code, ms, peer, and the message of an error)
 // and updates the metrics (server/ops/metrics.h). Handlers tell it the map a call is about through
-// NoteCallMap (server/ops/auth.cc does, for every RPC).
+// NoteCallMap (server/ops/auth.cc does, for every RPC). The rpc of the log line and the metrics
+// label is a name of the fixed set the server serves ("CreateMap", "grpc.health.v1.Health/Check");
+// any other method path is "unknown" (the log line then carries the path, cut to 200 bytes, as
+// `method`), so that callers cannot make up labels.
 //
 // Thread-safety: all functions may be called concurrently.
 

@@ -72,6 +72,7 @@ ForestMapService::ForestMapService(storage::MapStore& store, ServiceOptions opti
       options_(Checked(std::move(options))),
       index_cache_(store, options_.index_cache),
       stream_limits_(options_.streams),
+      idle_streams_(options_.streams, options_.authorizer),
       retention_(store, options_.keep_versions, LogFault),
       admin_pool_(options_.admin_threads, options_.max_queued_requests, LogFault),
       work_pool_(options_.worker_threads, options_.max_queued_requests, LogFault) {}
@@ -80,11 +81,13 @@ grpc::ServerUnaryReactor* ForestMapService::CreateMap(grpc::CallbackServerContex
                                                       const v1::CreateMapRequest* request,
                                                       v1::Map* response) {
   return AnswerOn(admin_pool_, context, "CreateMap", [this, context, request, response] {
-    Authorize(options_.authorizer, *context, "CreateMap", request->name());
+    const Caller caller = Authorize(options_.authorizer, *context, "CreateMap", request->name());
     Validate(*request);
     const auto encode =
         Encoder<v1::Map>([](const storage::MapInfo& info, v1::Map& map) { map = ToProto(info); });
-    RunExactlyOnce(store_, context, request->request_id(), "CreateMap", *response, encode, [&] {
+    const WriteCall call = WriteCallOf(context, caller, "CreateMap", request->name(),
+                                       request->request_id(), ContentDigest(*request));
+    RunExactlyOnce(store_, call, *response, encode, [&] {
       *response = ToProto(
           store_.CreateMap(request->name(), request->description(), CanonicalCrs(request->crs())));
     });
@@ -114,11 +117,12 @@ grpc::ServerUnaryReactor* ForestMapService::DeleteMap(grpc::CallbackServerContex
                                                       const v1::DeleteMapRequest* request,
                                                       v1::DeleteMapResponse* response) {
   return AnswerOn(admin_pool_, context, "DeleteMap", [this, context, request, response] {
-    Authorize(options_.authorizer, *context, "DeleteMap", request->name());
+    const Caller caller = Authorize(options_.authorizer, *context, "DeleteMap", request->name());
     Validate(*request);
     const auto encode = [](const storage::MapInfo&) { return std::string(); };
-    RunExactlyOnce(store_, context, request->request_id(), "DeleteMap", *response, encode,
-                   [&] { store_.DeleteMap(request->name()); });
+    const WriteCall call = WriteCallOf(context, caller, "DeleteMap", request->name(),
+                                       request->request_id(), ContentDigest(*request));
+    RunExactlyOnce(store_, call, *response, encode, [&] { store_.DeleteMap(request->name()); });
     index_cache_.Evict(request->name());
   });
 }
@@ -126,13 +130,15 @@ grpc::ServerUnaryReactor* ForestMapService::DeleteMap(grpc::CallbackServerContex
 grpc::ServerReadReactor<grpc::ByteBuffer>* ForestMapService::UploadTrees(
     grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
   return new UploadTreesReactor(
-      {store_, options_, admin_pool_, work_pool_, stream_limits_, retention_}, context, response);
+      {store_, options_, admin_pool_, work_pool_, stream_limits_, idle_streams_, retention_},
+      context, response);
 }
 
 grpc::ServerWriteReactor<v1::ExportTreesResponse>* ForestMapService::ExportTrees(
     grpc::CallbackServerContext* context, const v1::ExportTreesRequest* request) {
   return new ExportTreesReactor(
-      {store_, options_, admin_pool_, work_pool_, stream_limits_, retention_}, context, request);
+      {store_, options_, admin_pool_, work_pool_, stream_limits_, idle_streams_, retention_},
+      context, request);
 }
 
 grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerContext* context,
@@ -161,15 +167,15 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
 
 grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse>* ForestMapService::Track(
     grpc::CallbackServerContext* context) {
-  return new TrackReactor(index_cache_, options_, work_pool_, context);
+  return new TrackReactor(index_cache_, options_, work_pool_, idle_streams_, context);
 }
 
 grpc::ServerUnaryReactor* ForestMapService::Observe(grpc::CallbackServerContext* context,
                                                     const v1::ObserveRequest* request,
                                                     v1::ObserveResponse* response) {
   return AnswerOn(work_pool_, context, "Observe", [this, context, request, response] {
-    Authorize(options_.authorizer, *context, "Observe", request->name());
-    RunObserve(context, *request, *response);
+    const Caller caller = Authorize(options_.authorizer, *context, "Observe", request->name());
+    RunObserve(context, caller, *request, *response);
     retention_.AfterWrite(request->name());
   });
 }
@@ -187,15 +193,17 @@ grpc::ServerUnaryReactor* ForestMapService::RestoreVersion(grpc::CallbackServerC
                                                            const v1::RestoreVersionRequest* request,
                                                            v1::RestoreVersionResponse* response) {
   return AnswerOn(work_pool_, context, "RestoreVersion", [this, context, request, response] {
-    Authorize(options_.authorizer, *context, "RestoreVersion", request->name());
+    const Caller caller =
+        Authorize(options_.authorizer, *context, "RestoreVersion", request->name());
     Validate(*request);
     const auto encode = Encoder<v1::RestoreVersionResponse>(
         [](const storage::MapInfo& info, auto& answer) { *answer.mutable_map() = ToProto(info); });
-    RunExactlyOnce(store_, context, request->request_id(), "RestoreVersion", *response, encode,
-                   [&] {
-                     *response->mutable_map() =
-                         ToProto(store_.RestoreVersion(request->name(), request->version()));
-                   });
+    const WriteCall call = WriteCallOf(context, caller, "RestoreVersion", request->name(),
+                                       request->request_id(), ContentDigest(*request));
+    RunExactlyOnce(store_, call, *response, encode, [&] {
+      *response->mutable_map() =
+          ToProto(store_.RestoreVersion(request->name(), request->version()));
+    });
     retention_.AfterWrite(request->name());
   });
 }
@@ -204,8 +212,8 @@ grpc::ServerUnaryReactor* ForestMapService::RemoveSource(grpc::CallbackServerCon
                                                          const v1::RemoveSourceRequest* request,
                                                          v1::RemoveSourceResponse* response) {
   return AnswerOn(work_pool_, context, "RemoveSource", [this, context, request, response] {
-    Authorize(options_.authorizer, *context, "RemoveSource", request->name());
-    RunRemoveSource(context, *request, *response);
+    const Caller caller = Authorize(options_.authorizer, *context, "RemoveSource", request->name());
+    RunRemoveSource(context, caller, *request, *response);
     retention_.AfterWrite(request->name());
   });
 }
@@ -214,8 +222,9 @@ grpc::ServerUnaryReactor* ForestMapService::PruneVersions(grpc::CallbackServerCo
                                                           const v1::PruneVersionsRequest* request,
                                                           v1::PruneVersionsResponse* response) {
   return AnswerOn(work_pool_, context, "PruneVersions", [this, context, request, response] {
-    Authorize(options_.authorizer, *context, "PruneVersions", request->name());
-    RunPrune(context, *request, *response);
+    const Caller caller =
+        Authorize(options_.authorizer, *context, "PruneVersions", request->name());
+    RunPrune(context, caller, *request, *response);
   });
 }
 

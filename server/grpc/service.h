@@ -26,6 +26,10 @@
 //                version pruned during the export), CANCELLED (client stopped reading)
 //   UploadTrees, ExportTrees: RESOURCE_EXHAUSTED when the client or the server has its limit of
 //                open streams (ServiceOptions::streams)
+//   UploadTrees, ExportTrees, Track: UNAUTHENTICATED / PERMISSION_DENIED as the stream opens,
+//                before it takes a place; CANCELLED when it waits longer than
+//                streams.idle_timeout for its client, or when its token is revoked
+//                (server/grpc/stream_limits.h)
 //   any RPC      RESOURCE_EXHAUSTED "server busy" when max_queued_requests calls are waiting;
 //                INVALID_ARGUMENT for a request message that cannot be decoded
 //                (server/grpc/decode_guard.h); RESOURCE_EXHAUSTED "database full",
@@ -69,6 +73,7 @@
 namespace forestmap::server {
 
 class Authorizer;
+struct Caller;
 
 struct ServiceOptions {
   int max_query_trees = 20'000;           // trees per Relocalize request
@@ -157,18 +162,19 @@ class ForestMapService final
                                           v1::PruneVersionsResponse* response) override;
 
  private:
-  void RunObserve(grpc::CallbackServerContext* context, const v1::ObserveRequest& request,
-                  v1::ObserveResponse& response);
-  void RunRemoveSource(grpc::CallbackServerContext* context, const v1::RemoveSourceRequest& request,
-                       v1::RemoveSourceResponse& response);
-  void RunPrune(grpc::CallbackServerContext* context, const v1::PruneVersionsRequest& request,
-                v1::PruneVersionsResponse& response);
+  void RunObserve(grpc::CallbackServerContext* context, const Caller& caller,
+                  const v1::ObserveRequest& request, v1::ObserveResponse& response);
+  void RunRemoveSource(grpc::CallbackServerContext* context, const Caller& caller,
+                       const v1::RemoveSourceRequest& request, v1::RemoveSourceResponse& response);
+  void RunPrune(grpc::CallbackServerContext* context, const Caller& caller,
+                const v1::PruneVersionsRequest& request, v1::PruneVersionsResponse& response);
 
   storage::MapStore& store_;
   ServiceOptions options_;
   MapIndexCache index_cache_;
   RecentAnswers recent_answers_;
   StreamLimits stream_limits_;
+  IdleStreams idle_streams_;   // cancels upload, export and Track streams idle or revoked
   RetentionPolicy retention_;  // --keep-versions, after every write (unary and upload)
   // Declared last: destroyed (drained and joined) first, while what their jobs use is alive.
   WorkerPool admin_pool_;

@@ -28,17 +28,41 @@ algorithms::TrackingOptions SessionOptions(const ServiceOptions& options) {
 }  // namespace
 
 TrackReactor::TrackReactor(MapIndexCache& index_cache, const ServiceOptions& options,
-                           WorkerPool& work_pool, grpc::CallbackServerContext* context)
+                           WorkerPool& work_pool, IdleStreams& idle,
+                           grpc::CallbackServerContext* context)
     : index_cache_(index_cache),
       work_pool_(work_pool),
       authorizer_(options.authorizer),
       context_(context),
+      watch_(idle.Add(*context, "Track")),
       max_query_trees_(options.max_query_trees),
       tracker_(SessionOptions(options)) {
+  // Authorized as it opens, for Track's role on some map (the map: on the first message). The
+  // check reads the token store: on the pool, not on gRPC's thread.
+  const bool queued = work_pool_.TrySubmit([this] {
+    const grpc::Status opened =
+        RunGuarded("Track", [this] { Authorize(authorizer_, *context_, "Track", ""); });
+    if (opened.ok()) {
+      Read();
+    } else {
+      End(opened);
+    }
+  });
+  if (!queued) End(ServerBusy("Track"));
+}
+
+void TrackReactor::Read() {
+  watch_->Waiting();
   StartRead(&request_);
 }
 
+void TrackReactor::End(const grpc::Status& status) {
+  watch_->Working();
+  Finish(status);
+}
+
 void TrackReactor::OnReadDone(bool ok) {
+  watch_->Working();
   if (!ok) {  // the client closed its side (or is gone): the session ends
     Finish(grpc::Status::OK);
     return;
@@ -52,20 +76,22 @@ void TrackReactor::OnReadDone(bool ok) {
       Finish(grpc::Status(status.error_code(), prefix + status.error_message(),
                           status.error_details()));
     } else if (answered) {
+      watch_->Waiting();  // until the client takes the answer
       StartWrite(&response_);
     } else {
-      StartRead(&request_);
+      Read();
     }
   });
   if (!queued) Finish(ServerBusy("Track"));
 }
 
 void TrackReactor::OnWriteDone(bool ok) {
+  watch_->Working();
   if (!ok) {
     Finish(grpc::Status(grpc::StatusCode::CANCELLED, "the client stopped reading"));
     return;
   }
-  StartRead(&request_);
+  Read();
 }
 
 bool TrackReactor::Answer() {

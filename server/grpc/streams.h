@@ -20,6 +20,7 @@
 #include "server/grpc/stream_limits.h"
 #include "server/grpc/upload_validator.h"
 #include "server/grpc/validation.h"
+#include "server/ops/auth.h"
 #include "storage/map_store.h"
 #include "storage/staged_writes.h"
 
@@ -35,9 +36,14 @@ struct StreamDeps {
   WorkerPool& admin_pool;  // the first message's checks (map exists, replayed request id)
   WorkerPool& work_pool;   // staging, commits and export pages
   StreamLimits& limits;    // a stream over its limit is RESOURCE_EXHAUSTED before anything else
+  IdleStreams& idle;       // streams waiting too long for their client are cancelled
   const RetentionPolicy& retention;  // after a committed upload
 };
 
+// Every stream is authorized as it opens, for the role its RPC needs (server/grpc/stream_limits.h),
+// before it takes a place among the open streams, and is cancelled when it waits longer than
+// StreamLimitOptions::idle_timeout for its client.
+//
 // UploadTrees (server/grpc/upload_stream.cc): reads the messages one at a time, validates each as
 // it arrives (the first must name the map: NOT_FOUND, or ALREADY_EXISTS with create_map, before the
 // client sends the rest), and stages the trees in the database through MapStore::BeginUpload in
@@ -47,7 +53,9 @@ struct StreamDeps {
 // staged rows are removed. Messages arrive raw and are decoded here: one that cannot be decoded
 // as a v1::UploadTreesRequest (a string that is not UTF-8, corrupt bytes) fails the upload with
 // INVALID_ARGUMENT naming the message; gRPC's typed reader would report it as the end of the
-// stream. `response` gets the encoded v1::UploadTreesResponse.
+// stream. A request id stored before: the rest of the stream is read and checked without staging,
+// then answered from the store if it is the same request (map, caller, content), INVALID_ARGUMENT
+// otherwise. `response` gets the encoded v1::UploadTreesResponse.
 class UploadTreesReactor final : public grpc::ServerReadReactor<grpc::ByteBuffer> {
  public:
   UploadTreesReactor(const StreamDeps& deps, grpc::CallbackServerContext* context,
@@ -59,8 +67,10 @@ class UploadTreesReactor final : public grpc::ServerReadReactor<grpc::ByteBuffer
  private:
   // Frees the stream's place, aborts an upload not committed, then Finish.
   void End(const grpc::Status& status);
+  void Open();        // on the admin pool: authorizes, takes a place, reads the first message
+  void Read();        // the next message (the stream then waits for its client)
   void Accept();      // the message in buffer_ -> chunk_; throws
-  bool Begin();       // first message: false when a replayed answer ends the call; throws
+  void Begin();       // first message: authorizes the map, begins the upload (or a replay); throws
   void StageChunk();  // chunk_ -> the database; throws
   void Commit();      // throws
   // Runs `body` on `pool`, then reads the next message, or finishes on error.
@@ -68,14 +78,18 @@ class UploadTreesReactor final : public grpc::ServerReadReactor<grpc::ByteBuffer
   void EncodeResponse(const v1::UploadTreesResponse& answer);
 
   StreamDeps deps_;
-  const Authorizer* authorizer_;  // checked on the first message
+  const Authorizer* authorizer_;  // checked as the stream opens and on the first message
   grpc::CallbackServerContext* context_;
   grpc::ByteBuffer* response_;
+  std::unique_ptr<IdleStreams::Watch> watch_;
   std::unique_ptr<StreamLimits::Slot> slot_;
   grpc::ByteBuffer buffer_;  // the message being read
   v1::UploadTreesRequest request_;
   UploadValidator validator_;
   std::string request_id_;  // from the first message (exactly-once, server/app/exactly_once.h)
+  std::string digest_;      // of the messages so far: what request_id_ is bound to, with caller_
+  Caller caller_;           // from Begin
+  bool replaying_ = false;  // request_id_ was stored: read the rest, answer from the store
   storage::UploadPlan plan_;
   std::unique_ptr<storage::TreeUpload> upload_;  // null before Begin and after Commit
   std::vector<storage::TreeRecord> chunk_;       // received, not yet staged
@@ -107,6 +121,7 @@ class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTrees
   StreamDeps deps_;
   grpc::CallbackServerContext* context_;
   const v1::ExportTreesRequest* request_;
+  std::unique_ptr<IdleStreams::Watch> watch_;
   std::unique_ptr<StreamLimits::Slot> slot_;
   std::optional<TreePages> pages_;  // from Start
   int64_t version_ = 0;
@@ -125,7 +140,7 @@ class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTrees
 class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse> {
  public:
   TrackReactor(MapIndexCache& index_cache, const ServiceOptions& options, WorkerPool& work_pool,
-               grpc::CallbackServerContext* context);
+               IdleStreams& idle, grpc::CallbackServerContext* context);
 
   void OnReadDone(bool ok) override;
   void OnWriteDone(bool ok) override;
@@ -133,11 +148,14 @@ class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::
 
  private:
   bool Answer();  // request_ -> response_ (true), or a header read (false); throws
+  void Read();    // the next message (the stream then waits for its client)
+  void End(const grpc::Status& status);
 
   MapIndexCache& index_cache_;
   WorkerPool& work_pool_;
-  const Authorizer* authorizer_;  // checked on the first message
+  const Authorizer* authorizer_;  // checked as the stream opens and on the first message
   grpc::CallbackServerContext* context_;
+  std::unique_ptr<IdleStreams::Watch> watch_;
   int max_query_trees_;
   algorithms::Tracker tracker_;
   std::string map_name_;  // from the first message

@@ -12,6 +12,7 @@
 #include "server/grpc/service.h"
 #include "server/grpc/status.h"
 #include "server/grpc/streams.h"
+#include "storage/token_store.h"
 
 namespace forestmap::server {
 
@@ -21,15 +22,25 @@ UploadTreesReactor::UploadTreesReactor(const StreamDeps& deps, grpc::CallbackSer
       authorizer_(deps.options.authorizer),
       context_(context),
       response_(response),
+      watch_(deps.idle.Add(*context, "UploadTrees")),
       validator_(deps.options.max_upload_trees) {
-  std::string refusal;
-  slot_ = deps_.limits.TryAcquire(context->peer(), "UploadTrees", refusal);
-  if (!slot_) {
-    const grpc::Status refused(grpc::StatusCode::RESOURCE_EXHAUSTED, refusal);
-    LogStatus("UploadTrees", refused);
-    End(refused);
-    return;
+  // The token check reads the token store: on a pool, not on gRPC's thread.
+  if (!deps_.admin_pool.TrySubmit([this] { Open(); })) End(ServerBusy("UploadTrees"));
+}
+
+void UploadTreesReactor::Open() {
+  const grpc::Status opened = RunGuarded("UploadTrees", [this] {
+    slot_ = OpenStream(authorizer_, deps_.limits, *context_, "UploadTrees", "");
+  });
+  if (opened.ok()) {
+    Read();
+  } else {
+    End(opened);
   }
+}
+
+void UploadTreesReactor::Read() {
+  watch_->Waiting();
   StartRead(&buffer_);
 }
 
@@ -43,6 +54,7 @@ void UploadTreesReactor::OnDone() {
 }
 
 void UploadTreesReactor::OnReadDone(bool ok) {
+  watch_->Working();
   if (!ok) {
     // The stream ended: either the client closed it (commit) or the call is gone.
     if (context_->IsCancelled()) {
@@ -69,14 +81,11 @@ void UploadTreesReactor::OnReadDone(bool ok) {
     // Fail early for an unknown (or, creating, an existing) map, before the client streams
     // millions of trees; a repeated request id is answered from the store.
     const bool queued = deps_.admin_pool.TrySubmit([this] {
-      bool more = true;
-      const grpc::Status begun = RunGuarded("UploadTrees", [this, &more] { more = Begin(); });
-      if (!begun.ok()) {
-        End(begun);
-      } else if (more) {
-        StartRead(&buffer_);
+      const grpc::Status begun = RunGuarded("UploadTrees", [this] { Begin(); });
+      if (begun.ok()) {
+        Read();
       } else {
-        End(grpc::Status::OK);
+        End(begun);
       }
     });
     if (!queued) End(ServerBusy("UploadTrees"));
@@ -86,14 +95,14 @@ void UploadTreesReactor::OnReadDone(bool ok) {
     ThenReadNext(deps_.work_pool, [this] { StageChunk(); });
     return;
   }
-  StartRead(&buffer_);
+  Read();
 }
 
 void UploadTreesReactor::ThenReadNext(WorkerPool& pool, std::function<void()> body) {
   const bool queued = pool.TrySubmit([this, body = std::move(body)] {
     const grpc::Status status = RunGuarded("UploadTrees", body);
     if (status.ok()) {
-      StartRead(&buffer_);
+      Read();
     } else {
       End(status);
     }
@@ -112,6 +121,7 @@ void UploadTreesReactor::Accept() {
                            " trees) cannot be decoded as an UploadTreesRequest (a string that is "
                            "not UTF-8, or corrupt bytes); nothing was written");
   }
+  digest_ = storage::Sha256Hex(digest_ + ContentDigest(request_));  // the request's content
   const bool first = validator_.messages() == 0;
   const google::protobuf::RepeatedPtrField<v1::Tree> trees = validator_.Accept(request_);
   request_.Clear();
@@ -123,12 +133,13 @@ void UploadTreesReactor::Accept() {
     plan_.description = header.description();
     plan_.crs = header.crs();
   }
+  if (replaying_) return;  // read to know the request, not to write it again
   for (const v1::Tree& tree : trees) chunk_.push_back(FromProto(tree));
 }
 
-bool UploadTreesReactor::Begin() {
+void UploadTreesReactor::Begin() {
   const std::string& name = validator_.header().name();
-  Authorize(authorizer_, *context_, "UploadTrees", name);
+  caller_ = Authorize(authorizer_, *context_, "UploadTrees", name);
   if (plan_.create_map) {
     Authorize(authorizer_, *context_, "CreateMap", name);  // creating needs CreateMap's role
     v1::CreateMapRequest create;
@@ -138,16 +149,16 @@ bool UploadTreesReactor::Begin() {
     Validate(create);
     plan_.crs = CanonicalCrs(plan_.crs);
   }
-  v1::UploadTreesResponse replayed;
-  if (!request_id_.empty() && ReplayRequest(deps_.store, request_id_, "UploadTrees", replayed)) {
-    EncodeResponse(replayed);  // applied before: the first answer, nothing staged
+  if (!request_id_.empty() && FindStoredRequest(deps_.store, request_id_, "UploadTrees")) {
+    // Applied before, perhaps: the id is bound to the whole request, so the rest is read (and
+    // checked) without staging it, and answered from the store only if it is the same request.
+    replaying_ = true;
     chunk_ = {};
-    return false;
+    return;
   }
   plan_.mode =
       validator_.header().replace() ? storage::WriteMode::kReplace : storage::WriteMode::kAppend;
   upload_ = deps_.store.BeginUpload(name, plan_);
-  return true;
 }
 
 void UploadTreesReactor::StageChunk() {
@@ -164,6 +175,18 @@ void UploadTreesReactor::Commit() {
     throw ServiceError(ErrorCode::kCancelled, "upload cancelled; nothing was written");
   }
   validator_.Finish();
+  const WriteCall call = WriteCallOf(context_, caller_, "UploadTrees", validator_.header().name(),
+                                     request_id_, digest_);
+  if (replaying_) {
+    v1::UploadTreesResponse replayed;
+    if (!ReplayRequest(deps_.store, call, replayed)) {
+      throw ServiceError(ErrorCode::kAborted, "the stored answer of request id '" + request_id_ +
+                                                  "' expired during the upload; nothing was "
+                                                  "written: retry with a new id");
+    }
+    EncodeResponse(replayed);  // applied before: the first answer, nothing staged
+    return;
+  }
   StageChunk();
   const int64_t received = validator_.trees();
   const auto fill = [received](const storage::MapInfo& info, v1::UploadTreesResponse& answer) {
@@ -171,12 +194,11 @@ void UploadTreesReactor::Commit() {
     answer.set_trees_received(received);
   };
   v1::UploadTreesResponse response;
-  RunExactlyOnce(deps_.store, context_, request_id_, "UploadTrees", response,
-                 Encoder<v1::UploadTreesResponse>(fill), [&] {
-                   const storage::MapInfo info = upload_->Commit();
-                   upload_.reset();  // committed: nothing to abort
-                   fill(info, response);
-                 });
+  RunExactlyOnce(deps_.store, call, response, Encoder<v1::UploadTreesResponse>(fill), [&] {
+    const storage::MapInfo info = upload_->Commit();
+    upload_.reset();  // committed: nothing to abort
+    fill(info, response);
+  });
   deps_.retention.AfterWrite(validator_.header().name());
   EncodeResponse(response);
 }

@@ -1,5 +1,7 @@
 #include "server/grpc/validation.h"
 
+#include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -32,13 +34,27 @@ void CheckVector(const v1::Vector3& v, const std::string& path) {
   CheckFinite(v.z(), path + ".z");
 }
 
-// A coordinate of a local map frame: finite and |v| < limit (m).
+// What is wrong with `v` as a coordinate of a local map frame (finite, |v| < limit m): the text
+// after "<field> is ", or empty.
+std::string CoordinateProblem(double v, double limit) {
+  if (std::isnan(v)) return "NaN; numbers must be finite";
+  if (std::isinf(v)) return std::string(v > 0 ? "+inf" : "-inf") + "; numbers must be finite";
+  if (std::abs(v) < limit) return "";
+  return Number(v) + "; coordinates must lie within +-" + Number(limit) +
+         " m (a local frame; keep georeferenced offsets in the map's crs)";
+}
+
 void CheckCoordinate(double v, double limit, const std::string& path) {
-  CheckFinite(v, path);
-  if (!(std::abs(v) < limit)) {
+  const std::string problem = CoordinateProblem(v, limit);
+  if (!problem.empty()) throw ValidationError(path, " is " + problem);
+}
+
+// A DBH: finite, >= 0 and at most kMaxDbh.
+void CheckDbh(double dbh, const std::string& path) {
+  CheckFinite(dbh, path);
+  if (dbh < 0 || dbh > kMaxDbh) {
     throw ValidationError(path,
-                          " is " + Number(v) + "; coordinates must lie within +-" + Number(limit) +
-                              " m (a local frame; keep georeferenced offsets in the map's crs)");
+                          " is " + Number(dbh) + "; it must be in [0, " + Number(kMaxDbh) + "] m");
   }
 }
 
@@ -49,12 +65,30 @@ void CheckPosition(const v1::Vector3& v, const std::string& path) {
   CheckCoordinate(v.z(), kMaxVerticalCoordinate, path + ".z");
 }
 
-// A direction: finite and not (near) zero. Its length does not matter, it is normalised.
+// A direction: finite and not zero. Its length does not matter: it is normalised, scaled by its
+// largest component first (server/grpc/convert.cc), so 1e308 and 1e-300 give their direction.
 void CheckDirection(const v1::Vector3& v, const std::string& path) {
   CheckVector(v, path);
-  constexpr double kMinNorm = 1e-9;
-  if (std::sqrt(v.x() * v.x() + v.y() * v.y() + v.z() * v.z()) < kMinNorm) {
+  if (std::max({std::abs(v.x()), std::abs(v.y()), std::abs(v.z())}) == 0) {
     throw ValidationError(path, " is a zero vector; it must give a direction");
+  }
+}
+
+// The trees of a frame with a pose as they land in the map: within the bounds of a map's trees
+// (CheckMapTree), like the trees of an upload.
+void CheckTreesInMapFrame(const v1::ObservationFrame& frame, const std::string& path) {
+  const v1::Pose& pose = frame.map_from_sensor();
+  const v1::Quaternion& q = pose.rotation();
+  const Eigen::Quaterniond rotation =
+      pose.has_rotation() ? Eigen::Quaterniond(q.w(), q.x(), q.y(), q.z()).normalized()
+                          : Eigen::Quaterniond::Identity();
+  const v1::Vector3& t = pose.translation();
+  for (int i = 0; i < frame.trees_size(); ++i) {
+    const v1::Vector3& p = frame.trees(i).position();
+    const Eigen::Vector3d in_map =
+        rotation * Eigen::Vector3d(p.x(), p.y(), p.z()) + Eigen::Vector3d(t.x(), t.y(), t.z());
+    CheckMapTree(in_map.x(), in_map.y(), in_map.z(), std::nullopt, path + "." + Indexed("trees", i),
+                 "in the map frame");
   }
 }
 
@@ -215,6 +249,7 @@ void Validate(const v1::ObserveRequest& request, const ObserveLimits& limits) {
     }
     if (frame.has_map_from_sensor()) {
       ValidatePose(frame.map_from_sensor(), path + ".map_from_sensor");
+      CheckTreesInMapFrame(frame, path);
     }
     if (frame.has_gravity()) CheckDirection(frame.gravity(), path + ".gravity");
   }
@@ -323,31 +358,34 @@ TrackMessage ReadTrackMessage(v1::TrackRequest& request, const std::string& sess
   return message;
 }
 
+void CheckMapTree(double x, double y, std::optional<double> z, std::optional<double> dbh,
+                  const std::string& path, std::string_view frame) {
+  for (const auto& [name, value, limit] :
+       {std::tuple{"x", std::optional(x), kMaxHorizontalCoordinate},
+        std::tuple{"y", std::optional(y), kMaxHorizontalCoordinate},
+        std::tuple{"z", z, kMaxVerticalCoordinate}}) {
+    if (!value) continue;
+    const std::string problem = CoordinateProblem(*value, limit);
+    if (problem.empty()) continue;
+    if (frame.empty()) throw ValidationError(path + "." + name, " is " + problem);
+    throw ValidationError(path, " " + std::string(frame) + ": " + name + " is " + problem);
+  }
+  if (dbh) CheckDbh(*dbh, path + ".dbh");
+}
+
 void ValidateTree(const v1::Tree& tree, const std::string& path) {
   if (tree.has_id() && tree.id() < 0) {
     throw ValidationError(path + ".id", " is " + std::to_string(tree.id()) + "; ids must be >= 0");
   }
-  CheckCoordinate(tree.x(), kMaxHorizontalCoordinate, path + ".x");
-  CheckCoordinate(tree.y(), kMaxHorizontalCoordinate, path + ".y");
-  if (tree.has_z()) CheckCoordinate(tree.z(), kMaxVerticalCoordinate, path + ".z");
-  if (tree.has_dbh()) {
-    CheckFinite(tree.dbh(), path + ".dbh");
-    if (tree.dbh() < 0) {
-      throw ValidationError(path + ".dbh", " is " + Number(tree.dbh()) + "; it must be >= 0");
-    }
-  }
+  CheckMapTree(tree.x(), tree.y(), tree.has_z() ? std::optional(tree.z()) : std::nullopt,
+               tree.has_dbh() ? std::optional(tree.dbh()) : std::nullopt, path);
   CheckAttributes(tree, path);
 }
 
 void ValidateDetectedTree(const v1::DetectedTree& tree, const std::string& path) {
   if (!tree.has_position()) throw ValidationError(path + ".position", " is missing");
   CheckPosition(tree.position(), path + ".position");
-  if (tree.has_dbh()) {
-    CheckFinite(tree.dbh(), path + ".dbh");
-    if (tree.dbh() < 0) {
-      throw ValidationError(path + ".dbh", " is " + Number(tree.dbh()) + "; it must be >= 0");
-    }
-  }
+  if (tree.has_dbh()) CheckDbh(tree.dbh(), path + ".dbh");
   if (tree.has_axis()) CheckDirection(tree.axis(), path + ".axis");
   if (tree.has_score()) {
     CheckFinite(tree.score(), path + ".score");

@@ -7,10 +7,10 @@
 //   "trees[12].position.x is NaN"
 //   "prior.radius_m is -1; it must be > 0"
 //   "trees: 100000 trees exceed the limit of 20000 per query"
-// Rules beyond "finite numbers": dbh >= 0, score in [0, 1], tree ids >= 0 and unique within an
-// upload, rotations unit quaternions within kUnitQuaternionTolerance (normalised afterwards),
-// prior radius > 0, gravity and stem axes non-zero, box min <= max, bounded string lengths,
-// coordinates within kMaxHorizontalCoordinate / kMaxVerticalCoordinate.
+// Rules beyond "finite numbers": dbh in [0, kMaxDbh], score in [0, 1], tree ids >= 0 and unique
+// within an upload, rotations unit quaternions within kUnitQuaternionTolerance (normalised
+// afterwards), prior radius > 0, gravity and stem axes non-zero, box min <= max, bounded string
+// lengths, coordinates within kMaxHorizontalCoordinate / kMaxVerticalCoordinate.
 
 #include <google/protobuf/repeated_ptr_field.h>
 
@@ -34,6 +34,7 @@ inline constexpr double kUnitQuaternionTolerance = 1e-3;  // | |q| - 1 | allowed
 // these bounds, or the request is INVALID_ARGUMENT naming the field.
 inline constexpr double kMaxHorizontalCoordinate = 1e7;   // m, |x| and |y|
 inline constexpr double kMaxVerticalCoordinate = 1e5;     // m, |z|
+inline constexpr double kMaxDbh = 100;                    // m; no stem is thicker
 inline constexpr size_t kMaxDescriptionLength = 4096;     // bytes
 inline constexpr size_t kMaxCrsLength = 16384;            // bytes
 inline constexpr size_t kMaxAttributes = 64;              // per tree
@@ -80,6 +81,14 @@ void Validate(const v1::ObserveRequest& request, const ObserveLimits& limits);
 void Validate(const v1::ListVersionsRequest& request);
 void Validate(const v1::RestoreVersionRequest& request);
 void Validate(const v1::RemoveSourceRequest& request);
+
+// The one rule set of a tree as a map stores it (map frame), for every write path: upload (its
+// trees), Observe (a frame's trees placed by its pose): x, y within kMaxHorizontalCoordinate, z
+// within kMaxVerticalCoordinate, dbh in [0, kMaxDbh]. Absent values are not checked. The error
+// names `path`.x (etc.); with `frame` set ("in the map frame") it names `path` and says "`path`
+// in the map frame: z is ...".
+void CheckMapTree(double x, double y, std::optional<double> z, std::optional<double> dbh,
+                  const std::string& path, std::string_view frame = {});
 
 // Pieces, exposed for tests and for the upload stream. `path` prefixes the messages.
 void ValidateTree(const v1::Tree& tree, const std::string& path);

@@ -1,6 +1,7 @@
 #include "server/ops/auth.h"
 
 #include <array>
+#include <cctype>
 
 #include "server/app/errors.h"
 
@@ -9,7 +10,7 @@ namespace {
 
 using storage::Role;
 
-constexpr std::string_view kBearer = "Bearer ";
+constexpr std::string_view kBearer = "bearer";
 constexpr const char* kHowToPass =
     "pass one with --token or the environment variable FORESTMAP_TOKEN (gRPC metadata "
     "'authorization: Bearer <token>')";
@@ -36,6 +37,18 @@ constexpr std::array<RpcRole, 13> kRoles = {{
     {"PruneVersions", Role::kAdmin},
 }};
 
+// The token of "Bearer <token>"; the scheme is case-insensitive (RFC 7235 section 2.1), and one
+// or more spaces separate it from the token (RFC 6750 section 2.1). Empty when malformed.
+std::string_view BearerToken(std::string_view value) {
+  if (value.size() <= kBearer.size() || value[kBearer.size()] != ' ') return {};
+  for (size_t i = 0; i < kBearer.size(); ++i) {
+    if (std::tolower(static_cast<unsigned char>(value[i])) != kBearer[i]) return {};
+  }
+  value.remove_prefix(kBearer.size());
+  while (value.starts_with(' ')) value.remove_prefix(1);
+  return value;
+}
+
 ServiceError Unauthenticated(const std::string& message) {
   return ServiceError(ErrorCode::kUnauthenticated, message);
 }
@@ -56,6 +69,10 @@ std::optional<Role> RequiredRole(std::string_view rpc) {
 
 bool Caller::CanRead(std::string_view map) const {
   return !token || token->Allows(Role::kRead, map);
+}
+
+std::string Caller::Name() const {
+  return token ? "token " + std::to_string(token->id) : std::string();
 }
 
 void Require(const Caller& caller, std::string_view rpc, std::string_view map) {
@@ -82,11 +99,11 @@ Caller Authorizer::Authenticate(std::optional<std::string_view> authorization) c
   if (!authorization) {
     throw Unauthenticated(std::string("this server requires a token; ") + kHowToPass);
   }
-  const std::string_view value = *authorization;
-  if (!value.starts_with(kBearer) || value.size() == kBearer.size()) {
+  const std::string_view secret = BearerToken(*authorization);
+  if (secret.empty()) {
     throw Unauthenticated("the authorization metadata must be 'Bearer <token>'");
   }
-  caller.token = tokens_->Find(value.substr(kBearer.size()));
+  caller.token = tokens_->Find(secret);
   if (!caller.token) throw Unauthenticated("unknown or revoked token");
   return caller;
 }

@@ -1,15 +1,15 @@
 #pragma once
 // Who may call what: bearer tokens with a role per map (storage/token_store.h), checked in ONE
 // place, Authorizer and Require, which every handler calls first through its transport (gRPC:
-// server/grpc/authorize.h; unary bodies before anything else, streams on their first message,
-// when the map name is known).
+// server/grpc/authorize.h; unary bodies before anything else, streams as they open, for the role
+// on some map, and on their first message for the map it names).
 //
 // Required roles (admin includes write, write includes read):
 //   read   GetMap, ListMaps (lists only the maps the token can read), ExportTrees, Relocalize,
 //          Track, ListVersions
 //   write  UploadTrees, Observe, RemoveSource
 //   admin  CreateMap, DeleteMap, RestoreVersion, PruneVersions
-// A token is sent as gRPC metadata "authorization: Bearer <secret>".
+// A token is sent as gRPC metadata "authorization: Bearer <secret>" (the scheme in any case).
 //
 // Open or closed: without a token store, or while the store has never held a token, every call
 // is allowed (as before tokens existed). Once a token was created (revoked ones count), every
@@ -34,6 +34,7 @@ std::optional<storage::Role> RequiredRole(std::string_view rpc);
 struct Caller {
   std::optional<storage::TokenRecord> token;
   bool CanRead(std::string_view map) const;  // for filtering ListMaps
+  std::string Name() const;                  // "token 7"; empty in open mode
 };
 
 // Requires RequiredRole(rpc) of `caller` on map `map` (empty: the RPC is not about one map,

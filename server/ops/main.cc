@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <exception>
 #include <iostream>
@@ -46,6 +47,7 @@ struct Config {
   std::string metrics;    // host:port of the Prometheus endpoint; empty: none
   int64_t max_db_mb = 0;  // MiB the SQLite database may grow to; 0: no limit
   forestmap::server::StreamLimitOptions streams;  // --max-streams, --max-streams-per-client
+  double stream_idle_timeout_s = 30;              // --stream-idle-timeout-s
 };
 
 // Blocks SIGINT and SIGTERM in this thread and in every thread started after it (gRPC's), so
@@ -164,8 +166,14 @@ void AddServeOptions(CLI::App& app, Config& config) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   app.add_option("--max-streams-per-client", config.streams.max_streams_per_client,
-                 "open UploadTrees + ExportTrees streams per client connection")
+                 "open UploadTrees + ExportTrees streams per client: per token, or per "
+                 "connection without tokens; at most half of --max-streams")
       ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--stream-idle-timeout-s", config.stream_idle_timeout_s,
+                 "an UploadTrees, ExportTrees or Track stream waiting this long for its client "
+                 "is cancelled, seconds")
+      ->check(CLI::Range(0.001, 86400.0))
       ->capture_default_str();
 }
 
@@ -187,6 +195,8 @@ int Serve(const Config& config, const sigset_t& shutdown_signals) {
   forestmap::server::ServiceOptions service_options;
   service_options.keep_versions = config.keep_versions;
   service_options.streams = config.streams;
+  service_options.streams.idle_timeout =
+      std::chrono::milliseconds(std::llround(config.stream_idle_timeout_s * 1000));
   service_options.authorizer = &authorizer;
   forestmap::server::ForestMapService service(*store, service_options);
   forestmap::server::Metrics metrics;
@@ -218,7 +228,7 @@ int main(int argc, char** argv) {
       "Usage: forestmapd [--db PATH|postgresql://USER@HOST:PORT/DB] [--listen ADDR] "
       "[--max-message-mb N]\n"
       "                  [--http ADDR] [--keep-versions N] [--max-streams N] "
-      "[--max-streams-per-client N]\n"
+      "[--max-streams-per-client N] [--stream-idle-timeout-s S]\n"
       "                  [--tls-cert F --tls-key F [--tls-client-ca F]] [--metrics ADDR]\n"
       "                  [--log-format text|json] [--log-level debug|info|warn|error] "
       "[--max-db-mb N] [--help]\n"

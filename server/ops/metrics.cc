@@ -30,17 +30,40 @@ void Header(std::string& out, std::string_view name, std::string_view help, std:
 
 }  // namespace
 
+std::string MetricLabelValue(std::string_view value) {
+  std::string out;
+  for (const char c : value.substr(0, kMaxMetricLabelBytes)) {
+    if (c == '\\') {
+      out += "\\\\";
+    } else if (c == '"') {
+      out += "\\\"";
+    } else if (c == '\n') {
+      out += "\\n";
+    } else if (c < ' ' || c > '~') {
+      out += '?';  // other control bytes and non-ASCII (never split UTF-8 into invalid text)
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
 const std::vector<double>& Metrics::LatencyBuckets() {
   static const std::vector<double> buckets = {0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25,
                                               0.5,   1,      2.5,   5,    10,    30,   120};
   return buckets;
 }
 
+Metrics::RpcStats& Metrics::StatsOf(std::string_view rpc) {
+  auto it = rpcs_.find(rpc);
+  if (it != rpcs_.end()) return it->second;
+  if (rpcs_.size() >= kMaxRpcSeries) rpc = kUnknownRpc;
+  return rpcs_.try_emplace(std::string(rpc)).first->second;
+}
+
 void Metrics::RpcStarted(std::string_view rpc, bool streaming) {
   std::lock_guard<std::mutex> lock(mutex_);
-  auto it = rpcs_.find(rpc);
-  if (it == rpcs_.end()) it = rpcs_.emplace(std::string(rpc), RpcStats{}).first;
-  ++it->second.in_flight;
+  ++StatsOf(rpc).in_flight;
   if (streaming) ++open_streams_;
 }
 
@@ -48,9 +71,7 @@ void Metrics::RpcFinished(std::string_view rpc, bool streaming, grpc::StatusCode
                           double seconds) {
   const std::vector<double>& bounds = LatencyBuckets();
   std::lock_guard<std::mutex> lock(mutex_);
-  auto it = rpcs_.find(rpc);
-  if (it == rpcs_.end()) it = rpcs_.emplace(std::string(rpc), RpcStats{}).first;
-  RpcStats& stats = it->second;
+  RpcStats& stats = StatsOf(rpc);
   if (stats.buckets.empty()) stats.buckets.assign(bounds.size(), 0);
   --stats.in_flight;
   if (streaming) --open_streams_;
@@ -78,7 +99,8 @@ void Metrics::AddCounter(std::string name, std::string help, Sample sample) {
 void Metrics::RenderRpcs(std::string& out) const {
   Header(out, "forestmap_rpc_requests_total", "Finished RPCs by method and status code.",
          "counter");
-  for (const auto& [rpc, stats] : rpcs_) {
+  for (const auto& [name, stats] : rpcs_) {
+    const std::string rpc = MetricLabelValue(name);
     for (const auto& [code, count] : stats.by_code) {
       out += "forestmap_rpc_requests_total{rpc=\"" + rpc + "\",code=\"" + StatusCodeName(code) +
              "\"} " + std::to_string(count) + "\n";
@@ -87,8 +109,9 @@ void Metrics::RenderRpcs(std::string& out) const {
   Header(out, "forestmap_rpc_duration_seconds", "RPC latency from start to status, seconds.",
          "histogram");
   const std::vector<double>& bounds = LatencyBuckets();
-  for (const auto& [rpc, stats] : rpcs_) {
+  for (const auto& [name, stats] : rpcs_) {
     if (stats.count == 0) continue;
+    const std::string rpc = MetricLabelValue(name);
     int64_t cumulative = 0;
     for (size_t i = 0; i < bounds.size(); ++i) {
       cumulative += stats.buckets[i];
@@ -103,8 +126,9 @@ void Metrics::RenderRpcs(std::string& out) const {
         "forestmap_rpc_duration_seconds_count" + label + "} " + std::to_string(stats.count) + "\n";
   }
   Header(out, "forestmap_rpc_in_flight", "RPCs running now.", "gauge");
-  for (const auto& [rpc, stats] : rpcs_) {
-    out += "forestmap_rpc_in_flight{rpc=\"" + rpc + "\"} " + std::to_string(stats.in_flight) + "\n";
+  for (const auto& [name, stats] : rpcs_) {
+    out += "forestmap_rpc_in_flight{rpc=\"" + MetricLabelValue(name) + "\"} " +
+           std::to_string(stats.in_flight) + "\n";
   }
   Header(out, "forestmap_open_streams", "Streaming RPCs (upload, export, track) open now.",
          "gauge");

@@ -9,6 +9,11 @@
 // plus the gauges and counters registered with AddGauge / AddCounter (index builds, index cache
 // size, database size; wired in forestmapd's main).
 //
+// Label values that come from outside (the rpc label) are escaped per the text format
+// (backslash, double quote, newline; other bytes outside printable ASCII become '?') and cut to
+// kMaxMetricLabelBytes; past kMaxRpcSeries distinct rpc labels, new ones are counted as "unknown",
+// so the page never grows with what callers send.
+//
 // Thread-safety: all methods may be called concurrently.
 
 #include <grpcpp/support/status.h>
@@ -22,6 +27,15 @@
 #include <vector>
 
 namespace forestmap::server {
+
+inline constexpr size_t kMaxMetricLabelBytes = 128;  // a longer label value is cut
+inline constexpr size_t kMaxRpcSeries = 256;         // distinct rpc labels kept
+inline constexpr const char* kUnknownRpc = "unknown";
+
+// `value` as a label value of the text exposition format: at most kMaxMetricLabelBytes bytes of
+// it, with backslash, double quote and newline escaped and other bytes outside printable ASCII
+// replaced by '?'.
+std::string MetricLabelValue(std::string_view value);
 
 class Metrics {
  public:
@@ -53,6 +67,7 @@ class Metrics {
     Sample sample;
   };
   void RenderRpcs(std::string& out) const;
+  RpcStats& StatsOf(std::string_view rpc);  // under mutex_
 
   mutable std::mutex mutex_;
   std::map<std::string, RpcStats, std::less<>> rpcs_;

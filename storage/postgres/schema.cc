@@ -106,10 +106,16 @@ CREATE TABLE request_log (
 CREATE INDEX request_log_by_time ON request_log (created_unix_ms);
 )sql";
 
+// Step 3: what a stored request id is bound to (storage/write_request.h): the server's hash of the
+// call, map, caller and request content; '' for answers stored before (bound to the call).
+constexpr const char* kStep3 = R"sql(
+ALTER TABLE request_log ADD COLUMN fingerprint TEXT NOT NULL DEFAULT '';
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3};
   return steps;
 }
 

@@ -170,22 +170,25 @@ void Session::ExpireRequests(int64_t before_unix_ms) {
 bool Session::InsertRequest(const std::string& id, const StoredRequest& answer) {
   return conn_
              .Exec(
-                 "INSERT INTO request_log (request_id, rpc, response_hex, created_unix_ms) "
-                 "VALUES ($1, $2, $3, $4) ON CONFLICT (request_id) DO NOTHING",
+                 "INSERT INTO request_log (request_id, rpc, response_hex, created_unix_ms, "
+                 "fingerprint) VALUES ($1, $2, $3, $4, $5) ON CONFLICT (request_id) DO NOTHING",
                  Params()
                      .Text(id)
                      .Text(answer.rpc)
                      .Text(ToHex(answer.response))
-                     .Int64(answer.created_unix_ms))
+                     .Int64(answer.created_unix_ms)
+                     .Text(answer.fingerprint))
              .affected() != 0;
 }
 
 std::optional<StoredRequest> Session::FindRequest(const std::string& id) {
-  const Result result =
-      conn_.Exec("SELECT rpc, response_hex, created_unix_ms FROM request_log WHERE request_id = $1",
-                 Params().Text(id));
+  const Result result = conn_.Exec(
+      "SELECT rpc, response_hex, created_unix_ms, fingerprint FROM request_log "
+      "WHERE request_id = $1",
+      Params().Text(id));
   if (result.rows() == 0) return std::nullopt;
-  return StoredRequest{result.Text(0, 0), FromHex(result.Text(0, 1)), result.Int64(0, 2)};
+  return StoredRequest{result.Text(0, 0), FromHex(result.Text(0, 1)), result.Int64(0, 2),
+                       result.Text(0, 3)};
 }
 
 }  // namespace forestmap::storage::pg

@@ -209,11 +209,18 @@ CREATE TABLE upload_chunks (
 PRAGMA user_version = 7;
 )sql";
 
+// Version 8: what a stored request id is bound to (storage/write_request.h): the server's hash of
+// the call, map, caller and request content; '' for answers stored before (bound to the call).
+constexpr const char* kStep8 = R"sql(
+ALTER TABLE request_log ADD COLUMN fingerprint TEXT NOT NULL DEFAULT '';
+PRAGMA user_version = 8;
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
   static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4,
-                                                 kStep5, kStep6, kStep7};
+                                                 kStep5, kStep6, kStep7, kStep8};
   return steps;
 }
 

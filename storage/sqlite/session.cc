@@ -155,20 +155,24 @@ void Session::ExpireRequests(int64_t before_unix_ms) {
 
 bool Session::InsertRequest(const std::string& id, const StoredRequest& answer) {
   Statement insert(db_,
-                   "INSERT INTO request_log (request_id, rpc, response, created_unix_ms) "
-                   "VALUES (?1, ?2, ?3, ?4) ON CONFLICT (request_id) DO NOTHING",
+                   "INSERT INTO request_log (request_id, rpc, response, created_unix_ms, "
+                   "fingerprint) VALUES (?1, ?2, ?3, ?4, ?5) ON CONFLICT (request_id) DO NOTHING",
                    id, answer.rpc);
   insert.BindBlob(3, answer.response);
   insert.BindInt64(4, answer.created_unix_ms);
+  insert.BindText(5, answer.fingerprint);
   insert.Run();
   return db_.Changes() != 0;
 }
 
 std::optional<StoredRequest> Session::FindRequest(const std::string& id) {
-  Statement select(
-      db_, "SELECT rpc, response, created_unix_ms FROM request_log WHERE request_id = ?1", id);
+  Statement select(db_,
+                   "SELECT rpc, response, created_unix_ms, fingerprint FROM request_log "
+                   "WHERE request_id = ?1",
+                   id);
   if (!select.Step()) return std::nullopt;
-  return StoredRequest{select.ColumnText(0), select.ColumnBlob(1), select.ColumnInt64(2)};
+  return StoredRequest{select.ColumnText(0), select.ColumnBlob(1), select.ColumnInt64(2),
+                       select.ColumnText(3)};
 }
 
 }  // namespace forestmap::storage::sqlite

@@ -56,6 +56,22 @@ TEST_P(WriteRequestTest, AnswerIsStoredWithTheWriteAndAnIdIsAppliedOnce) {
   EXPECT_EQ(CurrentWriteRequest(), nullptr);   // scopes end
 }
 
+TEST_P(WriteRequestTest, WhatAnIdIsBoundToIsStoredWithItsAnswer) {
+  TestStore test_store(GetParam());
+  MapStore& store = *test_store;
+  store.CreateMap("plot", "", "");
+  WriteRequest request = Request("bound");
+  request.fingerprint = std::string(64, 'f');  // what the server binds the id to, opaque here
+  {
+    const WriteRequestScope scope(request);
+    store.WriteTrees("plot", Trees(2), WriteMode::kAppend);
+  }
+  const std::optional<StoredRequest> stored = store.FindRequest("bound");
+  ASSERT_TRUE(stored.has_value());
+  EXPECT_EQ(stored->fingerprint, request.fingerprint);
+  EXPECT_EQ(stored->response, "version 2");
+}
+
 TEST_P(WriteRequestTest, PassedDeadlineCommitsNothing) {
   TestStore test_store(GetParam());
   MapStore& store = *test_store;

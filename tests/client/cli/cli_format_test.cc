@@ -170,6 +170,31 @@ TEST(CliFormatTest, ProgressEveryTenth) {
   }
 }
 
+// A map's name, description and CRS come from the server: printed raw, an escape sequence in
+// them would drive the user's terminal (retitle it, hide text, move the cursor).
+TEST(CliFormatTest, MapTextNeverPrintsTerminalControlCharacters) {
+  v1::Map map;
+  map.set_name("plot\x1b]0;owned\x07");
+  map.set_description(
+      "line one\nfake: field\x1b[2J\r\x7f and \xc2\x9b"
+      "31m, caf\xc3\xa9");
+  map.set_crs("EPSG:2193\x1b[8m");
+  for (const std::string& text : {FormatMapDetails(map), FormatMapTable({map})}) {
+    for (const char c : text) {
+      const unsigned char byte = static_cast<unsigned char>(c);
+      EXPECT_TRUE(c == '\n' || (byte >= 0x20 && byte != 0x7f)) << "raw byte " << int{byte};
+    }
+    EXPECT_EQ(text.find("\xc2\x9b"), std::string::npos);  // the C1 control sequence introducer
+    EXPECT_NE(text.find("plot\\x1b]0;owned\\x07"), std::string::npos) << text;
+  }
+  const std::string details = FormatMapDetails(map);
+  EXPECT_NE(details.find("description: line one\\nfake: field\\x1b[2J\\r\\x7f and \\u009b31m, "
+                         "caf\xc3\xa9\n"),
+            std::string::npos)
+      << details;
+  EXPECT_NE(details.find("crs:         EPSG:2193\\x1b[8m\n"), std::string::npos) << details;
+}
+
 TEST(CliFormatTest, MapDetails) {
   v1::Map map;
   map.set_name("plot");

@@ -45,7 +45,7 @@ TEST_F(ExactlyOnceTest, ARepeatedIdGetsTheFirstAnswerWithoutWritingAgain) {
   ASSERT_TRUE(again.has_value());
   EXPECT_EQ(*again, "created a v1");
   EXPECT_EQ(writes_, 1);
-  EXPECT_EQ(StoredAnswer(store_, "create-a-1", "CreateMap"), "created a v1");
+  EXPECT_EQ(StoredAnswer(store_, WriteCall{"create-a-1", "CreateMap"}), "created a v1");
 }
 
 TEST_F(ExactlyOnceTest, WithoutAnIdEveryCallWritesAndNothingIsStored) {
@@ -84,7 +84,7 @@ TEST_F(ExactlyOnceTest, AWritePastItsDeadlineCommitsNothing) {
     EXPECT_EQ(e.code(), storage::StorageError::Code::kDeadlineExceeded);
   }
   EXPECT_TRUE(store_.ListMaps().empty());
-  EXPECT_FALSE(StoredAnswer(store_, "late-1", "CreateMap").has_value());
+  EXPECT_FALSE(StoredAnswer(store_, WriteCall{"late-1", "CreateMap"}).has_value());
 }
 
 }  // namespace

@@ -239,6 +239,48 @@ TEST_F(RobustnessTest, RepeatedRequestIdsAreAppliedOnceAndAnsweredAlike) {
   EXPECT_THAT(bad_id.error_message(), HasSubstr("request_id"));
 }
 
+// A request id reused for another map or other content was answered with the first request's
+// answer, and the second write silently skipped.
+TEST_F(RobustnessTest, ARequestIdReusedForAnotherRequestIsRefusedNeverAnswered) {
+  ASSERT_TRUE(CreateMap("plot").ok());
+  ASSERT_TRUE(CreateMap("other").ok());
+  const std::vector<v1::Tree> trees = {TreeAt(0, 0), TreeAt(3, 0), TreeAt(0, 4)};
+  v1::UploadTreesResponse first, retried;
+  ASSERT_TRUE(Upload("plot", trees, &first, "up-1").ok());
+  const auto refused = [](const grpc::Status& status) {
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
+    EXPECT_THAT(status.error_message(), HasSubstr("request_id"));
+    EXPECT_THAT(status.error_message(), HasSubstr("different request"));
+  };
+  refused(Upload("other", trees, nullptr, "up-1"));  // another map
+  EXPECT_EQ(store_.GetMap("other").tree_count, 0);
+  refused(Upload("plot", {TreeAt(9, 9)}, nullptr, "up-1"));  // other trees
+  EXPECT_EQ(store_.GetMap("plot").tree_count, 3);
+  ASSERT_TRUE(Upload("plot", trees, &retried, "up-1").ok());  // the same request: its answer
+  EXPECT_EQ(retried.map().version(), first.map().version());
+  EXPECT_EQ(store_.GetMap("plot").tree_count, 3);
+
+  ASSERT_TRUE(CreateMap("shared").ok());
+  v1::ObserveResponse observed;
+  ASSERT_TRUE(stub_->Observe(Context().get(), ObserveFrames("obs-1"), &observed).ok());
+  v1::ObserveRequest elsewhere = ObserveFrames("obs-1");
+  elsewhere.set_name("other");
+  refused(stub_->Observe(Context().get(), elsewhere, &observed));
+  EXPECT_EQ(ObservationRows(store_, "other"), 0);
+  v1::ObserveRequest moved = ObserveFrames("obs-1");
+  moved.mutable_frames(0)->mutable_trees(0)->set_dbh(0.5);
+  refused(stub_->Observe(Context().get(), moved, &observed));
+
+  v1::CreateMapRequest create;
+  create.set_name("made");
+  create.set_request_id("create-1");
+  v1::Map made;
+  ASSERT_TRUE(stub_->CreateMap(Context().get(), create, &made).ok());
+  create.set_name("made-too");
+  refused(stub_->CreateMap(Context().get(), create, &made));
+  EXPECT_THROW(store_.GetMap("made-too"), storage::StorageError);
+}
+
 // Finding 4: an Observe whose deadline passed (the CLI's 30 s under load) was committed anyway.
 TEST_F(RobustnessTest, WriteWhoseDeadlinePassedBeforeTheCommitIsNotCommitted) {
   ASSERT_TRUE(CreateMap("shared").ok());

@@ -3,9 +3,14 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <limits>
+#include <optional>
 #include <string>
+#include <tuple>
 
+#include "server/grpc/convert.h"
 #include "server/grpc/upload_validator.h"
 
 namespace forestmap::server {
@@ -228,6 +233,87 @@ TEST(ValidationTest, CoordinatesMustLieInALocalFrame) {
   track.mutable_frame()->mutable_odometry()->mutable_translation()->set_x(5e7);
   EXPECT_THAT(ErrorOf<ValidationError>([&] { ReadTrackMessage(track, "plot", 100); }),
               HasSubstr("frame.odometry.translation.x is 50000000"));
+}
+
+// Observe writes trees as upload does: what upload refuses, Observe refuses, in the map frame.
+TEST(ValidationTest, ObservedTreesFollowTheUploadRulesInTheMapFrame) {
+  v1::Tree huge_dbh;
+  huge_dbh.set_dbh(1e308);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { ValidateTree(huge_dbh, "trees[0]"); }),
+              HasSubstr("trees[0].dbh is 1e+308"));
+
+  v1::ObserveRequest observe;
+  observe.set_name("shared");
+  observe.set_source("drone");
+  v1::ObservationFrame* frame = observe.add_frames();
+  v1::DetectedTree* tree = frame->add_trees();
+  tree->mutable_position()->set_z(6e4);
+  frame->mutable_map_from_sensor()->mutable_translation()->set_z(6e4);
+  frame->mutable_map_from_sensor()->mutable_rotation()->set_w(1);
+  // Each within the bounds, the tree in the map frame at z = 120000 m is not.
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(observe, ObserveLimits{}); }),
+              HasSubstr("frames[0].trees[0] in the map frame: z is 120000"));
+  EXPECT_EQ(FieldOf([&] { Validate(observe, ObserveLimits{}); }), "frames[0].trees[0]");
+  // Rotated: a sensor tilted by 90 degrees about x turns the sensor's y into the map's z.
+  frame->mutable_map_from_sensor()->mutable_rotation()->set_w(std::sqrt(0.5));
+  frame->mutable_map_from_sensor()->mutable_rotation()->set_x(std::sqrt(0.5));
+  frame->mutable_map_from_sensor()->mutable_translation()->set_z(0);
+  tree->mutable_position()->set_z(0);
+  tree->mutable_position()->set_y(9e4);
+  EXPECT_NO_THROW(Validate(observe, ObserveLimits{}));
+  frame->mutable_map_from_sensor()->mutable_translation()->set_z(2e4);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(observe, ObserveLimits{}); }),
+              HasSubstr("frames[0].trees[0] in the map frame: z is 110000"));
+  frame->mutable_map_from_sensor()->mutable_translation()->set_z(0);
+  tree->set_dbh(1e308);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(observe, ObserveLimits{}); }),
+              HasSubstr("frames[0].trees[0].dbh is 1e+308"));
+  tree->set_dbh(0.4);
+  EXPECT_NO_THROW(Validate(observe, ObserveLimits{}));
+}
+
+// A gravity vector of any finite, non-zero length gives its direction, however long or short.
+TEST(ValidationTest, GravityOfAnyFiniteNonZeroLengthIsNormalised) {
+  const double kTolerance = 1e-12;
+  for (const auto& [x, y, z] : {std::tuple{0.0, 0.0, -1e308},
+                                {1e308, 1e308, 0.0},
+                                {-1.7e308, 0.0, 1.7e308},
+                                {0.0, 0.0, -1e-300},
+                                {1e-300, -1e-300, 0.0},
+                                {0.0, 4.9e-324, 0.0},
+                                {3.0, 0.0, -4.0}}) {
+    SCOPED_TRACE(std::to_string(x) + " " + std::to_string(y) + " " + std::to_string(z));
+    v1::RelocalizeRequest request = Query(5);
+    request.mutable_gravity()->set_x(x);
+    request.mutable_gravity()->set_y(y);
+    request.mutable_gravity()->set_z(z);
+    EXPECT_NO_THROW(Validate(request, 100));
+    const std::optional<Eigen::Vector3d> queried = FromProto(request).gravity;
+    ASSERT_TRUE(queried.has_value());
+    const Eigen::Vector3d gravity = *queried;
+    EXPECT_NEAR(gravity.norm(), 1.0, kTolerance) << gravity.transpose();
+    const double largest = std::max({std::abs(x), std::abs(y), std::abs(z)});
+    const Eigen::Vector3d expected = Eigen::Vector3d(x / largest, y / largest, z / largest);
+    EXPECT_TRUE(gravity.isApprox(expected.normalized(), kTolerance)) << gravity.transpose();
+
+    v1::ObserveRequest observe;
+    observe.set_name("shared");
+    observe.set_source("drone");
+    v1::ObservationFrame* frame = observe.add_frames();
+    *frame->mutable_gravity() = request.gravity();
+    *frame->add_trees() = request.trees(0);
+    EXPECT_NO_THROW(Validate(observe, ObserveLimits{}));
+    const std::optional<Eigen::Vector3d> observed = FromProto(observe).frames.at(0).gravity;
+    ASSERT_TRUE(observed.has_value());
+    EXPECT_TRUE(observed->isApprox(expected.normalized(), kTolerance)) << observed->transpose();
+  }
+  for (const double bad : {0.0, kNaN, kInf}) {
+    v1::RelocalizeRequest request = Query(5);
+    request.mutable_gravity()->set_x(bad);
+    request.mutable_gravity()->set_y(bad == 0.0 ? 0.0 : 1.0);
+    request.mutable_gravity()->set_z(0);
+    EXPECT_THROW(Validate(request, 100), ValidationError) << bad;
+  }
 }
 
 TEST(ValidationTest, RelocalizeTreeCountLimits) {

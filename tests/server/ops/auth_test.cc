@@ -11,12 +11,16 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <sstream>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "forestmap/v1/forestmap_service.pb.h"
 #include "proto/status_code_name.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
+#include "server/ops/metrics.h"
 #include "storage/sqlite/store.h"
 #include "storage/token_store.h"
 #include "tests/server/rpc_test_support.h"
@@ -303,6 +307,235 @@ TEST_F(AuthTest, AMalformedAuthorizationHeaderIsUnauthenticated) {
   const grpc::Status status = stub_->ListMaps(context.get(), {}, &response);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::UNAUTHENTICATED);
   EXPECT_NE(status.error_message().find("Bearer"), std::string::npos);
+}
+
+TEST_F(AuthTest, TheBearerSchemeIsCaseInsensitive) {
+  SetUpMaps();
+  const std::string token = tokens_.Create("*", Role::kRead).secret;
+  for (const std::string scheme : {"Bearer", "bearer", "BEARER", "bEaReR"}) {
+    auto context = Context("");
+    context->AddMetadata("authorization", scheme + " " + token);
+    v1::ListMapsResponse response;
+    const grpc::Status status = stub_->ListMaps(context.get(), {}, &response);
+    EXPECT_TRUE(status.ok()) << scheme << ": " << status.error_message();
+  }
+  auto context = Context("");
+  context->AddMetadata("authorization", "Bearertoken " + token);
+  v1::ListMapsResponse response;
+  EXPECT_EQ(stub_->ListMaps(context.get(), {}, &response).error_code(),
+            grpc::StatusCode::UNAUTHENTICATED);
+}
+
+// A request id is one caller's: another token cannot learn or skip that caller's write with it.
+TEST_F(AuthTest, ARequestIdOfOneTokenIsRefusedToAnother) {
+  SetUpMaps();
+  const std::string first = tokens_.Create("*", Role::kAdmin).secret;
+  const std::string second = tokens_.Create("*", Role::kAdmin).secret;
+  v1::CreateMapRequest request;
+  request.set_name("plot-by-id");
+  request.set_request_id("create-by-id");
+  v1::Map map;
+  ASSERT_TRUE(stub_->CreateMap(Context(first).get(), request, &map).ok());
+  ASSERT_TRUE(stub_->CreateMap(Context(first).get(), request, &map).ok());  // its own retry
+  const grpc::Status other = stub_->CreateMap(Context(second).get(), request, &map);
+  EXPECT_EQ(other.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << other.error_message();
+  EXPECT_NE(other.error_message().find("request_id"), std::string::npos);
+  EXPECT_NE(other.error_message().find("different request"), std::string::npos);
+}
+
+// Waits (at most kCallDeadline) until `condition` holds; returns whether it did.
+template <typename Condition>
+bool Eventually(Condition condition) {
+  const auto give_up = std::chrono::steady_clock::now() + kCallDeadline;
+  while (!condition() && std::chrono::steady_clock::now() < give_up) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return condition();
+}
+
+// A server with few stream places, and metrics to learn when it has seen a call.
+class StreamAuthTest : public ::testing::Test {
+ protected:
+  static constexpr int kMaxStreams = 4;
+
+  StreamAuthTest()
+      : tokens_(":memory:"),
+        authorizer_(&tokens_),
+        service_(store_, Options(&authorizer_)),
+        runner_("127.0.0.1:0", service_, WithMetrics(&metrics_)),
+        stub_(v1::ForestMap::NewStub(
+            grpc::CreateChannel(runner_.address(), grpc::InsecureChannelCredentials()))) {
+    EXPECT_TRUE(CreateMap(*stub_, "", kMap).ok());  // while the server is still open
+    admin_ = tokens_.Create("*", Role::kAdmin).secret;
+    write_ = tokens_.Create("*", Role::kWrite).secret;
+    read_ = tokens_.Create("*", Role::kRead).secret;
+  }
+
+  static ServiceOptions Options(const Authorizer* authorizer) {
+    ServiceOptions options;
+    options.authorizer = authorizer;
+    options.streams.max_streams = kMaxStreams;
+    options.streams.max_streams_per_client = kMaxStreams;
+    return options;
+  }
+  static ServerOptions WithMetrics(Metrics* metrics) {
+    ServerOptions options;
+    options.metrics = metrics;
+    return options;
+  }
+
+  // UploadTrees calls the server has started (running or finished), from its metrics.
+  int UploadCallsSeen() const {
+    std::istringstream lines(metrics_.Render());
+    std::string line;
+    int seen = 0;
+    while (std::getline(lines, line)) {
+      if (line.starts_with(R"(forestmap_rpc_requests_total{rpc="UploadTrees")") ||
+          line.starts_with(R"(forestmap_rpc_in_flight{rpc="UploadTrees"})")) {
+        seen += std::stoi(line.substr(line.rfind(' ') + 1));
+      }
+    }
+    return seen;
+  }
+
+  // Waits (at most kCallDeadline) until the server has seen `count` UploadTrees calls.
+  void AwaitUploadCalls(int count) const {
+    const auto give_up = std::chrono::steady_clock::now() + kCallDeadline;
+    while (UploadCallsSeen() < count && std::chrono::steady_clock::now() < give_up) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    ASSERT_GE(UploadCallsSeen(), count) << "the server never saw the silent streams";
+  }
+
+  // An upload stream that sends nothing: it holds whatever the server gives it at open.
+  struct SilentUpload {
+    std::unique_ptr<grpc::ClientContext> context;
+    v1::UploadTreesResponse response;
+    std::unique_ptr<grpc::ClientWriter<v1::UploadTreesRequest>> writer;
+  };
+  std::vector<SilentUpload> OpenSilentUploads(const std::string& token, int count) {
+    std::vector<SilentUpload> streams(count);
+    for (SilentUpload& stream : streams) {
+      stream.context = Context(token);
+      stream.writer = stub_->UploadTrees(stream.context.get(), &stream.response);
+    }
+    return streams;
+  }
+  static void Close(std::vector<SilentUpload>& streams) {
+    for (SilentUpload& stream : streams) {
+      stream.context->TryCancel();
+      stream.writer->Finish();
+    }
+  }
+
+  storage::SqliteMapStore store_{":memory:"};
+  storage::TokenStore tokens_;
+  Authorizer authorizer_;
+  ForestMapService service_;
+  Metrics metrics_;
+  ServerRunner runner_;
+  std::unique_ptr<Stub> stub_;
+  std::string admin_, write_, read_;
+};
+
+TEST_F(StreamAuthTest, SilentStreamsWithoutATokenOrWithAReadTokenTakeNoStreamPlace) {
+  std::vector<SilentUpload> anonymous = OpenSilentUploads("", kMaxStreams);
+  std::vector<SilentUpload> readers = OpenSilentUploads(read_, kMaxStreams);
+  AwaitUploadCalls(2 * kMaxStreams);
+  EXPECT_EQ(service_.stream_limits().open(), 0);
+  const grpc::Status admin = Upload(*stub_, admin_, kMap, 1);
+  EXPECT_TRUE(admin.ok()) << StatusCodeName(admin.error_code()) << ": " << admin.error_message();
+  // They were refused as they opened, before sending anything.
+  for (SilentUpload& stream : anonymous) {
+    EXPECT_EQ(stream.writer->Finish().error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  }
+  for (SilentUpload& stream : readers) {
+    EXPECT_EQ(stream.writer->Finish().error_code(), grpc::StatusCode::PERMISSION_DENIED);
+  }
+}
+
+TEST_F(StreamAuthTest, OneCallerHoldsAtMostHalfOfTheStreamPlaces) {
+  std::vector<SilentUpload> writer = OpenSilentUploads(write_, kMaxStreams);
+  AwaitUploadCalls(kMaxStreams);
+  // Half of them get a place (as their token is checked, on a pool); the rest are refused.
+  const std::string refused = R"(forestmap_rpc_requests_total{rpc="UploadTrees",)"
+                              R"(code="RESOURCE_EXHAUSTED"} )" +
+                              std::to_string(kMaxStreams / 2) + "\n";
+  EXPECT_TRUE(Eventually([&] {
+    return service_.stream_limits().open() == kMaxStreams / 2 &&
+           metrics_.Render().find(refused) != std::string::npos;
+  })) << metrics_.Render();
+  const grpc::Status admin = Upload(*stub_, admin_, kMap, 1);
+  EXPECT_TRUE(admin.ok()) << StatusCodeName(admin.error_code()) << ": " << admin.error_message();
+  Close(writer);
+}
+
+TEST_F(StreamAuthTest, IdleStreamsAreEndedAndTheirPlacesFreed) {
+  ServiceOptions options = Options(&authorizer_);
+  options.streams.idle_timeout = std::chrono::milliseconds(200);
+  ForestMapService service(store_, options);
+  ServerRunner runner("127.0.0.1:0", service);
+  auto stub = v1::ForestMap::NewStub(
+      grpc::CreateChannel(runner.address(), grpc::InsecureChannelCredentials()));
+  // The writer's every place, held by streams that send nothing; their deadlines are far beyond
+  // the idle timeout.
+  struct Silent {
+    std::unique_ptr<grpc::ClientContext> context = Context("");
+    v1::UploadTreesResponse response;
+    std::unique_ptr<grpc::ClientWriter<v1::UploadTreesRequest>> writer;
+  };
+  std::vector<Silent> silent(kMaxStreams / 2);
+  for (Silent& stream : silent) {
+    stream.context = Context(write_);
+    stream.writer = stub->UploadTrees(stream.context.get(), &stream.response);
+  }
+  for (Silent& stream : silent) {
+    const grpc::Status ended = stream.writer->Finish();  // no WritesDone: the server ends it
+    EXPECT_EQ(ended.error_code(), grpc::StatusCode::CANCELLED)
+        << StatusCodeName(ended.error_code()) << ": " << ended.error_message();
+  }
+  EXPECT_TRUE(Eventually([&] { return service.stream_limits().open() == 0; }));
+  const grpc::Status upload = Upload(*stub, write_, kMap, 1);
+  EXPECT_TRUE(upload.ok()) << StatusCodeName(upload.error_code()) << ": " << upload.error_message();
+}
+
+TEST_F(StreamAuthTest, RevokingATokenEndsItsOpenStreams) {
+  ServiceOptions options = Options(&authorizer_);
+  options.streams.idle_timeout = std::chrono::minutes(10);  // not why these streams end
+  options.streams.token_recheck = std::chrono::milliseconds(100);
+  ForestMapService service(store_, options);
+  ServerRunner runner("127.0.0.1:0", service);
+  auto stub = v1::ForestMap::NewStub(
+      grpc::CreateChannel(runner.address(), grpc::InsecureChannelCredentials()));
+  ASSERT_TRUE(Upload(*stub, admin_, kMap, 1).ok());
+  const storage::NewToken doomed = tokens_.Create("*", Role::kWrite);
+  auto upload_context = Context(doomed.secret);
+  v1::UploadTreesResponse response;
+  auto upload = stub->UploadTrees(upload_context.get(), &response);
+  ASSERT_TRUE(upload->Write(test::UploadHeader(kMap)));
+  // A tracking session known to be under way: its first frame is answered.
+  auto track_context = Context(doomed.secret);
+  auto track = stub->Track(track_context.get());
+  v1::TrackRequest header;
+  header.mutable_header()->set_name(kMap);
+  v1::TrackRequest frame;
+  frame.mutable_frame()->set_frame_id(1);
+  AddQueryTrees(frame.mutable_frame()->mutable_trees());
+  v1::TrackResponse answer;
+  ASSERT_TRUE(track->Write(header) && track->Write(frame) && track->Read(&answer));
+  ASSERT_TRUE(Eventually([&] { return service.stream_limits().open() == 1; }));
+
+  ASSERT_TRUE(tokens_.Revoke(doomed.record.id));
+  while (track->Read(&answer)) {
+  }
+  EXPECT_EQ(track->Finish().error_code(), grpc::StatusCode::CANCELLED);
+  // The upload ends too: cancelled, or refused on its header if the server reads it only now.
+  const grpc::StatusCode upload_code = upload->Finish().error_code();
+  EXPECT_TRUE(upload_code == grpc::StatusCode::CANCELLED ||
+              upload_code == grpc::StatusCode::UNAUTHENTICATED)
+      << StatusCodeName(upload_code);
+  EXPECT_TRUE(Eventually([&] { return service.stream_limits().open() == 0; }));
+  EXPECT_EQ(store_.GetMap(kMap).tree_count, static_cast<int64_t>(std::size(kPlot)));
 }
 
 // A new RPC without an entry in the role table would be refused to everyone: this catches it.

@@ -2,6 +2,7 @@
 // endpoint is scraped over HTTP, checked by `promtool check metrics`, and its counters move with
 // the calls; every RPC writes one structured log line with its request id, map, code and time.
 
+#include <grpcpp/generic/generic_stub.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -188,6 +189,79 @@ TEST_F(ObservabilityTest, PromtoolAcceptsTheMetricsAndCountersMove) {
   EXPECT_EQ(Sample(after, R"(forestmap_rpc_requests_total{rpc="CreateMap",code="OK"})"), 2);
   EXPECT_EQ(Sample(after, R"(forestmap_rpc_requests_total{rpc="Track",code="OK"})"), 1);
   EXPECT_EQ(Sample(after, "forestmap_open_streams"), 0);
+}
+
+// Calls a method path through a generic stub; returns the status the server (or the channel)
+// gave it.
+grpc::StatusCode CallRawMethod(grpc::GenericStub& stub, const std::string& method) {
+  grpc::CompletionQueue queue;
+  auto context = Context();
+  grpc::ByteBuffer request, response;
+  grpc::Status status;
+  std::unique_ptr<grpc::GenericClientAsyncResponseReader> call =
+      stub.PrepareUnaryCall(context.get(), method, request, &queue);
+  call->StartCall();
+  call->Finish(&response, &status, reinterpret_cast<void*>(1));
+  void* tag = nullptr;
+  bool ok = false;
+  EXPECT_TRUE(queue.Next(&tag, &ok));
+  queue.Shutdown();
+  while (queue.Next(&tag, &ok)) {
+  }
+  return status.error_code();
+}
+
+TEST_F(ObservabilityTest, UnknownMethodNamesNeitherForgeMetricsNorGrowThePage) {
+  CreateMap("plot-1");
+  const std::string before = Scrape();
+  grpc::GenericStub stub(
+      grpc::CreateChannel(runner_.address(), grpc::InsecureChannelCredentials()));
+  // Names that would close the label and start lines of their own if copied into the page.
+  const std::vector<std::string> forged = {
+      "/x\"} 1\nfake_metric 42\n#",
+      "/forestmap.v1.ForestMap/NoSuchRpc\"} 7\nfake_metric 42",
+      "/forestmap.v1.ForestMap/Create\\Map\"",
+      "/grpc.health.v1.Health/Nope",
+  };
+  int reached = 0;
+  for (const std::string& method : forged) {
+    reached += CallRawMethod(stub, method) == grpc::StatusCode::UNIMPLEMENTED;
+  }
+  constexpr int kJunkNames = 300;
+  for (int i = 0; i < kJunkNames; ++i) {
+    const std::string method = "/junk.Service" + std::to_string(i) + "/Method" + std::to_string(i);
+    ASSERT_EQ(CallRawMethod(stub, method), grpc::StatusCode::UNIMPLEMENTED) << method;
+    ++reached;
+  }
+  const std::string after = Scrape();
+  const std::string file = (dir_ / "metrics.txt").string();
+  std::ofstream(file) << after;
+  const std::string promtool = "promtool check metrics < " + file;
+  EXPECT_EQ(std::system(promtool.c_str()), 0) << after.substr(0, 4000);
+  EXPECT_EQ(after.find("fake_metric"), std::string::npos);
+  EXPECT_EQ(after.find("junk.Service"), std::string::npos);
+  EXPECT_EQ(after.find("NoSuchRpc"), std::string::npos);
+  // Every unknown method is counted under one label: the page grew by one series set, not 300.
+  EXPECT_EQ(Sample(after, R"(forestmap_rpc_requests_total{rpc="unknown",code="UNIMPLEMENTED"})"),
+            reached);
+  EXPECT_LT(after.size(), before.size() + 4096) << "the page grew with the junk names";
+  EXPECT_EQ(Sample(after, R"(forestmap_rpc_requests_total{rpc="CreateMap",code="OK"})"), 1);
+}
+
+TEST(MetricsText, EscapesAndBoundsLabelValuesFromOutside) {
+  Metrics metrics;
+  const std::string hostile = "a\\b\"c\nd";
+  metrics.RpcStarted(hostile, false);
+  metrics.RpcFinished(hostile, false, grpc::StatusCode::OK, 0.01);
+  metrics.RpcStarted(std::string(10'000, 'x'), false);
+  const std::string page = metrics.Render();
+  EXPECT_NE(page.find(R"(rpc="a\\b\"c\nd")"), std::string::npos) << page;
+  EXPECT_EQ(page.find(std::string(1000, 'x')), std::string::npos) << "an unbounded label";
+  std::istringstream lines(page);
+  std::string line;
+  while (std::getline(lines, line)) {
+    EXPECT_TRUE(line.starts_with("forestmap_") || line.starts_with("# ")) << line;
+  }
 }
 
 TEST_F(ObservabilityTest, EveryRpcLogsOneJsonLineWithItsRequestId) {
