@@ -184,17 +184,33 @@ RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q, const Rel
                         const SearchExtent& extent, const RelocalizerOptions& options,
                         const DecoyTest* decoys = nullptr) {
   const double rival = best_rival ? best_rival->score : 0.0;
-  const int nearest = RatioTrees(q, options);
+  // Only the trees inside the map's coverage under the pose are evidence (coverage.h).
+  const ViewInCoverage view = InCoverage(m, q, best.pose, options);
+  const int nearest = view.nearby;
   const double ratio =
       nearest > 0
-          ? static_cast<double>(InliersAmongNearest(m, q, best.pose, nearest, options)) / nearest
+          ? static_cast<double>(InliersAmongNearest(m, q, best.pose, view.prefix, options)) /
+                nearest
           : 0.0;
 
   RelocalizeResult result = FinishWithTilt(m, q, query, best, options);
   result.confidence = best.score > 0 ? std::clamp(1.0 - rival / best.score, 0.0, 1.0) : 0.0;
+  result.coverage_share = view.share;
+  result.trees_in_coverage = view.nearby;
   const PoseBelief belief = Assess(m, q, best, extent, options, decoys);
   char detail[256];
-  if (!belief.significant) {
+  if (nearest < options.min_ratio_trees &&
+      (!belief.significant || best.inliers < options.min_inliers ||
+       ratio < MinInlierRatio(belief, options))) {
+    result.status = RelocalizeStatus::kNotFound;
+    result.reason =
+        belief.significant ? RelocalizeReason::kTooFewInliers : RelocalizeReason::kNotSignificant;
+    result.outside_coverage = true;
+    std::snprintf(detail, sizeof detail,
+                  "under the best pose only %d of the nearby trees (%.0f%%) fall inside what the "
+                  "map covers, %d of them matched: too little of the view to judge (need %d)",
+                  nearest, 100 * view.share, best.inliers, options.min_ratio_trees);
+  } else if (!belief.significant) {
     result.status = RelocalizeStatus::kNotFound;
     result.reason = RelocalizeReason::kNotSignificant;
     std::snprintf(detail, sizeof detail,
@@ -378,7 +394,8 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   }
   const bool tested = search.tested && search.tested->first.yaw == best.pose.yaw &&
                       search.tested->first.translation == best.pose.translation;
-  result = Decide(m, q, query, best, rival, {search.matches, SearchArea(m, query.prior)}, options,
+  result = Decide(m, q, query, best, rival,
+                  {search.matches, SearchArea(m, query.prior, QueryReach(q, options))}, options,
                   tested ? &search.tested->second : nullptr);
   result.hypotheses = verified;
   result.triangles = search.triangles;
@@ -416,7 +433,8 @@ RelocalizeResult RefineNear(const MapIndex& index, const RelocalizeQuery& query,
         Hypothesis h;
         h.pose.yaw = yaw;
         h.pose.translation = guess_xy + shift * Eigen::Vector2d(dx, dy);
-        Score(m, q, options, &h, 1.5 * options.inlier_distance, options.quick_score_trees);
+        Score(m, q, options, &h, 1.5 * options.inlier_distance,
+              ScoringPrefix(m, q, h.pose, options.quick_score_trees));
         seeds.push_back(h);
       }
     }
