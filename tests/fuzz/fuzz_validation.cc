@@ -10,7 +10,7 @@
 #include <cstdint>
 #include <string>
 
-#include "server/validation.h"
+#include "server/grpc/validation.h"
 
 namespace fs = forestmap::server;
 namespace v1 = forestmap::v1;

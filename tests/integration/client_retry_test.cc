@@ -10,8 +10,8 @@
 #include <string>
 
 #include "client/forestmap_client.h"
-#include "server/server.h"
-#include "server/service.h"
+#include "server/grpc/server.h"
+#include "server/grpc/service.h"
 #include "storage/sqlite_map_store.h"
 #include "tests/server/gated_store.h"
 

@@ -14,8 +14,8 @@
 #include "algorithms/core/kdtree.h"
 #include "client/forestmap_client.h"
 #include "client/io/tree_csv.h"
-#include "server/server.h"
-#include "server/service.h"
+#include "server/grpc/server.h"
+#include "server/grpc/service.h"
 #include "storage/sqlite_map_store.h"
 #include "tests/shared_data.h"
 

@@ -9,8 +9,8 @@
 #include "client/forestmap_client.h"
 #include "client/io/tree_csv.h"
 #include "client/proto_convert.h"
-#include "server/server.h"
-#include "server/service.h"
+#include "server/grpc/server.h"
+#include "server/grpc/service.h"
 #include "storage/sqlite_map_store.h"
 #include "tests/shared_data.h"
 

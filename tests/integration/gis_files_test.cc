@@ -19,8 +19,8 @@
 
 #include "cli_run.h"
 #include "client/forestmap_client.h"
-#include "server/server.h"
-#include "server/service.h"
+#include "server/grpc/server.h"
+#include "server/grpc/service.h"
 #include "storage/sqlite_map_store.h"
 
 namespace forestmap {

@@ -22,8 +22,8 @@
 #include "cli_run.h"
 #include "client/forestmap_client.h"
 #include "client/io/tree_csv.h"
-#include "server/server.h"
-#include "server/service.h"
+#include "server/grpc/server.h"
+#include "server/grpc/service.h"
 #include "storage/sqlite_map_store.h"
 
 namespace forestmap {

@@ -4,7 +4,7 @@
 // does not is refused; with --tls-client-ca a client without a certificate is refused. Tokens go
 // through the same channel.
 
-#include "server/tls.h"
+#include "server/ops/tls.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -14,9 +14,9 @@
 #include <string>
 
 #include "client/forestmap_client.h"
-#include "server/auth.h"
-#include "server/server.h"
-#include "server/service.h"
+#include "server/grpc/server.h"
+#include "server/grpc/service.h"
+#include "server/ops/auth.h"
 #include "storage/sqlite_map_store.h"
 #include "storage/token_store.h"
 

@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "server/status.h"
+#include "server/grpc/status.h"
 #include "storage/postgres.h"
 #include "storage/postgres_map_store.h"
 #include "storage/staged_writes.h"

@@ -1,0 +1,276 @@
+#include "server/app/map_merger.h"
+
+#include <map>
+#include <set>
+#include <span>
+#include <tuple>
+#include <utility>
+
+#include "server/app/merge_region.h"
+#include "server/grpc/convert.h"
+#include "server/grpc/status.h"
+
+namespace forestmap::server {
+namespace {
+
+// The trees a frame is merged with incrementally (for its counts) reach this far beyond the
+// merge's own reach (m), so that a tree moving a little between frames of one request is found.
+constexpr double kBoxMargin = 1.0;
+
+struct WorkingTree {
+  algorithms::TreeEstimate estimate;
+  std::map<std::string, std::string> attributes;  // survey columns, kept
+  std::set<std::string> null_attributes;          // survey columns unknown for this tree, kept
+  bool changed = false;
+  bool is_new = false;  // created by this merge (not in the store yet)
+  // A surveyed tree without observation rows: its prior becomes a row when it changes.
+  std::optional<algorithms::TreeObservation> unsaved_prior;
+};
+
+storage::Extent FrameBox(const algorithms::FrameObservations& frame,
+                         const algorithms::MergeOptions& options) {
+  const Eigen::Vector3d sensor = frame.map_from_sensor.translation();
+  const double reach = options.max_range + options.gate_distance + kBoxMargin;
+  return {sensor.x() - reach, sensor.y() - reach, sensor.x() + reach, sensor.y() + reach};
+}
+
+bool Inside(const storage::Extent& box, const Eigen::Vector3d& p) {
+  return p.x() >= box.min_x && p.x() <= box.max_x && p.y() >= box.min_y && p.y() <= box.max_y;
+}
+
+// Observation rows grouped by tree id.
+std::map<int64_t, std::vector<algorithms::TreeObservation>> ByTree(
+    const std::vector<storage::ObservationRecord>& rows) {
+  std::map<int64_t, std::vector<algorithms::TreeObservation>> grouped;
+  for (const storage::ObservationRecord& row : rows) {
+    grouped[row.tree_id].push_back(ToTreeObservation(row));
+  }
+  return grouped;
+}
+
+struct Loaded {
+  std::map<int64_t, WorkingTree> working;
+  std::vector<storage::ObservationRecord> rows;  // current rows of the region (not dropped)
+};
+
+// The trees of the region that `seeds` join (LoadMergeRegion), with their estimates rebuilt from
+// their rows; rows whose id is in `dropped` are left out (a source being removed).
+Loaded LoadTrees(storage::MergeReader& reader,
+                 const std::vector<algorithms::TreeObservation>& seeds,
+                 const algorithms::MergeOptions& options, const std::set<int64_t>& dropped = {}) {
+  MergeRegion region = LoadMergeRegion(reader, seeds, options);
+  Loaded loaded;
+  for (storage::ObservationRecord& row : region.rows) {
+    if (dropped.count(row.id) == 0) loaded.rows.push_back(std::move(row));
+  }
+  const auto observations = ByTree(loaded.rows);
+  std::map<int64_t, algorithms::TreeObservation> priors;
+  for (algorithms::TreeObservation& prior : region.unsaved_priors) {
+    priors.emplace(prior.tree_id, std::move(prior));
+  }
+  for (auto& [id, record] : region.trees) {
+    WorkingTree tree;
+    tree.attributes = std::move(record.attributes);
+    tree.null_attributes = std::move(record.null_attributes);
+    const auto rows = observations.find(id);
+    const auto prior_of = priors.find(id);
+    if (rows != observations.end()) {
+      tree.estimate = algorithms::EstimateFromObservations(id, rows->second, options);
+    } else if (prior_of == priors.end()) {
+      tree.estimate.id = id;  // every row dropped: the rebuild removes the tree
+    } else {
+      const algorithms::TreeObservation& prior = prior_of->second;
+      tree.estimate = algorithms::EstimateFromObservations(id, {&prior, 1}, options);
+      tree.unsaved_prior = prior;
+    }
+    loaded.working.emplace(id, std::move(tree));
+  }
+  return loaded;
+}
+
+// Identifies an observation row across ConsolidateTrees, which reorders rows and may change
+// their tree: where it was seen and what was seen.
+using RowKey = std::tuple<std::string, int64_t, int32_t, double, double>;
+RowKey KeyOf(const std::string& source, int64_t frame, int32_t detection, double x, double y) {
+  return {source, frame, detection, x, y};
+}
+
+// Rebuilds the region (its stored rows, the new rows and unsaved survey priors: whole connected
+// components of the map's rows) afresh with algorithms::RebuildTrees, then turns the outcome into
+// changes: moved rows are closed and re-inserted under their new tree, trees that gained, lost
+// or changed rows (or are in `lost`: their dropped rows are closed by the caller) are put, trees
+// left empty are removed. The region's trees are then what one rebuild of all the map's rows
+// gives them, whatever the order in which requests arrived.
+storage::MapChanges Consolidate(Loaded& loaded,
+                                const std::vector<algorithms::TreeObservation>& fresh,
+                                const std::set<int64_t>& lost, int64_t next_free_id,
+                                const algorithms::MergeOptions& options) {
+  std::vector<algorithms::TreeEstimate> trees;
+  for (const auto& [id, tree] : loaded.working) trees.push_back(tree.estimate);
+  std::vector<algorithms::TreeObservation> rows;
+  std::map<RowKey, std::vector<std::pair<int64_t, int64_t>>> stored;  // key -> (row id, tree)
+  for (const storage::ObservationRecord& row : loaded.rows) {
+    rows.push_back(ToTreeObservation(row));
+    stored[KeyOf(row.source, row.frame_id, row.detection_index, row.x, row.y)].emplace_back(
+        row.id, row.tree_id);
+  }
+  for (const auto& [id, tree] : loaded.working) {
+    if (tree.unsaved_prior) rows.push_back(*tree.unsaved_prior);
+  }
+  rows.insert(rows.end(), fresh.begin(), fresh.end());
+  const algorithms::ConsolidateResult result =
+      algorithms::RebuildTrees(trees, rows, next_free_id, options);
+
+  storage::MapChanges changes;
+  std::set<int64_t> changed = lost;
+  std::vector<const algorithms::TreeObservation*> priors;
+  for (const algorithms::TreeObservation& row : result.observations) {
+    auto it = stored.find(
+        KeyOf(row.source, row.frame_id, row.detection_index, row.position.x(), row.position.y()));
+    if (it != stored.end() && !it->second.empty()) {
+      const auto [row_id, old_tree] = it->second.back();
+      it->second.pop_back();
+      if (old_tree == row.tree_id) continue;
+      changes.removed_observations.push_back(row_id);
+      changed.insert(old_tree);
+    } else if (row.prior) {
+      priors.push_back(&row);  // saved only with its tree, below
+      continue;
+    }
+    changes.added_observations.push_back(ToObservationRecord(row));
+    changed.insert(row.tree_id);
+  }
+  std::set<int64_t> removed(result.removed_ids.begin(), result.removed_ids.end());
+  for (const algorithms::TreeObservation* prior : priors) {
+    if (changed.count(prior->tree_id) != 0) {
+      changes.added_observations.push_back(ToObservationRecord(*prior));
+    }
+  }
+  for (const algorithms::TreeEstimate& tree : result.trees) {
+    if (changed.count(tree.id) == 0) continue;
+    const auto it = loaded.working.find(tree.id);
+    changes.put_trees.push_back(
+        it != loaded.working.end()
+            ? ToTreeRecord(tree, it->second.attributes, it->second.null_attributes)
+            : ToTreeRecord(tree, {}));
+  }
+  for (const int64_t id : removed) {
+    const auto it = loaded.working.find(id);
+    if (it != loaded.working.end() && !it->second.is_new) changes.removed_trees.push_back(id);
+  }
+  return changes;
+}
+
+// The rows of `frames` each on its own, before any merging: what the merge region grows from.
+std::vector<algorithms::TreeObservation> SeedsOf(
+    const std::vector<algorithms::FrameObservations>& frames,
+    const algorithms::MergeOptions& options) {
+  std::vector<algorithms::TreeObservation> seeds;
+  for (const algorithms::FrameObservations& frame : frames) {
+    const std::vector<algorithms::TreeObservation> rows = algorithms::ObserveFrame(frame, options);
+    seeds.insert(seeds.end(), rows.begin(), rows.end());
+  }
+  return seeds;
+}
+
+FrameMergeCounts CountsOf(const algorithms::MergeResult& result) {
+  FrameMergeCounts counts;
+  counts.associated = result.associated;
+  counts.added = result.created;
+  counts.promoted = static_cast<int>(result.promoted_ids.size());
+  counts.ignored = result.skipped;
+  return counts;
+}
+
+// Moves the updated and new trees of one frame's merge (ids resolved) into `working`.
+void Apply(algorithms::MergeResult& result, std::map<int64_t, WorkingTree>& working) {
+  for (algorithms::TreeEstimate& tree : result.updated_trees) {
+    WorkingTree& target = working.at(tree.id);
+    target.estimate = std::move(tree);
+    target.changed = true;
+  }
+  for (algorithms::TreeEstimate& tree : result.new_trees) {
+    WorkingTree created;
+    created.estimate = std::move(tree);
+    created.changed = true;
+    created.is_new = true;
+    working.emplace(created.estimate.id, std::move(created));
+  }
+}
+
+// The changes of an incremental merge: every changed tree (with its unsaved survey prior, now
+// a row) and the new observation rows.
+storage::MapChanges ChangesOfWorkingTrees(const std::map<int64_t, WorkingTree>& working,
+                                          const std::vector<algorithms::TreeObservation>& rows) {
+  storage::MapChanges changes;
+  for (const auto& [id, tree] : working) {
+    if (!tree.changed) continue;
+    changes.put_trees.push_back(ToTreeRecord(tree.estimate, tree.attributes, tree.null_attributes));
+    if (tree.unsaved_prior) {
+      changes.added_observations.push_back(ToObservationRecord(*tree.unsaved_prior));
+    }
+  }
+  for (const algorithms::TreeObservation& row : rows) {
+    changes.added_observations.push_back(ToObservationRecord(row));
+  }
+  return changes;
+}
+
+}  // namespace
+
+FramesMerge MergeFrames(storage::MergeReader& reader,
+                        const std::vector<algorithms::FrameObservations>& frames,
+                        const algorithms::MergeOptions& options, bool consolidate) {
+  Loaded loaded = LoadTrees(reader, SeedsOf(frames, options), options);
+  std::map<int64_t, WorkingTree>& working = loaded.working;
+  int64_t next_id = reader.NextFreeTreeId();
+  FramesMerge merge;
+  std::vector<algorithms::TreeObservation> rows;
+  std::vector<algorithms::TreeEstimate> nearby;
+  for (const algorithms::FrameObservations& frame : frames) {
+    const storage::Extent box = FrameBox(frame, options);
+    nearby.clear();
+    for (const auto& [id, tree] : working) {
+      if (Inside(box, tree.estimate.position)) nearby.push_back(tree.estimate);
+    }
+    algorithms::MergeResult result = algorithms::MergeFrame(nearby, frame, options);
+    std::vector<int64_t> new_ids;
+    for (size_t k = 0; k < result.new_trees.size(); ++k) new_ids.push_back(next_id++);
+    algorithms::ResolveNewIds(result, new_ids);
+    Apply(result, working);
+    rows.insert(rows.end(), result.observations.begin(), result.observations.end());
+    merge.counts.push_back(CountsOf(result));
+  }
+  merge.changes = consolidate ? Consolidate(loaded, rows, {}, next_id, options)
+                              : ChangesOfWorkingTrees(working, rows);
+  return merge;
+}
+
+SourceRemoval RemoveSourceChanges(storage::MergeReader& reader, const std::string& source,
+                                  const algorithms::MergeOptions& options) {
+  const std::vector<storage::ObservationRecord> removed = reader.ObservationsOfSource(source);
+  if (removed.empty()) {
+    throw ServiceError(
+        grpc::StatusCode::NOT_FOUND,
+        "map \"" + reader.map().name + "\" has no observations of source \"" + source + "\"");
+  }
+  std::set<int64_t> removed_ids;
+  std::set<int64_t> lost;
+  std::vector<algorithms::TreeObservation> seeds;
+  for (const storage::ObservationRecord& row : removed) {
+    removed_ids.insert(row.id);
+    lost.insert(row.tree_id);
+    seeds.push_back(ToTreeObservation(row));
+  }
+  // The components the source's rows were in, rebuilt from the rows that remain.
+  Loaded loaded = LoadTrees(reader, seeds, options, removed_ids);
+  SourceRemoval removal;
+  removal.changes = Consolidate(loaded, {}, lost, reader.NextFreeTreeId(), options);
+  removal.changes.removed_observations.insert(removal.changes.removed_observations.end(),
+                                              removed_ids.begin(), removed_ids.end());
+  removal.trees_updated = static_cast<int64_t>(removal.changes.put_trees.size());
+  removal.trees_removed = static_cast<int64_t>(removal.changes.removed_trees.size());
+  return removal;
+}
+
+}  // namespace forestmap::server

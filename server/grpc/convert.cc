@@ -1,0 +1,323 @@
+#include "server/grpc/convert.h"
+
+#include <cmath>
+#include <optional>
+
+#include "server/grpc/geo_convert.h"
+
+namespace forestmap::server {
+namespace {
+
+// Normalises a direction; a (near) zero vector stays zero, meaning "unknown".
+Eigen::Vector3d Direction(const Eigen::Vector3d& v) {
+  const double norm = v.norm();
+  return norm > 0 ? Eigen::Vector3d(v / norm) : Eigen::Vector3d::Zero();
+}
+
+}  // namespace
+
+v1::Map ToProto(const storage::MapInfo& info) {
+  v1::Map map;
+  map.set_name(info.name);
+  map.set_description(info.description);
+  map.set_crs(info.crs);
+  map.set_version(info.version);
+  map.set_tree_count(info.tree_count);
+  if (info.extent) *map.mutable_extent() = ToProto(*info.extent);
+  map.set_created_unix_ms(info.created_unix_ms);
+  map.set_updated_unix_ms(info.updated_unix_ms);
+  DescribeCrs(map);
+  return map;
+}
+
+v1::Tree ToProto(const storage::TreeRecord& tree) {
+  v1::Tree out;
+  if (tree.id) out.set_id(*tree.id);
+  out.set_x(tree.x);
+  out.set_y(tree.y);
+  if (tree.z) out.set_z(*tree.z);
+  if (tree.dbh) out.set_dbh(*tree.dbh);
+  out.mutable_attributes()->insert(tree.attributes.begin(), tree.attributes.end());
+  for (const std::string& name : tree.null_attributes) out.add_null_attributes(name);
+  out.set_status(tree.status == storage::TreeStatus::kConfirmed ? v1::CONFIRMED : v1::CANDIDATE);
+  out.set_observations(tree.observations);
+  if (tree.position_sigma) out.set_position_sigma_m(*tree.position_sigma);
+  if (tree.dbh_sigma) out.set_dbh_sigma_m(*tree.dbh_sigma);
+  return out;
+}
+
+storage::TreeRecord FromProto(const v1::Tree& tree) {
+  storage::TreeRecord out;
+  if (tree.has_id()) out.id = tree.id();
+  out.x = tree.x();
+  out.y = tree.y();
+  if (tree.has_z()) out.z = tree.z();
+  if (tree.has_dbh()) out.dbh = tree.dbh();
+  out.attributes.insert(tree.attributes().begin(), tree.attributes().end());
+  out.null_attributes.insert(tree.null_attributes().begin(), tree.null_attributes().end());
+  return out;
+}
+
+v1::Box2 ToProto(const storage::Extent& extent) {
+  v1::Box2 box;
+  box.set_min_x(extent.min_x);
+  box.set_min_y(extent.min_y);
+  box.set_max_x(extent.max_x);
+  box.set_max_y(extent.max_y);
+  return box;
+}
+
+storage::Extent FromProto(const v1::Box2& box) {
+  return storage::Extent{box.min_x(), box.min_y(), box.max_x(), box.max_y()};
+}
+
+algorithms::MapTree ToMapTree(const storage::TreeRecord& tree) {
+  algorithms::MapTree out;
+  out.id = tree.id.value_or(0);
+  out.position = Eigen::Vector3d(tree.x, tree.y, tree.z.value_or(algorithms::kUnknown));
+  out.dbh = tree.dbh.value_or(algorithms::kUnknown);
+  return out;
+}
+
+std::vector<algorithms::MapTree> ToMapTrees(const std::vector<storage::TreeRecord>& trees) {
+  std::vector<algorithms::MapTree> out;
+  out.reserve(trees.size());
+  for (const storage::TreeRecord& tree : trees) out.push_back(ToMapTree(tree));
+  return out;
+}
+
+algorithms::DetectedTree FromProto(const v1::DetectedTree& tree) {
+  algorithms::DetectedTree out;
+  out.position = FromProto(tree.position());
+  out.dbh = tree.has_dbh() ? tree.dbh() : algorithms::kUnknown;
+  out.axis = tree.has_axis() ? Direction(FromProto(tree.axis())) : Eigen::Vector3d::Zero();
+  out.score = tree.has_score() ? tree.score() : algorithms::kUnknown;
+  return out;
+}
+
+algorithms::PriorPose FromProto(const v1::PriorPose& prior) {
+  algorithms::PriorPose out;
+  out.map_from_sensor = FromProto(prior.map_from_sensor());
+  out.radius = prior.radius_m();
+  return out;
+}
+
+algorithms::RelocalizeQuery FromProto(const v1::RelocalizeRequest& request) {
+  algorithms::RelocalizeQuery query;
+  query.trees.reserve(request.trees_size());
+  for (const v1::DetectedTree& tree : request.trees()) query.trees.push_back(FromProto(tree));
+  if (request.has_gravity()) query.gravity = Direction(FromProto(request.gravity()));
+  if (request.has_prior()) query.prior = FromProto(request.prior());
+  return query;
+}
+
+v1::RelocalizeResponse::Status ToProto(algorithms::RelocalizeStatus status) {
+  switch (status) {
+    case algorithms::RelocalizeStatus::kLocalized:
+      return v1::RelocalizeResponse::LOCALIZED;
+    case algorithms::RelocalizeStatus::kAmbiguous:
+      return v1::RelocalizeResponse::AMBIGUOUS;
+    case algorithms::RelocalizeStatus::kNotFound:
+      return v1::RelocalizeResponse::NOT_FOUND;
+  }
+  return v1::RelocalizeResponse::STATUS_UNSPECIFIED;
+}
+
+v1::RelocalizeResponse::Reason ToProto(algorithms::RelocalizeReason reason) {
+  using R = algorithms::RelocalizeReason;
+  switch (reason) {
+    case R::kNone:
+      return v1::RelocalizeResponse::REASON_NONE;
+    case R::kTooFewTrees:
+      return v1::RelocalizeResponse::TOO_FEW_TREES;
+    case R::kNoMatchingConstellation:
+      return v1::RelocalizeResponse::NO_MATCHING_CONSTELLATION;
+    case R::kNotSignificant:
+      return v1::RelocalizeResponse::NOT_SIGNIFICANT;
+    case R::kTooFewInliers:
+      return v1::RelocalizeResponse::TOO_FEW_INLIERS;
+    case R::kAmbiguous:
+      return v1::RelocalizeResponse::AMBIGUOUS_RIVAL;
+    case R::kOutsidePrior:
+      return v1::RelocalizeResponse::OUTSIDE_PRIOR;
+  }
+  return v1::RelocalizeResponse::REASON_UNSPECIFIED;
+}
+
+v1::RelocalizeResponse ToProto(const algorithms::RelocalizeResult& result) {
+  v1::RelocalizeResponse out;
+  out.set_status(ToProto(result.status));
+  if (result.status == algorithms::RelocalizeStatus::kLocalized) {
+    *out.mutable_map_from_sensor() = ToProto(result.map_from_sensor);
+  }
+  out.set_inliers(result.inliers);
+  out.mutable_matches()->Reserve(static_cast<int>(result.matches.size()));
+  for (const algorithms::TreeMatch& match : result.matches) {
+    v1::TreeMatch* m = out.add_matches();
+    m->set_query_index(match.query_index);
+    m->set_map_tree_id(match.map_tree_id);
+    m->set_distance_m(match.distance);
+  }
+  out.set_rmse_m(result.rmse);
+  out.set_confidence(result.confidence);
+  out.set_detail(result.detail);
+  out.set_reason(ToProto(result.reason));
+  if (result.status == algorithms::RelocalizeStatus::kAmbiguous && result.rival_map_from_sensor) {
+    *out.mutable_rival_map_from_sensor() = ToProto(*result.rival_map_from_sensor);
+  }
+  if (result.status == algorithms::RelocalizeStatus::kLocalized) {
+    out.mutable_covariance()->Reserve(36);
+    for (int r = 0; r < 6; ++r) {
+      for (int c = 0; c < 6; ++c) out.add_covariance(result.covariance(r, c));
+    }
+  }
+  return out;
+}
+
+algorithms::TrackingFrame FromProto(const v1::TrackRequest& request) {
+  algorithms::TrackingFrame frame;
+  frame.query.trees.reserve(request.trees_size());
+  for (const v1::DetectedTree& tree : request.trees()) frame.query.trees.push_back(FromProto(tree));
+  if (request.has_gravity()) frame.query.gravity = Direction(FromProto(request.gravity()));
+  if (request.has_odometry()) frame.odometry = FromProto(request.odometry());
+  return frame;
+}
+
+v1::TrackResponse ToProto(const algorithms::TrackingStep& step) {
+  v1::TrackResponse out;
+  switch (step.state) {
+    case algorithms::TrackState::kTracking:
+      out.set_state(v1::TrackResponse::TRACKING);
+      break;
+    case algorithms::TrackState::kRecovered:
+      out.set_state(v1::TrackResponse::RECOVERED);
+      break;
+    case algorithms::TrackState::kLost:
+      out.set_state(v1::TrackResponse::LOST);
+      break;
+  }
+  switch (step.method) {
+    case algorithms::TrackMethod::kLocal:
+      out.set_method(v1::TrackResponse::LOCAL);
+      break;
+    case algorithms::TrackMethod::kPrior:
+      out.set_method(v1::TrackResponse::PRIOR);
+      break;
+    case algorithms::TrackMethod::kGlobal:
+      out.set_method(v1::TrackResponse::GLOBAL);
+      break;
+  }
+  out.set_frames_lost(step.frames_lost);
+  *out.mutable_result() = ToProto(step.result);
+  return out;
+}
+
+v1::MapVersion::Kind ToProto(storage::VersionKind kind) {
+  using Kind = storage::VersionKind;
+  switch (kind) {
+    case Kind::kCreate:
+      return v1::MapVersion::CREATE;
+    case Kind::kUpload:
+      return v1::MapVersion::UPLOAD;
+    case Kind::kReplace:
+      return v1::MapVersion::REPLACE;
+    case Kind::kObserve:
+      return v1::MapVersion::OBSERVE;
+    case Kind::kRestore:
+      return v1::MapVersion::RESTORE;
+    case Kind::kRemoveSource:
+      return v1::MapVersion::REMOVE_SOURCE;
+    case Kind::kMigrated:
+      return v1::MapVersion::MIGRATED;
+  }
+  return v1::MapVersion::KIND_UNSPECIFIED;
+}
+
+v1::MapVersion ToProto(const storage::VersionRecord& record) {
+  v1::MapVersion out;
+  out.set_version(record.version);
+  out.set_created_unix_ms(record.created_unix_ms);
+  out.set_kind(ToProto(record.kind));
+  out.set_source(record.source);
+  out.set_tree_count(record.tree_count);
+  out.set_confirmed_count(record.confirmed_count);
+  out.set_trees_added(record.trees_added);
+  out.set_trees_updated(record.trees_updated);
+  out.set_trees_removed(record.trees_removed);
+  out.set_observations_added(record.observations_added);
+  out.set_observations_removed(record.observations_removed);
+  out.set_restored_from(record.restored_from);
+  return out;
+}
+
+algorithms::TreeObservation ToTreeObservation(const storage::ObservationRecord& record) {
+  algorithms::TreeObservation out;
+  out.tree_id = record.tree_id;
+  out.source = record.source;
+  out.frame_id = record.frame_id;
+  out.detection_index = record.detection_index;
+  out.position = Eigen::Vector3d(record.x, record.y, record.z.value_or(algorithms::kUnknown));
+  out.dbh = record.dbh.value_or(algorithms::kUnknown);
+  out.weight_xy = record.weight_xy;
+  out.weight_dbh = record.weight_dbh;
+  out.sensor_position = Eigen::Vector3d(record.sensor_x, record.sensor_y, record.sensor_z);
+  out.prior = record.prior;
+  return out;
+}
+
+namespace {
+std::optional<double> Known(double v) {
+  return std::isfinite(v) ? std::optional<double>(v) : std::nullopt;
+}
+}  // namespace
+
+storage::ObservationRecord ToObservationRecord(const algorithms::TreeObservation& observation) {
+  storage::ObservationRecord out;
+  out.tree_id = observation.tree_id;
+  out.source = observation.source;
+  out.frame_id = observation.frame_id;
+  out.detection_index = observation.detection_index;
+  out.x = observation.position.x();
+  out.y = observation.position.y();
+  out.z = Known(observation.position.z());
+  out.dbh = Known(observation.dbh);
+  out.weight_xy = observation.weight_xy;
+  out.weight_dbh = observation.weight_dbh;
+  out.sensor_x = observation.sensor_position.x();
+  out.sensor_y = observation.sensor_position.y();
+  out.sensor_z = observation.sensor_position.z();
+  out.prior = observation.prior;
+  return out;
+}
+
+storage::TreeRecord ToTreeRecord(const algorithms::TreeEstimate& tree,
+                                 const std::map<std::string, std::string>& attributes,
+                                 const std::set<std::string>& null_attributes) {
+  storage::TreeRecord out;
+  out.id = tree.id;
+  out.x = tree.position.x();
+  out.y = tree.position.y();
+  out.z = Known(tree.position.z());
+  out.dbh = Known(tree.dbh);
+  out.attributes = attributes;
+  out.null_attributes = null_attributes;
+  out.status = tree.status == algorithms::TreeStatus::kConfirmed ? storage::TreeStatus::kConfirmed
+                                                                 : storage::TreeStatus::kCandidate;
+  out.observations = tree.observations;
+  out.position_sigma = Known(tree.position_sigma);
+  out.dbh_sigma = Known(tree.dbh_sigma);
+  return out;
+}
+
+algorithms::FrameObservations FromProto(const v1::ObservationFrame& frame,
+                                        const std::string& source) {
+  algorithms::FrameObservations out;
+  out.source = source;
+  out.frame_id = frame.frame_id();
+  out.trees.reserve(frame.trees_size());
+  for (const v1::DetectedTree& tree : frame.trees()) out.trees.push_back(FromProto(tree));
+  if (frame.has_map_from_sensor()) out.map_from_sensor = FromProto(frame.map_from_sensor());
+  return out;
+}
+
+}  // namespace forestmap::server

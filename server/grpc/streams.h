@@ -1,0 +1,145 @@
+#pragma once
+// The streaming RPCs of ForestMapService as callback reactors. Each deletes itself in OnDone.
+
+#include <grpcpp/grpcpp.h>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "algorithms/relocalization/tracking.h"
+#include "forestmap/v1/maps.pb.h"
+#include "forestmap/v1/tracking.pb.h"
+#include "server/app/map_index_cache.h"
+#include "server/app/worker_pool.h"
+#include "server/grpc/stream_limits.h"
+#include "server/grpc/validation.h"
+#include "storage/map_store.h"
+#include "storage/staged_writes.h"
+
+namespace forestmap::server {
+
+struct ServiceOptions;
+class Authorizer;
+
+// What the upload and export reactors use; all must outlive them (the service owns them).
+struct StreamDeps {
+  storage::MapStore& store;
+  const ServiceOptions& options;
+  WorkerPool& admin_pool;  // the first message's checks (map exists, replayed request id)
+  WorkerPool& work_pool;   // staging, commits and export pages
+  StreamLimits& limits;    // a stream over its limit is RESOURCE_EXHAUSTED before anything else
+};
+
+// UploadTrees (server/upload_stream.cc): reads the messages one at a time, validates each as it
+// arrives (the first must name the map: NOT_FOUND, or ALREADY_EXISTS with create_map, before the
+// client sends the rest), and stages the trees in the database through MapStore::BeginUpload in
+// chunks of options.upload_stage_trees, so that an upload holds at most one chunk in memory.
+// When the client closes the stream, the last chunk is staged and the upload committed (with
+// create_map, together with the new map). A cancelled or failed upload commits nothing and its
+// staged rows are removed. Messages arrive raw and are decoded here: one that cannot be decoded
+// as a v1::UploadTreesRequest (a string that is not UTF-8, corrupt bytes) fails the upload with
+// INVALID_ARGUMENT naming the message; gRPC's typed reader would report it as the end of the
+// stream. `response` gets the encoded v1::UploadTreesResponse.
+class UploadTreesReactor final : public grpc::ServerReadReactor<grpc::ByteBuffer> {
+ public:
+  UploadTreesReactor(const StreamDeps& deps, grpc::CallbackServerContext* context,
+                     grpc::ByteBuffer* response);
+
+  void OnReadDone(bool ok) override;
+  void OnDone() override;  // an upload not committed is aborted (on a pool), then `delete this`
+
+ private:
+  // Frees the stream's place, aborts an upload not committed, then Finish.
+  void End(const grpc::Status& status);
+  void Accept();      // the message in buffer_ -> chunk_; throws
+  bool Begin();       // first message: false when a replayed answer ends the call; throws
+  void StageChunk();  // chunk_ -> the database; throws
+  void Commit();      // throws
+  // Runs `body` on `pool`, then reads the next message, or finishes on error.
+  void ThenReadNext(WorkerPool& pool, std::function<void()> body);
+  void EncodeResponse(const v1::UploadTreesResponse& answer);
+
+  StreamDeps deps_;
+  const Authorizer* authorizer_;  // checked on the first message
+  grpc::CallbackServerContext* context_;
+  grpc::ByteBuffer* response_;
+  std::unique_ptr<StreamLimits::Slot> slot_;
+  grpc::ByteBuffer buffer_;  // the message being read
+  v1::UploadTreesRequest request_;
+  UploadValidator validator_;
+  std::string request_id_;  // from the first message (exactly-once, server/exactly_once.h)
+  storage::UploadPlan plan_;
+  std::unique_ptr<storage::TreeUpload> upload_;  // null before Begin and after Commit
+  std::vector<storage::TreeRecord> chunk_;       // received, not yet staged
+};
+
+// ExportTrees (server/export_stream.cc): streams the trees of one map version, reading them page
+// by page (MapStore::ReadTreesPage, one short read per page of export_chunk_trees trees) and
+// reading the next page only when the client has taken the last message (gRPC flow control),
+// so an export holds one page in memory however big the map and however slow the client.
+// Messages carry export_chunk_trees trees or about export_chunk_bytes bytes, whichever comes
+// first, every one the same map_version. An empty result is one message with no trees, so the
+// client still learns the version.
+class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTreesResponse> {
+ public:
+  // `request` must stay valid until the reactor finishes (gRPC guarantees it).
+  ExportTreesReactor(const StreamDeps& deps, grpc::CallbackServerContext* context,
+                     const v1::ExportTreesRequest* request);
+
+  void OnWriteDone(bool ok) override;
+  void OnDone() override { delete this; }
+
+ private:
+  void End(const grpc::Status& status);  // frees the stream's place, then Finish
+  void Start();                          // authorizes, picks the version; throws
+  void LoadPage();                       // the next page into page_; throws
+  void ReadThenWrite(bool start);        // on the work pool: (Start,) LoadPage, then WriteNext
+  void WriteNext();
+
+  StreamDeps deps_;
+  grpc::CallbackServerContext* context_;
+  const v1::ExportTreesRequest* request_;
+  std::unique_ptr<StreamLimits::Slot> slot_;
+  int64_t version_ = 0;
+  int64_t created_unix_ms_ = 0;
+  std::optional<int64_t> after_id_;  // the last id sent
+  bool last_page_ = false;           // page_ is the last one
+  std::vector<storage::TreeRecord> page_;
+  size_t next_ = 0;  // next tree of page_ to send
+  bool wrote_any_ = false;
+  v1::ExportTreesResponse response_;
+};
+
+// Track: one frame at a time, in order: read a frame, answer it on `work_pool` (the session's
+// Tracker, algorithms/relocalization/tracking.h), write the answer, read the next. The index comes
+// from the cache for every frame, so a session moves on to a new map version as soon as there is
+// one. A bad frame, an unknown map or a map without trees ends the stream with its status, the
+// message prefixed with the frame ("frame 12: trees[3].position.x is NaN").
+class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse> {
+ public:
+  TrackReactor(MapIndexCache& index_cache, const ServiceOptions& options, WorkerPool& work_pool,
+               grpc::CallbackServerContext* context);
+
+  void OnReadDone(bool ok) override;
+  void OnWriteDone(bool ok) override;
+  void OnDone() override { delete this; }
+
+ private:
+  void Answer();  // request_ -> response_; throws
+
+  MapIndexCache& index_cache_;
+  WorkerPool& work_pool_;
+  const Authorizer* authorizer_;  // checked on the first frame
+  grpc::CallbackServerContext* context_;
+  int max_query_trees_;
+  algorithms::Tracker tracker_;
+  std::string map_name_;  // from the first frame
+  v1::TrackRequest request_;
+  v1::TrackResponse response_;
+};
+
+}  // namespace forestmap::server

@@ -1,0 +1,98 @@
+#pragma once
+// Validation of every request of the ForestMap API, before anything is converted or stored.
+//
+// Each function throws ValidationError (INVALID_ARGUMENT) or LimitError (RESOURCE_EXHAUSTED)
+// from server/status.h, with a message naming the field path and index, e.g.
+//   "trees[12].position.x is NaN"
+//   "prior.radius_m is -1; it must be > 0"
+//   "trees: 100000 trees exceed the limit of 20000 per query"
+// Rules beyond "finite numbers": dbh >= 0, score in [0, 1], tree ids >= 0 and unique within an
+// upload, rotations unit quaternions within kUnitQuaternionTolerance (normalised afterwards),
+// prior radius > 0, gravity and stem axes non-zero, box min <= max, bounded string lengths,
+// coordinates within kMaxHorizontalCoordinate / kMaxVerticalCoordinate.
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+#include "forestmap/v1/maps.pb.h"
+#include "forestmap/v1/observations.pb.h"
+#include "forestmap/v1/relocalization.pb.h"
+#include "forestmap/v1/tracking.pb.h"
+#include "server/grpc/status.h"
+
+namespace forestmap::server {
+
+inline constexpr double kUnitQuaternionTolerance = 1e-3;  // | |q| - 1 | allowed
+inline constexpr int kMinQueryTrees = 3;
+// A map frame is a local frame (georeferenced offsets belong in the CRS): every coordinate that
+// reaches an index (trees, detected trees, poses, priors, odometry) must lie strictly within
+// these bounds, or the request is INVALID_ARGUMENT naming the field.
+inline constexpr double kMaxHorizontalCoordinate = 1e7;   // m, |x| and |y|
+inline constexpr double kMaxVerticalCoordinate = 1e5;     // m, |z|
+inline constexpr size_t kMaxDescriptionLength = 4096;     // bytes
+inline constexpr size_t kMaxCrsLength = 16384;            // bytes
+inline constexpr size_t kMaxAttributes = 64;              // per tree
+inline constexpr size_t kMaxAttributeKeyLength = 128;     // bytes
+inline constexpr size_t kMaxAttributeValueLength = 4096;  // bytes
+
+// `field` is the path to report, e.g. "name" or "map_name".
+void ValidateMapName(const std::string& name, std::string_view field);
+
+void Validate(const v1::CreateMapRequest& request);
+void Validate(const v1::GetMapRequest& request);
+void Validate(const v1::DeleteMapRequest& request);
+void Validate(const v1::ExportTreesRequest& request);
+void Validate(const v1::RelocalizeRequest& request, int max_query_trees);
+// One frame of a Track stream. `session_map` is the map named by the stream's first message
+// (empty for the first message itself, which must name one); any number of trees up to the limit.
+void Validate(const v1::TrackRequest& request, const std::string& session_map, int max_query_trees);
+
+// Shared maps (observations.proto).
+inline constexpr size_t kMaxSourceLength = 128;         // bytes
+inline constexpr const char* kSurveySource = "survey";  // reserved for survey priors
+struct ObserveLimits {
+  int max_frames = 200;             // frames per Observe request
+  int max_frame_trees = 2'000;      // detected trees per frame
+  int max_request_trees = 100'000;  // detected trees per request
+};
+// A source id: 1..128 characters of [A-Za-z0-9_.:-], not "survey". `field` names it.
+void ValidateSource(const std::string& source, std::string_view field);
+void Validate(const v1::ObserveRequest& request, const ObserveLimits& limits);
+void Validate(const v1::ListVersionsRequest& request);
+void Validate(const v1::RestoreVersionRequest& request);
+void Validate(const v1::RemoveSourceRequest& request);
+
+// Pieces, exposed for tests and for the upload stream. `path` prefixes the messages.
+void ValidateTree(const v1::Tree& tree, const std::string& path);
+void ValidateDetectedTree(const v1::DetectedTree& tree, const std::string& path);
+void ValidatePose(const v1::Pose& pose, const std::string& path);
+void ValidateBox(const v1::Box2& box, const std::string& path);
+
+// Checks the messages of one UploadTrees stream, in order: the first names a valid map, later
+// ones repeat that name or leave it empty and do not set `replace` on their own; every tree is
+// valid; the tree total stays within the limit. Ids unique across the stream are checked by the
+// store as it stages the trees (in constant memory here). Tree indices in messages count across
+// the whole stream ("trees[k]" = k-th tree uploaded).
+class UploadValidator {
+ public:
+  explicit UploadValidator(int64_t max_trees) : max_trees_(max_trees) {}
+
+  void Accept(const v1::UploadTreesRequest& message);
+  // Call when the client has closed the stream; throws if it sent no message.
+  void Finish() const;
+
+  const std::string& map_name() const { return map_name_; }
+  bool replace() const { return replace_; }
+  int64_t messages() const { return messages_; }
+  int64_t trees() const { return trees_; }
+
+ private:
+  int64_t max_trees_;
+  std::string map_name_;
+  bool replace_ = false;
+  int64_t messages_ = 0;
+  int64_t trees_ = 0;
+};
+
+}  // namespace forestmap::server

@@ -1,0 +1,89 @@
+#include "server/http/http_listen.h"
+
+#include <httplib.h>
+#include <netdb.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cstring>
+#include <stdexcept>
+
+namespace forestmap::server {
+namespace {
+
+constexpr int kMaxPort = 65535;
+
+struct HostPort {
+  std::string host;  // without the brackets of an IPv6 literal
+  int port = -1;
+};
+
+HostPort Parse(const std::string& flag, const std::string& address) {
+  const size_t colon = address.rfind(':');
+  const std::string digits = colon == std::string::npos ? "" : address.substr(colon + 1);
+  HostPort parsed;
+  if (colon != std::string::npos && colon > 0) parsed.host = address.substr(0, colon);
+  if (parsed.host.size() > 2 && parsed.host.front() == '[' && parsed.host.back() == ']') {
+    parsed.host = parsed.host.substr(1, parsed.host.size() - 2);  // [::1]:9090
+  }
+  const bool numeric = !digits.empty() && digits.size() <= 5 &&
+                       std::all_of(digits.begin(), digits.end(),
+                                   [](unsigned char c) { return std::isdigit(c) != 0; });
+  if (numeric) parsed.port = std::stoi(digits);
+  if (parsed.host.empty() || parsed.port < 0 || parsed.port > kMaxPort) {
+    throw std::runtime_error(flag + " " + address + ": give host:port (port 0 to " +
+                             std::to_string(kMaxPort) + ", 0: any free one)");
+  }
+  return parsed;
+}
+
+// Why `host`:`port` cannot be bound: tries it with a socket of our own (httplib does not say).
+std::string BindFailure(const HostPort& where) {
+  addrinfo hints{};
+  hints.ai_family = AF_UNSPEC;
+  hints.ai_socktype = SOCK_STREAM;
+  hints.ai_flags = AI_PASSIVE;
+  addrinfo* found = nullptr;
+  const std::string service = std::to_string(where.port);
+  const int resolved = getaddrinfo(where.host.c_str(), service.c_str(), &hints, &found);
+  if (resolved != 0) return std::string("cannot resolve the host: ") + gai_strerror(resolved);
+  std::string reason = "cannot bind";
+  for (const addrinfo* a = found; a != nullptr; a = a->ai_next) {
+    const int sock = socket(a->ai_family, a->ai_socktype, a->ai_protocol);
+    if (sock < 0) continue;
+    int yes = 1;
+    setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+    const int bound = bind(sock, a->ai_addr, a->ai_addrlen);
+    const int error = errno;
+    close(sock);
+    if (bound == 0) continue;
+    reason = std::strerror(error);
+    if (!reason.empty()) reason[0] = static_cast<char>(std::tolower(reason[0]));
+    break;
+  }
+  freeaddrinfo(found);
+  return reason;
+}
+
+}  // namespace
+
+int BindHttpListener(httplib::Server& http, const std::string& flag, const std::string& address) {
+  const HostPort where = Parse(flag, address);
+  http.set_socket_options([](int sock) {
+    int yes = 1;
+    setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+  });
+  const int port = where.port == 0 ? http.bind_to_any_port(where.host)
+                                   : (http.bind_to_port(where.host, where.port) ? where.port : -1);
+  if (port <= 0) throw std::runtime_error(flag + " " + address + ": " + BindFailure(where));
+  return port;
+}
+
+std::string BoundHttpAddress(const std::string& address, int port) {
+  return address.substr(0, address.rfind(':')) + ":" + std::to_string(port);
+}
+
+}  // namespace forestmap::server

@@ -1,0 +1,109 @@
+#include "server/ops/auth.h"
+
+#include <array>
+#include <utility>
+
+#include "server/grpc/rpc_observer.h"
+#include "server/grpc/status.h"
+
+namespace forestmap::server {
+namespace {
+
+using storage::Role;
+
+constexpr std::string_view kBearer = "Bearer ";
+constexpr const char* kHowToPass =
+    "pass one with --token or the environment variable FORESTMAP_TOKEN (gRPC metadata "
+    "'authorization: Bearer <token>')";
+
+struct RpcRole {
+  std::string_view rpc;
+  Role role;
+};
+
+// Every RPC of forestmap.v1.ForestMap. A new RPC must be added here, or it is refused.
+constexpr std::array<RpcRole, 13> kRoles = {{
+    {"CreateMap", Role::kAdmin},
+    {"ListMaps", Role::kRead},
+    {"GetMap", Role::kRead},
+    {"DeleteMap", Role::kAdmin},
+    {"UploadTrees", Role::kWrite},
+    {"ExportTrees", Role::kRead},
+    {"Relocalize", Role::kRead},
+    {"Track", Role::kRead},
+    {"Observe", Role::kWrite},
+    {"ListVersions", Role::kRead},
+    {"RestoreVersion", Role::kAdmin},
+    {"RemoveSource", Role::kWrite},
+    {"PruneVersions", Role::kAdmin},
+}};
+
+ServiceError Unauthenticated(const std::string& message) {
+  return ServiceError(grpc::StatusCode::UNAUTHENTICATED, message);
+}
+
+std::string Describe(const storage::TokenRecord& token) {
+  return "token " + std::to_string(token.id) + " (role " + storage::RoleName(token.role) +
+         " on maps '" + token.map_pattern + "')";
+}
+
+}  // namespace
+
+std::optional<Role> RequiredRole(std::string_view rpc) {
+  for (const RpcRole& entry : kRoles) {
+    if (entry.rpc == rpc) return entry.role;
+  }
+  return std::nullopt;
+}
+
+bool Caller::CanRead(std::string_view map) const {
+  return !token || token->Allows(Role::kRead, map);
+}
+
+Caller Authorizer::Authenticate(const grpc::ServerContextBase& context) const {
+  Caller caller;
+  if (tokens_ == nullptr || !tokens_->AnyToken()) return caller;  // open: no token exists
+  const auto& metadata = context.client_metadata();
+  const auto it = metadata.find("authorization");
+  if (it == metadata.end()) {
+    throw Unauthenticated(std::string("this server requires a token; ") + kHowToPass);
+  }
+  const std::string_view value(it->second.data(), it->second.size());
+  if (!value.starts_with(kBearer) || value.size() == kBearer.size()) {
+    throw Unauthenticated("the authorization metadata must be 'Bearer <token>'");
+  }
+  caller.token = tokens_->Find(value.substr(kBearer.size()));
+  if (!caller.token) throw Unauthenticated("unknown or revoked token");
+  return caller;
+}
+
+Caller Authorizer::Authorize(const grpc::ServerContextBase& context, std::string_view rpc,
+                             std::string_view map) const {
+  Caller caller = Authenticate(context);
+  NoteCallMap(context, map, caller.token ? caller.token->id : 0);
+  const std::optional<Role> needed = RequiredRole(rpc);
+  if (!needed) {
+    throw ServiceError(grpc::StatusCode::PERMISSION_DENIED,
+                       "no access rule for RPC " + std::string(rpc) + " (denied by default)");
+  }
+  if (!caller.token) return caller;
+  const bool allowed = map.empty()
+                           ? static_cast<int>(caller.token->role) >= static_cast<int>(*needed)
+                           : caller.token->Allows(*needed, map);
+  if (!allowed) {
+    throw ServiceError(grpc::StatusCode::PERMISSION_DENIED,
+                       Describe(*caller.token) + " may not call " + std::string(rpc) +
+                           (map.empty() ? "" : " on map '" + std::string(map) + "'") +
+                           ": that needs role " + storage::RoleName(*needed) + " on it");
+  }
+  return caller;
+}
+
+Caller Authorize(const Authorizer* authorizer, const grpc::ServerContextBase& context,
+                 std::string_view rpc, std::string_view map) {
+  if (authorizer != nullptr) return authorizer->Authorize(context, rpc, map);
+  NoteCallMap(context, map, 0);
+  return Caller{};
+}
+
+}  // namespace forestmap::server

@@ -1,0 +1,158 @@
+#include "server/ops/daemon.h"
+
+#include <chrono>
+#include <ctime>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <system_error>
+
+#include "server/app/map_index_cache.h"
+#include "server/ops/logging.h"
+#include "server/ops/metrics.h"
+#include "server/ops/tls.h"
+#include "storage/sqlite_backup.h"
+#include "storage/token_store.h"
+
+namespace forestmap::server {
+namespace {
+
+struct TokenArgs {
+  std::string db = "./forestmap.db";
+  std::string map = "*";
+  std::string role = "read";
+  std::string note;
+  int64_t id = 0;
+};
+
+std::string UtcTime(int64_t unix_ms) {
+  const std::time_t seconds = static_cast<std::time_t>(unix_ms / 1000);
+  std::tm utc{};
+  gmtime_r(&seconds, &utc);
+  std::ostringstream text;
+  text << std::put_time(&utc, "%Y-%m-%dT%H:%M:%SZ");
+  return text.str();
+}
+
+int CreateToken(const TokenArgs& args, std::ostream& out) {
+  const std::optional<storage::Role> role = storage::ParseRole(args.role);
+  if (!role) throw std::invalid_argument("--role must be read, write or admin");
+  storage::TokenStore tokens(args.db);
+  const storage::NewToken token = tokens.Create(args.map, *role, args.note);
+  out << token.secret << "\n";
+  std::cerr << "token " << token.record.id << ": role " << storage::RoleName(*role) << " on maps '"
+            << args.map << "'. The secret above is shown only this once; "
+            << "clients pass it with --token or FORESTMAP_TOKEN.\n";
+  return 0;
+}
+
+int ListTokens(const TokenArgs& args, std::ostream& out) {
+  storage::TokenStore tokens(args.db);
+  out << "id\trole\tmaps\tcreated\trevoked\tnote\n";
+  for (const storage::TokenRecord& token : tokens.List()) {
+    out << token.id << "\t" << storage::RoleName(token.role) << "\t" << token.map_pattern << "\t"
+        << UtcTime(token.created_unix_ms) << "\t"
+        << (token.revoked() ? UtcTime(token.revoked_unix_ms) : "-") << "\t" << token.note << "\n";
+  }
+  return 0;
+}
+
+int RevokeToken(const TokenArgs& args, std::ostream& out) {
+  storage::TokenStore tokens(args.db);
+  if (!tokens.Revoke(args.id)) {
+    throw std::runtime_error("no valid token with id " + std::to_string(args.id) +
+                             " (see forestmapd token list)");
+  }
+  out << "revoked token " << args.id << "\n";
+  return 0;
+}
+
+}  // namespace
+
+void AddTokenCommands(CLI::App& app, std::function<int()>& run, std::ostream& out) {
+  CLI::App* token = app.add_subcommand("token", "manage access tokens (stored hashed in --db)");
+  token->require_subcommand(1);
+  auto args = std::make_shared<TokenArgs>();
+  CLI::App* create = token->add_subcommand("create", "create a token; prints its secret once");
+  CLI::App* list = token->add_subcommand("list", "list tokens (never their secrets)");
+  CLI::App* revoke = token->add_subcommand("revoke", "revoke a token by id");
+  for (CLI::App* command : {create, list, revoke}) {
+    command
+        ->add_option("--db", args->db, "database of the server: SQLite file or postgresql:// URI")
+        ->capture_default_str();
+  }
+  create->add_option("--map", args->map, "map name, glob ('plot-*') or '*' for every map")
+      ->capture_default_str();
+  create->add_option("--role", args->role, "read, write or admin")
+      ->check(CLI::IsMember({"read", "write", "admin"}))
+      ->capture_default_str();
+  create->add_option("--note", args->note, "who or what the token is for");
+  revoke->add_option("id", args->id, "token id (see token list)")->required();
+  create->callback([&run, &out, args] { run = [&out, args] { return CreateToken(*args, out); }; });
+  list->callback([&run, &out, args] { run = [&out, args] { return ListTokens(*args, out); }; });
+  revoke->callback([&run, &out, args] { run = [&out, args] { return RevokeToken(*args, out); }; });
+}
+
+void AddBackupCommand(CLI::App& app, std::function<int()>& run, std::ostream& out) {
+  CLI::App* backup = app.add_subcommand(
+      "backup", "copy the database consistently while the server keeps running (SQLite backup)");
+  auto db = std::make_shared<std::string>("./forestmap.db");
+  auto file = std::make_shared<std::string>();
+  backup->add_option("--db", *db, "SQLite database of the server")->capture_default_str();
+  backup->add_option("--out", *file, "the copy to write (must not exist)")->required();
+  backup->callback([&run, &out, db, file] {
+    run = [&out, db, file] {
+      const storage::BackupResult result = storage::BackupDatabase(*db, *file);
+      out << "backup " << *file << ": " << result.pages << " pages, " << result.bytes
+          << " bytes, quick_check " << result.integrity << "\n";
+      return 0;
+    };
+  });
+}
+
+void AddServerMetrics(Metrics& metrics, const MapIndexCache& cache, const std::string& db_path) {
+  const MapIndexCache* index_cache = &cache;
+  metrics.AddCounter("forestmap_index_builds_total", "Relocalization indexes built.",
+                     [index_cache] { return static_cast<double>(index_cache->stats().builds); });
+  metrics.AddCounter("forestmap_index_build_seconds_total",
+                     "Wall time spent building relocalization indexes, seconds.",
+                     [index_cache] { return index_cache->stats().build_seconds; });
+  metrics.AddGauge("forestmap_index_cache_maps", "Maps with an index in the cache.",
+                   [index_cache] { return static_cast<double>(index_cache->size()); });
+  metrics.AddGauge("forestmap_index_cache_bytes",
+                   "Approximate memory of the cached indexes, bytes.",
+                   [index_cache] { return static_cast<double>(index_cache->memory_bytes()); });
+  metrics.AddGauge("forestmap_database_bytes", "Size of the database file and its WAL, bytes.",
+                   [db_path] {
+                     std::error_code error;
+                     double bytes = 0;
+                     for (const std::string& path : {db_path, db_path + "-wal"}) {
+                       const auto size = std::filesystem::file_size(path, error);
+                       if (!error) bytes += static_cast<double>(size);
+                     }
+                     return bytes;
+                   });
+}
+
+bool WarnIfExposed(const std::string& listen_address, bool tls, bool tokens) {
+  if (IsLoopback(listen_address) || (tls && tokens)) return false;
+  std::string missing;
+  if (!tls)
+    missing = "WITHOUT TLS (tokens and maps cross the network in clear; --tls-cert/--tls-key)";
+  if (!tokens) {
+    if (!missing.empty()) missing += " and ";
+    missing +=
+        "WITHOUT TOKENS (anyone who reaches the port can read, change and delete every "
+        "map; forestmapd token create)";
+  }
+  // Error level: shown whatever --log-level says.
+  Log(LogLevel::kError, "WARNING: listening beyond loopback " + missing,
+      {{"listen", listen_address}});
+  return true;
+}
+
+}  // namespace forestmap::server

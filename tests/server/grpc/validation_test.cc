@@ -1,0 +1,345 @@
+#include "server/grpc/validation.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <limits>
+#include <string>
+
+namespace forestmap::server {
+namespace {
+
+using ::testing::HasSubstr;
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Runs `body`, expects it to throw ErrorType and returns the message.
+template <typename ErrorType, typename Body>
+std::string ErrorOf(Body&& body) {
+  try {
+    body();
+  } catch (const ErrorType& e) {
+    return e.what();
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "wrong exception type: " << e.what();
+    return "";
+  }
+  ADD_FAILURE() << "no exception";
+  return "";
+}
+
+v1::RelocalizeRequest Query(int trees) {
+  v1::RelocalizeRequest request;
+  request.set_map_name("plot");
+  for (int i = 0; i < trees; ++i) {
+    v1::DetectedTree* tree = request.add_trees();
+    tree->mutable_position()->set_x(i);
+    tree->mutable_position()->set_y(2.0 * i);
+  }
+  return request;
+}
+
+v1::UploadTreesRequest Chunk(const std::string& name, int first_id, int count) {
+  v1::UploadTreesRequest message;
+  message.set_map_name(name);
+  for (int i = 0; i < count; ++i) {
+    v1::Tree* tree = message.add_trees();
+    tree->set_id(first_id + i);
+    tree->set_x(i);
+    tree->set_y(i);
+  }
+  return message;
+}
+
+TEST(ValidationTest, MapNames) {
+  v1::GetMapRequest ok;
+  ok.set_name("Plot_7.v2-b");
+  EXPECT_NO_THROW(Validate(ok));
+  v1::GetMapRequest empty;
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(empty); }), HasSubstr("name"));
+  v1::DeleteMapRequest bad;
+  bad.set_name("my map!");
+  const std::string message = ErrorOf<ValidationError>([&] { Validate(bad); });
+  EXPECT_THAT(message, HasSubstr("name \"my map!\""));
+  EXPECT_THAT(message, HasSubstr("character 3"));
+  v1::CreateMapRequest too_long;
+  too_long.set_name(std::string(129, 'a'));
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(too_long); }), HasSubstr("128"));
+  v1::ExportTreesRequest control;
+  control.set_map_name(std::string("a\nb", 3));
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(control); }),
+              HasSubstr("map_name \"a\\x0ab\""));
+}
+
+// "." and ".." are paths in a URL: the web page's /api/maps/../trees would name another route.
+TEST(ValidationTest, DotAndDotDotAreNoMapNames) {
+  for (const std::string name : {".", ".."}) {
+    v1::CreateMapRequest create;
+    create.set_name(name);
+    const std::string message = ErrorOf<ValidationError>([&] { Validate(create); });
+    EXPECT_THAT(message, HasSubstr("name \"" + name + "\""));
+    EXPECT_THAT(message, HasSubstr("must not be \".\" or \"..\""));
+  }
+  for (const std::string name : {"...", ".a", "a..b", "v1.", "-"}) {
+    v1::CreateMapRequest create;
+    create.set_name(name);
+    EXPECT_NO_THROW(Validate(create)) << name;
+  }
+}
+
+TEST(ValidationTest, CreateMapLimitsDescriptionAndCrs) {
+  v1::CreateMapRequest request;
+  request.set_name("plot");
+  request.set_description(std::string(kMaxDescriptionLength, 'd'));
+  request.set_crs("EPSG:32612");
+  EXPECT_NO_THROW(Validate(request));
+  request.set_description(std::string(kMaxDescriptionLength + 1, 'd'));
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(request); }), HasSubstr("description"));
+  request.clear_description();
+  request.set_crs(std::string(kMaxCrsLength + 1, 'c'));
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(request); }), HasSubstr("crs"));
+}
+
+TEST(ValidationTest, TreeFields) {
+  v1::Tree tree;
+  tree.set_x(1);
+  tree.set_y(2);
+  EXPECT_NO_THROW(ValidateTree(tree, "trees[0]"));
+  tree.set_z(-3);
+  tree.set_dbh(0);
+  tree.set_id(0);
+  (*tree.mutable_attributes())["species"] = "pine";
+  EXPECT_NO_THROW(ValidateTree(tree, "trees[0]"));
+
+  v1::Tree nan_x = tree;
+  nan_x.set_x(kNaN);
+  EXPECT_EQ(ErrorOf<ValidationError>([&] { ValidateTree(nan_x, "trees[12]"); }),
+            "trees[12].x is NaN; numbers must be finite");
+  v1::Tree inf_z = tree;
+  inf_z.set_z(-kInf);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { ValidateTree(inf_z, "trees[3]"); }),
+              HasSubstr("trees[3].z is -inf"));
+  v1::Tree negative_dbh = tree;
+  negative_dbh.set_dbh(-0.2);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { ValidateTree(negative_dbh, "trees[4]"); }),
+              HasSubstr("trees[4].dbh is -0.2"));
+  v1::Tree negative_id = tree;
+  negative_id.set_id(-1);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { ValidateTree(negative_id, "trees[5]"); }),
+              HasSubstr("trees[5].id is -1"));
+  v1::Tree empty_key = tree;
+  (*empty_key.mutable_attributes())[""] = "x";
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { ValidateTree(empty_key, "trees[6]"); }),
+              HasSubstr("trees[6].attributes"));
+}
+
+// Null attributes (survey columns unknown for a tree): key rules as for attributes.
+TEST(ValidationTest, NullAttributes) {
+  v1::Tree tree;
+  (*tree.mutable_attributes())["Spp"] = "41";
+  tree.add_null_attributes("LI");
+  EXPECT_NO_THROW(ValidateTree(tree, "trees[0]"));
+  v1::Tree both = tree;
+  both.add_null_attributes("Spp");
+  EXPECT_EQ(ErrorOf<ValidationError>([&] { ValidateTree(both, "trees[1]"); }),
+            "trees[1].null_attributes: \"Spp\" is also a key of attributes");
+  v1::Tree empty = tree;
+  empty.add_null_attributes("");
+  EXPECT_EQ(ErrorOf<ValidationError>([&] { ValidateTree(empty, "trees[2]"); }),
+            "trees[2].null_attributes has an empty key");
+  v1::Tree many = tree;
+  for (size_t i = 0; i < kMaxAttributes; ++i) many.add_null_attributes(std::to_string(i) + "c");
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { ValidateTree(many, "trees[3]"); }),
+              HasSubstr("trees[3].null_attributes: 66 attributes and null attributes exceed"));
+}
+
+// Issue 15: finite but huge coordinates crashed the index build; a map frame is a local frame.
+TEST(ValidationTest, CoordinatesMustLieInALocalFrame) {
+  v1::Tree tree;
+  tree.set_x(9.99e6);
+  tree.set_y(-9.99e6);
+  tree.set_z(9.9e4);
+  EXPECT_NO_THROW(ValidateTree(tree, "trees[0]"));
+  v1::Tree far_x = tree;
+  far_x.set_x(1e308);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { ValidateTree(far_x, "trees[3]"); }),
+              HasSubstr("trees[3].x is 1e+308; coordinates must lie within +-10000000 m"));
+  v1::Tree far_y = tree;
+  far_y.set_y(-1e7);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { ValidateTree(far_y, "trees[1]"); }),
+              HasSubstr("trees[1].y is -10000000"));
+  v1::Tree high = tree;
+  high.set_z(1e5);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { ValidateTree(high, "trees[2]"); }),
+              HasSubstr("trees[2].z is 100000; coordinates must lie within +-100000 m"));
+
+  v1::RelocalizeRequest query = Query(3);
+  query.mutable_trees(1)->mutable_position()->set_y(2e7);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(query, 100); }),
+              HasSubstr("trees[1].position.y is 20000000"));
+  v1::RelocalizeRequest prior = Query(3);
+  prior.mutable_prior()->set_radius_m(10);
+  prior.mutable_prior()->mutable_map_from_sensor()->mutable_translation()->set_x(-1e45);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(prior, 100); }),
+              HasSubstr("prior.map_from_sensor.translation.x is -1e+45"));
+
+  v1::ObserveRequest observe;
+  observe.set_map_name("shared");
+  observe.set_source("drone");
+  v1::ObservationFrame* frame = observe.add_frames();
+  frame->add_trees()->mutable_position()->set_z(3e5);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(observe, ObserveLimits{}); }),
+              HasSubstr("frames[0].trees[0].position.z is 300000"));
+  frame->mutable_trees(0)->mutable_position()->set_z(1);
+  frame->mutable_map_from_sensor()->mutable_translation()->set_y(1e45);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(observe, ObserveLimits{}); }),
+              HasSubstr("frames[0].map_from_sensor.translation.y is 1e+45"));
+
+  v1::TrackRequest track;
+  track.set_map_name("plot");
+  track.mutable_odometry()->mutable_translation()->set_x(5e7);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(track, "", 100); }),
+              HasSubstr("odometry.translation.x is 50000000"));
+}
+
+TEST(ValidationTest, RelocalizeTreeCountLimits) {
+  EXPECT_NO_THROW(Validate(Query(3), 20000));
+  // Fewer than 3 trees is a valid query, answered NOT_FOUND (TOO_FEW_TREES) by the relocalizer.
+  EXPECT_NO_THROW(Validate(Query(2), 20000));
+  EXPECT_NO_THROW(Validate(Query(0), 20000));
+  EXPECT_EQ(ErrorOf<LimitError>([&] { Validate(Query(101), 100); }),
+            "trees: 101 trees exceed the limit of 100 per query");
+}
+
+TEST(ValidationTest, RelocalizeDetectedTreeFields) {
+  v1::RelocalizeRequest nan = Query(20);
+  nan.mutable_trees(12)->mutable_position()->set_x(kNaN);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(nan, 100); }),
+              HasSubstr("trees[12].position.x is NaN"));
+  v1::RelocalizeRequest missing = Query(5);
+  missing.mutable_trees(4)->clear_position();
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(missing, 100); }),
+              HasSubstr("trees[4].position is missing"));
+  v1::RelocalizeRequest axis = Query(5);
+  axis.mutable_trees(1)->mutable_axis();  // present but zero
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(axis, 100); }),
+              HasSubstr("trees[1].axis is a zero vector"));
+  v1::RelocalizeRequest score = Query(5);
+  score.mutable_trees(2)->set_score(1.5);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(score, 100); }),
+              HasSubstr("trees[2].score is 1.5"));
+  v1::RelocalizeRequest dbh = Query(5);
+  dbh.mutable_trees(0)->set_dbh(kInf);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(dbh, 100); }),
+              HasSubstr("trees[0].dbh is +inf"));
+}
+
+TEST(ValidationTest, RelocalizePriorAndGravity) {
+  v1::RelocalizeRequest request = Query(5);
+  v1::PriorPose* prior = request.mutable_prior();
+  prior->set_radius_m(10);
+  prior->mutable_map_from_sensor()->mutable_rotation()->set_w(1.0004);  // within tolerance
+  request.mutable_gravity()->set_z(-9.81);
+  EXPECT_NO_THROW(Validate(request, 100));
+
+  v1::RelocalizeRequest far = request;
+  far.mutable_prior()->mutable_map_from_sensor()->mutable_rotation()->set_w(0.5);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(far, 100); }),
+              HasSubstr("prior.map_from_sensor.rotation is not a unit quaternion"));
+  v1::RelocalizeRequest zero_quaternion = request;
+  zero_quaternion.mutable_prior()->mutable_map_from_sensor()->mutable_rotation()->set_w(0);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(zero_quaternion, 100); }),
+              HasSubstr("not a unit quaternion"));
+  v1::RelocalizeRequest nan_translation = request;
+  nan_translation.mutable_prior()->mutable_map_from_sensor()->mutable_translation()->set_y(kNaN);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(nan_translation, 100); }),
+              HasSubstr("prior.map_from_sensor.translation.y is NaN"));
+  v1::RelocalizeRequest radius = request;
+  radius.mutable_prior()->set_radius_m(0);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(radius, 100); }),
+              HasSubstr("prior.radius_m is 0; it must be > 0"));
+  v1::RelocalizeRequest no_pose = request;
+  no_pose.mutable_prior()->clear_map_from_sensor();
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(no_pose, 100); }),
+              HasSubstr("prior.map_from_sensor is missing"));
+  v1::RelocalizeRequest zero_gravity = request;
+  zero_gravity.mutable_gravity()->set_z(0);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(zero_gravity, 100); }),
+              HasSubstr("gravity is a zero vector"));
+  v1::RelocalizeRequest nan_gravity = request;
+  nan_gravity.mutable_gravity()->set_x(kNaN);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(nan_gravity, 100); }),
+              HasSubstr("gravity.x is NaN"));
+}
+
+TEST(ValidationTest, ExportBox) {
+  v1::ExportTreesRequest request;
+  request.set_map_name("plot");
+  request.mutable_box()->set_max_x(10);
+  request.mutable_box()->set_max_y(10);
+  EXPECT_NO_THROW(Validate(request));
+  request.mutable_box()->set_min_x(11);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(request); }), HasSubstr("box is empty"));
+  request.mutable_box()->set_min_x(kNaN);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(request); }), HasSubstr("box.min_x is NaN"));
+}
+
+TEST(ValidationTest, UploadStreamHappyPath) {
+  UploadValidator validator(1000);
+  v1::UploadTreesRequest first = Chunk("plot", 0, 10);
+  first.set_replace(true);
+  validator.Accept(first);
+  validator.Accept(Chunk("", 10, 10));      // later messages may omit the name
+  validator.Accept(Chunk("plot", 20, 10));  // or repeat it
+  v1::UploadTreesRequest no_ids;
+  no_ids.add_trees()->set_x(1);
+  validator.Accept(no_ids);
+  validator.Accept(no_ids);  // trees without ids never collide
+  EXPECT_NO_THROW(validator.Finish());
+  EXPECT_EQ(validator.map_name(), "plot");
+  EXPECT_TRUE(validator.replace());
+  EXPECT_EQ(validator.messages(), 5);
+  EXPECT_EQ(validator.trees(), 32);
+}
+
+TEST(ValidationTest, UploadStreamErrors) {
+  EXPECT_THAT(ErrorOf<ValidationError>([] { UploadValidator(10).Finish(); }),
+              HasSubstr("map_name"));
+  EXPECT_THAT(ErrorOf<ValidationError>([] { UploadValidator(10).Accept(Chunk("", 0, 1)); }),
+              HasSubstr("map_name: the first message of an upload must name the map"));
+  EXPECT_THAT(ErrorOf<ValidationError>([] { UploadValidator(10).Accept(Chunk("a b", 0, 1)); }),
+              HasSubstr("map_name \"a b\""));
+
+  UploadValidator other_map(100);
+  other_map.Accept(Chunk("plot", 0, 1));
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { other_map.Accept(Chunk("other", 1, 1)); }),
+              HasSubstr("differs from the upload's map \"plot\""));
+
+  UploadValidator late_replace(100);
+  late_replace.Accept(Chunk("plot", 0, 1));
+  v1::UploadTreesRequest replace = Chunk("", 1, 1);
+  replace.set_replace(true);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { late_replace.Accept(replace); }),
+              HasSubstr("only the first message may set replace"));
+
+  // Ids unique across the stream are the store's check as it stages the trees (constant memory
+  // here; tests/storage/staged_upload_test.cc, tests/server/service_test.cc).
+  UploadValidator duplicate(100);
+  duplicate.Accept(Chunk("plot", 0, 10));
+  EXPECT_NO_THROW(duplicate.Accept(Chunk("", 5, 10)));
+
+  UploadValidator nan(100);
+  nan.Accept(Chunk("plot", 0, 10));
+  v1::UploadTreesRequest bad = Chunk("", 10, 5);
+  bad.mutable_trees(3)->set_y(kNaN);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { nan.Accept(bad); }), HasSubstr("trees[13].y is NaN"));
+
+  UploadValidator limit(15);
+  limit.Accept(Chunk("plot", 0, 10));
+  EXPECT_THAT(ErrorOf<LimitError>([&] { limit.Accept(Chunk("", 10, 6)); }),
+              HasSubstr("exceeds the limit of 15 trees"));
+}
+
+}  // namespace
+}  // namespace forestmap::server

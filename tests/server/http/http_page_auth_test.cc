@@ -1,0 +1,117 @@
+// Issue 15: forestmapd --http showed every map to anyone, tokens or not. Now, once a token exists,
+// every route needs one with read access on the map (Authorization: Bearer, or ?token= for a
+// browser): checked route by route over HTTP, and in Debian's headless Chromium opening
+// /?token=... and drawing the map's trees.
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "server/app/recent_answers.h"
+#include "server/http/http_page.h"
+#include "storage/sqlite_map_store.h"
+#include "storage/token_store.h"
+#include "tests/server/http_get.h"
+
+namespace forestmap::server {
+namespace {
+
+namespace fs = std::filesystem;
+using test::HttpGet;
+using Json = nlohmann::json;
+constexpr int kPlotTrees = 40;
+
+std::vector<storage::TreeRecord> Trees(int count) {
+  std::vector<storage::TreeRecord> trees(count);
+  for (int i = 0; i < count; ++i) {
+    trees[i].x = (i % 8) * 4.0;
+    trees[i].y = (i / 8) * 4.0;
+    trees[i].dbh = 0.3;
+  }
+  return trees;
+}
+
+class HttpPageAuthTest : public ::testing::Test {
+ protected:
+  HttpPageAuthTest()
+      : dir_(fs::temp_directory_path() / ("http_page_auth_" + std::to_string(getpid()))),
+        store_(":memory:") {
+    fs::create_directories(dir_);
+    tokens_ = std::make_unique<storage::TokenStore>((dir_ / "tokens.db").string());
+    store_.CreateMap("plot-1", "", "");
+    store_.WriteTrees("plot-1", Trees(kPlotTrees), storage::WriteMode::kAppend);
+    store_.CreateMap("secret", "", "");
+    page_ = std::make_unique<HttpPage>(store_, answers_, "127.0.0.1:0", tokens_.get());
+    port_ = std::stoi(page_->address().substr(page_->address().rfind(':') + 1));
+  }
+  ~HttpPageAuthTest() override {
+    page_.reset();
+    fs::remove_all(dir_);
+  }
+  test::HttpAnswer Get(const std::string& path, const std::string& bearer = "") {
+    return HttpGet("127.0.0.1", port_, path, bearer);
+  }
+
+  fs::path dir_;
+  storage::SqliteMapStore store_;
+  RecentAnswers answers_;
+  std::unique_ptr<storage::TokenStore> tokens_;
+  std::unique_ptr<HttpPage> page_;
+  int port_ = 0;
+};
+
+TEST_F(HttpPageAuthTest, OpenWithoutTokensClosedOnceOneExists) {
+  EXPECT_EQ(Get("/api/maps").status, 200);  // no token exists yet: open, as before
+  EXPECT_EQ(Json::parse(Get("/api/maps").body).size(), 2u);
+  const std::string reader = tokens_->Create("plot-*", storage::Role::kRead).secret;
+  const storage::NewToken revoked = tokens_->Create("*", storage::Role::kAdmin);
+  tokens_->Revoke(revoked.record.id);
+
+  for (const char* path : {"/", "/api/maps", "/api/maps/plot-1/trees", "/api/maps/plot-1/versions",
+                           "/api/relocalizations"}) {
+    EXPECT_EQ(Get(path).status, 401) << path;
+    EXPECT_EQ(Get(path, reader + "x").status, 401) << path;
+    EXPECT_EQ(Get(path, revoked.secret).status, 401) << path;
+    EXPECT_EQ(Get(path, reader).status, 200) << path;
+  }
+  EXPECT_NE(Get("/api/maps").body.find("requires a token"), std::string::npos);
+  // Only the maps the token can read.
+  const Json maps = Json::parse(Get("/api/maps", reader).body);
+  ASSERT_EQ(maps.size(), 1u);
+  EXPECT_EQ(maps[0]["name"], "plot-1");
+  EXPECT_EQ(Json::parse(Get("/api/maps/plot-1/trees", reader).body)["trees"].size(),
+            static_cast<size_t>(kPlotTrees));
+  const test::HttpAnswer denied = Get("/api/maps/secret/trees", reader);
+  EXPECT_EQ(denied.status, 403);
+  EXPECT_NE(denied.body.find("may not read map 'secret'"), std::string::npos) << denied.body;
+  EXPECT_EQ(Get("/api/maps/secret/versions", reader).status, 403);
+  // The browser's way: ?token= in the URL.
+  EXPECT_EQ(Get("/api/maps?token=" + reader).status, 200);
+  EXPECT_EQ(Get("/?token=" + reader).status, 200);
+  EXPECT_EQ(Get("/?token=" + revoked.secret).status, 401);
+}
+
+TEST_F(HttpPageAuthTest, ChromiumDrawsTheMapWithATokenInTheUrl) {
+  const std::string reader = tokens_->Create("plot-*", storage::Role::kRead).secret;
+  const std::string command =
+      "chromium --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
+      "--disable-background-networking --disable-component-update --disable-sync "
+      "--window-size=1100,800 --virtual-time-budget=10000 --user-data-dir='" +
+      (dir_ / "profile").string() + "' --dump-dom 'http://" + page_->address() +
+      "/?token=" + reader + "#map=plot-1' 2>/dev/null";
+  FILE* pipe = popen(command.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string dom;
+  char buffer[4096];
+  while (std::fgets(buffer, sizeof buffer, pipe)) dom += buffer;
+  pclose(pipe);
+  EXPECT_NE(dom.find("data-drawn=\"" + std::to_string(kPlotTrees) + "\""), std::string::npos)
+      << dom.substr(0, 2000);
+}
+
+}  // namespace
+}  // namespace forestmap::server

@@ -1,0 +1,265 @@
+// Logs and metrics of a real in-process server (127.0.0.1 port 0, SQLite file): the metrics
+// endpoint is scraped over HTTP, checked by `promtool check metrics`, and its counters move with
+// the calls; every RPC writes one structured log line with its request id, map, code and time.
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <sstream>
+
+#include "server/grpc/rpc_observer.h"
+#include "server/grpc/server.h"
+#include "server/grpc/service.h"
+#include "server/http/metrics_http.h"
+#include "server/ops/daemon.h"
+#include "server/ops/logging.h"
+#include "server/ops/metrics.h"
+#include "storage/sqlite_map_store.h"
+#include "tests/server/http_get.h"
+
+namespace forestmap::server {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr auto kCallDeadline = std::chrono::seconds(20);  // turns a hang into a failure
+
+std::unique_ptr<grpc::ClientContext> Context(const std::string& request_id = "") {
+  auto context = std::make_unique<grpc::ClientContext>();
+  context->set_deadline(std::chrono::system_clock::now() + kCallDeadline);
+  if (!request_id.empty()) context->AddMetadata(kRequestIdHeader, request_id);
+  return context;
+}
+
+class ObservabilityTest : public ::testing::Test {
+ protected:
+  ObservabilityTest()
+      : dir_(TempDir()),
+        store_((dir_ / "maps.db").string()),
+        service_(store_, ServiceOptions{}),
+        runner_("127.0.0.1:0", service_, WithMetrics(&metrics_)),
+        stub_(v1::ForestMap::NewStub(
+            grpc::CreateChannel(runner_.address(), grpc::InsecureChannelCredentials()))) {
+    AddServerMetrics(metrics_, service_.index_cache(), (dir_ / "maps.db").string());
+    http_ =
+        std::make_unique<MetricsHttpServer>("127.0.0.1:0", [this] { return metrics_.Render(); });
+  }
+  ~ObservabilityTest() override {
+    stub_.reset();
+    fs::remove_all(dir_);
+  }
+
+  static fs::path TempDir() {
+    std::string name = "observability_test_";
+    name.append(std::to_string(getpid()));
+    const fs::path dir = fs::temp_directory_path() / name;
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    return dir;
+  }
+  static ServerOptions WithMetrics(Metrics* metrics) {
+    ServerOptions options;
+    options.metrics = metrics;
+    return options;
+  }
+
+  std::string Scrape() {
+    const test::HttpAnswer answer = test::HttpGet("127.0.0.1", http_->port(), "/metrics");
+    EXPECT_TRUE(answer.ok) << "no answer from the metrics endpoint";
+    EXPECT_EQ(answer.status, 200);
+    EXPECT_NE(answer.content_type.find("text/plain"), std::string::npos) << answer.content_type;
+    return answer.body;
+  }
+
+  // The value of the sample `series` (name with labels, exactly as exposed); NaN when absent.
+  static double Sample(const std::string& text, const std::string& series) {
+    std::istringstream lines(text);
+    std::string line;
+    while (std::getline(lines, line)) {
+      if (line.rfind(series + " ", 0) == 0) return std::stod(line.substr(series.size() + 1));
+    }
+    return std::nan("");
+  }
+
+  v1::Map CreateMap(const std::string& name) {
+    v1::CreateMapRequest request;
+    request.set_name(name);
+    v1::Map map;
+    EXPECT_TRUE(stub_->CreateMap(Context().get(), request, &map).ok());
+    return map;
+  }
+
+  void Upload(const std::string& name) {
+    v1::UploadTreesResponse response;
+    auto context = Context();
+    auto writer = stub_->UploadTrees(context.get(), &response);
+    v1::UploadTreesRequest request;
+    request.set_map_name(name);
+    const double plot[][2] = {{0, 0}, {7, 1}, {3, 9}, {12, 4}, {9, 13}, {15, 11}};
+    int64_t id = 1;
+    for (const auto& p : plot) {
+      v1::Tree* tree = request.add_trees();
+      tree->set_id(id++);
+      tree->set_x(p[0]);
+      tree->set_y(p[1]);
+    }
+    writer->Write(request);
+    writer->WritesDone();
+    ASSERT_TRUE(writer->Finish().ok());
+  }
+
+  fs::path dir_;
+  storage::SqliteMapStore store_;
+  ForestMapService service_;
+  Metrics metrics_;
+  ServerRunner runner_;
+  std::unique_ptr<v1::ForestMap::Stub> stub_;
+  std::unique_ptr<MetricsHttpServer> http_;
+};
+
+TEST_F(ObservabilityTest, PromtoolAcceptsTheMetricsAndCountersMove) {
+  const std::string before = Scrape();
+  EXPECT_TRUE(
+      std::isnan(Sample(before, R"(forestmap_rpc_requests_total{rpc="CreateMap",code="OK"})")));
+  EXPECT_EQ(Sample(before, "forestmap_index_builds_total"), 0);
+
+  CreateMap("plot-1");
+  Upload("plot-1");
+  v1::GetMapRequest missing;
+  missing.set_name("no-such-map");
+  v1::Map map;
+  EXPECT_EQ(stub_->GetMap(Context().get(), missing, &map).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+  v1::RelocalizeRequest query;
+  query.set_map_name("plot-1");
+  for (const auto& p : {std::pair{0.0, 0.0}, {7.0, 1.0}, {3.0, 9.0}, {12.0, 4.0}}) {
+    v1::DetectedTree* tree = query.add_trees();
+    tree->mutable_position()->set_x(p.first);
+    tree->mutable_position()->set_y(p.second);
+  }
+  v1::RelocalizeResponse answer;
+  ASSERT_TRUE(stub_->Relocalize(Context().get(), query, &answer).ok());
+
+  // A tracking stream held open while scraping.
+  auto track_context = Context();
+  auto track = stub_->Track(track_context.get());
+  v1::TrackRequest frame;
+  frame.set_map_name("plot-1");
+  *frame.mutable_trees() = query.trees();
+  ASSERT_TRUE(track->Write(frame));
+  v1::TrackResponse tracked;
+  ASSERT_TRUE(track->Read(&tracked));
+
+  const std::string during = Scrape();
+  const std::string file = (dir_ / "metrics.txt").string();
+  std::ofstream(file) << during;
+  const std::string promtool = "promtool check metrics < " + file;
+  EXPECT_EQ(std::system(promtool.c_str()), 0) << during;
+
+  EXPECT_EQ(Sample(during, R"(forestmap_rpc_requests_total{rpc="CreateMap",code="OK"})"), 1);
+  EXPECT_EQ(Sample(during, R"(forestmap_rpc_requests_total{rpc="UploadTrees",code="OK"})"), 1);
+  EXPECT_EQ(Sample(during, R"(forestmap_rpc_requests_total{rpc="GetMap",code="NOT_FOUND"})"), 1);
+  EXPECT_EQ(Sample(during, R"(forestmap_rpc_duration_seconds_count{rpc="Relocalize"})"), 1);
+  EXPECT_EQ(Sample(during, R"(forestmap_rpc_duration_seconds_bucket{rpc="Relocalize",le="+Inf"})"),
+            1);
+  EXPECT_GT(Sample(during, R"(forestmap_rpc_duration_seconds_sum{rpc="Relocalize"})"), 0);
+  EXPECT_EQ(Sample(during, "forestmap_open_streams"), 1);
+  EXPECT_EQ(Sample(during, R"(forestmap_rpc_in_flight{rpc="Track"})"), 1);
+  EXPECT_EQ(Sample(during, "forestmap_index_builds_total"), 1);
+  EXPECT_GT(Sample(during, "forestmap_index_build_seconds_total"), 0);
+  EXPECT_EQ(Sample(during, "forestmap_index_cache_maps"), 1);
+  EXPECT_GT(Sample(during, "forestmap_index_cache_bytes"), 0);
+  EXPECT_GT(Sample(during, "forestmap_database_bytes"), 0);
+
+  ASSERT_TRUE(track->WritesDone());
+  while (track->Read(&tracked)) {
+  }
+  ASSERT_TRUE(track->Finish().ok());
+  CreateMap("plot-2");
+  const std::string after = Scrape();
+  EXPECT_EQ(Sample(after, R"(forestmap_rpc_requests_total{rpc="CreateMap",code="OK"})"), 2);
+  EXPECT_EQ(Sample(after, R"(forestmap_rpc_requests_total{rpc="Track",code="OK"})"), 1);
+  EXPECT_EQ(Sample(after, "forestmap_open_streams"), 0);
+}
+
+TEST_F(ObservabilityTest, EveryRpcLogsOneJsonLineWithItsRequestId) {
+  ConfigureLogging({LogFormat::kJson, LogLevel::kInfo});
+  CreateMap("plot-1");
+  ::testing::internal::CaptureStderr();
+  v1::GetMapRequest request;
+  request.set_name("plot-1");
+  v1::Map map;
+  auto with_id = Context("client-req-42");
+  ASSERT_TRUE(stub_->GetMap(with_id.get(), request, &map).ok());
+  request.set_name("nope");
+  auto without_id = Context();
+  EXPECT_FALSE(stub_->GetMap(without_id.get(), request, &map).ok());
+  const std::string log = ::testing::internal::GetCapturedStderr();
+  ConfigureLogging({});
+
+  // The id goes back to the client in the initial metadata: its own, or a generated one.
+  const auto echoed = with_id->GetServerInitialMetadata().find(kRequestIdHeader);
+  ASSERT_NE(echoed, with_id->GetServerInitialMetadata().end());
+  EXPECT_EQ(std::string(echoed->second.data(), echoed->second.size()), "client-req-42");
+  const auto generated = without_id->GetServerInitialMetadata().find(kRequestIdHeader);
+  ASSERT_NE(generated, without_id->GetServerInitialMetadata().end());
+  const std::string generated_id(generated->second.data(), generated->second.size());
+  EXPECT_EQ(generated_id.size(), 32u);
+
+  std::vector<nlohmann::json> lines;
+  std::istringstream stream(log);
+  std::string line;
+  while (std::getline(stream, line)) lines.push_back(nlohmann::json::parse(line));  // valid JSON
+  ASSERT_EQ(lines.size(), 2u) << log;
+  const std::regex iso_time(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z)");
+  for (const nlohmann::json& entry : lines) {
+    EXPECT_TRUE(std::regex_match(entry.at("time").get<std::string>(), iso_time)) << entry;
+    EXPECT_EQ(entry.at("msg"), "rpc");
+    EXPECT_EQ(entry.at("rpc"), "GetMap");
+    EXPECT_TRUE(entry.at("ms").is_number());
+    EXPECT_GE(entry.at("ms").get<double>(), 0);
+  }
+  EXPECT_EQ(lines[0].at("level"), "info");
+  EXPECT_EQ(lines[0].at("request_id"), "client-req-42");
+  EXPECT_EQ(lines[0].at("map"), "plot-1");
+  EXPECT_EQ(lines[0].at("code"), "OK");
+  EXPECT_EQ(lines[1].at("level"), "warning");
+  EXPECT_EQ(lines[1].at("request_id"), generated_id);
+  EXPECT_EQ(lines[1].at("map"), "nope");
+  EXPECT_EQ(lines[1].at("code"), "NOT_FOUND");
+  EXPECT_NE(lines[1].at("error").get<std::string>().find("nope"), std::string::npos);
+}
+
+TEST(Logging, TextLinesQuoteValuesAndJsonEscapes) {
+  EXPECT_EQ(JsonEscape("a\"b\\c\n\x01\xff"), "a\\\"b\\\\c\\u000a\\u0001\\u00ff");
+  EXPECT_EQ(ParseLogLevel("warn"), LogLevel::kWarn);
+  EXPECT_THROW(ParseLogLevel("loud"), std::invalid_argument);
+  EXPECT_THROW(ParseLogFormat("xml"), std::invalid_argument);
+  ::testing::internal::CaptureStderr();
+  ConfigureLogging({LogFormat::kText, LogLevel::kWarn});
+  Log(LogLevel::kInfo, "dropped below the level");
+  Log(LogLevel::kWarn, "kept", {{"map", "plot 1"}, {"code", "OK"}});
+  const std::string log = ::testing::internal::GetCapturedStderr();
+  ConfigureLogging({});
+  EXPECT_EQ(log.find("dropped"), std::string::npos);
+  EXPECT_NE(log.find(" warning kept map=\"plot 1\" code=OK"), std::string::npos) << log;
+}
+
+TEST(ExposedListener, WarnsBeyondLoopbackWithoutTlsOrTokens) {
+  ::testing::internal::CaptureStderr();
+  EXPECT_FALSE(WarnIfExposed("127.0.0.1:50051", false, false));
+  EXPECT_TRUE(WarnIfExposed("0.0.0.0:50051", false, false));
+  EXPECT_TRUE(WarnIfExposed("0.0.0.0:50051", true, false));
+  EXPECT_FALSE(WarnIfExposed("0.0.0.0:50051", true, true));
+  const std::string log = ::testing::internal::GetCapturedStderr();
+  EXPECT_NE(log.find("WITHOUT TLS"), std::string::npos) << log;
+  EXPECT_NE(log.find("WITHOUT TOKENS"), std::string::npos) << log;
+}
+
+}  // namespace
+}  // namespace forestmap::server
