@@ -64,8 +64,8 @@ class CoverageGrid {
                double margin, double resolution);
 
   bool Covered(double x, double y) const {
-    const int64_t cx = static_cast<int64_t>(std::floor(x * inverse_resolution_));
-    const int64_t cy = static_cast<int64_t>(std::floor(y * inverse_resolution_));
+    const int64_t cx = FloorCell(x * inverse_resolution_);
+    const int64_t cy = FloorCell(y * inverse_resolution_);
     const int32_t tile = directory_.Find(TileDirectory::Key(cx >> kTileBits, cy >> kTileBits));
     if (tile < 0) return false;
     return (tiles_[tile].rows[cy & kTileMask] >> (cx & kTileMask)) & 1u;
@@ -74,8 +74,8 @@ class CoverageGrid {
   // Whether everything within deep_reach() (m) of (x, y) is covered: it lies in a wholly covered
   // tile whose eight neighbours are wholly covered too.
   bool Deep(double x, double y) const {
-    const int64_t cx = static_cast<int64_t>(std::floor(x * inverse_resolution_));
-    const int64_t cy = static_cast<int64_t>(std::floor(y * inverse_resolution_));
+    const int64_t cx = FloorCell(x * inverse_resolution_);
+    const int64_t cy = FloorCell(y * inverse_resolution_);
     return directory_.Find(TileDirectory::Key(cx >> kTileBits, cy >> kTileBits)) == kDeepTile;
   }
   double deep_reach() const { return 64.0 / inverse_resolution_; }

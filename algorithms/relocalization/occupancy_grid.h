@@ -29,8 +29,8 @@ class OccupancyGrid {
                 const CoveredShare& covered_share = nullptr);
 
   bool Near(double x, double y) const {
-    const int64_t cx = static_cast<int64_t>(std::floor(x * inverse_resolution_));
-    const int64_t cy = static_cast<int64_t>(std::floor(y * inverse_resolution_));
+    const int64_t cx = FloorCell(x * inverse_resolution_);
+    const int64_t cy = FloorCell(y * inverse_resolution_);
     const int32_t tile = Find(TileDirectory::Key(cx >> kTileBits, cy >> kTileBits));
     if (tile < 0) return false;
     return (tiles_[tile].rows[cy & kTileMask] >> (cx & kTileMask)) & 1u;
@@ -44,8 +44,8 @@ class OccupancyGrid {
   // map covers: the local chance that a point of the mapped forest there lands
   // within `radius` of a tree.
   double OccupiedFractionAt(double x, double y) const {
-    const int64_t cx = static_cast<int64_t>(std::floor(x * inverse_resolution_));
-    const int64_t cy = static_cast<int64_t>(std::floor(y * inverse_resolution_));
+    const int64_t cx = FloorCell(x * inverse_resolution_);
+    const int64_t cy = FloorCell(y * inverse_resolution_);
     const int32_t tile = directory_.Find(TileDirectory::Key(cx >> kTileBits, cy >> kTileBits));
     return tile < 0 ? 0.0 : tiles_[tile].chance;
   }
