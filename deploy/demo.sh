@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 serve=1
 [ "${1:-}" = "--no-serve" ] && serve=0
 
-bash deploy/build.sh --target forestmapd forestmap
+bash deploy/build.sh --target forestmapd forestmap forestmap-lab
 bin=build
 addr=127.0.0.1:50051
 export FORESTMAP_SERVER=$addr
@@ -17,18 +17,18 @@ export FORESTMAP_SERVER=$addr
 "$bin/server/forestmapd" --db ./forestmap.db --listen "$addr" &
 server=$!
 trap 'kill $server 2>/dev/null; wait $server 2>/dev/null' EXIT
-for _ in $(seq 50); do "$bin/client/forestmap" map list >/dev/null 2>&1 && break; sleep 0.2; done
+for _ in $(seq 50); do "$bin/client/cli/forestmap" map list >/dev/null 2>&1 && break; sleep 0.2; done
 # Our server must be the one answering (another process may hold the port).
 kill -0 $server 2>/dev/null || { echo "demo: forestmapd did not start (is $addr in use?)" >&2; exit 1; }
 
 # A real surveyed stem map when ../shared/data is beside the clone, else a generated forest.
-"$bin/client/forestmap" demo-data --out demo-out \
+"$bin/client/lab/forestmap-lab" demo-data --out demo-out \
   --stemmap ../shared/data/stemmaps/spatstat_longleaf.csv
-"$bin/client/forestmap" map delete demo >/dev/null 2>&1 || true
-"$bin/client/forestmap" map create demo --trees demo-out/map.csv \
+"$bin/client/cli/forestmap" map delete demo >/dev/null 2>&1 || true
+"$bin/client/cli/forestmap" map create demo --trees demo-out/map.csv \
   --description "ForestMap demo forest"
-"$bin/client/forestmap" map show demo
-answer=$("$bin/client/forestmap" relocalize demo --trees demo-out/query.csv)
+"$bin/client/cli/forestmap" map show demo
+answer=$("$bin/client/cli/forestmap" relocalize demo --trees demo-out/query.csv)
 truth=$(cat demo-out/truth.json)
 
 field() { sed -n "s/.*\"$2\":\([^,}]*\).*/\1/p" <<<"$1"; }
@@ -49,10 +49,10 @@ fi
 
 # The thin client's whole path: a simulated LiDAR scan (Ouster OS1-64, 3 m above the ground at
 # the same place), trunks detected here, only the tree list sent to the server.
-"$bin/client/forestmap" simulate --map demo-out/map.csv --scanner os1-64 \
+"$bin/client/lab/forestmap-lab" simulate --map demo-out/map.csv --scanner os1-64 \
   --pose "$(field "$truth" x),$(field "$truth" y),3,$(field "$truth" yaw_deg)" \
   --out demo-out/scan >/dev/null
-scan_answer=$("$bin/client/forestmap" relocalize demo --scan demo-out/scan/scan_000.pcd)
+scan_answer=$("$bin/client/cli/forestmap" relocalize demo --scan demo-out/scan/scan_000.pcd)
 echo
 echo "from a LiDAR scan: $scan_answer"
 if [ "$(field "$scan_answer" status)" = '"localized"' ]; then
@@ -63,7 +63,7 @@ fi
 
 if [ $serve -eq 1 ]; then
   echo
-  echo "forestmapd is serving on $addr with ./forestmap.db; try: $bin/client/forestmap map list"
+  echo "forestmapd is serving on $addr with ./forestmap.db; try: $bin/client/cli/forestmap map list"
   echo "(Ctrl-C to stop)"
   wait $server
 fi

@@ -5,7 +5,7 @@
 
 namespace forestmap::storage {
 
-// The schema's migration to version 3 computes the same floor in SQL (sqlite_schema.cc).
+// The schema's migration to version 3 computes the same floor in SQL (storage/sqlite/schema.cc).
 ObservationCell CellOf(double x, double y) {
   return {static_cast<int64_t>(std::floor(x / kObservationCellSize)),
           static_cast<int64_t>(std::floor(y / kObservationCellSize))};

@@ -1,7 +1,7 @@
 #pragma once
 // Where TokenStore (storage/token_store.h) keeps its rows: the SQLite file of the server
 // (table access_tokens of the map schema) or a PostgreSQL database (table access_tokens, created
-// on first use, storage/postgres_token_store.cc). Values come checked and hashed from TokenStore.
+// on first use, storage/postgres/tokens.cc). Values come checked and hashed from TokenStore.
 // Thread-safety: every method may be called from many threads at once.
 
 #include <cstdint>
@@ -13,6 +13,20 @@
 #include "storage/token_store.h"
 
 namespace forestmap::storage {
+
+// Columns of every token query, in the order ReadTokenRow expects; `Row` as in storage/rows.h.
+#define FORESTMAP_TOKEN_COLUMNS "id, map_pattern, role, note, created_unix_ms, revoked_unix_ms"
+template <typename Row>
+TokenRecord ReadTokenRow(const Row& row) {
+  TokenRecord record;
+  record.id = row.Int64(0);
+  record.map_pattern = row.Text(1);
+  record.role = static_cast<Role>(row.Int64(2));
+  record.note = row.Text(3);
+  record.created_unix_ms = row.Int64(4);
+  record.revoked_unix_ms = row.IsNull(5) ? 0 : row.Int64(5);
+  return record;
+}
 
 class TokenBackend {
  public:
@@ -26,7 +40,8 @@ class TokenBackend {
   virtual bool AnyToken() = 0;
 };
 
-// The backend on a PostgreSQL server (libpq connection string or URI). Throws StorageError.
-std::unique_ptr<TokenBackend> OpenPostgresTokens(const std::string& conninfo);
+// The backend of the database `db` names (as OpenMapStore: a postgresql:// URI or a SQLite file
+// path), storage/open_store.cc. Throws StorageError.
+std::unique_ptr<TokenBackend> OpenTokenBackend(const std::string& db, int busy_timeout_ms);
 
 }  // namespace forestmap::storage

@@ -3,15 +3,10 @@
 #include <fnmatch.h>
 #include <openssl/evp.h>
 #include <openssl/rand.h>
-#include <sqlite3.h>
 
 #include <array>
-#include <cstdio>
-#include <mutex>
 
-#include "storage/postgres_map_store.h"
-#include "storage/sqlite.h"
-#include "storage/sqlite_map_store_internal.h"
+#include "storage/store_steps.h"
 #include "storage/token_backend.h"
 
 namespace forestmap::storage {
@@ -38,83 +33,6 @@ std::string RandomSecret() {
   }
   return kSecretPrefix + Hex(bytes.data(), bytes.size());
 }
-
-#define FORESTMAP_TOKEN_COLUMNS "id, map_pattern, role, note, created_unix_ms, revoked_unix_ms"
-
-TokenRecord ReadToken(const sqlite::Statement& row) {
-  TokenRecord record;
-  record.id = row.ColumnInt64(0);
-  record.map_pattern = row.ColumnText(1);
-  record.role = static_cast<Role>(row.ColumnInt64(2));
-  record.note = row.ColumnText(3);
-  record.created_unix_ms = row.ColumnInt64(4);
-  record.revoked_unix_ms = row.ColumnIsNull(5) ? 0 : row.ColumnInt64(5);
-  return record;
-}
-
-// Tokens in the server's SQLite file: one connection, one mutex.
-class SqliteTokens final : public TokenBackend {
- public:
-  SqliteTokens(const std::string& path, int busy_timeout_ms) {
-    db_ = std::make_unique<sqlite::Database>(
-        path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, busy_timeout_ms);
-    sqlite::MigrateSchema(*db_, internal::SchemaSteps());
-    if (path != ":memory:") db_->EnableWal();
-  }
-
-  int64_t Insert(const std::string& secret_sha256, const TokenRecord& record) override {
-    std::lock_guard<std::mutex> lock(mutex_);
-    sqlite::Statement insert(*db_,
-                             "INSERT INTO access_tokens (secret_sha256, map_pattern, role, note, "
-                             "created_unix_ms) VALUES (?1, ?2, ?3, ?4, ?5)");
-    insert.BindText(1, secret_sha256);
-    insert.BindText(2, record.map_pattern);
-    insert.BindInt64(3, static_cast<int64_t>(record.role));
-    insert.BindText(4, record.note);
-    insert.BindInt64(5, record.created_unix_ms);
-    insert.Run();
-    return db_->LastInsertRowId();
-  }
-
-  std::vector<TokenRecord> List() override {
-    std::lock_guard<std::mutex> lock(mutex_);
-    sqlite::Statement query(*db_,
-                            "SELECT " FORESTMAP_TOKEN_COLUMNS " FROM access_tokens ORDER BY id");
-    std::vector<TokenRecord> records;
-    while (query.Step()) records.push_back(ReadToken(query));
-    return records;
-  }
-
-  bool Revoke(int64_t id, int64_t now_unix_ms) override {
-    std::lock_guard<std::mutex> lock(mutex_);
-    sqlite::Statement update(*db_,
-                             "UPDATE access_tokens SET revoked_unix_ms = ?1 "
-                             "WHERE id = ?2 AND revoked_unix_ms IS NULL");
-    update.BindInt64(1, now_unix_ms);
-    update.BindInt64(2, id);
-    update.Run();
-    return sqlite3_changes(db_->handle()) == 1;
-  }
-
-  std::optional<TokenRecord> FindValid(const std::string& secret_sha256) override {
-    std::lock_guard<std::mutex> lock(mutex_);
-    sqlite::Statement query(*db_, "SELECT " FORESTMAP_TOKEN_COLUMNS
-                                  " FROM access_tokens WHERE secret_sha256 = ?1 AND "
-                                  "revoked_unix_ms IS NULL");
-    query.BindText(1, secret_sha256);
-    if (!query.Step()) return std::nullopt;
-    return ReadToken(query);
-  }
-
-  bool AnyToken() override {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return db_->QueryInt64("SELECT EXISTS (SELECT 1 FROM access_tokens)") != 0;
-  }
-
- private:
-  std::mutex mutex_;
-  std::unique_ptr<sqlite::Database> db_;
-};
 
 }  // namespace
 
@@ -152,13 +70,8 @@ std::string Sha256Hex(std::string_view data) {
   return Hex(digest.data(), size);
 }
 
-TokenStore::TokenStore(const std::string& path, int busy_timeout_ms) {
-  if (IsPostgresUri(path)) {
-    backend_ = OpenPostgresTokens(path);
-  } else {
-    backend_ = std::make_unique<SqliteTokens>(path, busy_timeout_ms);
-  }
-}
+TokenStore::TokenStore(const std::string& path, int busy_timeout_ms)
+    : backend_(OpenTokenBackend(path, busy_timeout_ms)) {}
 
 TokenStore::~TokenStore() = default;
 

@@ -1,7 +1,7 @@
 #pragma once
 // Access tokens of forestmapd, kept in the server's database: the SQLite file (table
-// access_tokens, see storage/sqlite_schema.cc) or, for a postgresql:// --db, the PostgreSQL
-// database (table access_tokens, made on first use: storage/postgres_token_store.cc). A token
+// access_tokens, see storage/sqlite/schema.cc) or, for a postgresql:// --db, the PostgreSQL
+// database (table access_tokens, made on first use: storage/postgres/tokens.cc). A token
 // grants one role on the maps matching a pattern: a map name, a glob ("plot-*", fnmatch syntax) or
 // "*" for every map. Roles are ordered: admin includes write, write includes read. Only the SHA-256
 // of the secret is stored: the secret is shown once, by Create, and cannot be recovered from the

@@ -5,7 +5,7 @@
 #include <limits>
 #include <utility>
 
-#include "storage/sqlite_map_store_internal.h"  // backend-neutral helpers: Union
+#include "storage/store_steps.h"
 
 namespace forestmap::storage::internal {
 
@@ -84,20 +84,9 @@ void UploadChunks::Staged(const std::vector<TreeRecord>& trees) {
 
 VersionRecord UploadChunks::Apply(MapInfo& info, int64_t observations_removed) const {
   const bool replace = mode_ == WriteMode::kReplace;
-  VersionRecord record;
-  record.version = info.version + 1;
-  record.kind = replace ? VersionKind::kReplace : VersionKind::kUpload;
-  record.trees_removed = replace ? info.tree_count : 0;
+  VersionRecord record = NextVersion(info, replace ? VersionKind::kReplace : VersionKind::kUpload);
   record.observations_removed = observations_removed;
-  info.tree_count = replace ? staged_ : info.tree_count + staged_;
-  info.confirmed_count = replace ? confirmed_ : info.confirmed_count + confirmed_;
-  info.extent = replace ? extent_ : Union(info.extent, extent_);
-  info.version = record.version;
-  info.updated_unix_ms = NowUnixMs();
-  record.created_unix_ms = info.updated_unix_ms;
-  record.tree_count = info.tree_count;
-  record.confirmed_count = info.confirmed_count;
-  record.trees_added = staged_;
+  StampWrite(info, record, staged_, confirmed_, extent_, replace);
   return record;
 }
 

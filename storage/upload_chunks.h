@@ -33,11 +33,7 @@ class UploadChunks {
 
   // "map 'x': trees[k]" of the upload, for messages.
   std::string Label(int64_t index) const;
-  const std::string& map_name() const { return map_name_; }
-  WriteMode mode() const { return mode_; }
   int64_t staged() const { return staged_; }
-  int64_t confirmed() const { return confirmed_; }
-  const std::optional<Extent>& extent() const { return extent_; }
 
  private:
   std::string map_name_;

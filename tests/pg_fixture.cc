@@ -16,7 +16,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "storage/postgres.h"
+#include "storage/postgres/connection.h"
 
 namespace forestmap::testing {
 namespace {

@@ -9,14 +9,14 @@ namespace {
 
 constexpr double kMinSigma = 0.02;  // m, floor of the per-axis residual sd
 // Correlated errors: n matched pairs carry the information of about n / kCorrelation
-// independent ones (measured: mean NEES on Wild_V02 and on simulated views, see README).
+// independent ones (measured: mean NEES on Wild_V02 and on simulated views, docs/performance.md).
 constexpr double kCorrelation = 1.3;
 // Systematic error of the map against the world, per axis: this share of the residual sd in
 // excess of a single frame's detection noise (kDetectionSigma: a perfect map, as in simulated
 // views, leaves only that noise, which is independent from tree to tree; what a real map adds,
 // its survey's and drift's error, is shared by neighbouring trees), and its heading error over a
 // typical lever arm of the matched trees. Calibrated on Wild_V02 against Wild_V01 with the
-// locally refined truth and on simulated views (mean NEES, README).
+// locally refined truth and on simulated views (mean NEES, docs/performance.md).
 constexpr double kSystematicShare = 0.2;
 constexpr double kDetectionSigma = 0.05;  // m, per axis
 constexpr double kLeverArm = 10.0;        // m

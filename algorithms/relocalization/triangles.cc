@@ -54,10 +54,4 @@ std::vector<Triangle> EnumerateTriangles(const std::vector<Eigen::Vector2d>& poi
   return out;
 }
 
-double TriangleSideForDensity(double median_nn_distance, double target_neighbours) {
-  // Poisson process: P(NN > r) = exp(-density pi r^2)  =>  density = ln 2 / (pi median^2).
-  const double density = std::log(2.0) / (M_PI * median_nn_distance * median_nn_distance);
-  return std::sqrt(target_neighbours / (M_PI * density));
-}
-
 }  // namespace forestmap::algorithms

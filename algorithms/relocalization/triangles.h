@@ -35,8 +35,4 @@ std::vector<Triangle> EnumerateTriangles(const std::vector<Eigen::Vector2d>& poi
                                          const TriangleOptions& options, size_t begin = 0,
                                          size_t end = SIZE_MAX);
 
-// Side length below which a Poisson forest of this nearest-neighbour median has about
-// `target_neighbours` trees around each tree: max_side = sqrt(target / (pi * density)).
-double TriangleSideForDensity(double median_nn_distance, double target_neighbours);
-
 }  // namespace forestmap::algorithms

@@ -157,11 +157,6 @@ int64_t RequiredInteger(const CsvReader& reader, size_t column) {
   return ParseInteger(reader, column);
 }
 
-std::optional<int64_t> OptionalInteger(const CsvReader& reader, size_t column) {
-  if (IsMissing(reader.fields()[column])) return std::nullopt;
-  return ParseInteger(reader, column);
-}
-
 std::string_view Trim(std::string_view s) {
   while (!s.empty() && std::isspace(static_cast<unsigned char>(s.front()))) s.remove_prefix(1);
   while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.remove_suffix(1);

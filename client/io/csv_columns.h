@@ -47,7 +47,6 @@ double RequiredNumber(const CsvReader& reader, size_t column);                 /
 std::optional<double> OptionalNumber(const CsvReader& reader, size_t column);  // finite or unknown
 std::optional<double> OptionalDiameter(const CsvReader& reader, size_t column);  // also >= 0
 int64_t RequiredInteger(const CsvReader& reader, size_t column);
-std::optional<int64_t> OptionalInteger(const CsvReader& reader, size_t column);
 
 // `s` without leading and trailing white space.
 std::string_view Trim(std::string_view s);

@@ -19,7 +19,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 BUILD = os.path.join(ROOT, "build")
 PYTHON_DIR = os.environ.get("FORESTMAP_PYTHON_DIR", os.path.join(BUILD, "python"))
 FORESTMAPD = os.environ.get("FORESTMAPD", os.path.join(BUILD, "server", "forestmapd"))
-CLI = os.environ.get("FORESTMAP_CLI", os.path.join(BUILD, "client", "forestmap"))
+CLI = os.environ.get("FORESTMAP_CLI", os.path.join(BUILD, "client", "cli", "forestmap"))
 DATA = os.environ.get("FORESTMAP_SHARED_DATA", os.path.join(ROOT, "..", "shared", "data"))
 
 if not os.path.exists(os.path.join(PYTHON_DIR, "forestmap", "v1", "maps_pb2.py")):

@@ -4,30 +4,27 @@ namespace forestmap::server {
 
 void ValidateRequestId(const std::string& id, const std::string& field) {
   if (id.size() > kMaxRequestIdLength) {
-    throw ValidationError(field + ": " + std::to_string(id.size()) + " bytes exceed the limit of " +
-                          std::to_string(kMaxRequestIdLength));
+    throw ValidationError(field, ": " + std::to_string(id.size()) + " bytes exceed the limit of " +
+                                     std::to_string(kMaxRequestIdLength));
   }
   for (size_t i = 0; i < id.size(); ++i) {
     const unsigned char c = static_cast<unsigned char>(id[i]);
     if (c < 0x21 || c > 0x7e) {
-      throw ValidationError(field + ": character " + std::to_string(i + 1) +
-                            " is not printable ASCII (0x21..0x7e)");
+      throw ValidationError(
+          field, ": character " + std::to_string(i + 1) + " is not printable ASCII (0x21..0x7e)");
     }
   }
 }
 
-bool ReplayRequest(storage::MapStore& store, const std::string& id, const char* rpc,
-                   google::protobuf::MessageLite& response) {
-  const std::optional<storage::StoredRequest> stored = store.FindRequest(id);
-  if (!stored) return false;
+std::optional<std::string> StoredAnswer(storage::MapStore& store, const std::string& id,
+                                        std::string_view rpc) {
+  std::optional<storage::StoredRequest> stored = store.FindRequest(id);
+  if (!stored) return std::nullopt;
   if (stored->rpc != rpc) {
-    throw ValidationError("request_id '" + id + "' was already used for a " + stored->rpc +
-                          " call; use a new id for every write");
+    throw ValidationError("request_id", " '" + id + "' was already used for a " + stored->rpc +
+                                            " call; use a new id for every write");
   }
-  if (!response.ParseFromString(stored->response)) {
-    throw std::runtime_error("the stored answer of request id '" + id + "' cannot be decoded");
-  }
-  return true;
+  return std::move(stored->response);
 }
 
 }  // namespace forestmap::server

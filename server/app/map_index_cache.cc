@@ -4,8 +4,8 @@
 #include <stdexcept>
 #include <utility>
 
-#include "server/grpc/convert.h"
-#include "server/grpc/status.h"
+#include "server/app/errors.h"
+#include "server/app/tree_records.h"
 
 namespace forestmap::server {
 namespace {

@@ -6,9 +6,9 @@
 #include <tuple>
 #include <utility>
 
+#include "server/app/errors.h"
 #include "server/app/merge_region.h"
-#include "server/grpc/convert.h"
-#include "server/grpc/status.h"
+#include "server/app/tree_records.h"
 
 namespace forestmap::server {
 namespace {
@@ -251,7 +251,7 @@ SourceRemoval RemoveSourceChanges(storage::MergeReader& reader, const std::strin
   const std::vector<storage::ObservationRecord> removed = reader.ObservationsOfSource(source);
   if (removed.empty()) {
     throw ServiceError(
-        grpc::StatusCode::NOT_FOUND,
+        ErrorCode::kNotFound,
         "map \"" + reader.map().name + "\" has no observations of source \"" + source + "\"");
   }
   std::set<int64_t> removed_ids;

@@ -3,7 +3,7 @@
 // shows (the map's current version, read inside the store's write transaction) that return the
 // storage::MapChanges to commit as the next version. The map's trees are a pure function of the
 // set of its observation rows, component by component (algorithms::RebuildTrees); a change
-// rebuilds the components it touches (server/merge_region.h), so nothing but rows and derived
+// rebuilds the components it touches (server/app/merge_region.h), so nothing but rows and derived
 // fields is persisted. A surveyed tree without rows gets its survey prior
 // (algorithms::SurveyObservation) as its first row when first touched.
 
@@ -29,7 +29,7 @@ struct FramesMerge {
 };
 
 // Merges `frames` (map_from_sensor set) in order into the trees of the region their detections
-// join (server/merge_region.h), for the per-frame counts. With `consolidate`, the region, whole
+// join (server/app/merge_region.h), for the per-frame counts. With `consolidate`, the region, whole
 // connected components of the map's rows, is then rebuilt from its rows and the new ones
 // (algorithms::RebuildTrees), so that the map is a pure function of the set of observations it
 // received: concurrent requests, in any order and batches, give the map one sequential upload
@@ -47,7 +47,7 @@ struct SourceRemoval {
 // Drops every current observation of `source` and rebuilds the connected components they were
 // in from the remaining rows (as MergeFrames does), so the map stays the pure function of the
 // set of observations it holds; trees left without rows are removed. Throws ServiceError
-// NOT_FOUND when the source has no observation in the map.
+// kNotFound when the source has no observation in the map.
 SourceRemoval RemoveSourceChanges(storage::MergeReader& reader, const std::string& source,
                                   const algorithms::MergeOptions& options);
 

@@ -7,7 +7,7 @@
 #include <utility>
 
 #include "algorithms/merging/observation_components.h"
-#include "server/grpc/convert.h"
+#include "server/app/tree_records.h"
 
 namespace forestmap::server {
 namespace {

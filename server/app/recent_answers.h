@@ -1,35 +1,46 @@
 #pragma once
-// The last relocalization answers the service gave, for the read-only web page (http_page.h).
-// Thread-safe; bounded.
+// The last relocalization answers the service gave, for the read-only web page
+// (server/http/http_page.h). Thread-safe; bounded.
 
 #include <chrono>
 #include <cstdint>
 #include <deque>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
-#include "forestmap/v1/relocalization.pb.h"
+#include "algorithms/relocalization/relocalizer.h"
+#include "geo/crs.h"
 
 namespace forestmap::server {
 
 struct RecentAnswer {
   std::string map_name;
-  int64_t unix_ms = 0;
-  v1::RelocalizeResponse response;  // without its matches (kept small)
+  int64_t unix_ms = 0;  // when it was answered, ms since the Unix epoch
+  algorithms::RelocalizeStatus status = algorithms::RelocalizeStatus::kNotFound;
+  int inliers = 0;
+  std::optional<Eigen::Vector3d> position;    // m, map frame: the sensor's, when localized
+  std::optional<geo::GeodeticPose> geodetic;  // when localized in a map with a known CRS
 };
 
 class RecentAnswers {
  public:
   static constexpr size_t kKept = 50;  // answers kept, newest first
 
-  void Add(const std::string& map_name, const v1::RelocalizeResponse& response) {
-    RecentAnswer answer{map_name,
-                        std::chrono::duration_cast<std::chrono::milliseconds>(
-                            std::chrono::system_clock::now().time_since_epoch())
-                            .count(),
-                        response};
-    answer.response.clear_matches();
+  void Add(const std::string& map_name, const algorithms::RelocalizeResult& result,
+           const std::optional<geo::GeodeticPose>& geodetic) {
+    RecentAnswer answer;
+    answer.map_name = map_name;
+    answer.unix_ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+                         std::chrono::system_clock::now().time_since_epoch())
+                         .count();
+    answer.status = result.status;
+    answer.inliers = result.inliers;
+    if (result.status == algorithms::RelocalizeStatus::kLocalized) {
+      answer.position = result.map_from_sensor.translation();
+    }
+    answer.geodetic = geodetic;
     std::lock_guard<std::mutex> lock(mutex_);
     answers_.push_front(std::move(answer));
     if (answers_.size() > kKept) answers_.pop_back();

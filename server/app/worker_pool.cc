@@ -3,14 +3,15 @@
 #include <exception>
 #include <stdexcept>
 #include <string>
-
-#include "server/grpc/status.h"
+#include <utility>
 
 namespace forestmap::server {
 
-WorkerPool::WorkerPool(int threads, size_t max_queued) : max_queued_(max_queued) {
+WorkerPool::WorkerPool(int threads, size_t max_queued, FaultReport report)
+    : max_queued_(max_queued), report_(std::move(report)) {
   if (threads < 1) throw std::invalid_argument("WorkerPool needs at least 1 thread");
   if (max_queued < 1) throw std::invalid_argument("WorkerPool needs max_queued >= 1");
+  if (!report_) throw std::invalid_argument("WorkerPool needs a report for jobs that throw");
   threads_.reserve(threads);
   for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { Run(); });
 }
@@ -47,9 +48,9 @@ void WorkerPool::Run() {
     try {
       job();
     } catch (const std::exception& e) {
-      LogLine(std::string("worker job threw: ") + e.what());
+      report_(std::string("worker job threw: ") + e.what());
     } catch (...) {
-      LogLine("worker job threw an unknown exception");
+      report_("worker job threw an unknown exception");
     }
   }
 }

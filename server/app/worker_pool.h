@@ -14,25 +14,30 @@
 #include <thread>
 #include <vector>
 
+#include "server/app/errors.h"
+
 namespace forestmap::server {
 
 class WorkerPool {
  public:
-  // Throws std::invalid_argument unless threads >= 1 and max_queued >= 1.
-  WorkerPool(int threads, size_t max_queued);
+  // Throws std::invalid_argument unless threads >= 1, max_queued >= 1 and `report` is set.
+  // `report` gets what a job that threw was thrown (a job must not throw; one that does is a bug,
+  // and the pool goes on).
+  WorkerPool(int threads, size_t max_queued, FaultReport report);
   // Runs the jobs still queued, then joins the threads.
   ~WorkerPool();
   WorkerPool(const WorkerPool&) = delete;
   WorkerPool& operator=(const WorkerPool&) = delete;
 
   // Queues `job`; false (and the job is dropped) when max_queued jobs are already waiting.
-  // Jobs must not throw; one that does is logged and ignored.
+  // Jobs must not throw; one that does is reported and the pool goes on.
   bool TrySubmit(std::function<void()> job);
 
  private:
   void Run();
 
   size_t max_queued_;
+  FaultReport report_;
   std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<std::function<void()>> queue_;

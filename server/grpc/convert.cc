@@ -4,6 +4,7 @@
 #include <optional>
 
 #include "server/grpc/geo_convert.h"
+#include "server/grpc/legacy_layout.h"
 
 namespace forestmap::server {
 namespace {
@@ -39,7 +40,8 @@ v1::Tree ToProto(const storage::TreeRecord& tree) {
   if (tree.dbh) out.set_dbh(*tree.dbh);
   out.mutable_attributes()->insert(tree.attributes.begin(), tree.attributes.end());
   for (const std::string& name : tree.null_attributes) out.add_null_attributes(name);
-  out.set_status(tree.status == storage::TreeStatus::kConfirmed ? v1::CONFIRMED : v1::CANDIDATE);
+  out.set_status(tree.status == storage::TreeStatus::kConfirmed ? v1::TREE_STATUS_CONFIRMED
+                                                                : v1::TREE_STATUS_CANDIDATE);
   out.set_observations(tree.observations);
   if (tree.position_sigma) out.set_position_sigma_m(*tree.position_sigma);
   if (tree.dbh_sigma) out.set_dbh_sigma_m(*tree.dbh_sigma);
@@ -71,21 +73,6 @@ storage::Extent FromProto(const v1::Box2& box) {
   return storage::Extent{box.min_x(), box.min_y(), box.max_x(), box.max_y()};
 }
 
-algorithms::MapTree ToMapTree(const storage::TreeRecord& tree) {
-  algorithms::MapTree out;
-  out.id = tree.id.value_or(0);
-  out.position = Eigen::Vector3d(tree.x, tree.y, tree.z.value_or(algorithms::kUnknown));
-  out.dbh = tree.dbh.value_or(algorithms::kUnknown);
-  return out;
-}
-
-std::vector<algorithms::MapTree> ToMapTrees(const std::vector<storage::TreeRecord>& trees) {
-  std::vector<algorithms::MapTree> out;
-  out.reserve(trees.size());
-  for (const storage::TreeRecord& tree : trees) out.push_back(ToMapTree(tree));
-  return out;
-}
-
 algorithms::DetectedTree FromProto(const v1::DetectedTree& tree) {
   algorithms::DetectedTree out;
   out.position = FromProto(tree.position());
@@ -96,8 +83,12 @@ algorithms::DetectedTree FromProto(const v1::DetectedTree& tree) {
 }
 
 algorithms::PriorPose FromProto(const v1::PriorPose& prior) {
-  algorithms::PriorPose out;
-  out.map_from_sensor = FromProto(prior.map_from_sensor());
+  algorithms::PriorPose out;  // the relocalizer uses the position's x and y only
+  if (const v1::Pose* pose = LegacyPose(prior)) {
+    out.map_from_sensor = FromProto(*pose);
+  } else {
+    out.map_from_sensor.translation() = Eigen::Vector3d(prior.x(), prior.y(), 0.0);
+  }
   out.radius = prior.radius_m();
   return out;
 }
@@ -114,11 +105,11 @@ algorithms::RelocalizeQuery FromProto(const v1::RelocalizeRequest& request) {
 v1::RelocalizeResponse::Status ToProto(algorithms::RelocalizeStatus status) {
   switch (status) {
     case algorithms::RelocalizeStatus::kLocalized:
-      return v1::RelocalizeResponse::LOCALIZED;
+      return v1::RelocalizeResponse::STATUS_LOCALIZED;
     case algorithms::RelocalizeStatus::kAmbiguous:
-      return v1::RelocalizeResponse::AMBIGUOUS;
+      return v1::RelocalizeResponse::STATUS_AMBIGUOUS;
     case algorithms::RelocalizeStatus::kNotFound:
-      return v1::RelocalizeResponse::NOT_FOUND;
+      return v1::RelocalizeResponse::STATUS_NOT_FOUND;
   }
   return v1::RelocalizeResponse::STATUS_UNSPECIFIED;
 }
@@ -129,17 +120,17 @@ v1::RelocalizeResponse::Reason ToProto(algorithms::RelocalizeReason reason) {
     case R::kNone:
       return v1::RelocalizeResponse::REASON_NONE;
     case R::kTooFewTrees:
-      return v1::RelocalizeResponse::TOO_FEW_TREES;
+      return v1::RelocalizeResponse::REASON_TOO_FEW_TREES;
     case R::kNoMatchingConstellation:
-      return v1::RelocalizeResponse::NO_MATCHING_CONSTELLATION;
+      return v1::RelocalizeResponse::REASON_NO_MATCHING_CONSTELLATION;
     case R::kNotSignificant:
-      return v1::RelocalizeResponse::NOT_SIGNIFICANT;
+      return v1::RelocalizeResponse::REASON_NOT_SIGNIFICANT;
     case R::kTooFewInliers:
-      return v1::RelocalizeResponse::TOO_FEW_INLIERS;
+      return v1::RelocalizeResponse::REASON_TOO_FEW_INLIERS;
     case R::kAmbiguous:
-      return v1::RelocalizeResponse::AMBIGUOUS_RIVAL;
+      return v1::RelocalizeResponse::REASON_AMBIGUOUS_RIVAL;
     case R::kOutsidePrior:
-      return v1::RelocalizeResponse::OUTSIDE_PRIOR;
+      return v1::RelocalizeResponse::REASON_OUTSIDE_PRIOR;
   }
   return v1::RelocalizeResponse::REASON_UNSPECIFIED;
 }
@@ -174,12 +165,12 @@ v1::RelocalizeResponse ToProto(const algorithms::RelocalizeResult& result) {
   return out;
 }
 
-algorithms::TrackingFrame FromProto(const v1::TrackRequest& request) {
+algorithms::TrackingFrame FromProto(const v1::TrackFrame& message) {
   algorithms::TrackingFrame frame;
-  frame.query.trees.reserve(request.trees_size());
-  for (const v1::DetectedTree& tree : request.trees()) frame.query.trees.push_back(FromProto(tree));
-  if (request.has_gravity()) frame.query.gravity = Direction(FromProto(request.gravity()));
-  if (request.has_odometry()) frame.odometry = FromProto(request.odometry());
+  frame.query.trees.reserve(message.trees_size());
+  for (const v1::DetectedTree& tree : message.trees()) frame.query.trees.push_back(FromProto(tree));
+  if (message.has_gravity()) frame.query.gravity = Direction(FromProto(message.gravity()));
+  if (message.has_odometry()) frame.odometry = FromProto(message.odometry());
   return frame;
 }
 
@@ -187,24 +178,24 @@ v1::TrackResponse ToProto(const algorithms::TrackingStep& step) {
   v1::TrackResponse out;
   switch (step.state) {
     case algorithms::TrackState::kTracking:
-      out.set_state(v1::TrackResponse::TRACKING);
+      out.set_state(v1::TrackResponse::STATE_TRACKING);
       break;
     case algorithms::TrackState::kRecovered:
-      out.set_state(v1::TrackResponse::RECOVERED);
+      out.set_state(v1::TrackResponse::STATE_RECOVERED);
       break;
     case algorithms::TrackState::kLost:
-      out.set_state(v1::TrackResponse::LOST);
+      out.set_state(v1::TrackResponse::STATE_LOST);
       break;
   }
   switch (step.method) {
     case algorithms::TrackMethod::kLocal:
-      out.set_method(v1::TrackResponse::LOCAL);
+      out.set_method(v1::TrackResponse::METHOD_LOCAL);
       break;
     case algorithms::TrackMethod::kPrior:
-      out.set_method(v1::TrackResponse::PRIOR);
+      out.set_method(v1::TrackResponse::METHOD_PRIOR);
       break;
     case algorithms::TrackMethod::kGlobal:
-      out.set_method(v1::TrackResponse::GLOBAL);
+      out.set_method(v1::TrackResponse::METHOD_GLOBAL);
       break;
   }
   out.set_frames_lost(step.frames_lost);
@@ -216,19 +207,19 @@ v1::MapVersion::Kind ToProto(storage::VersionKind kind) {
   using Kind = storage::VersionKind;
   switch (kind) {
     case Kind::kCreate:
-      return v1::MapVersion::CREATE;
+      return v1::MapVersion::KIND_CREATE;
     case Kind::kUpload:
-      return v1::MapVersion::UPLOAD;
+      return v1::MapVersion::KIND_UPLOAD;
     case Kind::kReplace:
-      return v1::MapVersion::REPLACE;
+      return v1::MapVersion::KIND_REPLACE;
     case Kind::kObserve:
-      return v1::MapVersion::OBSERVE;
+      return v1::MapVersion::KIND_OBSERVE;
     case Kind::kRestore:
-      return v1::MapVersion::RESTORE;
+      return v1::MapVersion::KIND_RESTORE;
     case Kind::kRemoveSource:
-      return v1::MapVersion::REMOVE_SOURCE;
+      return v1::MapVersion::KIND_REMOVE_SOURCE;
     case Kind::kMigrated:
-      return v1::MapVersion::MIGRATED;
+      return v1::MapVersion::KIND_MIGRATED;
   }
   return v1::MapVersion::KIND_UNSPECIFIED;
 }
@@ -250,73 +241,47 @@ v1::MapVersion ToProto(const storage::VersionRecord& record) {
   return out;
 }
 
-algorithms::TreeObservation ToTreeObservation(const storage::ObservationRecord& record) {
-  algorithms::TreeObservation out;
-  out.tree_id = record.tree_id;
-  out.source = record.source;
-  out.frame_id = record.frame_id;
-  out.detection_index = record.detection_index;
-  out.position = Eigen::Vector3d(record.x, record.y, record.z.value_or(algorithms::kUnknown));
-  out.dbh = record.dbh.value_or(algorithms::kUnknown);
-  out.weight_xy = record.weight_xy;
-  out.weight_dbh = record.weight_dbh;
-  out.sensor_position = Eigen::Vector3d(record.sensor_x, record.sensor_y, record.sensor_z);
-  out.prior = record.prior;
-  return out;
+ObserveCall FromProto(const v1::ObserveRequest& request) {
+  ObserveCall call;
+  call.map_name = request.name();
+  call.source = request.source();
+  if (request.conflict_policy() == v1::CONFLICT_POLICY_REJECT_IF_STALE)
+    call.base_version = request.base_version();
+  call.frames.reserve(request.frames_size());
+  for (const v1::ObservationFrame& in : request.frames()) {
+    ObserveFrame& frame = call.frames.emplace_back();
+    frame.observations.source = request.source();
+    frame.observations.frame_id = in.frame_id();
+    frame.observations.trees.reserve(in.trees_size());
+    for (const v1::DetectedTree& tree : in.trees())
+      frame.observations.trees.push_back(FromProto(tree));
+    frame.has_pose = in.has_map_from_sensor();
+    if (frame.has_pose) frame.observations.map_from_sensor = FromProto(in.map_from_sensor());
+    if (in.has_gravity()) frame.gravity = FromProto(in.gravity());
+  }
+  return call;
 }
 
-namespace {
-std::optional<double> Known(double v) {
-  return std::isfinite(v) ? std::optional<double>(v) : std::nullopt;
-}
-}  // namespace
-
-storage::ObservationRecord ToObservationRecord(const algorithms::TreeObservation& observation) {
-  storage::ObservationRecord out;
-  out.tree_id = observation.tree_id;
-  out.source = observation.source;
-  out.frame_id = observation.frame_id;
-  out.detection_index = observation.detection_index;
-  out.x = observation.position.x();
-  out.y = observation.position.y();
-  out.z = Known(observation.position.z());
-  out.dbh = Known(observation.dbh);
-  out.weight_xy = observation.weight_xy;
-  out.weight_dbh = observation.weight_dbh;
-  out.sensor_x = observation.sensor_position.x();
-  out.sensor_y = observation.sensor_position.y();
-  out.sensor_z = observation.sensor_position.z();
-  out.prior = observation.prior;
-  return out;
-}
-
-storage::TreeRecord ToTreeRecord(const algorithms::TreeEstimate& tree,
-                                 const std::map<std::string, std::string>& attributes,
-                                 const std::set<std::string>& null_attributes) {
-  storage::TreeRecord out;
-  out.id = tree.id;
-  out.x = tree.position.x();
-  out.y = tree.position.y();
-  out.z = Known(tree.position.z());
-  out.dbh = Known(tree.dbh);
-  out.attributes = attributes;
-  out.null_attributes = null_attributes;
-  out.status = tree.status == algorithms::TreeStatus::kConfirmed ? storage::TreeStatus::kConfirmed
-                                                                 : storage::TreeStatus::kCandidate;
-  out.observations = tree.observations;
-  out.position_sigma = Known(tree.position_sigma);
-  out.dbh_sigma = Known(tree.dbh_sigma);
-  return out;
-}
-
-algorithms::FrameObservations FromProto(const v1::ObservationFrame& frame,
-                                        const std::string& source) {
-  algorithms::FrameObservations out;
-  out.source = source;
-  out.frame_id = frame.frame_id();
-  out.trees.reserve(frame.trees_size());
-  for (const v1::DetectedTree& tree : frame.trees()) out.trees.push_back(FromProto(tree));
-  if (frame.has_map_from_sensor()) out.map_from_sensor = FromProto(frame.map_from_sensor());
+v1::ObserveResponse ToProto(const ObserveOutcome& outcome) {
+  v1::ObserveResponse out;
+  for (const FrameOutcome& frame : outcome.frames) {
+    v1::FrameResult& result = *out.add_frames();
+    result.set_frame_id(frame.frame_id);
+    if (!frame.merged) {
+      result.set_status(v1::FrameResult::STATUS_SKIPPED);
+      result.set_detail(frame.detail);
+      continue;
+    }
+    result.set_status(v1::FrameResult::STATUS_MERGED);
+    result.set_relocalized(frame.relocalized);
+    *result.mutable_map_from_sensor() = ToProto(frame.map_from_sensor);
+    result.set_trees_associated(frame.counts.associated);
+    result.set_trees_added(frame.counts.added);
+    result.set_trees_promoted(frame.counts.promoted);
+    result.set_trees_ignored(frame.counts.ignored);
+  }
+  out.set_map_version(outcome.map.version);
+  *out.mutable_map() = ToProto(outcome.map);
   return out;
 }
 

@@ -1,10 +1,10 @@
 #pragma once
-// Requests that cannot be decoded (issue 15): gRPC answers a unary or server-streaming call whose
+// Requests that cannot be decoded: gRPC answers a unary or server-streaming call whose
 // request message fails to parse with UNIMPLEMENTED and no message (its callback handler cannot
 // build the call), which reads as a missing method. This server interceptor notices the failed
 // parse (the request it sees is null) and replaces that status with INVALID_ARGUMENT naming the
-// RPC (server/status.h, UndecodableRequest). Streams from the client (UploadTrees, Track) check
-// each message themselves.
+// RPC (server/grpc/status.h, UndecodableRequest). Streams from the client (UploadTrees, Track)
+// check each message themselves.
 //
 // Thread-safety: gRPC calls an interceptor from one thread at a time; the factory is stateless.
 

@@ -1,13 +1,13 @@
-// ExportTreesReactor (server/streams.h): exports read page by page, with flow control.
+// ExportTreesReactor (server/grpc/streams.h): exports read page by page, with flow control.
 
 #include <string>
 #include <utility>
 
+#include "server/grpc/authorize.h"
 #include "server/grpc/convert.h"
 #include "server/grpc/service.h"
 #include "server/grpc/status.h"
 #include "server/grpc/streams.h"
-#include "server/ops/auth.h"
 
 namespace forestmap::server {
 
@@ -27,33 +27,19 @@ ExportTreesReactor::ExportTreesReactor(const StreamDeps& deps, grpc::CallbackSer
 
 void ExportTreesReactor::Start() {
   const v1::ExportTreesRequest& request = *request_;
-  Authorize(deps_.options.authorizer, *context_, "ExportTrees", request.map_name());
+  Authorize(deps_.options.authorizer, *context_, "ExportTrees", request.name());
   Validate(request);
-  const storage::MapInfo info = deps_.store.GetMap(request.map_name());
-  version_ = request.version() != 0 ? request.version() : info.version;
-  created_unix_ms_ = info.created_unix_ms;
+  storage::MapInfo info = deps_.store.GetMap(request.name());
+  if (request.version() != 0) info.version = request.version();
+  version_ = info.version;
+  std::optional<storage::Extent> box;
+  if (request.has_box()) box = FromProto(request.box());
+  pages_.emplace(deps_.store, info, deps_.options.export_chunk_trees, box);
 }
 
 void ExportTreesReactor::LoadPage() {
-  storage::TreePageQuery query;
-  query.version = version_;
-  query.created_unix_ms = created_unix_ms_;
-  query.after_id = after_id_;
-  query.limit = deps_.options.export_chunk_trees;
-  if (request_->has_box()) query.box = FromProto(request_->box());
-  try {
-    page_ = deps_.store.ReadTreesPage(request_->map_name(), query);
-  } catch (const storage::StorageError& e) {
-    // After the first page, a missing map or version was deleted or pruned meanwhile.
-    if (!after_id_ || e.code() != storage::StorageError::Code::kNotFound) throw;
-    throw ServiceError(grpc::StatusCode::ABORTED, "map \"" + request_->map_name() + "\" (version " +
-                                                      std::to_string(version_) +
-                                                      ") was deleted or pruned during the " +
-                                                      "export (" + e.what() + "); retry");
-  }
+  page_ = pages_->Next();
   next_ = 0;
-  last_page_ = static_cast<int64_t>(page_.size()) < query.limit;
-  if (!page_.empty()) after_id_ = page_.back().id;
 }
 
 void ExportTreesReactor::ReadThenWrite(bool start) {
@@ -73,7 +59,7 @@ void ExportTreesReactor::ReadThenWrite(bool start) {
 
 void ExportTreesReactor::WriteNext() {
   if (next_ >= page_.size()) {
-    if (!last_page_) {
+    if (!pages_->done()) {
       ReadThenWrite(/*start=*/false);  // the client took the last message: read on
       return;
     }

@@ -1,11 +1,11 @@
-// ForestMapService: history retention (PruneVersions, --keep-versions).
+// ForestMapService: history retention on demand (PruneVersions). The --keep-versions policy after
+// every write is the application layer's RetentionPolicy (server/app/retention.h), as is the prune.
 
-#include <string>
-
-#include "server/app/exactly_once.h"
+#include "server/app/retention.h"
 #include "server/grpc/convert.h"
+#include "server/grpc/legacy_layout.h"
+#include "server/grpc/replay.h"
 #include "server/grpc/service.h"
-#include "server/grpc/status.h"
 #include "server/grpc/validation.h"
 
 namespace forestmap::server {
@@ -23,26 +23,14 @@ void Fill(const storage::PruneResult& result, v1::PruneVersionsResponse& respons
 void ForestMapService::RunPrune(grpc::CallbackServerContext* context,
                                 const v1::PruneVersionsRequest& request,
                                 v1::PruneVersionsResponse& response) {
-  ValidateMapName(request.map_name(), "map_name");
-  if (request.keep() < 1) {
-    throw ValidationError("keep is " + std::to_string(request.keep()) +
-                          "; at least the current version must stay (keep >= 1)");
-  }
+  ValidateMapName(request.name(), "name");
+  CheckKeep(request.keep());
+  const std::string request_id = RequestId(request);  // field 50, or 3 of release 0.1.0
   // The stored answer of a request id holds the map; a repeat removes nothing, its counts are 0.
   const auto encode = Encoder<v1::PruneVersionsResponse>(
       [](const storage::MapInfo& info, auto& answer) { *answer.mutable_map() = ToProto(info); });
-  RunExactlyOnce(store_, context, request.request_id(), "PruneVersions", response, encode,
-                 [&] { Fill(store_.PruneVersions(request.map_name(), request.keep()), response); });
-}
-
-void ForestMapService::ApplyRetention(const std::string& map) noexcept {
-  if (options_.keep_versions <= 0) return;
-  try {
-    store_.PruneVersions(map, options_.keep_versions);
-  } catch (const std::exception& e) {
-    LogLine("retention of map \"" + map + "\" failed (the write stands): " + e.what());
-  } catch (...) {
-  }
+  RunExactlyOnce(store_, context, request_id, "PruneVersions", response, encode,
+                 [&] { Fill(PruneHistory(store_, request.name(), request.keep()), response); });
 }
 
 }  // namespace forestmap::server

@@ -178,10 +178,4 @@ void NoteCallMap(const grpc::ServerContextBase& context, std::string_view map, i
   if (it != Calls().calls.end()) it->second->Note(map, token_id);
 }
 
-std::string CallRequestId(const grpc::ServerContextBase& context) {
-  std::lock_guard<std::mutex> lock(Calls().mutex);
-  const auto it = Calls().calls.find(&context);
-  return it == Calls().calls.end() ? std::string() : it->second->RequestId();
-}
-
 }  // namespace forestmap::server

@@ -2,9 +2,9 @@
 // Watches every RPC of the server (a gRPC server interceptor): gives it a request id (the
 // client's "x-request-id" metadata when it sends a usable one, else a random one; returned to the
 // client in the initial metadata), and when the status is sent writes the RPC's log line
-// (server/logging.h: rpc, request_id, map, token, code, ms, peer, and the message of an error)
-// and updates the metrics (server/metrics.h). Handlers tell it the map a call is about through
-// NoteCallMap (server/auth.cc does, for every RPC).
+// (server/ops/logging.h: rpc, request_id, map, token, code, ms, peer, and the message of an error)
+// and updates the metrics (server/ops/metrics.h). Handlers tell it the map a call is about through
+// NoteCallMap (server/ops/auth.cc does, for every RPC).
 //
 // Thread-safety: all functions may be called concurrently.
 
@@ -37,8 +37,5 @@ class RpcObserverFactory final : public grpc::experimental::ServerInterceptorFac
 // the token it used (0: none). No-op for a context without an observer (a server built without
 // one).
 void NoteCallMap(const grpc::ServerContextBase& context, std::string_view map, int64_t token_id);
-
-// The request id of the call running on `context` ("" without an observer).
-std::string CallRequestId(const grpc::ServerContextBase& context);
 
 }  // namespace forestmap::server

@@ -19,9 +19,9 @@ class Metrics;
 struct ServerOptions {
   int max_receive_message_bytes = 64 << 20;  // bytes per incoming message (1 .. 2^31-1)
   bool reflection = true;                    // grpc.reflection.v1alpha.ServerReflection
-  // Transport security (server/tls.h); null: plaintext.
+  // Transport security (server/ops/tls.h); null: plaintext.
   std::shared_ptr<grpc::ServerCredentials> credentials;
-  // One log line per RPC and the RPC metrics (server/rpc_observer.h).
+  // One log line per RPC and the RPC metrics (server/grpc/rpc_observer.h).
   bool observe_rpcs = true;
   Metrics* metrics = nullptr;  // RPC counts and latencies go here when set; must outlive the server
   void Check() const;          // throws std::invalid_argument

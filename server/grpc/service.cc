@@ -1,19 +1,23 @@
 #include "server/grpc/service.h"
 
 #include <chrono>
+#include <optional>
 #include <stdexcept>
 #include <string_view>
 #include <utility>
 
 #include "algorithms/core/check.h"
-#include "server/app/exactly_once.h"
+#include "server/app/map_crs.h"
 #include "server/app/worker_pool.h"
+#include "server/grpc/authorize.h"
 #include "server/grpc/convert.h"
 #include "server/grpc/geo_convert.h"
+#include "server/grpc/list_pages.h"
+#include "server/grpc/replay.h"
 #include "server/grpc/status.h"
 #include "server/grpc/streams.h"
 #include "server/grpc/validation.h"
-#include "server/ops/auth.h"
+#include "server/ops/logging.h"
 
 namespace forestmap::server {
 namespace {
@@ -36,6 +40,10 @@ ServiceOptions Checked(ServiceOptions options) {
   options.Check();
   return options;
 }
+
+// What the application layer cannot answer to a caller (a retention failure after a committed
+// write, a pool job that threw) goes to the log.
+void LogFault(std::string_view message) { Log(LogLevel::kWarn, message); }
 
 }  // namespace
 
@@ -64,8 +72,9 @@ ForestMapService::ForestMapService(storage::MapStore& store, ServiceOptions opti
       options_(Checked(std::move(options))),
       index_cache_(store, options_.index_cache),
       stream_limits_(options_.streams),
-      admin_pool_(options_.admin_threads, options_.max_queued_requests),
-      work_pool_(options_.worker_threads, options_.max_queued_requests) {}
+      retention_(store, options_.keep_versions, LogFault),
+      admin_pool_(options_.admin_threads, options_.max_queued_requests, LogFault),
+      work_pool_(options_.worker_threads, options_.max_queued_requests, LogFault) {}
 
 grpc::ServerUnaryReactor* ForestMapService::CreateMap(grpc::CallbackServerContext* context,
                                                       const v1::CreateMapRequest* request,
@@ -83,13 +92,11 @@ grpc::ServerUnaryReactor* ForestMapService::CreateMap(grpc::CallbackServerContex
 }
 
 grpc::ServerUnaryReactor* ForestMapService::ListMaps(grpc::CallbackServerContext* context,
-                                                     const v1::ListMapsRequest* /*request*/,
+                                                     const v1::ListMapsRequest* request,
                                                      v1::ListMapsResponse* response) {
-  return AnswerOn(admin_pool_, context, "ListMaps", [this, context, response] {
+  return AnswerOn(admin_pool_, context, "ListMaps", [this, context, request, response] {
     const Caller caller = Authorize(options_.authorizer, *context, "ListMaps", "");
-    for (const storage::MapInfo& info : store_.ListMaps()) {
-      if (caller.CanRead(info.name)) *response->add_maps() = ToProto(info);
-    }
+    *response = ListMapsPage(store_, caller, *request);
   });
 }
 
@@ -118,14 +125,14 @@ grpc::ServerUnaryReactor* ForestMapService::DeleteMap(grpc::CallbackServerContex
 
 grpc::ServerReadReactor<grpc::ByteBuffer>* ForestMapService::UploadTrees(
     grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
-  return new UploadTreesReactor({store_, options_, admin_pool_, work_pool_, stream_limits_},
-                                context, response);
+  return new UploadTreesReactor(
+      {store_, options_, admin_pool_, work_pool_, stream_limits_, retention_}, context, response);
 }
 
 grpc::ServerWriteReactor<v1::ExportTreesResponse>* ForestMapService::ExportTrees(
     grpc::CallbackServerContext* context, const v1::ExportTreesRequest* request) {
-  return new ExportTreesReactor({store_, options_, admin_pool_, work_pool_, stream_limits_},
-                                context, request);
+  return new ExportTreesReactor(
+      {store_, options_, admin_pool_, work_pool_, stream_limits_, retention_}, context, request);
 }
 
 grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerContext* context,
@@ -133,20 +140,22 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
                                                        v1::RelocalizeResponse* response) {
   const auto start = std::chrono::steady_clock::now();
   return AnswerOn(work_pool_, context, "Relocalize", [this, context, request, response, start] {
-    Authorize(options_.authorizer, *context, "Relocalize", request->map_name());
+    Authorize(options_.authorizer, *context, "Relocalize", request->name());
     Validate(*request, options_.max_query_trees);
     if (context->IsCancelled()) return;  // the client is gone; its status is CANCELLED anyway
     // No lock around the relocalizer: concurrent queries share the immutable index.
-    const MapIndexCache::Entry entry = index_cache_.Get(request->map_name());
-    *response =
-        ToProto(algorithms::Relocalize(*entry.index, FromProto(*request), options_.relocalizer));
+    const MapIndexCache::Entry entry = index_cache_.Get(request->name());
+    const algorithms::RelocalizeResult result =
+        algorithms::Relocalize(*entry.index, FromProto(*request), options_.relocalizer);
+    *response = ToProto(result);
     response->set_map_version(entry.version);
     if (request->has_client_stamp_ns()) response->set_client_stamp_ns(request->client_stamp_ns());
-    if (entry.to_wgs84) AddGeodetic(*response, *entry.to_wgs84);
+    std::optional<geo::GeodeticPose> geodetic;
+    if (entry.to_wgs84) geodetic = AddGeodetic(*response, *entry.to_wgs84);
     const std::chrono::duration<double, std::milli> elapsed =
         std::chrono::steady_clock::now() - start;
     response->set_server_time_ms(elapsed.count());
-    recent_answers_.Add(request->map_name(), *response);
+    recent_answers_.Add(request->name(), result, geodetic);
   });
 }
 
@@ -159,9 +168,9 @@ grpc::ServerUnaryReactor* ForestMapService::Observe(grpc::CallbackServerContext*
                                                     const v1::ObserveRequest* request,
                                                     v1::ObserveResponse* response) {
   return AnswerOn(work_pool_, context, "Observe", [this, context, request, response] {
-    Authorize(options_.authorizer, *context, "Observe", request->map_name());
+    Authorize(options_.authorizer, *context, "Observe", request->name());
     RunObserve(context, *request, *response);
-    ApplyRetention(request->map_name());
+    retention_.AfterWrite(request->name());
   });
 }
 
@@ -169,12 +178,8 @@ grpc::ServerUnaryReactor* ForestMapService::ListVersions(grpc::CallbackServerCon
                                                          const v1::ListVersionsRequest* request,
                                                          v1::ListVersionsResponse* response) {
   return AnswerOn(admin_pool_, context, "ListVersions", [this, context, request, response] {
-    Authorize(options_.authorizer, *context, "ListVersions", request->map_name());
-    Validate(*request);
-    for (const storage::VersionRecord& record :
-         store_.ListVersions(request->map_name(), request->limit())) {
-      *response->add_versions() = ToProto(record);
-    }
+    Authorize(options_.authorizer, *context, "ListVersions", request->name());
+    *response = ListVersionsPage(store_, *request);
   });
 }
 
@@ -182,16 +187,16 @@ grpc::ServerUnaryReactor* ForestMapService::RestoreVersion(grpc::CallbackServerC
                                                            const v1::RestoreVersionRequest* request,
                                                            v1::RestoreVersionResponse* response) {
   return AnswerOn(work_pool_, context, "RestoreVersion", [this, context, request, response] {
-    Authorize(options_.authorizer, *context, "RestoreVersion", request->map_name());
+    Authorize(options_.authorizer, *context, "RestoreVersion", request->name());
     Validate(*request);
     const auto encode = Encoder<v1::RestoreVersionResponse>(
         [](const storage::MapInfo& info, auto& answer) { *answer.mutable_map() = ToProto(info); });
     RunExactlyOnce(store_, context, request->request_id(), "RestoreVersion", *response, encode,
                    [&] {
                      *response->mutable_map() =
-                         ToProto(store_.RestoreVersion(request->map_name(), request->version()));
+                         ToProto(store_.RestoreVersion(request->name(), request->version()));
                    });
-    ApplyRetention(request->map_name());
+    retention_.AfterWrite(request->name());
   });
 }
 
@@ -199,9 +204,9 @@ grpc::ServerUnaryReactor* ForestMapService::RemoveSource(grpc::CallbackServerCon
                                                          const v1::RemoveSourceRequest* request,
                                                          v1::RemoveSourceResponse* response) {
   return AnswerOn(work_pool_, context, "RemoveSource", [this, context, request, response] {
-    Authorize(options_.authorizer, *context, "RemoveSource", request->map_name());
+    Authorize(options_.authorizer, *context, "RemoveSource", request->name());
     RunRemoveSource(context, *request, *response);
-    ApplyRetention(request->map_name());
+    retention_.AfterWrite(request->name());
   });
 }
 
@@ -209,7 +214,7 @@ grpc::ServerUnaryReactor* ForestMapService::PruneVersions(grpc::CallbackServerCo
                                                           const v1::PruneVersionsRequest* request,
                                                           v1::PruneVersionsResponse* response) {
   return AnswerOn(work_pool_, context, "PruneVersions", [this, context, request, response] {
-    Authorize(options_.authorizer, *context, "PruneVersions", request->map_name());
+    Authorize(options_.authorizer, *context, "PruneVersions", request->name());
     RunPrune(context, *request, *response);
   });
 }

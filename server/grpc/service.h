@@ -1,49 +1,54 @@
 #pragma once
-// The ForestMap gRPC service (callback API): validate -> convert -> call storage / algorithms ->
-// convert back -> finish. Every outcome is a grpc::Status built in server/status.cc; no
+// The ForestMap gRPC service (callback API): validate -> convert -> call the application layer
+// (server/app: index cache, shared-map writes, exactly-once, retention) or storage / algorithms
+// -> convert back -> finish. Every outcome is a grpc::Status built in server/grpc/status.cc; no
 // exception crosses an RPC. Handlers never block gRPC's threads: everything that touches the
-// store or the relocalizer runs on the service's thread pools (server/worker_pool.h).
+// store or the relocalizer runs on the service's thread pools (server/app/worker_pool.h).
 //
-// Every RPC first checks the caller's token (server/auth.h): UNAUTHENTICATED, PERMISSION_DENIED.
+// Every RPC first checks the caller's token (server/grpc/authorize.h): UNAUTHENTICATED,
+// PERMISSION_DENIED.
 // Statuses per RPC (besides INTERNAL for server faults and RESOURCE_EXHAUSTED from gRPC itself
-// for a message over the server's receive limit):
+// for a message over the server's receive limit); an INVALID_ARGUMENT of a check carries a
+// google.rpc.BadRequest naming the field (server/grpc/status.h):
 //   CreateMap    INVALID_ARGUMENT (name, description, crs), ALREADY_EXISTS
-//   ListMaps     -
+//   ListMaps     INVALID_ARGUMENT (page_size < 0, page_token; server/grpc/list_pages.h)
 //   GetMap       INVALID_ARGUMENT (name), NOT_FOUND
 //   DeleteMap    INVALID_ARGUMENT (name), NOT_FOUND
-//   UploadTrees  INVALID_ARGUMENT (first message without map_name, other map name, replace
-//                after the first message, a bad tree "trees[k]...", duplicate id within the
+//   UploadTrees  INVALID_ARGUMENT (first message not a header naming the map, a later header or
+//                other map name, a bad tree "trees[k]...", duplicate id within the
 //                upload or, when appending, against the map), NOT_FOUND (map; checked on the
 //                first message), RESOURCE_EXHAUSTED (more than max_upload_trees), CANCELLED
 //                (client cancelled); ABORTED (write conflict); INVALID_ARGUMENT for a message
 //                that cannot be decoded (e.g. a string that is not UTF-8). Nothing is written
 //                unless OK.
 //                With create_map: ALREADY_EXISTS, and the map exists only if the upload is OK.
-//   ExportTrees  INVALID_ARGUMENT (map_name, box), NOT_FOUND, ABORTED (the map was deleted or the
+//   ExportTrees  INVALID_ARGUMENT (name, box), NOT_FOUND, ABORTED (the map was deleted or the
 //                version pruned during the export), CANCELLED (client stopped reading)
 //   UploadTrees, ExportTrees: RESOURCE_EXHAUSTED when the client or the server has its limit of
 //                open streams (ServiceOptions::streams)
 //   any RPC      RESOURCE_EXHAUSTED "server busy" when max_queued_requests calls are waiting;
 //                INVALID_ARGUMENT for a request message that cannot be decoded
-//                (server/decode_guard.h); RESOURCE_EXHAUSTED "database full", FAILED_PRECONDITION
-//                "database read-only", DATA_LOSS, UNAVAILABLE for faults of the database
-//   Relocalize   INVALID_ARGUMENT (map_name, fewer than 3 trees, a bad tree / prior / gravity),
+//                (server/grpc/decode_guard.h); RESOURCE_EXHAUSTED "database full",
+//                FAILED_PRECONDITION "database read-only", DATA_LOSS, UNAVAILABLE for faults of the
+//                database
+//   Relocalize   INVALID_ARGUMENT (name, fewer than 3 trees, a bad tree / prior / gravity),
 //                RESOURCE_EXHAUSTED (more than max_query_trees), NOT_FOUND (map),
 //                FAILED_PRECONDITION (the map has no confirmed trees). "Not localized" is not an
 //                error: it is OK with status AMBIGUOUS or NOT_FOUND in the response.
-//   Observe      INVALID_ARGUMENT (map_name, source, no frames, duplicate frame ids, a bad tree
+//   Observe      INVALID_ARGUMENT (name, source, no frames, duplicate frame ids, a bad tree
 //                "frames[f].trees[i]..." / pose / gravity), RESOURCE_EXHAUSTED (observe limits),
 //                NOT_FOUND (map), ABORTED (REJECT_IF_STALE and the map is past base_version).
 //                A frame that cannot be relocalized is not an error: it is SKIPPED in the reply.
-//   Track        per frame, ending the stream: INVALID_ARGUMENT (first frame without map_name,
-//                another map's name, a bad tree / gravity / odometry), RESOURCE_EXHAUSTED (more
+//   Track        per message, ending the stream: INVALID_ARGUMENT (first message not a header
+//                naming the map, a later header or another map's name, a bad tree / gravity /
+//                odometry), RESOURCE_EXHAUSTED (more
 //                than max_query_trees), NOT_FOUND (map), FAILED_PRECONDITION (no confirmed
 //                trees). A frame without a pose is not an error: it is answered LOST.
-//   ListVersions INVALID_ARGUMENT (map_name, limit), NOT_FOUND (map)
-//   RestoreVersion INVALID_ARGUMENT (map_name, version < 1), NOT_FOUND (map, or a version that
+//   ListVersions INVALID_ARGUMENT (name, limit, page_size, page_token), NOT_FOUND (map)
+//   RestoreVersion INVALID_ARGUMENT (name, version < 1), NOT_FOUND (map, or a version that
 //                does not exist or predates the history)
-//   RemoveSource INVALID_ARGUMENT (map_name, source), NOT_FOUND (map, or no observation of it)
-//   PruneVersions INVALID_ARGUMENT (map_name, keep < 1), NOT_FOUND (map)
+//   RemoveSource INVALID_ARGUMENT (name, source), NOT_FOUND (map, or no observation of it)
+//   PruneVersions INVALID_ARGUMENT (name, keep < 1), NOT_FOUND (map)
 //   every write  INVALID_ARGUMENT (request_id malformed or used for another RPC),
 //                DEADLINE_EXCEEDED (the deadline passed before the commit: nothing written)
 
@@ -55,6 +60,7 @@
 #include "forestmap/v1/forestmap_service.grpc.pb.h"
 #include "server/app/map_index_cache.h"
 #include "server/app/recent_answers.h"
+#include "server/app/retention.h"
 #include "server/app/worker_pool.h"
 #include "server/grpc/stream_limits.h"
 #include "server/grpc/validation.h"
@@ -85,15 +91,12 @@ struct ServiceOptions {
   algorithms::TrackingOptions tracking;
   ObserveLimits observe;           // frames / trees per Observe request
   algorithms::MergeOptions merge;  // how Observe merges frames into a shared map
-  // Observe rebuilds the connected components of observations its frames join after merging
-  // them (algorithms::RebuildTrees, server/merge_region.h): the map is then a function of the
-  // set of observations, and concurrent drones give the map a sequential upload gives. False
-  // keeps the incremental, order-dependent merge.
-  bool consolidate = true;
-  // History retention: after every write the map keeps its newest keep_versions versions
-  // readable (0 = all; forestmapd --keep-versions). `map prune` does it on demand.
+  bool consolidate = true;         // Observe's merge: SharedMapOptions::consolidate (server/app)
+  // History retention (server/app/retention.h): after every write the map keeps its newest
+  // keep_versions versions readable (0 = all; forestmapd --keep-versions). `map prune` does it on
+  // demand.
   int64_t keep_versions = 0;
-  // Token checks of every RPC (server/auth.h); null: every call is allowed. Must outlive the
+  // Token checks of every RPC (server/ops/auth.h); null: every call is allowed. Must outlive the
   // service.
   const Authorizer* authorizer = nullptr;
   void Check() const;  // throws std::invalid_argument
@@ -125,7 +128,7 @@ class ForestMapService final
                                       const v1::DeleteMapRequest* request,
                                       v1::DeleteMapResponse* response) override;
   // Messages are v1::UploadTreesRequest, the answer a v1::UploadTreesResponse (decoded and
-  // encoded by the reactor, server/streams.h).
+  // encoded by the reactor, server/grpc/streams.h).
   grpc::ServerReadReactor<grpc::ByteBuffer>* UploadTrees(grpc::CallbackServerContext* context,
                                                          grpc::ByteBuffer* response) override;
   grpc::ServerWriteReactor<v1::ExportTreesResponse>* ExportTrees(
@@ -135,7 +138,7 @@ class ForestMapService final
                                        v1::RelocalizeResponse* response) override;
   grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse>* Track(
       grpc::CallbackServerContext* context) override;
-  // Shared maps (observations.proto); bodies in server/observe_service.cc.
+  // Shared maps (observations.proto); bodies in server/grpc/observe_service.cc.
   grpc::ServerUnaryReactor* Observe(grpc::CallbackServerContext* context,
                                     const v1::ObserveRequest* request,
                                     v1::ObserveResponse* response) override;
@@ -148,37 +151,25 @@ class ForestMapService final
   grpc::ServerUnaryReactor* RemoveSource(grpc::CallbackServerContext* context,
                                          const v1::RemoveSourceRequest* request,
                                          v1::RemoveSourceResponse* response) override;
-  // History retention; bodies in server/prune_service.cc.
+  // History retention on demand; body in server/grpc/prune_service.cc.
   grpc::ServerUnaryReactor* PruneVersions(grpc::CallbackServerContext* context,
                                           const v1::PruneVersionsRequest* request,
                                           v1::PruneVersionsResponse* response) override;
-  // With options.keep_versions > 0, drops the history of `map` beyond that many versions
-  // (after a write; a failure is logged, the write stands).
-  void ApplyRetention(const std::string& map) noexcept;
 
  private:
   void RunObserve(grpc::CallbackServerContext* context, const v1::ObserveRequest& request,
                   v1::ObserveResponse& response);
-  // Finds the pose of a frame without one; false (with `detail`) when it is not LOCALIZED.
-  bool RelocalizeFrame(const std::string& map_name, const v1::ObservationFrame& frame,
-                       algorithms::FrameObservations& observations, std::string& detail);
   void RunRemoveSource(grpc::CallbackServerContext* context, const v1::RemoveSourceRequest& request,
                        v1::RemoveSourceResponse& response);
   void RunPrune(grpc::CallbackServerContext* context, const v1::PruneVersionsRequest& request,
                 v1::PruneVersionsResponse& response);
-  // Merges the MERGED frames of an Observe (results in `merged`) as one new version (the map
-  // after it in `after`); false when a concurrent call with the same request id answered first
-  // (`response` is then that answer).
-  bool MergeObserved(grpc::CallbackServerContext* context, const v1::ObserveRequest& request,
-                     const std::vector<algorithms::FrameObservations>& frames,
-                     const std::vector<v1::FrameResult*>& merged, v1::ObserveResponse& response,
-                     storage::MapInfo& after);
 
   storage::MapStore& store_;
   ServiceOptions options_;
   MapIndexCache index_cache_;
   RecentAnswers recent_answers_;
   StreamLimits stream_limits_;
+  RetentionPolicy retention_;  // --keep-versions, after every write (unary and upload)
   // Declared last: destroyed (drained and joined) first, while what their jobs use is alive.
   WorkerPool admin_pool_;
   WorkerPool work_pool_;

@@ -5,11 +5,36 @@
 #include <mutex>
 #include <new>
 
+#include "proto/error_details.h"
 #include "server/ops/logging.h"
 #include "storage/map_store.h"
 
 namespace forestmap::server {
 namespace {
+
+grpc::StatusCode CodeOf(ErrorCode code) {
+  switch (code) {
+    case ErrorCode::kInvalidArgument:
+      return grpc::StatusCode::INVALID_ARGUMENT;
+    case ErrorCode::kNotFound:
+      return grpc::StatusCode::NOT_FOUND;
+    case ErrorCode::kAlreadyExists:
+      return grpc::StatusCode::ALREADY_EXISTS;
+    case ErrorCode::kFailedPrecondition:
+      return grpc::StatusCode::FAILED_PRECONDITION;
+    case ErrorCode::kAborted:
+      return grpc::StatusCode::ABORTED;
+    case ErrorCode::kResourceExhausted:
+      return grpc::StatusCode::RESOURCE_EXHAUSTED;
+    case ErrorCode::kCancelled:
+      return grpc::StatusCode::CANCELLED;
+    case ErrorCode::kUnauthenticated:
+      return grpc::StatusCode::UNAUTHENTICATED;
+    case ErrorCode::kPermissionDenied:
+      return grpc::StatusCode::PERMISSION_DENIED;
+  }
+  return grpc::StatusCode::INTERNAL;
+}
 
 grpc::StatusCode CodeOf(storage::StorageError::Code code) {
   using Code = storage::StorageError::Code;
@@ -76,8 +101,10 @@ grpc::Status InternalFault(std::string_view rpc, std::string_view what) {
 grpc::Status Classify(std::string_view rpc) {
   try {
     throw;
+  } catch (const ValidationError& e) {
+    return StatusWithBadRequest(CodeOf(e.code()), e.what(), {{e.field(), e.what()}});
   } catch (const ServiceError& e) {
-    return grpc::Status(e.code(), e.what());
+    return grpc::Status(CodeOf(e.code()), e.what());
   } catch (const storage::StorageError& e) {
     if (e.code() == storage::StorageError::Code::kInternal) return InternalFault(rpc, e.what());
     if (*FaultMessage(e.code()) != '\0') return StorageFault(rpc, e);
@@ -132,7 +159,7 @@ void LogLine(std::string_view line) noexcept { Log(LogLevel::kInfo, line); }
 void LogStatus(std::string_view rpc, const grpc::Status& status) noexcept {
   if (status.ok()) return;
   try {
-    // Debug only: the RPC's own log line (server/rpc_observer.h) carries code and message.
+    // Debug only: the RPC's own log line (server/grpc/rpc_observer.h) carries code and message.
     Log(LogLevel::kDebug, "status",
         {{"rpc", std::string(rpc)},
          {"code", StatusCodeName(status.error_code())},

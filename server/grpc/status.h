@@ -1,9 +1,12 @@
 #pragma once
-// The one place where exceptions become grpc::Status, and the exception types the server throws
-// for outcomes whose status code is known where they are detected.
+// The one place where exceptions become grpc::Status. The exception types the server throws for
+// outcomes whose status code is known where they are detected are the application layer's
+// (server/app/errors.h).
 //
 // Mapping (see StatusFromCurrentException):
-//   ServiceError (and subclasses)       -> its code, its message
+//   ServiceError (and subclasses)       -> the status of its ErrorCode, its message; a
+//                                          ValidationError also with a google.rpc.BadRequest
+//                                          naming its field (details)
 //   storage::StorageError kNotFound      -> NOT_FOUND
 //                         kAlreadyExists -> ALREADY_EXISTS
 //                         kInvalidArgument -> INVALID_ARGUMENT
@@ -20,52 +23,18 @@
 //   anything else                        -> INTERNAL "internal error; see server log" (logged)
 //   (no exception) work queue full       -> RESOURCE_EXHAUSTED "server busy ..." (ServerBusy)
 //   (no handler) request bytes that do not parse -> INVALID_ARGUMENT (UndecodableRequest)
-// Every non-OK status is logged (server/logging.h); server faults with their real cause.
+// Every non-OK status is logged (server/ops/logging.h); server faults with their real cause.
 
 #include <grpcpp/support/status.h>
 
-#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <utility>
 
 #include "proto/status_code_name.h"
+#include "server/app/errors.h"
 
 namespace forestmap::server {
-
-// An error whose gRPC status code is known where it is thrown.
-class ServiceError : public std::runtime_error {
- public:
-  ServiceError(grpc::StatusCode code, const std::string& message)
-      : std::runtime_error(message), code_(code) {}
-  grpc::StatusCode code() const { return code_; }
-
- private:
-  grpc::StatusCode code_;
-};
-
-// A request that is invalid in itself: INVALID_ARGUMENT. The message names the field path,
-// e.g. "trees[12].position.x is NaN".
-class ValidationError : public ServiceError {
- public:
-  explicit ValidationError(const std::string& message)
-      : ServiceError(grpc::StatusCode::INVALID_ARGUMENT, message) {}
-};
-
-// A request over a configured size limit: RESOURCE_EXHAUSTED.
-class LimitError : public ServiceError {
- public:
-  explicit LimitError(const std::string& message)
-      : ServiceError(grpc::StatusCode::RESOURCE_EXHAUSTED, message) {}
-};
-
-// A valid request that the current state of a map cannot serve (e.g. relocalizing in a map
-// without trees): FAILED_PRECONDITION.
-class PreconditionError : public ServiceError {
- public:
-  explicit PreconditionError(const std::string& message)
-      : ServiceError(grpc::StatusCode::FAILED_PRECONDITION, message) {}
-};
 
 inline constexpr const char* kInternalErrorMessage = "internal error; see server log";
 
@@ -77,10 +46,10 @@ grpc::Status StatusFromCurrentException(std::string_view rpc) noexcept;
 grpc::Status ServerBusy(std::string_view rpc) noexcept;
 
 // INVALID_ARGUMENT for a request message of `method` ("/forestmap.v1.ForestMap/GetMap") that
-// cannot be decoded (server/decode_guard.h); gRPC itself would answer UNIMPLEMENTED.
+// cannot be decoded (server/grpc/decode_guard.h); gRPC itself would answer UNIMPLEMENTED.
 grpc::Status UndecodableRequest(std::string_view method) noexcept;
 
-// Log lines through server/logging.h (thread-safe, never throw): LogStatus at debug level (the
+// Log lines through server/ops/logging.h (thread-safe, never throw): LogStatus at debug level (the
 // RPC's own line reports its status), LogLine at info level.
 void LogStatus(std::string_view rpc, const grpc::Status& status) noexcept;
 void LogLine(std::string_view line) noexcept;

@@ -1,5 +1,5 @@
 #pragma once
-// Limits on concurrent UploadTrees and ExportTrees streams (issue 15, bounded memory): each open
+// Limits on concurrent UploadTrees and ExportTrees streams, for bounded memory: each open
 // stream holds up to one staging chunk or one export page in memory, so their number bounds the
 // server's memory. A client is a connection (gRPC peer address, "ipv4:10.0.0.7:53122").
 

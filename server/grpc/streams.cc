@@ -1,15 +1,17 @@
 #include "server/grpc/streams.h"
 
 #include <chrono>
+#include <optional>
 #include <stdexcept>
+#include <string>
 #include <utility>
 
-#include "server/app/exactly_once.h"
+#include "server/grpc/authorize.h"
 #include "server/grpc/convert.h"
 #include "server/grpc/geo_convert.h"
+#include "server/grpc/legacy_layout.h"
 #include "server/grpc/service.h"
 #include "server/grpc/status.h"
-#include "server/ops/auth.h"
 
 namespace forestmap::server {
 
@@ -42,12 +44,17 @@ void TrackReactor::OnReadDone(bool ok) {
     return;
   }
   const bool queued = work_pool_.TrySubmit([this] {
-    const grpc::Status status = RunGuarded("Track", [this] { Answer(); });
-    if (status.ok()) {
+    const std::optional<int64_t> frame_id = FrameIdOf(request_);
+    bool answered = false;
+    const grpc::Status status = RunGuarded("Track", [this, &answered] { answered = Answer(); });
+    if (!status.ok()) {
+      const std::string prefix = frame_id ? "frame " + std::to_string(*frame_id) + ": " : "";
+      Finish(grpc::Status(status.error_code(), prefix + status.error_message(),
+                          status.error_details()));
+    } else if (answered) {
       StartWrite(&response_);
     } else {
-      Finish(grpc::Status(status.error_code(), "frame " + std::to_string(request_.frame_id()) +
-                                                   ": " + status.error_message()));
+      StartRead(&request_);
     }
   });
   if (!queued) Finish(ServerBusy("Track"));
@@ -61,21 +68,27 @@ void TrackReactor::OnWriteDone(bool ok) {
   StartRead(&request_);
 }
 
-void TrackReactor::Answer() {
+bool TrackReactor::Answer() {
   const auto start = std::chrono::steady_clock::now();
-  if (map_name_.empty()) Authorize(authorizer_, *context_, "Track", request_.map_name());
-  Validate(request_, map_name_, max_query_trees_);
-  if (map_name_.empty()) map_name_ = request_.map_name();
+  if (map_name_.empty()) {
+    // The first message: authorized for the map it names before anything else is looked at.
+    Authorize(authorizer_, *context_, "Track", FirstMessageMap(request_));
+  }
+  TrackMessage message = ReadTrackMessage(request_, map_name_, max_query_trees_);
+  if (map_name_.empty()) map_name_ = message.map;
+  if (!message.frame) return false;  // a header: nothing to answer
+  const v1::TrackFrame& frame = *message.frame;
   const MapIndexCache::Entry entry = index_cache_.Get(map_name_);
-  response_ = ToProto(tracker_.Step(*entry.index, FromProto(request_)));
-  response_.set_frame_id(request_.frame_id());
+  response_ = ToProto(tracker_.Step(*entry.index, FromProto(frame)));
+  response_.set_frame_id(frame.frame_id());
   v1::RelocalizeResponse& result = *response_.mutable_result();
   result.set_map_version(entry.version);
-  if (request_.has_client_stamp_ns()) result.set_client_stamp_ns(request_.client_stamp_ns());
+  if (frame.has_client_stamp_ns()) result.set_client_stamp_ns(frame.client_stamp_ns());
   if (entry.to_wgs84) AddGeodetic(result, *entry.to_wgs84);
   const std::chrono::duration<double, std::milli> elapsed =
       std::chrono::steady_clock::now() - start;
   result.set_server_time_ms(elapsed.count());
+  return true;
 }
 
 }  // namespace forestmap::server

@@ -14,8 +14,11 @@
 #include "forestmap/v1/maps.pb.h"
 #include "forestmap/v1/tracking.pb.h"
 #include "server/app/map_index_cache.h"
+#include "server/app/retention.h"
+#include "server/app/tree_pages.h"
 #include "server/app/worker_pool.h"
 #include "server/grpc/stream_limits.h"
+#include "server/grpc/upload_validator.h"
 #include "server/grpc/validation.h"
 #include "storage/map_store.h"
 #include "storage/staged_writes.h"
@@ -32,10 +35,11 @@ struct StreamDeps {
   WorkerPool& admin_pool;  // the first message's checks (map exists, replayed request id)
   WorkerPool& work_pool;   // staging, commits and export pages
   StreamLimits& limits;    // a stream over its limit is RESOURCE_EXHAUSTED before anything else
+  const RetentionPolicy& retention;  // after a committed upload
 };
 
-// UploadTrees (server/upload_stream.cc): reads the messages one at a time, validates each as it
-// arrives (the first must name the map: NOT_FOUND, or ALREADY_EXISTS with create_map, before the
+// UploadTrees (server/grpc/upload_stream.cc): reads the messages one at a time, validates each as
+// it arrives (the first must name the map: NOT_FOUND, or ALREADY_EXISTS with create_map, before the
 // client sends the rest), and stages the trees in the database through MapStore::BeginUpload in
 // chunks of options.upload_stage_trees, so that an upload holds at most one chunk in memory.
 // When the client closes the stream, the last chunk is staged and the upload committed (with
@@ -71,14 +75,14 @@ class UploadTreesReactor final : public grpc::ServerReadReactor<grpc::ByteBuffer
   grpc::ByteBuffer buffer_;  // the message being read
   v1::UploadTreesRequest request_;
   UploadValidator validator_;
-  std::string request_id_;  // from the first message (exactly-once, server/exactly_once.h)
+  std::string request_id_;  // from the first message (exactly-once, server/app/exactly_once.h)
   storage::UploadPlan plan_;
   std::unique_ptr<storage::TreeUpload> upload_;  // null before Begin and after Commit
   std::vector<storage::TreeRecord> chunk_;       // received, not yet staged
 };
 
-// ExportTrees (server/export_stream.cc): streams the trees of one map version, reading them page
-// by page (MapStore::ReadTreesPage, one short read per page of export_chunk_trees trees) and
+// ExportTrees (server/grpc/export_stream.cc): streams the trees of one map version, reading them
+// page by page (server/app/tree_pages.h, one short read per page of export_chunk_trees trees) and
 // reading the next page only when the client has taken the last message (gRPC flow control),
 // so an export holds one page in memory however big the map and however slow the client.
 // Messages carry export_chunk_trees trees or about export_chunk_bytes bytes, whichever comes
@@ -104,21 +108,20 @@ class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTrees
   grpc::CallbackServerContext* context_;
   const v1::ExportTreesRequest* request_;
   std::unique_ptr<StreamLimits::Slot> slot_;
+  std::optional<TreePages> pages_;  // from Start
   int64_t version_ = 0;
-  int64_t created_unix_ms_ = 0;
-  std::optional<int64_t> after_id_;  // the last id sent
-  bool last_page_ = false;           // page_ is the last one
   std::vector<storage::TreeRecord> page_;
   size_t next_ = 0;  // next tree of page_ to send
   bool wrote_any_ = false;
   v1::ExportTreesResponse response_;
 };
 
-// Track: one frame at a time, in order: read a frame, answer it on `work_pool` (the session's
-// Tracker, algorithms/relocalization/tracking.h), write the answer, read the next. The index comes
-// from the cache for every frame, so a session moves on to a new map version as soon as there is
-// one. A bad frame, an unknown map or a map without trees ends the stream with its status, the
-// message prefixed with the frame ("frame 12: trees[3].position.x is NaN").
+// Track: the header (which names the map), then one frame at a time, in order: read a frame,
+// answer it on `work_pool` (the session's Tracker, algorithms/relocalization/tracking.h), write
+// the answer, read the next. The index comes from the cache for every frame, so a session moves
+// on to a new map version as soon as there is one. A bad message, an unknown map or a map without
+// trees ends the stream with its status, the message prefixed with the frame when it is one
+// ("frame 12: frame.trees[3].position.x is NaN").
 class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse> {
  public:
   TrackReactor(MapIndexCache& index_cache, const ServiceOptions& options, WorkerPool& work_pool,
@@ -129,15 +132,15 @@ class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::
   void OnDone() override { delete this; }
 
  private:
-  void Answer();  // request_ -> response_; throws
+  bool Answer();  // request_ -> response_ (true), or a header read (false); throws
 
   MapIndexCache& index_cache_;
   WorkerPool& work_pool_;
-  const Authorizer* authorizer_;  // checked on the first frame
+  const Authorizer* authorizer_;  // checked on the first message
   grpc::CallbackServerContext* context_;
   int max_query_trees_;
   algorithms::Tracker tracker_;
-  std::string map_name_;  // from the first frame
+  std::string map_name_;  // from the first message
   v1::TrackRequest request_;
   v1::TrackResponse response_;
 };

@@ -1,18 +1,17 @@
-// UploadTreesReactor (server/streams.h): uploads staged in the database as they arrive.
+// UploadTreesReactor (server/grpc/streams.h): uploads staged in the database as they arrive.
 
 #include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
 
-#include "server/app/exactly_once.h"
+#include "server/app/map_crs.h"
+#include "server/grpc/authorize.h"
 #include "server/grpc/convert.h"
-#include "server/grpc/geo_convert.h"
+#include "server/grpc/replay.h"
 #include "server/grpc/service.h"
 #include "server/grpc/status.h"
 #include "server/grpc/streams.h"
-#include "server/ops/auth.h"
-#include "server/ops/logging.h"
 
 namespace forestmap::server {
 
@@ -107,28 +106,28 @@ void UploadTreesReactor::Accept() {
       grpc::SerializationTraits<v1::UploadTreesRequest>::Deserialize(&buffer_, &request_);
   buffer_.Clear();
   if (!decoded.ok()) {
-    throw ValidationError("upload message " + std::to_string(validator_.messages()) + " (after " +
-                          std::to_string(validator_.trees()) +
-                          " trees) cannot be decoded as an UploadTreesRequest (a string that is "
-                          "not UTF-8, or corrupt bytes); nothing was written");
+    throw ServiceError(ErrorCode::kInvalidArgument,
+                       "upload message " + std::to_string(validator_.messages()) + " (after " +
+                           std::to_string(validator_.trees()) +
+                           " trees) cannot be decoded as an UploadTreesRequest (a string that is "
+                           "not UTF-8, or corrupt bytes); nothing was written");
   }
-  if (validator_.messages() == 0) {
-    request_id_ = request_.request_id();
-    ValidateRequestId(request_id_);
-    plan_.create_map = request_.create_map();
-    plan_.description = request_.description();
-    plan_.crs = request_.crs();
-  } else if (!request_.request_id().empty() && request_.request_id() != request_id_) {
-    throw ValidationError("request_id (upload message " + std::to_string(validator_.messages()) +
-                          ") differs from the first message's; only the first sets it");
-  }
-  validator_.Accept(request_);
-  for (const v1::Tree& tree : request_.trees()) chunk_.push_back(FromProto(tree));
+  const bool first = validator_.messages() == 0;
+  const google::protobuf::RepeatedPtrField<v1::Tree> trees = validator_.Accept(request_);
   request_.Clear();
+  if (first) {
+    const v1::UploadTreesHeader& header = validator_.header();
+    request_id_ = header.request_id();
+    ValidateRequestId(request_id_);
+    plan_.create_map = header.create_map();
+    plan_.description = header.description();
+    plan_.crs = header.crs();
+  }
+  for (const v1::Tree& tree : trees) chunk_.push_back(FromProto(tree));
 }
 
 bool UploadTreesReactor::Begin() {
-  const std::string& name = validator_.map_name();
+  const std::string& name = validator_.header().name();
   Authorize(authorizer_, *context_, "UploadTrees", name);
   if (plan_.create_map) {
     Authorize(authorizer_, *context_, "CreateMap", name);  // creating needs CreateMap's role
@@ -145,7 +144,8 @@ bool UploadTreesReactor::Begin() {
     chunk_ = {};
     return false;
   }
-  plan_.mode = validator_.replace() ? storage::WriteMode::kReplace : storage::WriteMode::kAppend;
+  plan_.mode =
+      validator_.header().replace() ? storage::WriteMode::kReplace : storage::WriteMode::kAppend;
   upload_ = deps_.store.BeginUpload(name, plan_);
   return true;
 }
@@ -161,7 +161,7 @@ void UploadTreesReactor::Commit() {
   // The client may have given up while the commit waited in the work queue. (A cancel during
   // the final transaction cannot be honoured: it then commits whole.)
   if (context_->IsCancelled()) {
-    throw ServiceError(grpc::StatusCode::CANCELLED, "upload cancelled; nothing was written");
+    throw ServiceError(ErrorCode::kCancelled, "upload cancelled; nothing was written");
   }
   validator_.Finish();
   StageChunk();
@@ -177,13 +177,7 @@ void UploadTreesReactor::Commit() {
                    upload_.reset();  // committed: nothing to abort
                    fill(info, response);
                  });
-  if (deps_.options.keep_versions > 0) {  // history retention (forestmapd --keep-versions)
-    try {
-      deps_.store.PruneVersions(validator_.map_name(), deps_.options.keep_versions);
-    } catch (const std::exception& e) {
-      LogLine("UploadTrees: retention failed (the upload stands): " + std::string(e.what()));
-    }
-  }
+  deps_.retention.AfterWrite(validator_.header().name());
   EncodeResponse(response);
 }
 

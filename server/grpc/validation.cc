@@ -3,7 +3,9 @@
 #include <cmath>
 #include <cstdio>
 #include <sstream>
+#include <tuple>
 
+#include "server/grpc/legacy_layout.h"
 #include "storage/map_store.h"
 
 namespace forestmap::server {
@@ -16,7 +18,89 @@ std::string Number(double v) {
   return out.str();
 }
 
-// A user-supplied string made safe to quote in an error message: printable ASCII, bounded.
+void CheckFinite(double v, const std::string& path) {
+  if (std::isnan(v)) throw ValidationError(path, " is NaN; numbers must be finite");
+  if (std::isinf(v)) {
+    throw ValidationError(
+        path, std::string(" is ") + (v > 0 ? "+inf" : "-inf") + "; numbers must be finite");
+  }
+}
+
+void CheckVector(const v1::Vector3& v, const std::string& path) {
+  CheckFinite(v.x(), path + ".x");
+  CheckFinite(v.y(), path + ".y");
+  CheckFinite(v.z(), path + ".z");
+}
+
+// A coordinate of a local map frame: finite and |v| < limit (m).
+void CheckCoordinate(double v, double limit, const std::string& path) {
+  CheckFinite(v, path);
+  if (!(std::abs(v) < limit)) {
+    throw ValidationError(path,
+                          " is " + Number(v) + "; coordinates must lie within +-" + Number(limit) +
+                              " m (a local frame; keep georeferenced offsets in the map's crs)");
+  }
+}
+
+// A position: x and y within kMaxHorizontalCoordinate, z within kMaxVerticalCoordinate.
+void CheckPosition(const v1::Vector3& v, const std::string& path) {
+  CheckCoordinate(v.x(), kMaxHorizontalCoordinate, path + ".x");
+  CheckCoordinate(v.y(), kMaxHorizontalCoordinate, path + ".y");
+  CheckCoordinate(v.z(), kMaxVerticalCoordinate, path + ".z");
+}
+
+// A direction: finite and not (near) zero. Its length does not matter, it is normalised.
+void CheckDirection(const v1::Vector3& v, const std::string& path) {
+  CheckVector(v, path);
+  constexpr double kMinNorm = 1e-9;
+  if (std::sqrt(v.x() * v.x() + v.y() * v.y() + v.z() * v.z()) < kMinNorm) {
+    throw ValidationError(path, " is a zero vector; it must give a direction");
+  }
+}
+
+void CheckLength(const std::string& s, size_t max_length, const std::string& path) {
+  if (s.size() > max_length) {
+    throw ValidationError(path, ": " + std::to_string(s.size()) + " bytes exceed the limit of " +
+                                    std::to_string(max_length));
+  }
+}
+
+// Columns unknown for this tree: keys as for attributes, none also a key of `attributes`, and
+// counted with them in the per-tree limit.
+void CheckNullAttributes(const v1::Tree& tree, const std::string& path) {
+  const std::string field = path + ".null_attributes";
+  const size_t count = static_cast<size_t>(tree.attributes_size() + tree.null_attributes_size());
+  if (count > kMaxAttributes) {
+    throw ValidationError(field, ": " + std::to_string(count) +
+                                     " attributes and null attributes exceed the limit of " +
+                                     std::to_string(kMaxAttributes));
+  }
+  for (const std::string& key : tree.null_attributes()) {
+    if (key.empty()) throw ValidationError(field, " has an empty key");
+    CheckLength(key, kMaxAttributeKeyLength, field + " key " + Quoted(key));
+    if (tree.attributes().count(key) != 0) {
+      throw ValidationError(field, ": " + Quoted(key) + " is also a key of attributes");
+    }
+  }
+}
+
+void CheckAttributes(const v1::Tree& tree, const std::string& path) {
+  const std::string field = path + ".attributes";
+  if (static_cast<size_t>(tree.attributes_size()) > kMaxAttributes) {
+    throw ValidationError(field, ": " + std::to_string(tree.attributes_size()) +
+                                     " attributes exceed the limit of " +
+                                     std::to_string(kMaxAttributes));
+  }
+  for (const auto& [key, value] : tree.attributes()) {
+    if (key.empty()) throw ValidationError(field, " has an empty key");
+    CheckLength(key, kMaxAttributeKeyLength, field + " key " + Quoted(key));
+    CheckLength(value, kMaxAttributeValueLength, field + "[" + Quoted(key) + "]");
+  }
+  CheckNullAttributes(tree, path);
+}
+
+}  // namespace
+
 std::string Quoted(const std::string& s) {
   constexpr size_t kMaxShown = 48;
   std::string out = "\"";
@@ -38,91 +122,10 @@ std::string Indexed(std::string_view field, int64_t index) {
   return std::string(field) + "[" + std::to_string(index) + "]";
 }
 
-void CheckFinite(double v, const std::string& path) {
-  if (std::isnan(v)) throw ValidationError(path + " is NaN; numbers must be finite");
-  if (std::isinf(v)) {
-    throw ValidationError(path + " is " + (v > 0 ? "+inf" : "-inf") + "; numbers must be finite");
-  }
-}
-
-void CheckVector(const v1::Vector3& v, const std::string& path) {
-  CheckFinite(v.x(), path + ".x");
-  CheckFinite(v.y(), path + ".y");
-  CheckFinite(v.z(), path + ".z");
-}
-
-// A coordinate of a local map frame: finite and |v| < limit (m).
-void CheckCoordinate(double v, double limit, const std::string& path) {
-  CheckFinite(v, path);
-  if (!(std::abs(v) < limit)) {
-    throw ValidationError(path + " is " + Number(v) + "; coordinates must lie within +-" +
-                          Number(limit) +
-                          " m (a local frame; keep georeferenced offsets in the map's crs)");
-  }
-}
-
-// A position: x and y within kMaxHorizontalCoordinate, z within kMaxVerticalCoordinate.
-void CheckPosition(const v1::Vector3& v, const std::string& path) {
-  CheckCoordinate(v.x(), kMaxHorizontalCoordinate, path + ".x");
-  CheckCoordinate(v.y(), kMaxHorizontalCoordinate, path + ".y");
-  CheckCoordinate(v.z(), kMaxVerticalCoordinate, path + ".z");
-}
-
-// A direction: finite and not (near) zero. Its length does not matter, it is normalised.
-void CheckDirection(const v1::Vector3& v, const std::string& path) {
-  CheckVector(v, path);
-  constexpr double kMinNorm = 1e-9;
-  if (std::sqrt(v.x() * v.x() + v.y() * v.y() + v.z() * v.z()) < kMinNorm) {
-    throw ValidationError(path + " is a zero vector; it must give a direction");
-  }
-}
-
-void CheckLength(const std::string& s, size_t max_length, const std::string& path) {
-  if (s.size() > max_length) {
-    throw ValidationError(path + ": " + std::to_string(s.size()) + " bytes exceed the limit of " +
-                          std::to_string(max_length));
-  }
-}
-
-// Columns unknown for this tree: keys as for attributes, none also a key of `attributes`, and
-// counted with them in the per-tree limit.
-void CheckNullAttributes(const v1::Tree& tree, const std::string& path) {
-  const std::string field = path + ".null_attributes";
-  const size_t count = static_cast<size_t>(tree.attributes_size() + tree.null_attributes_size());
-  if (count > kMaxAttributes) {
-    throw ValidationError(field + ": " + std::to_string(count) +
-                          " attributes and null attributes exceed the limit of " +
-                          std::to_string(kMaxAttributes));
-  }
-  for (const std::string& key : tree.null_attributes()) {
-    if (key.empty()) throw ValidationError(field + " has an empty key");
-    CheckLength(key, kMaxAttributeKeyLength, field + " key " + Quoted(key));
-    if (tree.attributes().count(key) != 0) {
-      throw ValidationError(field + ": " + Quoted(key) + " is also a key of attributes");
-    }
-  }
-}
-
-void CheckAttributes(const v1::Tree& tree, const std::string& path) {
-  const std::string field = path + ".attributes";
-  if (static_cast<size_t>(tree.attributes_size()) > kMaxAttributes) {
-    throw ValidationError(field + ": " + std::to_string(tree.attributes_size()) +
-                          " attributes exceed the limit of " + std::to_string(kMaxAttributes));
-  }
-  for (const auto& [key, value] : tree.attributes()) {
-    if (key.empty()) throw ValidationError(field + " has an empty key");
-    CheckLength(key, kMaxAttributeKeyLength, field + " key " + Quoted(key));
-    CheckLength(value, kMaxAttributeValueLength, field + "[" + Quoted(key) + "]");
-  }
-  CheckNullAttributes(tree, path);
-}
-
-}  // namespace
-
 void ValidateMapName(const std::string& name, std::string_view field) {
   const std::string problem = storage::ValidateMapName(name);
   if (!problem.empty()) {
-    throw ValidationError(std::string(field) + " " + Quoted(name) + ": " + problem);
+    throw ValidationError(std::string(field), " " + Quoted(name) + ": " + problem);
   }
 }
 
@@ -137,49 +140,51 @@ void Validate(const v1::GetMapRequest& request) { ValidateMapName(request.name()
 void Validate(const v1::DeleteMapRequest& request) { ValidateMapName(request.name(), "name"); }
 
 void Validate(const v1::ExportTreesRequest& request) {
-  ValidateMapName(request.map_name(), "map_name");
+  ValidateMapName(request.name(), "name");
   if (request.has_box()) ValidateBox(request.box(), "box");
   if (request.version() < 0) {
-    throw ValidationError("version is " + std::to_string(request.version()) +
-                          "; it must be >= 1, or 0 for the current version");
+    throw ValidationError("version", " is " + std::to_string(request.version()) +
+                                         "; it must be >= 1, or 0 for the current version");
   }
 }
 
 void ValidateSource(const std::string& source, std::string_view field) {
   const std::string path(field);
-  if (source.empty()) throw ValidationError(path + " is empty; name the drone or upload");
+  if (source.empty()) throw ValidationError(path, " is empty; name the drone or upload");
   CheckLength(source, kMaxSourceLength, path);
   for (size_t i = 0; i < source.size(); ++i) {
     const char c = source[i];
     const bool allowed = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') ||
                          (c >= '0' && c <= '9') || c == '_' || c == '.' || c == '-' || c == ':';
     if (!allowed) {
-      throw ValidationError(path + " " + Quoted(source) +
-                            ": only A-Z a-z 0-9 _ . : - are allowed (character " +
-                            std::to_string(i + 1) + " is not)");
+      throw ValidationError(path, " " + Quoted(source) +
+                                      ": only A-Z a-z 0-9 _ . : - are allowed (character " +
+                                      std::to_string(i + 1) + " is not)");
     }
   }
   if (source == kSurveySource) {
-    throw ValidationError(path + " \"survey\" is reserved for surveyed trees");
+    throw ValidationError(path, " \"survey\" is reserved for surveyed trees");
   }
 }
 
 void Validate(const v1::ObserveRequest& request, const ObserveLimits& limits) {
-  ValidateMapName(request.map_name(), "map_name");
+  ValidateMapName(request.name(), "name");
   ValidateSource(request.source(), "source");
   if (request.base_version() < 0) {
-    throw ValidationError("base_version is " + std::to_string(request.base_version()) +
-                          "; it must be >= 0");
+    throw ValidationError("base_version",
+                          " is " + std::to_string(request.base_version()) + "; it must be >= 0");
   }
-  if (request.conflict_policy() == v1::REJECT_IF_STALE && request.base_version() == 0) {
-    throw ValidationError("base_version: REJECT_IF_STALE needs the version the data is based on");
+  if (request.conflict_policy() == v1::CONFLICT_POLICY_REJECT_IF_STALE &&
+      request.base_version() == 0) {
+    throw ValidationError("base_version",
+                          ": REJECT_IF_STALE needs the version the data is based on");
   }
   if (!v1::ConflictPolicy_IsValid(request.conflict_policy())) {
-    throw ValidationError("conflict_policy " + std::to_string(request.conflict_policy()) +
-                          " is unknown");
+    throw ValidationError("conflict_policy",
+                          " " + std::to_string(request.conflict_policy()) + " is unknown");
   }
   const int frames = request.frames_size();
-  if (frames == 0) throw ValidationError("frames: an observation needs at least one frame");
+  if (frames == 0) throw ValidationError("frames", ": an observation needs at least one frame");
   if (frames > limits.max_frames) {
     throw LimitError("frames: " + std::to_string(frames) + " frames exceed the limit of " +
                      std::to_string(limits.max_frames) + " per request; send them in batches");
@@ -191,8 +196,9 @@ void Validate(const v1::ObserveRequest& request, const ObserveLimits& limits) {
     const std::string path = Indexed("frames", f);
     const auto [it, inserted] = index_of_frame.emplace(frame.frame_id(), f);
     if (!inserted) {
-      throw ValidationError(path + ".frame_id " + std::to_string(frame.frame_id()) +
-                            " duplicates " + Indexed("frames", it->second) + ".frame_id");
+      throw ValidationError(path + ".frame_id", " " + std::to_string(frame.frame_id()) +
+                                                    " duplicates " + Indexed("frames", it->second) +
+                                                    ".frame_id");
     }
     if (frame.trees_size() > limits.max_frame_trees) {
       throw LimitError(path + ".trees: " + std::to_string(frame.trees_size()) +
@@ -215,67 +221,111 @@ void Validate(const v1::ObserveRequest& request, const ObserveLimits& limits) {
 }
 
 void Validate(const v1::ListVersionsRequest& request) {
-  ValidateMapName(request.map_name(), "map_name");
+  ValidateMapName(request.name(), "name");
   if (request.limit() < 0) {
-    throw ValidationError("limit is " + std::to_string(request.limit()) + "; it must be >= 0");
+    throw ValidationError("limit", " is " + std::to_string(request.limit()) + "; it must be >= 0");
   }
 }
 
 void Validate(const v1::RestoreVersionRequest& request) {
-  ValidateMapName(request.map_name(), "map_name");
+  ValidateMapName(request.name(), "name");
   if (request.version() < 1) {
-    throw ValidationError("version is " + std::to_string(request.version()) + "; it must be >= 1");
+    throw ValidationError("version",
+                          " is " + std::to_string(request.version()) + "; it must be >= 1");
   }
 }
 
 void Validate(const v1::RemoveSourceRequest& request) {
-  ValidateMapName(request.map_name(), "map_name");
+  ValidateMapName(request.name(), "name");
   ValidateSource(request.source(), "source");
 }
 
 void Validate(const v1::RelocalizeRequest& request, int max_query_trees) {
-  ValidateMapName(request.map_name(), "map_name");
+  ValidateMapName(request.name(), "name");
   const int n = request.trees_size();  // fewer than 3: answered NOT_FOUND (TOO_FEW_TREES)
   if (n > max_query_trees) {
     throw LimitError("trees: " + std::to_string(n) + " trees exceed the limit of " +
                      std::to_string(max_query_trees) + " per query");
   }
   for (int i = 0; i < n; ++i) ValidateDetectedTree(request.trees(i), Indexed("trees", i));
-  if (request.has_prior()) {
-    const v1::PriorPose& prior = request.prior();
-    if (!prior.has_map_from_sensor()) {
-      throw ValidationError("prior.map_from_sensor is missing; a prior needs a pose");
-    }
-    ValidatePose(prior.map_from_sensor(), "prior.map_from_sensor");
-    CheckFinite(prior.radius_m(), "prior.radius_m");
-    if (prior.radius_m() <= 0) {
-      throw ValidationError("prior.radius_m is " + Number(prior.radius_m()) + "; it must be > 0");
-    }
-  }
+  if (request.has_prior()) ValidatePrior(request.prior(), "prior");
   if (request.has_gravity()) CheckDirection(request.gravity(), "gravity");
 }
 
-void Validate(const v1::TrackRequest& request, const std::string& session_map,
-              int max_query_trees) {
-  if (session_map.empty()) {
-    ValidateMapName(request.map_name(), "map_name");
-  } else if (!request.map_name().empty() && request.map_name() != session_map) {
-    throw ValidationError("map_name '" + request.map_name() + "' differs from the session's map '" +
-                          session_map + "'; a session tracks in one map");
+void ValidatePrior(const v1::PriorPose& prior, const std::string& path) {
+  if (const v1::Pose* pose = LegacyPose(prior)) {  // the 0.1.0 form
+    if (prior.has_x() || prior.has_y()) {
+      throw ValidationError(path + ".map_from_sensor",
+                            " is set beside " + path +
+                                ".x and .y; give x and y only (the pose "
+                                "is the deprecated form of the same prior)");
+    }
+    ValidatePose(*pose, path + ".map_from_sensor");
+  } else {
+    for (const auto& [has, value, name] :
+         {std::tuple{prior.has_x(), prior.x(), ".x"}, std::tuple{prior.has_y(), prior.y(), ".y"}}) {
+      if (!has) {
+        throw ValidationError(path + name,
+                              " is missing; a prior is the sensor's horizontal position (x, y)");
+      }
+      CheckCoordinate(value, kMaxHorizontalCoordinate, path + name);
+    }
   }
-  const int n = request.trees_size();
+  CheckFinite(prior.radius_m(), path + ".radius_m");
+  if (prior.radius_m() <= 0) {
+    throw ValidationError(path + ".radius_m",
+                          " is " + Number(prior.radius_m()) + "; it must be > 0");
+  }
+}
+
+TrackMessage ReadTrackMessage(v1::TrackRequest& request, const std::string& session_map,
+                              int max_query_trees) {
+  if (HasLegacyFields(request) && request.part_case() != v1::TrackRequest::PART_NOT_SET) {
+    throw ValidationError(request.has_header() ? "header" : "frame", kMixedLayouts);
+  }
+  TrackMessage message;
+  std::string prefix;  // of the frame's field paths
+  if (request.has_header()) {
+    if (!session_map.empty()) {
+      throw ValidationError("header", ": only the first message of a Track stream is a header");
+    }
+    message.map = request.header().name();
+    ValidateMapName(message.map, "header.name");
+    return message;
+  }
+  if (request.has_frame()) {
+    if (session_map.empty()) {
+      throw ValidationError("header",
+                            " is missing: the first message of a Track stream names the map");
+    }
+    message.frame = std::move(*request.mutable_frame());
+    prefix = "frame.";
+  } else {  // the 0.1.0 layout: every message is a frame, the first also names the map
+    const std::string name = LegacyHeader(request).name();
+    if (session_map.empty()) {
+      ValidateMapName(name, "name");
+      message.map = name;
+    } else if (!name.empty() && name != session_map) {
+      throw ValidationError("name", " " + Quoted(name) + " differs from the session's map " +
+                                        Quoted(session_map) + "; a session tracks in one map");
+    }
+    message.frame = TakeLegacyFrame(request);
+  }
+  const v1::TrackFrame& frame = *message.frame;
+  const int n = frame.trees_size();
   if (n > max_query_trees) {
-    throw LimitError("trees: " + std::to_string(n) + " trees exceed the limit of " +
+    throw LimitError(prefix + "trees: " + std::to_string(n) + " trees exceed the limit of " +
                      std::to_string(max_query_trees) + " per frame");
   }
-  for (int i = 0; i < n; ++i) ValidateDetectedTree(request.trees(i), Indexed("trees", i));
-  if (request.has_gravity()) CheckDirection(request.gravity(), "gravity");
-  if (request.has_odometry()) ValidatePose(request.odometry(), "odometry");
+  for (int i = 0; i < n; ++i) ValidateDetectedTree(frame.trees(i), prefix + Indexed("trees", i));
+  if (frame.has_gravity()) CheckDirection(frame.gravity(), prefix + "gravity");
+  if (frame.has_odometry()) ValidatePose(frame.odometry(), prefix + "odometry");
+  return message;
 }
 
 void ValidateTree(const v1::Tree& tree, const std::string& path) {
   if (tree.has_id() && tree.id() < 0) {
-    throw ValidationError(path + ".id is " + std::to_string(tree.id()) + "; ids must be >= 0");
+    throw ValidationError(path + ".id", " is " + std::to_string(tree.id()) + "; ids must be >= 0");
   }
   CheckCoordinate(tree.x(), kMaxHorizontalCoordinate, path + ".x");
   CheckCoordinate(tree.y(), kMaxHorizontalCoordinate, path + ".y");
@@ -283,26 +333,27 @@ void ValidateTree(const v1::Tree& tree, const std::string& path) {
   if (tree.has_dbh()) {
     CheckFinite(tree.dbh(), path + ".dbh");
     if (tree.dbh() < 0) {
-      throw ValidationError(path + ".dbh is " + Number(tree.dbh()) + "; it must be >= 0");
+      throw ValidationError(path + ".dbh", " is " + Number(tree.dbh()) + "; it must be >= 0");
     }
   }
   CheckAttributes(tree, path);
 }
 
 void ValidateDetectedTree(const v1::DetectedTree& tree, const std::string& path) {
-  if (!tree.has_position()) throw ValidationError(path + ".position is missing");
+  if (!tree.has_position()) throw ValidationError(path + ".position", " is missing");
   CheckPosition(tree.position(), path + ".position");
   if (tree.has_dbh()) {
     CheckFinite(tree.dbh(), path + ".dbh");
     if (tree.dbh() < 0) {
-      throw ValidationError(path + ".dbh is " + Number(tree.dbh()) + "; it must be >= 0");
+      throw ValidationError(path + ".dbh", " is " + Number(tree.dbh()) + "; it must be >= 0");
     }
   }
   if (tree.has_axis()) CheckDirection(tree.axis(), path + ".axis");
   if (tree.has_score()) {
     CheckFinite(tree.score(), path + ".score");
     if (tree.score() < 0 || tree.score() > 1) {
-      throw ValidationError(path + ".score is " + Number(tree.score()) + "; it must be in [0, 1]");
+      throw ValidationError(path + ".score",
+                            " is " + Number(tree.score()) + "; it must be in [0, 1]");
     }
   }
 }
@@ -318,8 +369,8 @@ void ValidatePose(const v1::Pose& pose, const std::string& path) {
   CheckFinite(q.w(), rotation + ".w");
   const double norm = std::sqrt(q.x() * q.x() + q.y() * q.y() + q.z() * q.z() + q.w() * q.w());
   if (std::abs(norm - 1.0) > kUnitQuaternionTolerance) {
-    throw ValidationError(rotation + " is not a unit quaternion (norm " + Number(norm) +
-                          "); normalise it");
+    throw ValidationError(rotation,
+                          " is not a unit quaternion (norm " + Number(norm) + "); normalise it");
   }
 }
 
@@ -329,49 +380,7 @@ void ValidateBox(const v1::Box2& box, const std::string& path) {
   CheckFinite(box.max_x(), path + ".max_x");
   CheckFinite(box.max_y(), path + ".max_y");
   if (box.min_x() > box.max_x() || box.min_y() > box.max_y()) {
-    throw ValidationError(path + " is empty: min_x <= max_x and min_y <= max_y are required");
-  }
-}
-
-void UploadValidator::Accept(const v1::UploadTreesRequest& message) {
-  const std::string where = " (upload message " + std::to_string(messages_) + ")";
-  if (messages_ == 0) {
-    if (message.map_name().empty()) {
-      throw ValidationError("map_name: the first message of an upload must name the map");
-    }
-    ValidateMapName(message.map_name(), "map_name");
-    map_name_ = message.map_name();
-    replace_ = message.replace();
-  } else {
-    if (!message.map_name().empty() && message.map_name() != map_name_) {
-      throw ValidationError("map_name: " + Quoted(message.map_name()) + where +
-                            " differs from the upload's map " + Quoted(map_name_));
-    }
-    if (message.replace() && !replace_) {
-      throw ValidationError("replace" + where + ": only the first message may set replace");
-    }
-    if (message.create_map() || !message.description().empty() || !message.crs().empty()) {
-      throw ValidationError("create_map, description, crs" + where +
-                            ": only the first message may set them");
-    }
-  }
-  ++messages_;
-  if (message.trees_size() > max_trees_ - trees_) {
-    throw LimitError("trees: the upload exceeds the limit of " + std::to_string(max_trees_) +
-                     " trees per stream");
-  }
-  for (const v1::Tree& tree : message.trees()) {
-    const int64_t index = trees_++;
-    const std::string path = Indexed("trees", index);
-    ValidateTree(tree, path);
-  }
-}
-
-void UploadValidator::Finish() const {
-  if (messages_ == 0) {
-    throw ValidationError(
-        "map_name: the upload stream was empty; its first message must name "
-        "the map");
+    throw ValidationError(path, " is empty: min_x <= max_x and min_y <= max_y are required");
   }
 }
 

@@ -1,8 +1,9 @@
 #pragma once
 // Validation of every request of the ForestMap API, before anything is converted or stored.
 //
-// Each function throws ValidationError (INVALID_ARGUMENT) or LimitError (RESOURCE_EXHAUSTED)
-// from server/status.h, with a message naming the field path and index, e.g.
+// Each function throws ValidationError (INVALID_ARGUMENT, naming the field for the error
+// details) or LimitError (RESOURCE_EXHAUSTED) from server/app/errors.h, with a message naming
+// the field path and index, e.g.
 //   "trees[12].position.x is NaN"
 //   "prior.radius_m is -1; it must be > 0"
 //   "trees: 100000 trees exceed the limit of 20000 per query"
@@ -11,7 +12,10 @@
 // prior radius > 0, gravity and stem axes non-zero, box min <= max, bounded string lengths,
 // coordinates within kMaxHorizontalCoordinate / kMaxVerticalCoordinate.
 
+#include <google/protobuf/repeated_ptr_field.h>
+
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -19,12 +23,12 @@
 #include "forestmap/v1/observations.pb.h"
 #include "forestmap/v1/relocalization.pb.h"
 #include "forestmap/v1/tracking.pb.h"
-#include "server/grpc/status.h"
+#include "server/app/errors.h"
+#include "server/app/limits.h"
 
 namespace forestmap::server {
 
 inline constexpr double kUnitQuaternionTolerance = 1e-3;  // | |q| - 1 | allowed
-inline constexpr int kMinQueryTrees = 3;
 // A map frame is a local frame (georeferenced offsets belong in the CRS): every coordinate that
 // reaches an index (trees, detected trees, poses, priors, odometry) must lie strictly within
 // these bounds, or the request is INVALID_ARGUMENT naming the field.
@@ -36,7 +40,12 @@ inline constexpr size_t kMaxAttributes = 64;              // per tree
 inline constexpr size_t kMaxAttributeKeyLength = 128;     // bytes
 inline constexpr size_t kMaxAttributeValueLength = 4096;  // bytes
 
-// `field` is the path to report, e.g. "name" or "map_name".
+// A user-supplied string made safe to quote in an error message: printable ASCII, bounded.
+std::string Quoted(const std::string& s);
+// A field path of a repeated field's element: Indexed("trees", 12) is "trees[12]".
+std::string Indexed(std::string_view field, int64_t index);
+
+// `field` is the path to report, e.g. "name" or "header.name".
 void ValidateMapName(const std::string& name, std::string_view field);
 
 void Validate(const v1::CreateMapRequest& request);
@@ -44,9 +53,18 @@ void Validate(const v1::GetMapRequest& request);
 void Validate(const v1::DeleteMapRequest& request);
 void Validate(const v1::ExportTreesRequest& request);
 void Validate(const v1::RelocalizeRequest& request, int max_query_trees);
-// One frame of a Track stream. `session_map` is the map named by the stream's first message
-// (empty for the first message itself, which must name one); any number of trees up to the limit.
-void Validate(const v1::TrackRequest& request, const std::string& session_map, int max_query_trees);
+// A prior: x and y, or the deprecated pose of release 0.1.0 (not both); radius_m > 0.
+void ValidatePrior(const v1::PriorPose& prior, const std::string& path);
+
+// One message of a Track stream, in either layout (server/grpc/legacy_layout.h), checked: a header
+// first, then frames of any number of trees up to the limit. `session_map` is the map the first
+// message named ("" while reading that one).
+struct TrackMessage {
+  std::string map;                      // the map a first message names ("" on later ones)
+  std::optional<v1::TrackFrame> frame;  // the frame to answer; none for a header
+};
+TrackMessage ReadTrackMessage(v1::TrackRequest& request, const std::string& session_map,
+                              int max_query_trees);
 
 // Shared maps (observations.proto).
 inline constexpr size_t kMaxSourceLength = 128;         // bytes
@@ -68,31 +86,5 @@ void ValidateTree(const v1::Tree& tree, const std::string& path);
 void ValidateDetectedTree(const v1::DetectedTree& tree, const std::string& path);
 void ValidatePose(const v1::Pose& pose, const std::string& path);
 void ValidateBox(const v1::Box2& box, const std::string& path);
-
-// Checks the messages of one UploadTrees stream, in order: the first names a valid map, later
-// ones repeat that name or leave it empty and do not set `replace` on their own; every tree is
-// valid; the tree total stays within the limit. Ids unique across the stream are checked by the
-// store as it stages the trees (in constant memory here). Tree indices in messages count across
-// the whole stream ("trees[k]" = k-th tree uploaded).
-class UploadValidator {
- public:
-  explicit UploadValidator(int64_t max_trees) : max_trees_(max_trees) {}
-
-  void Accept(const v1::UploadTreesRequest& message);
-  // Call when the client has closed the stream; throws if it sent no message.
-  void Finish() const;
-
-  const std::string& map_name() const { return map_name_; }
-  bool replace() const { return replace_; }
-  int64_t messages() const { return messages_; }
-  int64_t trees() const { return trees_; }
-
- private:
-  int64_t max_trees_;
-  std::string map_name_;
-  bool replace_ = false;
-  int64_t messages_ = 0;
-  int64_t trees_ = 0;
-};
 
 }  // namespace forestmap::server

@@ -8,13 +8,16 @@
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <stdexcept>
+#include <utility>
 
 namespace forestmap::server {
 namespace {
 
 constexpr int kMaxPort = 65535;
+constexpr auto kStopPoll = std::chrono::milliseconds(5);  // while waiting for the listen loop
 
 struct HostPort {
   std::string host;  // without the brackets of an IPv6 literal
@@ -84,6 +87,26 @@ int BindHttpListener(httplib::Server& http, const std::string& flag, const std::
 
 std::string BoundHttpAddress(const std::string& address, int port) {
   return address.substr(0, address.rfind(':')) + ":" + std::to_string(port);
+}
+
+HttpListener::HttpListener(std::unique_ptr<httplib::Server> http, const std::string& flag,
+                           const std::string& address)
+    : http_(std::move(http)) {
+  port_ = BindHttpListener(*http_, flag, address);
+  address_ = BoundHttpAddress(address, port_);
+  thread_ = std::thread([this] {
+    http_->listen_after_bind();
+    stopped_ = true;
+  });
+}
+
+HttpListener::~HttpListener() {
+  // stop() is a no-op until the listen loop runs: repeat it until the loop has ended.
+  while (!stopped_) {
+    http_->stop();
+    std::this_thread::sleep_for(kStopPoll);
+  }
+  thread_.join();
 }
 
 }  // namespace forestmap::server

@@ -4,7 +4,10 @@
 // forestmapd bind a port already in use and silently take part of its connections; the sockets
 // bound here only get SO_REUSEADDR (restart after TIME_WAIT), so a port in use is an error.
 
+#include <atomic>
+#include <memory>
 #include <string>
+#include <thread>
 
 namespace httplib {
 class Server;
@@ -19,5 +22,26 @@ int BindHttpListener(httplib::Server& http, const std::string& flag, const std::
 
 // "host:port" with the port replaced by `port` (for port 0), as BindHttpListener read it.
 std::string BoundHttpAddress(const std::string& address, int port);
+
+// An HTTP server bound with BindHttpListener and served on its own thread until destroyed.
+class HttpListener {
+ public:
+  // Binds `http` (its routes added) to `address`; throws as BindHttpListener.
+  HttpListener(std::unique_ptr<httplib::Server> http, const std::string& flag,
+               const std::string& address);
+  ~HttpListener();  // stops serving and joins the thread
+  HttpListener(const HttpListener&) = delete;
+  HttpListener& operator=(const HttpListener&) = delete;
+
+  int port() const { return port_; }
+  const std::string& address() const { return address_; }  // host:port actually bound
+
+ private:
+  std::unique_ptr<httplib::Server> http_;
+  int port_ = 0;
+  std::string address_;
+  std::atomic<bool> stopped_{false};  // the listen loop has ended
+  std::thread thread_;
+};
 
 }  // namespace forestmap::server

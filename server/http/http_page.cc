@@ -1,15 +1,13 @@
 #include "server/http/http_page.h"
 
-// Eigen (through convert.h) before httplib.h: httplib pulls in <resolv.h>, whose `_res` macro
+// Eigen (through http_page.h) before httplib.h: httplib pulls in <resolv.h>, whose `_res` macro
 // breaks Eigen's headers when they come after it.
-#include "server/grpc/convert.h"
-#include "server/http/http_listen.h"
 #include "server/http/http_trees.h"
 // clang-format off
 #include <httplib.h>
 // clang-format on
 
-#include <chrono>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <stdexcept>
@@ -20,8 +18,6 @@ namespace forestmap::server {
 namespace {
 
 using Json = nlohmann::json;
-
-constexpr auto kStopPoll = std::chrono::milliseconds(5);  // while waiting for the listen loop
 
 Json MapJson(const storage::MapInfo& info) {
   Json map = {{"name", info.name},
@@ -93,15 +89,49 @@ void Guarded(httplib::Response& response, Body body) {
   }
 }
 
+// The page's names of a version's kind and of a relocalization's status: its own, so that the
+// page reads the same whatever the gRPC API calls them.
+const char* KindName(storage::VersionKind kind) {
+  using Kind = storage::VersionKind;
+  switch (kind) {
+    case Kind::kCreate:
+      return "CREATE";
+    case Kind::kUpload:
+      return "UPLOAD";
+    case Kind::kReplace:
+      return "REPLACE";
+    case Kind::kObserve:
+      return "OBSERVE";
+    case Kind::kRestore:
+      return "RESTORE";
+    case Kind::kRemoveSource:
+      return "REMOVE_SOURCE";
+    case Kind::kMigrated:
+      return "MIGRATED";
+  }
+  return "KIND_UNSPECIFIED";
+}
+
+const char* StatusName(algorithms::RelocalizeStatus status) {
+  switch (status) {
+    case algorithms::RelocalizeStatus::kLocalized:
+      return "LOCALIZED";
+    case algorithms::RelocalizeStatus::kAmbiguous:
+      return "AMBIGUOUS";
+    case algorithms::RelocalizeStatus::kNotFound:
+      return "NOT_FOUND";
+  }
+  return "STATUS_UNSPECIFIED";
+}
+
 Json VersionsJson(const std::vector<storage::VersionRecord>& records) {
   Json versions = Json::array();
   for (const storage::VersionRecord& v : records) {
-    const v1::MapVersion version = ToProto(v);
-    versions.push_back({{"version", version.version()},
-                        {"kind", v1::MapVersion::Kind_Name(version.kind())},
-                        {"source", version.source()},
-                        {"trees", version.tree_count()},
-                        {"time_ms", version.created_unix_ms()}});
+    versions.push_back({{"version", v.version},
+                        {"kind", KindName(v.kind)},
+                        {"source", v.source},
+                        {"trees", v.tree_count},
+                        {"time_ms", v.created_unix_ms}});
   }
   return versions;
 }
@@ -110,26 +140,27 @@ Json AnswersJson(const RecentAnswers& answers, const PageCaller& caller) {
   Json list = Json::array();
   for (const RecentAnswer& a : answers.Get()) {
     if (!caller.CanRead(a.map_name)) continue;
-    const v1::RelocalizeResponse& r = a.response;
     Json item = {{"map", a.map_name},
                  {"time_ms", a.unix_ms},
-                 {"status", v1::RelocalizeResponse::Status_Name(r.status())},
-                 {"inliers", r.inliers()}};
-    if (r.has_map_from_sensor()) {
-      item["x"] = r.map_from_sensor().translation().x();
-      item["y"] = r.map_from_sensor().translation().y();
+                 {"status", StatusName(a.status)},
+                 {"inliers", a.inliers}};
+    if (a.position) {
+      item["x"] = a.position->x();
+      item["y"] = a.position->y();
     }
-    if (r.has_geodetic()) {
-      item["lat"] = r.geodetic().latitude_deg();
-      item["lon"] = r.geodetic().longitude_deg();
+    if (a.geodetic) {
+      item["lat"] = a.geodetic->latitude_deg;
+      item["lon"] = a.geodetic->longitude_deg;
     }
     list.push_back(item);
   }
   return list;
 }
 
-void AddRoutes(httplib::Server& http, storage::MapStore& store, const RecentAnswers& answers,
-               storage::TokenStore* tokens) {
+std::unique_ptr<httplib::Server> PageRoutes(storage::MapStore& store, const RecentAnswers& answers,
+                                            storage::TokenStore* tokens) {
+  auto server = std::make_unique<httplib::Server>();
+  httplib::Server& http = *server;
   using httplib::Request;
   using httplib::Response;
   http.Get("/", [tokens](const Request& request, Response& response) {
@@ -168,28 +199,13 @@ void AddRoutes(httplib::Server& http, storage::MapStore& store, const RecentAnsw
     const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
     if (caller) Reply(response, AnswersJson(answers, *caller));
   });
+  return server;
 }
 
 }  // namespace
 
 HttpPage::HttpPage(storage::MapStore& store, const RecentAnswers& answers,
                    const std::string& address, storage::TokenStore* tokens)
-    : http_(std::make_unique<httplib::Server>()) {
-  AddRoutes(*http_, store, answers, tokens);
-  address_ = BoundHttpAddress(address, BindHttpListener(*http_, "--http", address));
-  thread_ = std::thread([this] {
-    http_->listen_after_bind();
-    stopped_ = true;
-  });
-}
-
-HttpPage::~HttpPage() {
-  // stop() is a no-op until the listen loop runs: repeat it until the loop has ended.
-  while (!stopped_) {
-    http_->stop();
-    std::this_thread::sleep_for(kStopPoll);
-  }
-  thread_.join();
-}
+    : listener_(PageRoutes(store, answers, tokens), "--http", address) {}
 
 }  // namespace forestmap::server

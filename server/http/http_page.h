@@ -2,52 +2,40 @@
 // forestmapd --http ADDR: a read-only web page (cpp-httplib) showing the maps, their versions,
 // a map's trees with pan and zoom, and the last relocalizations. Nothing on it writes.
 //
-// Tokens (issue 15): once the server has a token (storage/token_store.h, deny by default as for
+// Tokens: once the server has a token (storage/token_store.h, deny by default as for
 // the RPCs), every route needs a valid one with read access, sent as `Authorization: Bearer
 // <secret>` or, for a browser, as `?token=<secret>` in the URL (the page passes it on to its API
 // calls in the header): none, unknown or revoked -> 401, a map the token may not read -> 403;
 // /api/maps and /api/relocalizations list only the maps the token can read. Prefer the header:
 // a URL lands in browser history and proxy logs.
 //
-// Routes: GET /                        the page (server/http_page_html.cc)
+// Routes: GET /                        the page (server/http/http_page_html.cc)
 //         GET /api/maps                [{name, trees, version, crs, extent}]
 //         GET /api/maps/NAME/trees     {trees: [[x, y, dbh|null, confirmed], ...]} (current)
 //         GET /api/maps/NAME/versions  [{version, kind, source, trees, time_ms}]
 //         GET /api/relocalizations     the last answers, newest first
 
-#include <atomic>
-#include <memory>
 #include <string>
-#include <thread>
 
 #include "server/app/recent_answers.h"
+#include "server/http/http_listen.h"
 #include "storage/map_store.h"
 #include "storage/token_store.h"
-
-namespace httplib {
-class Server;
-}
 
 namespace forestmap::server {
 
 class HttpPage {
  public:
-  // Binds `address` ("host:port", port 0: any) and serves on its own thread. Throws
-  // std::runtime_error when the address cannot be bound. `tokens`: the server's token store
-  // (null: open); it must outlive the page.
+  // Binds `address` ("host:port", port 0: any) and serves on its own thread until destroyed.
+  // Throws std::runtime_error when the address cannot be bound. `store`, `answers` and `tokens`
+  // (the server's token store; null: open) must outlive the page.
   HttpPage(storage::MapStore& store, const RecentAnswers& answers, const std::string& address,
            storage::TokenStore* tokens = nullptr);
-  ~HttpPage();  // stops serving
-  HttpPage(const HttpPage&) = delete;
-  HttpPage& operator=(const HttpPage&) = delete;
 
-  const std::string& address() const { return address_; }  // host:port actually bound
+  const std::string& address() const { return listener_.address(); }  // host:port bound
 
  private:
-  std::unique_ptr<httplib::Server> http_;
-  std::atomic<bool> stopped_{false};  // the listen loop has ended
-  std::thread thread_;
-  std::string address_;
+  HttpListener listener_;
 };
 
 // The page itself (http_page_html.cc).

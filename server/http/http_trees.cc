@@ -7,11 +7,10 @@
 #include <charconv>
 #include <cmath>
 #include <memory>
-#include <optional>
 #include <utility>
 #include <vector>
 
-#include "storage/staged_writes.h"
+#include "server/app/tree_pages.h"
 
 namespace forestmap::server {
 namespace {
@@ -43,31 +42,24 @@ void AppendTree(std::string& out, const storage::TreeRecord& tree) {
 
 // Where a streamed answer is: what it reads next. Lives as long as the response.
 struct TreeStream {
-  TreeStream(storage::MapStore& s, storage::MapInfo i, std::string json, int64_t trees)
-      : store(s), info(std::move(i)), map_json(std::move(json)), page_trees(trees) {}
+  TreeStream(storage::MapStore& store, const storage::MapInfo& info, std::string json,
+             int64_t page_trees)
+      : pages(store, info, page_trees), map_json(std::move(json)) {}
 
-  storage::MapStore& store;
-  storage::MapInfo info;
+  TreePages pages;
   std::string map_json;
-  int64_t page_trees = kHttpTreesPage;
   bool opened = false;    // the opening {"map": ..., "trees": [ is written
   bool any_tree = false;  // a tree is written (the next one follows a comma)
-  std::optional<int64_t> after_id;
-  std::string text;  // the chunk being written (its capacity is reused)
+  std::string text;       // the chunk being written (its capacity is reused)
 
   // Writes the next page to `sink`; false: the store failed or the client left.
   bool WriteNext(httplib::DataSink& sink) {
     text.clear();
     if (!opened) text = "{\"map\":" + map_json + ",\"trees\":[";
     opened = true;
-    storage::TreePageQuery query;
-    query.version = info.version;
-    query.created_unix_ms = info.created_unix_ms;
-    query.after_id = after_id;
-    query.limit = page_trees;
     std::vector<storage::TreeRecord> page;
     try {
-      page = store.ReadTreesPage(info.name, query);
+      page = pages.Next();
     } catch (const std::exception&) {
       return false;  // deleted or pruned meanwhile: the client sees a cut answer
     }
@@ -76,8 +68,7 @@ struct TreeStream {
       AppendTree(text, tree);
       any_tree = true;
     }
-    if (!page.empty()) after_id = page.back().id;
-    const bool last = static_cast<int64_t>(page.size()) < page_trees;
+    const bool last = pages.done();
     if (last) text += "]}";
     if (!sink.write(text.data(), text.size())) return false;
     if (last) sink.done();

@@ -1,7 +1,7 @@
 #pragma once
-// GET /api/maps/NAME/trees of the web page (server/http_page.h), streamed: the answer is written
-// in HTTP chunks of at most kHttpTreesPage trees, each read with MapStore::ReadTreesPage as the
-// gRPC ExportTrees reads them, so a request holds one page in memory whatever the map's size
+// GET /api/maps/NAME/trees of the web page (server/http/http_page.h), streamed: the answer is
+// written in HTTP chunks of at most kHttpTreesPage trees, each read as the gRPC ExportTrees reads
+// them (server/app/tree_pages.h), so a request holds one page in memory whatever the map's size
 // (a whole JSON document of a 300,000-tree map took ~100 MB per request, kept by the malloc arena
 // of each HTTP thread: tests/bench/http_trees_memory.sh).
 

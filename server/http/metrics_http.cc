@@ -2,36 +2,24 @@
 
 #include <httplib.h>
 
-#include <chrono>
-
-#include "server/http/http_listen.h"
+#include <memory>
+#include <utility>
 
 namespace forestmap::server {
 namespace {
 
-constexpr auto kStopPoll = std::chrono::milliseconds(5);  // while waiting for the listen loop
+std::unique_ptr<httplib::Server> MetricsRoute(MetricsHttpServer::Render render) {
+  auto http = std::make_unique<httplib::Server>();
+  http->Get("/metrics",
+            [render = std::move(render)](const httplib::Request&, httplib::Response& response) {
+              response.set_content(render(), "text/plain; version=0.0.4; charset=utf-8");
+            });
+  return http;
+}
 
 }  // namespace
 
 MetricsHttpServer::MetricsHttpServer(const std::string& address, Render render)
-    : http_(std::make_unique<httplib::Server>()) {
-  http_->Get("/metrics", [render](const httplib::Request&, httplib::Response& response) {
-    response.set_content(render(), "text/plain; version=0.0.4; charset=utf-8");
-  });
-  port_ = BindHttpListener(*http_, "--metrics", address);
-  thread_ = std::thread([this] {
-    http_->listen_after_bind();
-    stopped_ = true;
-  });
-}
-
-MetricsHttpServer::~MetricsHttpServer() {
-  // stop() is a no-op until the listen loop runs: repeat it until the loop has ended.
-  while (!stopped_) {
-    http_->stop();
-    std::this_thread::sleep_for(kStopPoll);
-  }
-  thread_.join();
-}
+    : listener_(MetricsRoute(std::move(render)), "--metrics", address) {}
 
 }  // namespace forestmap::server

@@ -4,15 +4,10 @@
 // bind it to loopback or a monitoring network.
 // Thread-safety: the constructor starts a thread that serves until the destructor stops it.
 
-#include <atomic>
 #include <functional>
-#include <memory>
 #include <string>
-#include <thread>
 
-namespace httplib {
-class Server;
-}  // namespace httplib
+#include "server/http/http_listen.h"
 
 namespace forestmap::server {
 
@@ -22,18 +17,13 @@ class MetricsHttpServer {
 
   // Binds `address` ("host:port"; port 0 picks a free one) and serves `render()` on /metrics.
   // Throws std::runtime_error when the address cannot be bound or is malformed.
+  // Destroying it stops serving and joins the thread.
   MetricsHttpServer(const std::string& address, Render render);
-  ~MetricsHttpServer();  // stops serving and joins the thread
-  MetricsHttpServer(const MetricsHttpServer&) = delete;
-  MetricsHttpServer& operator=(const MetricsHttpServer&) = delete;
 
-  int port() const { return port_; }
+  int port() const { return listener_.port(); }
 
  private:
-  std::unique_ptr<httplib::Server> http_;
-  int port_ = 0;
-  std::atomic<bool> stopped_{false};
-  std::thread thread_;
+  HttpListener listener_;
 };
 
 }  // namespace forestmap::server

@@ -1,10 +1,8 @@
 #include "server/ops/auth.h"
 
 #include <array>
-#include <utility>
 
-#include "server/grpc/rpc_observer.h"
-#include "server/grpc/status.h"
+#include "server/app/errors.h"
 
 namespace forestmap::server {
 namespace {
@@ -39,7 +37,7 @@ constexpr std::array<RpcRole, 13> kRoles = {{
 }};
 
 ServiceError Unauthenticated(const std::string& message) {
-  return ServiceError(grpc::StatusCode::UNAUTHENTICATED, message);
+  return ServiceError(ErrorCode::kUnauthenticated, message);
 }
 
 std::string Describe(const storage::TokenRecord& token) {
@@ -60,50 +58,37 @@ bool Caller::CanRead(std::string_view map) const {
   return !token || token->Allows(Role::kRead, map);
 }
 
-Caller Authorizer::Authenticate(const grpc::ServerContextBase& context) const {
+void Require(const Caller& caller, std::string_view rpc, std::string_view map) {
+  const std::optional<Role> needed = RequiredRole(rpc);
+  if (!needed) {
+    throw ServiceError(ErrorCode::kPermissionDenied,
+                       "no access rule for RPC " + std::string(rpc) + " (denied by default)");
+  }
+  if (!caller.token) return;
+  const bool allowed = map.empty()
+                           ? static_cast<int>(caller.token->role) >= static_cast<int>(*needed)
+                           : caller.token->Allows(*needed, map);
+  if (!allowed) {
+    throw ServiceError(ErrorCode::kPermissionDenied,
+                       Describe(*caller.token) + " may not call " + std::string(rpc) +
+                           (map.empty() ? "" : " on map '" + std::string(map) + "'") +
+                           ": that needs role " + storage::RoleName(*needed) + " on it");
+  }
+}
+
+Caller Authorizer::Authenticate(std::optional<std::string_view> authorization) const {
   Caller caller;
   if (tokens_ == nullptr || !tokens_->AnyToken()) return caller;  // open: no token exists
-  const auto& metadata = context.client_metadata();
-  const auto it = metadata.find("authorization");
-  if (it == metadata.end()) {
+  if (!authorization) {
     throw Unauthenticated(std::string("this server requires a token; ") + kHowToPass);
   }
-  const std::string_view value(it->second.data(), it->second.size());
+  const std::string_view value = *authorization;
   if (!value.starts_with(kBearer) || value.size() == kBearer.size()) {
     throw Unauthenticated("the authorization metadata must be 'Bearer <token>'");
   }
   caller.token = tokens_->Find(value.substr(kBearer.size()));
   if (!caller.token) throw Unauthenticated("unknown or revoked token");
   return caller;
-}
-
-Caller Authorizer::Authorize(const grpc::ServerContextBase& context, std::string_view rpc,
-                             std::string_view map) const {
-  Caller caller = Authenticate(context);
-  NoteCallMap(context, map, caller.token ? caller.token->id : 0);
-  const std::optional<Role> needed = RequiredRole(rpc);
-  if (!needed) {
-    throw ServiceError(grpc::StatusCode::PERMISSION_DENIED,
-                       "no access rule for RPC " + std::string(rpc) + " (denied by default)");
-  }
-  if (!caller.token) return caller;
-  const bool allowed = map.empty()
-                           ? static_cast<int>(caller.token->role) >= static_cast<int>(*needed)
-                           : caller.token->Allows(*needed, map);
-  if (!allowed) {
-    throw ServiceError(grpc::StatusCode::PERMISSION_DENIED,
-                       Describe(*caller.token) + " may not call " + std::string(rpc) +
-                           (map.empty() ? "" : " on map '" + std::string(map) + "'") +
-                           ": that needs role " + storage::RoleName(*needed) + " on it");
-  }
-  return caller;
-}
-
-Caller Authorize(const Authorizer* authorizer, const grpc::ServerContextBase& context,
-                 std::string_view rpc, std::string_view map) {
-  if (authorizer != nullptr) return authorizer->Authorize(context, rpc, map);
-  NoteCallMap(context, map, 0);
-  return Caller{};
 }
 
 }  // namespace forestmap::server

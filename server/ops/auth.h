@@ -1,13 +1,14 @@
 #pragma once
 // Who may call what: bearer tokens with a role per map (storage/token_store.h), checked in ONE
-// place, Authorizer::Authorize, which every handler calls first (unary bodies before anything
-// else, streams on their first message, when the map name is known).
+// place, Authorizer and Require, which every handler calls first through its transport (gRPC:
+// server/grpc/authorize.h; unary bodies before anything else, streams on their first message,
+// when the map name is known).
 //
 // Required roles (admin includes write, write includes read):
 //   read   GetMap, ListMaps (lists only the maps the token can read), ExportTrees, Relocalize,
 //          Track, ListVersions
 //   write  UploadTrees, Observe, RemoveSource
-//   admin  CreateMap, DeleteMap, RestoreVersion (and, when they come, prune and token admin)
+//   admin  CreateMap, DeleteMap, RestoreVersion, PruneVersions
 // A token is sent as gRPC metadata "authorization: Bearer <secret>".
 //
 // Open or closed: without a token store, or while the store has never held a token, every call
@@ -16,8 +17,6 @@
 // weak a role or another map -> PERMISSION_DENIED. The health and reflection services stay open.
 //
 // Thread-safety: all methods may be called concurrently.
-
-#include <grpcpp/grpcpp.h>
 
 #include <optional>
 #include <string>
@@ -28,7 +27,7 @@
 namespace forestmap::server {
 
 // The role an RPC of forestmap.v1.ForestMap needs (by method name, "CreateMap"); nullopt for a
-// method this table does not know, which Authorize then refuses (deny by default).
+// method this table does not know, which Require then refuses (deny by default).
 std::optional<storage::Role> RequiredRole(std::string_view rpc);
 
 // The caller of one RPC. `token` is unset in open mode (no tokens): everything is allowed.
@@ -37,29 +36,23 @@ struct Caller {
   bool CanRead(std::string_view map) const;  // for filtering ListMaps
 };
 
+// Requires RequiredRole(rpc) of `caller` on map `map` (empty: the RPC is not about one map,
+// ListMaps); throws ServiceError kPermissionDenied with a message naming the token id, its grant
+// and what was needed. An RPC the table does not know is refused even in open mode.
+void Require(const Caller& caller, std::string_view rpc, std::string_view map);
+
 class Authorizer {
  public:
   // `tokens` null: open, every call allowed. Otherwise it must outlive the authorizer.
   explicit Authorizer(storage::TokenStore* tokens) : tokens_(tokens) {}
 
-  // The caller of `context`'s RPC. Throws ServiceError UNAUTHENTICATED when tokens are in force
-  // and the call carries none, a malformed one, or one that is unknown or revoked.
-  Caller Authenticate(const grpc::ServerContextBase& context) const;
-
-  // Authenticate, then require RequiredRole(rpc) on map `map`; throws ServiceError
-  // UNAUTHENTICATED or PERMISSION_DENIED with a message naming the token id, its grant and what
-  // was needed. `map` empty: the RPC is not about one map (ListMaps). Also notes `map` for the
-  // RPC's log line (server/logging.h).
-  Caller Authorize(const grpc::ServerContextBase& context, std::string_view rpc,
-                   std::string_view map) const;
+  // The caller presenting `authorization`, the value of its "authorization" metadata (nullopt:
+  // none). Throws ServiceError kUnauthenticated when tokens are in force and the call carries
+  // none, a malformed one, or one that is unknown or revoked.
+  Caller Authenticate(std::optional<std::string_view> authorization) const;
 
  private:
   storage::TokenStore* tokens_;
 };
-
-// Authorize through `authorizer` when it is set (ServiceOptions::authorizer); else only notes the
-// map for the log. The one helper the handlers call.
-Caller Authorize(const Authorizer* authorizer, const grpc::ServerContextBase& context,
-                 std::string_view rpc, std::string_view map);
 
 }  // namespace forestmap::server

@@ -15,7 +15,7 @@
 #include "server/ops/logging.h"
 #include "server/ops/metrics.h"
 #include "server/ops/tls.h"
-#include "storage/sqlite_backup.h"
+#include "storage/backup.h"
 #include "storage/token_store.h"
 
 namespace forestmap::server {

@@ -23,8 +23,7 @@
 #include "server/ops/logging.h"
 #include "server/ops/metrics.h"
 #include "server/ops/tls.h"
-#include "storage/postgres.h"
-#include "storage/postgres_map_store.h"
+#include "storage/open_store.h"
 #include "storage/token_store.h"
 
 namespace {
@@ -63,9 +62,7 @@ sigset_t BlockShutdownSignals() {
 // Where `db` is, as logged: a PostgreSQL URI may hold a password, so only host, port and
 // database are shown.
 std::string ShownDatabase(const std::string& db) {
-  return forestmap::storage::IsPostgresUri(db)
-             ? "postgresql " + forestmap::storage::pg::DescribeServer(db)
-             : db;
+  return forestmap::storage::DescribeDatabase(db);
 }
 
 // Runs `open`; when it throws, logs `failure: <what>` as an error and returns null.

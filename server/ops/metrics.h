@@ -1,6 +1,6 @@
 #pragma once
 // forestmapd's Prometheus metrics, rendered in the text exposition format (version 0.0.4) for
-// GET /metrics (server/metrics_http.h):
+// GET /metrics (server/http/metrics_http.h):
 //   forestmap_rpc_requests_total{rpc,code}     counter   finished RPCs by status code
 //   forestmap_rpc_duration_seconds{rpc}        histogram RPC latency (start to status sent)
 //   forestmap_rpc_in_flight{rpc}               gauge     RPCs running now

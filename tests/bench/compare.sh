@@ -6,7 +6,7 @@
 # Prints one markdown row per N: wall and CPU seconds (includes reading both CSVs), links.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-F=build/client/forestmap
+F=build/client/cli/forestmap
 DIR=$(mktemp -d)
 trap 'rm -rf "$DIR"' EXIT
 SIZES=("$@")

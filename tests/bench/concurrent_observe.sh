@@ -7,7 +7,7 @@
 # Data: $FORESTMAP_SHARED_DATA (default ../shared/data).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-F=build/client/forestmap D=${FORESTMAP_SHARED_DATA:-../shared/data}/sequences/Wild_V01
+F=build/client/cli/forestmap D=${FORESTMAP_SHARED_DATA:-../shared/data}/sequences/Wild_V01
 port=${1:-50097}
 work=$(mktemp -d)
 build/server/forestmapd --db "$work/maps.db" --listen 127.0.0.1:$port >"$work/server.log" 2>&1 &

@@ -23,7 +23,7 @@ server=$!
 for _ in $(seq 100); do grep -q "web page on" "$work/server.log" && break; sleep 0.1; done
 grpc=$(grep -o 'serving on [^ ,]*' "$work/server.log" | sed 's/.*://')
 http=$(grep -o 'web page on http://[^/]*' "$work/server.log" | sed 's/.*://')
-"$build/client/forestmap" --server 127.0.0.1:$grpc map create huge --trees "$work/trees.csv" \
+"$build/client/cli/forestmap" --server 127.0.0.1:$grpc map create huge --trees "$work/trees.csv" \
   >/dev/null 2>&1
 rss() { awk '/VmRSS/ {print int($2 / 1024)}' /proc/$server/status; }
 before=$(rss)

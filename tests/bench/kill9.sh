@@ -18,7 +18,7 @@ cd "$(dirname "$0")/../.."
 kills=${1:-100}
 build=${2:-build}
 D=${FORESTMAP_SHARED_DATA:-../shared/data}/sequences/Wild_V01
-F=$build/client/forestmap S=$build/server/forestmapd
+F=$build/client/cli/forestmap S=$build/server/forestmapd
 upload_trees=${KILL9_UPLOAD_TREES:-20000} # trees per upload
 merge_frames=100   # frames per observe (one map version)
 work=$(mktemp -d)

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Issue 15's load bar through the real server: forestmapd on a temporary database with the real
-# Wild_V01 map, then `forestmap bench-load` with CLIENTS clients for SECONDS: relocalize and track
+# Wild_V01 map, then `forestmap-lab bench-load` with CLIENTS clients for SECONDS: relocalize and track
 # Wild_V02 frames in that map, observe and upload into one small map per client. Prints the
 # report (per-kind calls, failures by status, latency percentiles, the server's RSS over time)
 # and a summary; fails when a kind had no successful call or any call failed other than with
@@ -15,7 +15,8 @@ seconds=${1:-600} clients=${2:-64}
 port=${3:-$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')}
 build=${FORESTMAP_BUILD:-build}
 data=${FORESTMAP_SHARED_DATA:-../shared/data}/sequences
-F=("$build/client/forestmap" --server "127.0.0.1:$port")
+F=("$build/client/cli/forestmap" --server "127.0.0.1:$port")
+L=("$build/client/lab/forestmap-lab" --server "127.0.0.1:$port")
 if [ ! -f "$data/Wild_V01/map.csv" ] || [ ! -f "$data/Wild_V02/trees.csv" ]; then
   echo "load.sh: no Wild_V01/Wild_V02 data under $data"
   [ "${CI:-}" = true ] && exit 1
@@ -30,7 +31,7 @@ for _ in $(seq 50); do "${F[@]}" health >/dev/null 2>&1 && break; sleep 0.2; don
 "${F[@]}" map create load-shared --trees "$data/Wild_V01/map.csv" >"$work/create.log" 2>&1 ||
   { cat "$work/create.log" "$work/server.log"; exit 1; }
 echo "load.sh: forestmapd pid $server, $clients clients for $seconds s (nice ${LOAD_NICE:-0})"
-nice -n "${LOAD_NICE:-0}" "${F[@]}" bench-load load-shared --frames "$data/Wild_V02/trees.csv" \
+nice -n "${LOAD_NICE:-0}" "${L[@]}" bench-load load-shared --frames "$data/Wild_V02/trees.csv" \
   --poses "$data/Wild_V02/poses.csv" --trees "$data/Wild_V01/map.csv" --clients "$clients" \
   --duration "$seconds" --server-pid "$server" --rss-interval "$((seconds >= 120 ? 10 : 2))" \
   --keep-maps >"$work/report.json"  # the database is thrown away

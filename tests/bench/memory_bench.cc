@@ -35,13 +35,12 @@ std::unique_ptr<ForestMap::Stub> Connect(const std::string& address, int id) {
       grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), arguments));
 }
 
-v1::UploadTreesRequest Message(const std::string& name, int64_t first, int count, bool head) {
+// A chunk of `count` trees from number `first` on.
+v1::UploadTreesRequest Message(int64_t first, int count) {
   v1::UploadTreesRequest message;
-  message.set_map_name(name);
-  message.set_create_map(head);
   for (int i = 0; i < count; ++i) {
     const int64_t k = first + i;
-    v1::Tree* tree = message.add_trees();
+    v1::Tree* tree = message.mutable_chunk()->add_trees();
     tree->set_x(static_cast<double>(k % 2000) * 3.0);
     tree->set_y(static_cast<double>(k / 2000) * 3.0);
     tree->set_z(0.5);
@@ -60,9 +59,13 @@ struct Upload {
 
 // Sends `trees` trees; false when the server ended the stream.
 bool Send(Upload& upload, const std::string& name, int64_t trees) {
+  v1::UploadTreesRequest header;  // creates the map with its trees (create_map)
+  header.mutable_header()->set_name(name);
+  header.mutable_header()->set_create_map(true);
+  if (!upload.writer->Write(header)) return false;
   for (int64_t sent = 0; sent < trees; sent += kTreesPerMessage) {
     const int count = static_cast<int>(std::min<int64_t>(kTreesPerMessage, trees - sent));
-    if (!upload.writer->Write(Message(name, sent, count, sent == 0))) return false;
+    if (!upload.writer->Write(Message(sent, count))) return false;
   }
   return true;
 }
@@ -109,7 +112,7 @@ int main(int argc, char** argv) {
     export_stubs.push_back(Connect(address, 1000 + e));
     export_contexts.push_back(std::make_unique<grpc::ClientContext>());
     v1::ExportTreesRequest request;
-    request.set_map_name("exported");
+    request.set_name("exported");
     readers.push_back(export_stubs.back()->ExportTrees(export_contexts.back().get(), request));
     v1::ExportTreesResponse first;
     if (!readers.back()->Read(&first)) {

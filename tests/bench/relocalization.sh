@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
-# Every relocalization figure of the README (issue 3's bar), measured on this machine:
+# Every relocalization figure of docs/performance.md "Relocalization", measured on this machine:
 #   tests/bench/relocalization.sh [--quick]      (after ./deploy/build.sh; --quick: every 5th
 #                                                 frame, 200 views, a 100,000-tree map)
 # Prints one markdown row per case. Latency is wall time per query in one thread; a busy
 # machine inflates it (bench-reloc --per-frame FILE also records CPU time per query).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-F=build/client/forestmap D=../shared/data/sequences S=../shared/data/stemmaps
+F=build/client/cli/forestmap L=build/client/lab/forestmap-lab D=../shared/data/sequences S=../shared/data/stemmaps
 STEP=1 VIEWS=1000 BIG=1000000
 if [ "${1:-}" = "--quick" ]; then STEP=5 VIEWS=200 BIG=100000; fi
 V02="--frames $D/Wild_V02/trees.csv --poses $D/Wild_V02/poses.csv --truth-offset 0.051,0.102,-0.039,-0.014"
@@ -14,7 +14,7 @@ STEIN="--frames $D/Oxford_Stein/trees.csv --poses $D/Oxford_Stein/poses.csv"
 
 row() {  # row NAME bench-reloc-arguments...
   local name=$1; shift
-  "$F" bench-reloc "$@" --json 2>/dev/null | python3 -c '
+  "$L" bench-reloc "$@" --json 2>/dev/null | python3 -c '
 import json, sys
 r = json.load(sys.stdin)
 print("| %s | %d | %d | %.2f%% | %.2f%% | %d (%d loc., %d amb., %d n.f.) | %.3f m | %.2f / %.2f ms | %.1f s, %.0f B/tree resident |" % (
@@ -51,5 +51,5 @@ sleep 1
 "$F" --server 127.0.0.1:50097 map create venman --trees $D/Wild_V01/map.csv >/dev/null
 echo
 echo "Server throughput (8 client threads on the same machine, Wild_V02 frames vs the Wild_V01 map):"
-"$F" --server 127.0.0.1:50097 bench-server venman --frames $D/Wild_V02/trees.csv \
+"$L" --server 127.0.0.1:50097 bench-server venman --frames $D/Wild_V02/trees.csv \
   --concurrency 8 --requests 3000

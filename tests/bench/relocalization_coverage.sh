@@ -2,15 +2,15 @@
 # Views that show little (the edge of a survey, neighbouring plot maps, sparse stands) and the
 # time of "not here", measured on this machine:
 #   tests/bench/relocalization_coverage.sh [--quick]   (after ./deploy/build.sh; --quick: fewer
-#                                                        views; FORESTMAP_BIN: the forestmap
-#                                                        binary to measure)
+#                                                        views; FORESTMAP_BIN: the
+#                                                        forestmap-lab binary to measure)
 # Prints one markdown row per case: views, answerable views (>= 8 mapped trees in sight; >= 10
 # on the neighbour's map for plots), recall (0.5 m / 5 deg) over them and over the views with
 # >= 12 mapped trees in sight, wrong answers, wall and CPU time per query (p95 of all answers,
 # NOT_FOUND included) and the mean NEES of the correct answers (3 dof).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-F=${FORESTMAP_BIN:-build/client/forestmap}
+F=${FORESTMAP_BIN:-build/client/lab/forestmap-lab}
 DATA=${FORESTMAP_SHARED_DATA:-../shared/data}
 D=$DATA/sequences S=$DATA/stemmaps
 EDGE=300 PAIRS=100 SPARSE=300 MOSAIC=1000000 STEP=1

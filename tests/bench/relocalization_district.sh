@@ -3,12 +3,12 @@
 #   tests/bench/relocalization_district.sh [--quick]   (after ./deploy/build.sh; --quick: 200
 #                                                       views, a 200,000-tree mosaic, 50 views
 #                                                       per foreign pair; FORESTMAP_BIN: the
-#                                                       forestmap binary to measure)
+#                                                       forestmap-lab binary to measure)
 # Prints one markdown row per case. Latency: wall time per query in one thread (p95 of all
 # answers) and CPU time (a busy machine inflates the wall time).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-F=${FORESTMAP_BIN:-build/client/forestmap} D=${FORESTMAP_SHARED_DATA:-../shared/data}/sequences
+F=${FORESTMAP_BIN:-build/client/lab/forestmap-lab} D=${FORESTMAP_SHARED_DATA:-../shared/data}/sequences
 S=${FORESTMAP_SHARED_DATA:-../shared/data}/stemmaps
 VIEWS=1000 MOSAIC=1000000 PLANT=200 PAIR=100
 if [ "${1:-}" = "--quick" ]; then VIEWS=200 MOSAIC=200000 PLANT=100 PAIR=50; fi

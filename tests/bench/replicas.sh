@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Relocalizations per second with 1, 2 and 3 forestmapd replicas on one PostgreSQL (a throwaway
-# cluster, tests/pg_fixture), through `forestmap bench-server` with --server listing the replicas
+# cluster, tests/pg_fixture), through `forestmap-lab bench-server` with --server listing the replicas
 # (client threads spread over them). PIN=1 pins replica i to core (i mod cores) with taskset.
 # Prints one JSON line per replica count, plus database and memory sizing.
 # Usage: tests/bench/replicas.sh [BUILD_DIR]   (REQUESTS=2000 CONCURRENCY=6 PIN=0)
@@ -34,18 +34,18 @@ for replica in 1 2 3; do
   "${launcher[@]}" "$build/server/forestmapd" --db "$db" --listen "127.0.0.1:$port" 2>/dev/null &
   pids+=($!)
   addresses+=("127.0.0.1:$port")
-  until "$build/client/forestmap" --server "127.0.0.1:$port" health --timeout 0.5 >/dev/null 2>&1; do
+  until "$build/client/cli/forestmap" --server "127.0.0.1:$port" health --timeout 0.5 >/dev/null 2>&1; do
     sleep 0.1
   done
   if [ "$replica" = 1 ]; then
     rss_empty_kib="$(ps -o rss= -p "${pids[0]}")"
-    "$build/client/forestmap" --server "${addresses[0]}" map create wild --trees "$data/map.csv" >/dev/null
+    "$build/client/cli/forestmap" --server "${addresses[0]}" map create wild --trees "$data/map.csv" >/dev/null
   fi
   servers="$(IFS=,; echo "${addresses[*]}")"
   # Warm every replica's index (one relocalization each), then measure.
-  "$build/client/forestmap" --server "$servers" bench-server wild --frames "$data/trees.csv" \
+  "$build/client/lab/forestmap-lab" --server "$servers" bench-server wild --frames "$data/trees.csv" \
     --requests $((replica * 4)) --concurrency "$replica" >/dev/null
-  result="$("$build/client/forestmap" --server "$servers" bench-server wild \
+  result="$("$build/client/lab/forestmap-lab" --server "$servers" bench-server wild \
     --frames "$data/trees.csv" --requests "$requests" --concurrency "$concurrency")"
   echo "{\"replicas\": $replica, \"pinned\": $pin, \"cores\": $cores, \"result\": $result}"
 done

@@ -6,8 +6,9 @@
 #
 #   tests/bench/same_behaviour.sh BASE_BUILD NEW_BUILD [WORK_DIR]
 #
-# BASE_BUILD, NEW_BUILD: CMake build directories holding client/forestmap and
-# tests/algorithms/{trunk_detection_sim_test,trunk_detection_real_data_test,drone_scan_pair_test,
+# BASE_BUILD, NEW_BUILD: CMake build directories holding client/cli/forestmap and
+# client/lab/forestmap-lab (or, built before the lab was apart, client/forestmap doing both) and
+# tests/algorithms/**/{trunk_detection_sim_test,trunk_detection_real_data_test,drone_scan_pair_test,
 # map_merge_test,map_builder_test}. Data from FORESTMAP_SHARED_DATA (default ../shared/data).
 # FORESTMAP_SAME_QUICK=1 skips the slow runs (the 120-pose detection test, bench-mapping without
 # poses). Exits 0 when every output is identical, 1 on any difference, 2 on a usage error.
@@ -22,11 +23,20 @@ NEW=$(realpath "$2")
 WORK=${3:-$(mktemp -d /tmp/same_behaviour.XXXXXX)}
 DATA=$(realpath "${FORESTMAP_SHARED_DATA:-../shared/data}")
 QUICK=${FORESTMAP_SAME_QUICK:-0}
+# cli_of BUILD / lab_of BUILD: the program running the user's commands / the lab's commands.
+cli_of() {
+  if [[ -x $1/client/cli/forestmap ]]; then echo "$1/client/cli/forestmap"; else echo "$1/client/forestmap"; fi
+}
+lab_of() {
+  if [[ -x $1/client/lab/forestmap-lab ]]; then echo "$1/client/lab/forestmap-lab"; else echo "$1/client/forestmap"; fi
+}
 for b in "$BASE" "$NEW"; do
-  if [[ ! -x $b/client/forestmap ]]; then
-    echo "error: $b/client/forestmap not found (build the forestmap target)" >&2
-    exit 2
-  fi
+  for program in "$(cli_of "$b")" "$(lab_of "$b")"; do
+    if [[ ! -x $program ]]; then
+      echo "error: $program not found (build the forestmap and forestmap-lab targets)" >&2
+      exit 2
+    fi
+  done
 done
 if [[ ! -d $DATA/scans ]]; then
   echo "error: no shared data at $DATA (set FORESTMAP_SHARED_DATA)" >&2
@@ -63,8 +73,9 @@ strip_timing() {
     -e 's/[0-9]+([.][0-9]+)? *(frames|scans|queries)\/s/<t>/g'
 }
 
-# run NAME CMD...: runs CMD with @B@ replaced by each build (and @OUT@ by that build's output
-# directory), stores its timing-free stdout + stderr and compares them.
+# run NAME CMD...: runs CMD with @B@ replaced by each build, @CLI@ and @LAB@ by its programs (and
+# @OUT@ by that build's output directory), stores its timing-free stdout + stderr and compares
+# them.
 run() {
   local name=$1
   shift
@@ -73,7 +84,11 @@ run() {
     [[ $side == new ]] && build=$NEW
     local args=()
     for a in "$@"; do
+      a=${a//@CLI@/$(cli_of "$build")}
+      a=${a//@LAB@/$(lab_of "$build")}
       a=${a//@B@/$build}
+      # @TEST@/NAME: the test executable NAME wherever that build's tree keeps it.
+      [[ $a == @TEST@/* ]] && a=$(find "$build/tests" -type f -perm -u+x -name "${a#@TEST@/}" | head -1)
       a=${a//@OUT@/$WORK/$side}
       args+=("$a")
     done
@@ -99,8 +114,8 @@ compare() {
   fi
 }
 
-F=@B@/client/forestmap
-T=@B@/tests/algorithms
+F=@CLI@ L=@LAB@
+T=@TEST@
 
 # Trunk detection on real scans (CSV: positions, DBH, diagnostics).
 run detect_lidr "$F" detect "$SC/lidr_dbh_slice/dbh.las" --format json
@@ -111,7 +126,7 @@ run detect_ponderosa_uas "$F" detect "$SC/spanner_ponderosa/UAS_Clip.pcd" --form
 run detect_treescope_43 "$F" detect "$SC/treescope_trunk_slices/tree_43_main_trunk.pcd" --multi-view --format json
 
 # Simulated scans: the scans themselves (scan simulation), then detection on each.
-run simulate_longleaf "$F" simulate --map "$S/spatstat_longleaf.csv" --random-poses 6 --scanner os1-64 \
+run simulate_longleaf "$L" simulate --map "$S/spatstat_longleaf.csv" --random-poses 6 --scanner os1-64 \
   --seed 7 --out @OUT@/scans
 for f in "$WORK"/new/scans/*; do
   [[ -f $f ]] && compare "simulated $(basename "$f")" "scans/$(basename "$f")"
@@ -121,7 +136,7 @@ for f in "$WORK"/new/scans/*.pcd; do
   name=$(basename "$f" .pcd)
   run "detect_sim_$name" "$F" detect "@OUT@/scans/$name.pcd" --format json
 done
-run bench_reloc_scans "$F" bench-reloc --map @OUT@/scans/map.csv --scans @OUT@/scans
+run bench_reloc_scans "$L" bench-reloc --map @OUT@/scans/map.csv --scans @OUT@/scans
 
 # Test figures (they print their tables; gtest times stripped).
 if [[ $QUICK != 1 ]]; then
@@ -132,20 +147,20 @@ run drone_scan_pair_test "$T/drone_scan_pair_test"
 run map_merge_test "$T/map_merge_test"
 run map_builder_test "$T/map_builder_test"
 
-# Merging and mapping (README "Shared maps and mapping"), timing fields stripped.
-run bench_mapping_survey "$F" bench-mapping --frames "$Q/Wild_V01/trees.csv" --poses "$Q/Wild_V01/poses.csv" \
+# Merging and mapping (docs/performance.md "Shared maps and mapping"), timing fields stripped.
+run bench_mapping_survey "$L" bench-mapping --frames "$Q/Wild_V01/trees.csv" --poses "$Q/Wild_V01/poses.csv" \
   --use-poses --map "$Q/Wild_V01/map.csv" --json
-run bench_mapping_stein "$F" bench-mapping --frames "$Q/Oxford_Stein/trees.csv" \
+run bench_mapping_stein "$L" bench-mapping --frames "$Q/Oxford_Stein/trees.csv" \
   --poses "$Q/Oxford_Stein/poses.csv" --eval-frames "$Q/Oxford_Stein/trees.csv" \
   --eval-poses "$Q/Oxford_Stein/poses.csv" --json
 if [[ $QUICK != 1 ]]; then
-  run bench_mapping_wild "$F" bench-mapping --frames "$Q/Wild_V01/trees.csv" --poses "$Q/Wild_V01/poses.csv" \
+  run bench_mapping_wild "$L" bench-mapping --frames "$Q/Wild_V01/trees.csv" --poses "$Q/Wild_V01/poses.csv" \
     --eval-frames "$Q/Wild_V02/trees.csv" --eval-poses "$Q/Wild_V02/poses.csv" \
     --truth-offset 0.051,0.102,-0.039,-0.014 --json
 fi
 
 # Relocalization on simulated frames of the longleaf stem map.
-run bench_reloc_longleaf "$F" bench-reloc --map "$S/spatstat_longleaf.csv" --simulate 200 --range 15
+run bench_reloc_longleaf "$L" bench-reloc --map "$S/spatstat_longleaf.csv" --simulate 200 --range 15
 
 echo "outputs in $WORK"
 if [[ $failed == 0 ]]; then

@@ -7,13 +7,13 @@
 # by a Gaussian angle of this RMS (deg) about a random horizontal axis (seeded).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-F=build/client/forestmap S=../shared/data/stemmaps
+F=build/client/cli/forestmap L=build/client/lab/forestmap-lab S=../shared/data/stemmaps
 scans=${1:-200} imu=${2:-}
 work=$(mktemp -d)
 build/server/forestmapd --db "$work/e2e.db" --listen 127.0.0.1:50098 >"$work/server.log" 2>&1 &
 server=$!
 trap 'kill $server 2>/dev/null; rm -rf "$work"' EXIT
-"$F" simulate --map $S/spatstat_longleaf.csv --random-poses "$scans" --scanner os1-64 --seed 7 \
+"$L" simulate --map $S/spatstat_longleaf.csv --random-poses "$scans" --scanner os1-64 --seed 7 \
   --out "$work/scans" 2>/dev/null
 "$F" --server 127.0.0.1:50098 map create longleaf --trees "$work/scans/map.csv" >/dev/null 2>&1
 python3 - "$work/scans/poses.csv" "$imu" >"$work/gravity.txt" <<'PY'

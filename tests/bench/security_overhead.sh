@@ -2,12 +2,12 @@
 # What tokens, TLS and the per-RPC log line cost: bench-server (Wild_V02 frames relocalized in the
 # Wild_V01 map, 8 client threads) against forestmapd open/plaintext, then with a token required,
 # then with a token over TLS (a self-signed certificate made here). Run from the repository root
-# after building forestmapd and forestmap in build/. Usage: tests/bench/security_overhead.sh [REQUESTS]
+# after building forestmapd, forestmap and forestmap-lab in build/. Usage: tests/bench/security_overhead.sh [REQUESTS]
 set -euo pipefail
 requests=${1:-3000}
 D=${FORESTMAP_SHARED_DATA:-../shared/data}/sequences
 S=build/server/forestmapd
-F=build/client/forestmap
+F=build/client/cli/forestmap L=build/client/lab/forestmap-lab
 work=$(mktemp -d)
 server_pid=
 cleanup() { [ -n "$server_pid" ] && kill "$server_pid" 2>/dev/null; wait 2>/dev/null; rm -rf "$work"; }
@@ -24,7 +24,7 @@ stop() { kill "$server_pid"; wait "$server_pid" || true; server_pid=; }
 bench() {  # bench LABEL [client flags]
   local label=$1; shift
   echo "== $label"
-  "$F" --server 127.0.0.1:$port "$@" bench-server venman --frames "$D/Wild_V02/trees.csv" \
+  "$L" --server 127.0.0.1:$port "$@" bench-server venman --frames "$D/Wild_V02/trees.csv" \
     --concurrency 8 --requests "$requests" 2>&1 | tail -3
 }
 

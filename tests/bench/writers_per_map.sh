@@ -12,7 +12,7 @@ trees=${1:-1000000}
 build=${2:-build}
 work=$(mktemp -d /tmp/forestmap-writers.XXXXXX)
 port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-F=("$build/client/forestmap" --server "127.0.0.1:$port")
+F=("$build/client/cli/forestmap" --server "127.0.0.1:$port")
 "$build/server/forestmapd" --db "$work/maps.db" --listen "127.0.0.1:$port" --log-level warn \
   >"$work/server.log" 2>&1 &
 server=$!

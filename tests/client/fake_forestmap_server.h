@@ -2,8 +2,8 @@
 // An in-memory stand-in for forestmapd, for testing the client and the CLI without the real
 // server. It keeps the API's documented behaviour (statuses, versions, id assignment, chunked
 // streams) and records what it received. Relocalize answers from the request size: >= 10 trees
-// LOCALIZED (at the prior pose when given, else at kFakePose), 3..9 NOT_FOUND, < 3
-// INVALID_ARGUMENT.
+// LOCALIZED (at the prior position, heading 0, when given, else at kFakePose), 3..9 NOT_FOUND,
+// < 3 INVALID_ARGUMENT. ListMaps answers pages of kListPage maps (tokens: the last name).
 
 #include <grpcpp/grpcpp.h>
 
@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "forestmap/v1/forestmap_service.grpc.pb.h"
+#include "proto/error_details.h"
 
 namespace forestmap::client::testing {
 
@@ -29,6 +30,7 @@ class FakeForestMapService final : public v1::ForestMap::Service {
   // Pose returned without a prior: x 10, y 20, z 1, yaw 30 deg.
   static constexpr double kX = 10, kY = 20, kZ = 1, kYawDeg = 30;
   static constexpr int kExportChunk = 1000;
+  static constexpr int kListPage = 2;
 
   std::mutex mutex;
   std::map<std::string, FakeMap> maps;
@@ -39,7 +41,10 @@ class FakeForestMapService final : public v1::ForestMap::Service {
   grpc::Status CreateMap(grpc::ServerContext*, const v1::CreateMapRequest* request,
                          v1::Map* response) override {
     std::lock_guard lock(mutex);
-    if (request->name().empty()) return {grpc::StatusCode::INVALID_ARGUMENT, "name: empty"};
+    if (request->name().empty()) {  // with error details, as forestmapd's checks answer
+      return StatusWithBadRequest(grpc::StatusCode::INVALID_ARGUMENT, "name is empty",
+                                  {{"name", "name is empty"}});
+    }
     if (maps.count(request->name())) {
       return {grpc::StatusCode::ALREADY_EXISTS, "map '" + request->name() + "' exists"};
     }
@@ -54,10 +59,16 @@ class FakeForestMapService final : public v1::ForestMap::Service {
     return grpc::Status::OK;
   }
 
-  grpc::Status ListMaps(grpc::ServerContext*, const v1::ListMapsRequest*,
+  grpc::Status ListMaps(grpc::ServerContext*, const v1::ListMapsRequest* request,
                         v1::ListMapsResponse* response) override {
     std::lock_guard lock(mutex);
-    for (const auto& [name, map] : maps) *response->add_maps() = map.info;
+    for (auto it = maps.upper_bound(request->page_token()); it != maps.end(); ++it) {
+      if (response->maps_size() == kListPage) {
+        response->set_next_page_token(response->maps(kListPage - 1).name());
+        break;
+      }
+      *response->add_maps() = it->second.info;
+    }
     return grpc::Status::OK;
   }
 
@@ -85,31 +96,34 @@ class FakeForestMapService final : public v1::ForestMap::Service {
     std::lock_guard lock(mutex);
     upload_messages = messages;
     if (fail_uploads) return {grpc::StatusCode::INTERNAL, "disk full"};
-    if (messages.empty()) return {grpc::StatusCode::INVALID_ARGUMENT, "no messages"};
-    if (messages[0].create_map()) {  // created with its trees, as forestmapd does
-      const std::string& name = messages[0].map_name();
+    if (messages.empty() || !messages[0].has_header()) {
+      return {grpc::StatusCode::INVALID_ARGUMENT, "header is missing"};
+    }
+    const v1::UploadTreesHeader& header = messages[0].header();
+    if (header.create_map()) {  // created with its trees, as forestmapd does
+      const std::string& name = header.name();
       if (maps.count(name)) return {grpc::StatusCode::ALREADY_EXISTS, "map '" + name + "' exists"};
       FakeMap& created = maps[name];
       created.info.set_name(name);
-      created.info.set_description(messages[0].description());
-      created.info.set_crs(messages[0].crs());
+      created.info.set_description(header.description());
+      created.info.set_crs(header.crs());
       created.info.set_version(1);
       created.info.set_created_unix_ms(1700000000000);
       created.info.set_updated_unix_ms(1700000000000);
     }
-    const auto it = maps.find(messages[0].map_name());
-    if (it == maps.end()) return NotFound(messages[0].map_name());
+    const auto it = maps.find(header.name());
+    if (it == maps.end()) return NotFound(header.name());
     FakeMap& map = it->second;
-    if (messages[0].replace()) map.trees.clear();
+    if (header.replace()) map.trees.clear();
     int64_t next_id = 0;
     for (const v1::Tree& tree : map.trees) next_id = std::max(next_id, tree.id() + 1);
     for (const auto& m : messages) {
-      for (const v1::Tree& tree : m.trees()) {
+      for (const v1::Tree& tree : m.chunk().trees()) {
         if (tree.has_id()) next_id = std::max(next_id, tree.id() + 1);
       }
     }
     for (const auto& m : messages) {
-      for (v1::Tree tree : m.trees()) {
+      for (v1::Tree tree : m.chunk().trees()) {
         if (!tree.has_id()) tree.set_id(next_id++);
         map.trees.push_back(tree);
         response->set_trees_received(response->trees_received() + 1);
@@ -125,8 +139,8 @@ class FakeForestMapService final : public v1::ForestMap::Service {
   grpc::Status ExportTrees(grpc::ServerContext*, const v1::ExportTreesRequest* request,
                            grpc::ServerWriter<v1::ExportTreesResponse>* writer) override {
     std::lock_guard lock(mutex);
-    const auto it = maps.find(request->map_name());
-    if (it == maps.end()) return NotFound(request->map_name());
+    const auto it = maps.find(request->name());
+    if (it == maps.end()) return NotFound(request->name());
     const FakeMap& map = it->second;
     v1::ExportTreesResponse chunk;
     chunk.set_map_version(map.info.version());
@@ -150,24 +164,26 @@ class FakeForestMapService final : public v1::ForestMap::Service {
                           v1::RelocalizeResponse* response) override {
     std::lock_guard lock(mutex);
     last_relocalize = *request;
-    if (!maps.count(request->map_name())) return NotFound(request->map_name());
+    if (!maps.count(request->name())) return NotFound(request->name());
     if (request->trees_size() < 3) {  // as forestmapd: an answer, not an error
-      response->set_status(v1::RelocalizeResponse::NOT_FOUND);
-      response->set_reason(v1::RelocalizeResponse::TOO_FEW_TREES);
+      response->set_status(v1::RelocalizeResponse::STATUS_NOT_FOUND);
+      response->set_reason(v1::RelocalizeResponse::REASON_TOO_FEW_TREES);
       response->set_detail("need at least 3 query trees");
       return grpc::Status::OK;
     }
     response->set_server_time_ms(2.5);
-    response->set_map_version(maps[request->map_name()].info.version());
+    response->set_map_version(maps[request->name()].info.version());
     if (request->trees_size() < 10) {
-      response->set_status(v1::RelocalizeResponse::NOT_FOUND);
+      response->set_status(v1::RelocalizeResponse::STATUS_NOT_FOUND);
       response->set_detail("too few trees matched");
       response->set_inliers(2);
       return grpc::Status::OK;
     }
-    response->set_status(v1::RelocalizeResponse::LOCALIZED);
+    response->set_status(v1::RelocalizeResponse::STATUS_LOCALIZED);
     if (request->has_prior()) {
-      *response->mutable_map_from_sensor() = request->prior().map_from_sensor();
+      response->mutable_map_from_sensor()->mutable_translation()->set_x(request->prior().x());
+      response->mutable_map_from_sensor()->mutable_translation()->set_y(request->prior().y());
+      response->mutable_map_from_sensor()->mutable_rotation()->set_w(1);
     } else {
       const double half_yaw = kYawDeg * M_PI / 360.0;
       v1::Pose* pose = response->mutable_map_from_sensor();

@@ -1,19 +1,21 @@
 #!/usr/bin/env bash
-# Installs the build into a temporary prefix (`cmake --install`), checks that both binaries are
+# Installs the build into a temporary prefix (`cmake --install`), checks that the programs are
 # there and run, and verifies deploy/forestmapd.service with `systemd-analyze verify` (ExecStart
 # pointed at the installed forestmapd, since verify checks that the binary exists).
-# Usage: verify_service.sh BUILD_DIR
+# Usage: verify_service.sh BUILD_DIR [PROGRAM...]   (default: forestmapd forestmap)
 set -euo pipefail
 build="$1"
+shift
+programs=("$@")
+[ ${#programs[@]} -gt 0 ] || programs=(forestmapd forestmap)
 command -v systemd-analyze >/dev/null || { echo "systemd-analyze missing (Debian: systemd)"; exit 1; }
 prefix="$(mktemp -d /tmp/forestmap-install-XXXXXX)"
 trap 'rm -rf "$prefix"' EXIT
 cmake --install "$build" --prefix "$prefix" >/dev/null
-for binary in forestmapd forestmap; do
+for binary in "${programs[@]}"; do
   test -x "$prefix/bin/$binary" || { echo "cmake --install did not install $binary"; exit 1; }
+  "$prefix/bin/$binary" --help >/dev/null
 done
-"$prefix/bin/forestmapd" --help >/dev/null
-"$prefix/bin/forestmap" --help >/dev/null
 unit="$prefix/lib/systemd/system/forestmapd.service"
 test -f "$unit" || { echo "cmake --install did not install forestmapd.service"; exit 1; }
 sed -i "s|/usr/local/bin/forestmapd|$prefix/bin/forestmapd|" "$unit"

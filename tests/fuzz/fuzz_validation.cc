@@ -1,15 +1,16 @@
-// libFuzzer target for the server's request validation (server/validation.h): the first byte
+// libFuzzer target for the server's request validation (server/grpc/validation.h): the first byte
 // picks a request message, the rest is parsed as that message (bytes that do not parse are what
 // the server answers INVALID_ARGUMENT before validating), then validated. Validation must answer
 // with ServiceError; any other exception or a sanitizer report is a crash. A request that passes
-// must keep every tree coordinate within the documented local-frame bounds (issue 15: a tree at
-// 1e308 used to reach the index).
+// must keep every tree coordinate within the documented local-frame bounds (a tree at 1e308
+// must never reach the index).
 #include <google/protobuf/stubs/logging.h>
 
 #include <cmath>
 #include <cstdint>
 #include <string>
 
+#include "server/grpc/upload_validator.h"
 #include "server/grpc/validation.h"
 
 namespace fs = forestmap::server;
@@ -33,15 +34,24 @@ void CheckDetected(const Trees& trees) {
   }
 }
 
-void Upload(const v1::UploadTreesRequest& first) {
+// The message as the first of a stream, then again as the second (a second header, or the same
+// trees again in the 0.1.0 layout), in either layout.
+void Upload(const v1::UploadTreesRequest& message) {
   fs::UploadValidator validator(/*max_trees=*/100'000);
-  validator.Accept(first);
-  for (const v1::Tree& tree : first.trees()) CheckPosition(tree.x(), tree.y(), tree.z());
-  v1::UploadTreesRequest next = first;  // the same trees again: ids must now clash
-  next.clear_replace();
-  next.clear_request_id();
-  validator.Accept(next);
+  v1::UploadTreesRequest first = message;
+  for (const v1::Tree& tree : validator.Accept(first)) CheckPosition(tree.x(), tree.y(), tree.z());
+  v1::UploadTreesRequest next = message;
+  for (const v1::Tree& tree : validator.Accept(next)) CheckPosition(tree.x(), tree.y(), tree.z());
   validator.Finish();
+}
+
+// The message as the first of a Track stream, and as a later one.
+void Track(const v1::TrackRequest& message) {
+  for (const char* session_map : {"", "forest"}) {
+    v1::TrackRequest copy = message;
+    const fs::TrackMessage read = fs::ReadTrackMessage(copy, session_map, 1'000);
+    if (read.frame) CheckDetected(read.frame->trees());
+  }
 }
 
 template <typename Message, typename Validate>
@@ -86,13 +96,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
                                         }),
              0;
     case 5:
-      return Run<v1::TrackRequest>(data, size,
-                                   [](const auto& m) {
-                                     fs::Validate(m, /*session_map=*/"", 1'000);
-                                     CheckDetected(m.trees());
-                                     fs::Validate(m, /*session_map=*/"forest", 1'000);
-                                   }),
-             0;
+      return Run<v1::TrackRequest>(data, size, Track), 0;
     case 6:
       return Run<v1::ObserveRequest>(data, size,
                                      [&](const auto& m) {

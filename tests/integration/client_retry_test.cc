@@ -9,10 +9,10 @@
 #include <filesystem>
 #include <string>
 
-#include "client/forestmap_client.h"
+#include "client/lib/forestmap_client.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/gated_store.h"
 
 namespace forestmap {

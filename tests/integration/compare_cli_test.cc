@@ -15,7 +15,7 @@
 #include <sstream>
 #include <string>
 
-#include "cli_run.h"
+#include "tests/cli_run.h"
 
 namespace forestmap {
 namespace {

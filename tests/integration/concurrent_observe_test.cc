@@ -2,7 +2,7 @@
 // quarters of the real Wild_V01 traversal (with their poses, in batches as `forestmap observe`
 // sends them) at the same time, and the map they build equals the one a single sequential upload
 // of all frames builds, tree by tree: the map is a function of the set of observations
-// (server/merge_region.h, algorithms::RebuildTrees), not of the order in which they arrived.
+// (server/app/merge_region.h, algorithms::RebuildTrees), not of the order in which they arrived.
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -12,11 +12,11 @@
 #include <thread>
 
 #include "algorithms/core/kdtree.h"
-#include "client/forestmap_client.h"
 #include "client/io/tree_csv.h"
+#include "client/lib/forestmap_client.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/shared_data.h"
 
 namespace forestmap {

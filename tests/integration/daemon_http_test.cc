@@ -3,7 +3,7 @@
 // the address (before, cpp-httplib's SO_REUSEPORT let a second server share the port and take
 // half of its requests); the web page's tree route keeps the server's memory bounded on a
 // 300,000-tree map (before, every request kept ~85 MB in the arena of an HTTP thread); `--help`
-// and README's usage block list every flag; the names "." and ".." are refused.
+// and the usage block of docs/operations.md list every flag; the names "." and ".." are refused.
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "daemon_process.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/http_get.h"
 
 namespace forestmap {
@@ -152,7 +152,7 @@ TEST_F(DaemonHttpTest, TreeRequestsOnAHugeMapKeepMemoryBounded) {
   EXPECT_LE(growth, kRssGrowthBoundMib) << "RSS " << before << " MiB before, +" << growth;
 }
 
-TEST_F(DaemonHttpTest, UsageAndReadmeListEveryFlag) {
+TEST_F(DaemonHttpTest, UsageAndOperationsPageListEveryFlag) {
   const CommandResult help = Run("'" FORESTMAPD_PATH "' --help");
   ASSERT_EQ(help.exit_code, 0) << help.err;
   const size_t options = help.out.find("\nOptions:");
@@ -163,14 +163,15 @@ TEST_F(DaemonHttpTest, UsageAndReadmeListEveryFlag) {
   ASSERT_GE(flags.size(), 14u) << help.out;
   const std::set<std::string> banner = Flags(help.out.substr(0, cli11_usage));
 
-  const std::string readme = ReadFile(FORESTMAP_SOURCE_DIR "/README.md");
-  const size_t block = readme.find("```\nforestmapd [--db");
-  ASSERT_NE(block, std::string::npos) << "no forestmapd usage block in README.md";
-  const std::set<std::string> readme_flags =
-      Flags(readme.substr(block, readme.find("```", block + 3) - block));
+  const std::string page = ReadFile(FORESTMAP_SOURCE_DIR "/docs/operations.md");
+  const size_t block = page.find("```\nforestmapd [--db");
+  ASSERT_NE(block, std::string::npos) << "no forestmapd usage block in docs/operations.md";
+  const std::set<std::string> page_flags =
+      Flags(page.substr(block, page.find("```", block + 3) - block));
   for (const std::string& flag : flags) {
     EXPECT_TRUE(banner.count(flag)) << flag << " is missing from the usage banner";
-    EXPECT_TRUE(readme_flags.count(flag)) << flag << " is missing from README's usage block";
+    EXPECT_TRUE(page_flags.count(flag))
+        << flag << " is missing from docs/operations.md's usage block";
   }
 }
 

@@ -6,12 +6,12 @@
 #include <filesystem>
 
 #include "algorithms/evaluation/reloc_evaluation.h"
-#include "client/forestmap_client.h"
 #include "client/io/tree_csv.h"
-#include "client/proto_convert.h"
+#include "client/lib/forestmap_client.h"
+#include "client/lib/proto_convert.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/shared_data.h"
 
 namespace forestmap {
@@ -76,13 +76,13 @@ TEST_F(EndToEnd, SecondVisitFramesRelocalizeThroughTheServer) {
     const v1::RelocalizeResponse response =
         client_->Relocalize("venman", frames[i].trees, std::nullopt, std::nullopt);
     algorithms::RelocalizeResult result;
-    if (response.status() == v1::RelocalizeResponse::LOCALIZED) {
+    if (response.status() == v1::RelocalizeResponse::STATUS_LOCALIZED) {
       result.status = algorithms::RelocalizeStatus::kLocalized;
       result.map_from_sensor = client::FromProto(response.map_from_sensor());
       EXPECT_GT(response.confidence(), 0.0);
       EXPECT_EQ(response.matches_size(), response.inliers());
     } else {
-      result.status = response.status() == v1::RelocalizeResponse::AMBIGUOUS
+      result.status = response.status() == v1::RelocalizeResponse::STATUS_AMBIGUOUS
                           ? algorithms::RelocalizeStatus::kAmbiguous
                           : algorithms::RelocalizeStatus::kNotFound;
     }
@@ -114,7 +114,7 @@ TEST_F(EndToEnd, ATrackingSessionFollowsTheSecondVisit) {
   for (int64_t id = -2; id < 0; ++id) {  // nothing seen yet
     const v1::TrackResponse response = session.Step({id, {}, {}, {}});
     EXPECT_EQ(response.frame_id(), id);
-    EXPECT_EQ(response.state(), v1::TrackResponse::LOST);
+    EXPECT_EQ(response.state(), v1::TrackResponse::STATE_LOST);
     EXPECT_EQ(response.frames_lost(), id + 3);
   }
   int tracking = 0, correct = 0;
@@ -125,10 +125,10 @@ TEST_F(EndToEnd, ATrackingSessionFollowsTheSecondVisit) {
     ASSERT_EQ(response.frame_id(), frames[i].frame);
     EXPECT_GT(response.result().map_version(), 0);
     if (i == 0) {
-      EXPECT_EQ(response.state(), v1::TrackResponse::RECOVERED);
+      EXPECT_EQ(response.state(), v1::TrackResponse::STATE_RECOVERED);
     }
-    tracking += response.state() == v1::TrackResponse::TRACKING;
-    if (response.result().status() != v1::RelocalizeResponse::LOCALIZED) continue;
+    tracking += response.state() == v1::TrackResponse::STATE_TRACKING;
+    if (response.result().status() != v1::RelocalizeResponse::STATUS_LOCALIZED) continue;
     const algorithms::PoseError error =
         algorithms::ComparePoses(client::FromProto(response.result().map_from_sensor()),
                                  v01_from_v02 * poses.at(frames[i].frame));
@@ -173,7 +173,7 @@ TEST_F(EndToEnd, ABadFrameEndsTheSessionWithItsNumberAndTheServerKeepsServing) {
   }
   // The server still answers.
   client::TrackSession session = client_->Track("plot");
-  EXPECT_EQ(session.Step({3, trees, {}, {}}).state(), v1::TrackResponse::LOST);
+  EXPECT_EQ(session.Step({3, trees, {}, {}}).state(), v1::TrackResponse::STATE_LOST);
   session.Finish();
 }
 

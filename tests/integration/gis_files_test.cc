@@ -17,11 +17,11 @@
 #include <string>
 #include <vector>
 
-#include "cli_run.h"
-#include "client/forestmap_client.h"
+#include "client/lib/forestmap_client.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
+#include "tests/cli_run.h"
 
 namespace forestmap {
 namespace {

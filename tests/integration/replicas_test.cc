@@ -20,8 +20,8 @@
 #include <thread>
 #include <tuple>
 
-#include "client/forestmap_client.h"
 #include "client/io/tree_csv.h"
+#include "client/lib/forestmap_client.h"
 #include "tests/pg_fixture.h"
 
 extern char** environ;
@@ -135,7 +135,7 @@ TEST_F(ReplicasTest, AWriteThroughOneReplicaIsAnsweredByAllWithinOneSecond) {
   first.UploadTrees("forest", map_rows, /*replace=*/false);
   Clock::time_point written = Clock::now();
   const auto localized = [](const v1::RelocalizeResponse& response) {
-    return response.status() == v1::RelocalizeResponse::LOCALIZED;
+    return response.status() == v1::RelocalizeResponse::STATUS_LOCALIZED;
   };
   // Replicas 2 and 3 first (measured from the write), then replica 1 for the reference pose.
   for (auto& other : others) {  // replica 3's time includes replica 2's wait: an upper bound
@@ -155,7 +155,7 @@ TEST_F(ReplicasTest, AWriteThroughOneReplicaIsAnsweredByAllWithinOneSecond) {
   written = Clock::now();
   const double old_x = reference.map_from_sensor().translation().x();
   const auto moved = [&](const v1::RelocalizeResponse& response) {
-    return response.status() == v1::RelocalizeResponse::LOCALIZED &&
+    return response.status() == v1::RelocalizeResponse::STATUS_LOCALIZED &&
            std::abs(response.map_from_sensor().translation().x() - (old_x + 100.0)) < 0.5;
   };
   for (auto& other : others) {
@@ -259,7 +259,7 @@ TEST_F(ReplicasTest, AKilledReplicaLosesNoRelocalization) {
     try {
       const v1::RelocalizeResponse response = drone.Relocalize("forest", frame.trees);
       ++answered;
-      localized += response.status() == v1::RelocalizeResponse::LOCALIZED;
+      localized += response.status() == v1::RelocalizeResponse::STATUS_LOCALIZED;
     } catch (const client::RpcError& e) {
       // Frames with too few trees are rejected as INVALID_ARGUMENT: an answer, not a loss.
       if (e.code() != grpc::StatusCode::INVALID_ARGUMENT) ADD_FAILURE() << e.what();

@@ -19,12 +19,12 @@
 #include <tuple>
 #include <utility>
 
-#include "cli_run.h"
-#include "client/forestmap_client.h"
 #include "client/io/tree_csv.h"
+#include "client/lib/forestmap_client.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
+#include "tests/cli_run.h"
 
 namespace forestmap {
 namespace {
@@ -67,6 +67,7 @@ class SurveyCliTest : public ::testing::Test {
   Result Cli(const std::string& args) {
     return Shell("'" FORESTMAP_CLI_PATH "' --server " + runner_.address() + " " + args);
   }
+  Result Lab(const std::string& args) { return Shell("'" FORESTMAP_LAB_PATH "' " + args); }
   Result CreateField(const std::string& name, const std::string& extra) {
     return Cli("map create " + name + " --trees '" + kPlot + "PRF025_Field.csv' " + kFieldColumns +
                " " + extra);
@@ -419,7 +420,7 @@ std::string Quoted(const fs::path& path) { return std::string("'") + path.string
 TEST_F(SurveyCliTest, CompareScanWithItsTruthAndRegisteredWithTheMap) {
   const fs::path sim = dir_ / "sim";
   const Result simulated =
-      Cli("simulate --generate 2000 --pose 60,60,3,30 --no-body --out '" + sim.string() + "'");
+      Lab("simulate --generate 2000 --pose 60,60,3,30 --no-body --out '" + sim.string() + "'");
   ASSERT_EQ(simulated.exit_code, 0) << simulated.err;
   const std::string scan = Quoted(sim / "scan_000.pcd");
   const fs::path truth_links = dir_ / "truth_links.csv", map_links = dir_ / "map_links.csv";

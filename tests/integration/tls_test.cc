@@ -13,11 +13,11 @@
 #include <filesystem>
 #include <string>
 
-#include "client/forestmap_client.h"
+#include "client/lib/forestmap_client.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
 #include "server/ops/auth.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "storage/token_store.h"
 
 namespace forestmap {

@@ -112,6 +112,7 @@ class GatedStore final : public storage::MapStore {
     });
   }
   storage::PruneResult PruneVersions(const std::string& name, int64_t keep) override {
+    if (before_prune) before_prune();  // may throw: a fault of the store
     return inner_.PruneVersions(name, keep);
   }
   std::unique_ptr<storage::TreeUpload> BeginUpload(const std::string& name,
@@ -135,6 +136,7 @@ class GatedStore final : public storage::MapStore {
   }
 
   std::chrono::milliseconds merge_delay{0};  // set before concurrent use
+  std::function<void()> before_prune;        // runs first in PruneVersions; set before use
 
  private:
   storage::MapStore& inner_;

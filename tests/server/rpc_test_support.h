@@ -1,6 +1,6 @@
 #pragma once
-// Pieces the in-process gRPC server tests share: call contexts with a deadline and a fresh
-// temporary folder per test.
+// Pieces the in-process gRPC server tests share: call contexts with a deadline, a fresh
+// temporary folder per test, and the first message of an upload stream.
 
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
@@ -11,7 +11,19 @@
 #include <memory>
 #include <string>
 
+#include "forestmap/v1/maps.pb.h"
+
 namespace forestmap::test {
+
+// The header of an upload to `map` (the stream's first message; chunks of trees follow).
+inline v1::UploadTreesRequest UploadHeader(const std::string& map, bool replace = false,
+                                           bool create_map = false) {
+  v1::UploadTreesRequest message;
+  message.mutable_header()->set_name(map);
+  message.mutable_header()->set_replace(replace);
+  message.mutable_header()->set_create_map(create_map);
+  return message;
+}
 
 // A client context whose deadline, `timeout` from now, turns a hang into a failure.
 inline std::unique_ptr<grpc::ClientContext> CallContext(std::chrono::seconds timeout) {

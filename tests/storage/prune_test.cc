@@ -1,9 +1,9 @@
 // MapStore::PruneVersions: the newest versions stay readable and restorable, older ones are gone
-// with the rows only they held; the current trees do not change.
+// with the rows only they held; the current trees do not change. On every backend.
 
 #include <gtest/gtest.h>
 
-#include "storage/sqlite_map_store.h"
+#include "tests/storage/store_backends.h"
 
 namespace forestmap::storage {
 namespace {
@@ -17,8 +17,12 @@ std::vector<TreeRecord> Trees(int count, double offset) {
   return trees;
 }
 
-TEST(PruneTest, KeepsTheNewestVersionsAndDropsTheRowsOnlyOlderOnesHeld) {
-  SqliteMapStore store(":memory:");
+class PruneTest : public ::testing::TestWithParam<Backend> {};
+INSTANTIATE_TEST_SUITE_P(Backends, PruneTest, kAllBackends, BackendName);
+
+TEST_P(PruneTest, KeepsTheNewestVersionsAndDropsTheRowsOnlyOlderOnesHeld) {
+  TestStore test_store(GetParam());
+  MapStore& store = *test_store;
   store.CreateMap("plot", "", "");
   for (int upload = 0; upload < 8; ++upload) {  // eight replace uploads: versions 2..9
     store.WriteTrees("plot", Trees(100, 1000.0 * upload), WriteMode::kReplace);

@@ -1,18 +1,16 @@
-// TokenStore: tokens are stored hashed, found by their secret, scoped by map pattern and role,
-// and revoked tokens stop working but keep the server closed.
+// TokenStore on every backend: tokens are stored hashed, found by their secret, scoped by map
+// pattern and role, shared by every store on the database (replicas), and revoked tokens stop
+// working but keep the server closed.
 
 #include "storage/token_store.h"
 
 #include <gtest/gtest.h>
-#include <sqlite3.h>
-#include <unistd.h>
 
-#include <filesystem>
 #include <set>
 #include <string>
+#include <vector>
 
-#include "storage/sqlite.h"
-#include "storage/sqlite_map_store.h"
+#include "tests/storage/store_backends.h"
 
 namespace forestmap::storage {
 namespace {
@@ -23,8 +21,36 @@ TEST(Sha256Hex, MatchesTheStandardTestVectors) {
   EXPECT_EQ(Sha256Hex(""), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
 }
 
-TEST(TokenStore, CreateFindRevoke) {
-  TokenStore tokens(":memory:");
+TokenRecord Grant(Role role, const char* pattern) {
+  TokenRecord token;
+  token.role = role;
+  token.map_pattern = pattern;
+  return token;
+}
+
+TEST(TokenRecord, AllowsByRoleOrderAndMapPattern) {
+  const TokenRecord plots = Grant(Role::kWrite, "plot-*");
+  EXPECT_TRUE(plots.Allows(Role::kRead, "plot-1"));
+  EXPECT_TRUE(plots.Allows(Role::kWrite, "plot-1"));
+  EXPECT_FALSE(plots.Allows(Role::kAdmin, "plot-1"));
+  EXPECT_FALSE(plots.Allows(Role::kRead, "other"));
+  EXPECT_FALSE(plots.Allows(Role::kRead, "xplot-1"));
+  EXPECT_TRUE(Grant(Role::kWrite, "*").Allows(Role::kWrite, "anything"));
+  TokenRecord exact = Grant(Role::kRead, "exact");
+  EXPECT_TRUE(exact.Allows(Role::kRead, "exact"));
+  EXPECT_FALSE(exact.Allows(Role::kRead, "exact2"));
+  exact.revoked_unix_ms = 1;
+  EXPECT_FALSE(exact.Allows(Role::kRead, "exact"));
+}
+
+class TokenStoreTest : public ::testing::TestWithParam<Backend> {
+ protected:
+  TestStore database_{GetParam()};  // the map store's database: tokens live beside the maps
+};
+INSTANTIATE_TEST_SUITE_P(Backends, TokenStoreTest, kAllBackends, BackendName);
+
+TEST_P(TokenStoreTest, CreateFindRevoke) {
+  TokenStore tokens(database_.db());
   EXPECT_FALSE(tokens.AnyToken());
   const NewToken token = tokens.Create("plot-*", Role::kWrite, "drone 7");
   EXPECT_TRUE(token.secret.starts_with("fmt_"));
@@ -51,63 +77,85 @@ TEST(TokenStore, CreateFindRevoke) {
   EXPECT_TRUE(all[0].revoked());
 }
 
-TEST(TokenStore, SecretsAreRandomAndNeverStored) {
-  std::string name = "token_store_test_";
-  name.append(std::to_string(getpid()));
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / name;
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  const std::string path = (dir / "maps.db").string();
-  std::set<std::string> secrets;
-  {
-    TokenStore tokens(path);
-    for (int i = 0; i < 20; ++i) secrets.insert(tokens.Create("*", Role::kRead).secret);
-  }
-  EXPECT_EQ(secrets.size(), 20u);
-  sqlite::Database db(path, SQLITE_OPEN_READONLY, 1000);
-  sqlite::Statement rows(db, "SELECT secret_sha256 FROM access_tokens");
-  int count = 0;
-  while (rows.Step()) {
-    const std::string stored = rows.ColumnText(0);
-    EXPECT_EQ(secrets.count(stored), 0u);
-    bool matches_a_hash = false;
-    for (const std::string& secret : secrets) matches_a_hash |= Sha256Hex(secret) == stored;
-    EXPECT_TRUE(matches_a_hash);
-    ++count;
-  }
-  EXPECT_EQ(count, 20);
-  // The same file serves as the map database: the schema is the map store's.
-  EXPECT_EQ(db.QueryInt64("PRAGMA user_version"), SqliteMapStore::kSchemaVersion);
-  std::filesystem::remove_all(dir);
-}
-
-TokenRecord Grant(Role role, const char* pattern) {
-  TokenRecord token;
-  token.role = role;
-  token.map_pattern = pattern;
-  return token;
-}
-
-TEST(TokenRecord, AllowsByRoleOrderAndMapPattern) {
-  const TokenRecord plots = Grant(Role::kWrite, "plot-*");
-  EXPECT_TRUE(plots.Allows(Role::kRead, "plot-1"));
-  EXPECT_TRUE(plots.Allows(Role::kWrite, "plot-1"));
-  EXPECT_FALSE(plots.Allows(Role::kAdmin, "plot-1"));
-  EXPECT_FALSE(plots.Allows(Role::kRead, "other"));
-  EXPECT_FALSE(plots.Allows(Role::kRead, "xplot-1"));
-  EXPECT_TRUE(Grant(Role::kWrite, "*").Allows(Role::kWrite, "anything"));
-  TokenRecord exact = Grant(Role::kRead, "exact");
-  EXPECT_TRUE(exact.Allows(Role::kRead, "exact"));
-  EXPECT_FALSE(exact.Allows(Role::kRead, "exact2"));
-  exact.revoked_unix_ms = 1;
-  EXPECT_FALSE(exact.Allows(Role::kRead, "exact"));
-}
-
-TEST(TokenStore, RejectsAnEmptyPattern) {
-  TokenStore tokens(":memory:");
+TEST_P(TokenStoreTest, RejectsAnEmptyPattern) {
+  TokenStore tokens(database_.db());
   EXPECT_THROW(tokens.Create("", Role::kRead), StorageError);
   EXPECT_EQ(ParseRole("admin"), Role::kAdmin);
   EXPECT_FALSE(ParseRole("root").has_value());
+}
+
+// ---- Databases that several stores share ----
+
+class SharedTokenStoreTest : public ::testing::TestWithParam<Backend> {
+ protected:
+  TestStore database_{GetParam()};
+};
+INSTANTIATE_TEST_SUITE_P(Backends, SharedTokenStoreTest, kSharedBackends, BackendName);
+
+TEST_P(SharedTokenStoreTest, SecretsAreRandomAndNeverStored) {
+  std::set<std::string> secrets;
+  {
+    TokenStore tokens(database_.db());
+    for (int i = 0; i < 20; ++i) secrets.insert(tokens.Create("*", Role::kRead).secret);
+  }
+  EXPECT_EQ(secrets.size(), 20u);
+  const std::vector<std::string> stored =
+      database_.Column("SELECT secret_sha256 FROM access_tokens");
+  for (const std::string& hash : stored) {
+    EXPECT_EQ(secrets.count(hash), 0u);
+    bool matches_a_hash = false;
+    for (const std::string& secret : secrets) matches_a_hash |= Sha256Hex(secret) == hash;
+    EXPECT_TRUE(matches_a_hash);
+  }
+  EXPECT_EQ(stored.size(), 20u);
+}
+
+TEST_P(SharedTokenStoreTest, CreateFindRevokeListAcrossReplicas) {
+  TokenStore tokens(database_.db());
+  TokenStore replica(database_.db());  // another forestmapd on the same database
+  EXPECT_FALSE(tokens.AnyToken());
+  EXPECT_FALSE(replica.AnyToken());
+  const NewToken writer = tokens.Create("plot-*", Role::kWrite, "drone 7");
+  const NewToken admin = tokens.Create("*", Role::kAdmin);
+  EXPECT_TRUE(writer.secret.starts_with("fmt_"));
+  EXPECT_NE(writer.record.id, admin.record.id);
+  EXPECT_TRUE(replica.AnyToken());  // deny by default on every replica
+  const std::optional<TokenRecord> found = replica.Find(writer.secret);
+  ASSERT_TRUE(found.has_value());
+  EXPECT_EQ(found->id, writer.record.id);
+  EXPECT_EQ(found->map_pattern, "plot-*");
+  EXPECT_EQ(found->role, Role::kWrite);
+  EXPECT_EQ(found->note, "drone 7");
+  EXPECT_EQ(found->created_unix_ms, writer.record.created_unix_ms);
+  EXPECT_TRUE(found->Allows(Role::kWrite, "plot-3"));
+  EXPECT_FALSE(found->Allows(Role::kAdmin, "plot-3"));
+  EXPECT_FALSE(replica.Find(writer.secret + "0").has_value());
+  EXPECT_FALSE(replica.Find("").has_value());
+
+  EXPECT_TRUE(replica.Revoke(writer.record.id));
+  EXPECT_FALSE(tokens.Revoke(writer.record.id));  // already revoked
+  EXPECT_FALSE(tokens.Revoke(999));
+  EXPECT_FALSE(tokens.Find(writer.secret).has_value());
+  EXPECT_TRUE(tokens.Find(admin.secret).has_value());
+  const std::vector<TokenRecord> all = tokens.List();
+  ASSERT_EQ(all.size(), 2u);
+  EXPECT_EQ(all[0].id, writer.record.id);
+  EXPECT_TRUE(all[0].revoked());
+  EXPECT_FALSE(all[1].revoked());
+  // Only hashes are stored.
+  EXPECT_EQ(database_.Column("SELECT secret_sha256 FROM access_tokens ORDER BY id"),
+            (std::vector<std::string>{Sha256Hex(writer.secret), Sha256Hex(admin.secret)}));
+}
+
+TEST_P(SharedTokenStoreTest, TokensAndMapsShareOneDatabase) {
+  MapStore& maps = *database_;
+  TokenStore tokens(database_.db());
+  maps.CreateMap("plot", "", "");
+  tokens.Create("plot", Role::kRead);
+  EXPECT_EQ(maps.ListMaps().size(), 1u);
+  EXPECT_EQ(tokens.List().size(), 1u);
+  TokenStore again(database_.db());  // the table exists: opening again changes nothing
+  EXPECT_EQ(again.List().size(), 1u);
 }
 
 }  // namespace

@@ -1,11 +1,12 @@
 // Exactly-once writes in the store (storage/write_request.h): the answer is stored with the write
 // in one transaction, a repeated id is refused without writing, a passed deadline commits nothing.
+// On every backend.
 
 #include <gtest/gtest.h>
 
 #include <chrono>
 
-#include "storage/sqlite_map_store.h"
+#include "tests/storage/store_backends.h"
 
 namespace forestmap::storage {
 namespace {
@@ -24,8 +25,12 @@ WriteRequest Request(const std::string& id) {
   return request;
 }
 
-TEST(WriteRequestTest, AnswerIsStoredWithTheWriteAndAnIdIsAppliedOnce) {
-  SqliteMapStore store(":memory:");
+class WriteRequestTest : public ::testing::TestWithParam<Backend> {};
+INSTANTIATE_TEST_SUITE_P(Backends, WriteRequestTest, kAllBackends, BackendName);
+
+TEST_P(WriteRequestTest, AnswerIsStoredWithTheWriteAndAnIdIsAppliedOnce) {
+  TestStore test_store(GetParam());
+  MapStore& store = *test_store;
   store.CreateMap("plot", "", "");
   EXPECT_FALSE(store.FindRequest("a").has_value());
   {
@@ -51,8 +56,9 @@ TEST(WriteRequestTest, AnswerIsStoredWithTheWriteAndAnIdIsAppliedOnce) {
   EXPECT_EQ(CurrentWriteRequest(), nullptr);   // scopes end
 }
 
-TEST(WriteRequestTest, PassedDeadlineCommitsNothing) {
-  SqliteMapStore store(":memory:");
+TEST_P(WriteRequestTest, PassedDeadlineCommitsNothing) {
+  TestStore test_store(GetParam());
+  MapStore& store = *test_store;
   store.CreateMap("plot", "", "");
   WriteRequest request = Request("late");
   request.deadline = std::chrono::system_clock::now() - std::chrono::milliseconds(1);

@@ -11,8 +11,8 @@ The gRPC stubs (forestmap.v1.*_pb2) are generated from proto/ at build time into
 (BUILD/python); put that directory on PYTHONPATH.
 """
 
-from forestmap.client import (Answer, Client, ForestMapError, MapInfo, ObserveResult, Tree,
-                              TrackAnswer)
+from forestmap.client import (Answer, Client, FieldViolation, ForestMapError, MapInfo,
+                              ObserveResult, Tree, TrackAnswer)
 
-__all__ = ["Answer", "Client", "ForestMapError", "MapInfo", "ObserveResult", "Tree",
-           "TrackAnswer"]
+__all__ = ["Answer", "Client", "FieldViolation", "ForestMapError", "MapInfo", "ObserveResult",
+           "Tree", "TrackAnswer"]

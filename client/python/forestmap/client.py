@@ -8,6 +8,7 @@ from typing import Dict, Iterable, Iterator, List, Optional, Sequence, Tuple, Un
 
 import grpc
 import numpy as np
+from google.rpc import error_details_pb2, status_pb2
 
 from forestmap.v1 import (forestmap_service_pb2_grpc, geometry_pb2, maps_pb2, observations_pb2,
                           relocalization_pb2, tracking_pb2)
@@ -15,14 +16,54 @@ from forestmap.v1 import (forestmap_service_pb2_grpc, geometry_pb2, maps_pb2, ob
 ArrayLike = Union[np.ndarray, Sequence[Sequence[float]]]
 
 
-class ForestMapError(Exception):
-    """Every failed call: `code` is the grpc.StatusCode, `details` the server's message."""
+@dataclass
+class FieldViolation:
+    """One bad field of a request (google.rpc.BadRequest): its path and what is wrong."""
+    field: str        # e.g. "trees[12].position.x"
+    description: str
 
-    def __init__(self, call: str, code: grpc.StatusCode, details: str):
-        super().__init__(f"{call}: {code.name}: {details}")
+
+def _violations(error: grpc.RpcError) -> List[FieldViolation]:
+    """The google.rpc.BadRequest field violations in the status details of `error`, if any."""
+    metadata = error.trailing_metadata() if hasattr(error, "trailing_metadata") else None
+    out = []
+    for key, value in metadata or ():
+        if key != "grpc-status-details-bin":
+            continue
+        status = status_pb2.Status()
+        status.ParseFromString(value)
+        for detail in status.details:
+            bad_request = error_details_pb2.BadRequest()
+            if detail.Unpack(bad_request):
+                out += [FieldViolation(v.field, v.description)
+                        for v in bad_request.field_violations]
+    return out
+
+
+class ForestMapError(Exception):
+    """Every failed call: `code` is the grpc.StatusCode, `details` the server's message, and
+    `violations` the bad fields the server named in its error details (INVALID_ARGUMENT)."""
+
+    def __init__(self, call: str, code: grpc.StatusCode, details: str,
+                 violations: Sequence[FieldViolation] = ()):
+        fields = ", ".join(v.field for v in violations)
+        shown = f" ({'fields' if len(violations) > 1 else 'field'}: {fields})" if fields else ""
+        super().__init__(f"{call}: {code.name}: {details}{shown}")
         self.call = call
         self.code = code
         self.details = details
+        self.violations = list(violations)
+
+    @classmethod
+    def of(cls, call: str, error: grpc.RpcError) -> "ForestMapError":
+        return cls(call, error.code(), error.details(), _violations(error))
+
+
+def _label(enum, value: int) -> str:
+    """An enum value's name without its enum's prefix: "LOCALIZED" for STATUS_LOCALIZED."""
+    prefix = enum.Name(0)[:-len("UNSPECIFIED")]  # value 0 is <PREFIX>_UNSPECIFIED (buf lint)
+    name = enum.Name(value)
+    return name[len(prefix):] if name.startswith(prefix) else name
 
 
 @dataclass
@@ -159,7 +200,7 @@ def _matrix(pose: geometry_pb2.Pose) -> np.ndarray:
 
 
 def _answer(response: relocalization_pb2.RelocalizeResponse) -> Answer:
-    status = relocalization_pb2.RelocalizeResponse.Status.Name(response.status)
+    status = _label(relocalization_pb2.RelocalizeResponse.Status, response.status)
     localized = status == "LOCALIZED"
     pose = response.map_from_sensor
     q = pose.rotation
@@ -231,7 +272,7 @@ class Client:
             except grpc.RpcError as error:
                 unreachable = error.code() == grpc.StatusCode.UNAVAILABLE
                 if not (idempotent and unreachable) or attempt + 1 == len(self.addresses):
-                    raise ForestMapError(name, error.code(), error.details()) from None
+                    raise ForestMapError.of(name, error) from None
             self._channel.close()
             self._current = (self._current + 1) % len(self.addresses)
             self.retries += 1
@@ -254,18 +295,27 @@ class Client:
         messages = _map_trees(trees)
 
         def requests():
-            for begin in range(0, max(len(messages), 1), chunk):
-                yield maps_pb2.UploadTreesRequest(map_name=name, replace=replace,
-                                                  trees=messages[begin:begin + chunk])
+            yield maps_pb2.UploadTreesRequest(
+                header=maps_pb2.UploadTreesHeader(name=name, replace=replace))
+            for begin in range(0, len(messages), chunk):
+                yield maps_pb2.UploadTreesRequest(
+                    chunk=maps_pb2.TreeChunk(trees=messages[begin:begin + chunk]))
         try:
             response = self._stub.UploadTrees(requests(), timeout=self.timeout)
         except grpc.RpcError as error:
-            raise ForestMapError("UploadTrees", error.code(), error.details()) from None
+            raise ForestMapError.of("UploadTrees", error) from None
         return _map_info(response.map)
 
-    def list_maps(self) -> List[MapInfo]:
-        response = self._call("ListMaps", maps_pb2.ListMapsRequest(), idempotent=True)
-        return [_map_info(m) for m in response.maps]
+    def list_maps(self, page_size: int = 0) -> List[MapInfo]:
+        """Every map the caller may read, by name (page by page; 0: the server's page size)."""
+        maps, token = [], ""
+        while True:
+            response = self._call("ListMaps", maps_pb2.ListMapsRequest(
+                page_size=page_size, page_token=token), idempotent=True)
+            maps += [_map_info(m) for m in response.maps]
+            token = response.next_page_token
+            if not token:
+                return maps
 
     def get_map(self, name: str) -> MapInfo:
         return _map_info(self._call("GetMap", maps_pb2.GetMapRequest(name=name), idempotent=True))
@@ -275,7 +325,7 @@ class Client:
 
     def export(self, name: str, version: int = 0) -> List[Tree]:
         """All trees of the map (or of an older version), by id."""
-        request = maps_pb2.ExportTreesRequest(map_name=name, version=version)
+        request = maps_pb2.ExportTreesRequest(name=name, version=version)
         for attempt in range(len(self.addresses)):
             try:
                 trees = []
@@ -286,13 +336,13 @@ class Client:
                             dbh=t.dbh if t.HasField("dbh") else None, id=t.id,
                             attributes={**dict(t.attributes),
                                         **{k: None for k in t.null_attributes}},
-                            confirmed=t.status != maps_pb2.CANDIDATE,
+                            confirmed=t.status != maps_pb2.TREE_STATUS_CANDIDATE,
                             observations=t.observations))
                 return trees
             except grpc.RpcError as error:
                 if error.code() != grpc.StatusCode.UNAVAILABLE or attempt + 1 == len(
                         self.addresses):
-                    raise ForestMapError("ExportTrees", error.code(), error.details()) from None
+                    raise ForestMapError.of("ExportTrees", error) from None
             self._current = (self._current + 1) % len(self.addresses)
             self.retries += 1
             self._connect()
@@ -301,23 +351,20 @@ class Client:
     # ---- relocalization ----
 
     def relocalize(self, name: str, trees: ArrayLike,
-                   prior: Optional[Tuple[float, float, float, float]] = None,
+                   prior: Optional[Tuple[float, float, float]] = None,
                    gravity: Optional[Sequence[float]] = None) -> Answer:
         """Pose of the sensor in the map from the trees it detected.
 
         trees: N x 3..8 array, rows x, y, z[, dbh[, axis_x, axis_y, axis_z[, score]]] in the
-        sensor frame (m; NaN = unknown). prior: (x, y, yaw_deg, radius_m): the sensor is within
-        radius_m of (x, y) in the map frame. gravity: direction of gravity in the sensor frame.
+        sensor frame (m; NaN = unknown). prior: (x, y, radius_m): the sensor is within radius_m
+        of (x, y) in the map frame (a 4-tuple (x, y, yaw_deg, radius_m) of older versions is
+        read too: the server never used the yaw). gravity: direction of gravity in the sensor
+        frame.
         """
-        request = relocalization_pb2.RelocalizeRequest(map_name=name, trees=_detected(trees))
+        request = relocalization_pb2.RelocalizeRequest(name=name, trees=_detected(trees))
         if prior is not None:
-            x, y, yaw_deg, radius = prior
-            yaw = math.radians(yaw_deg)
-            request.prior.map_from_sensor.translation.x = x
-            request.prior.map_from_sensor.translation.y = y
-            request.prior.map_from_sensor.rotation.z = math.sin(yaw / 2)
-            request.prior.map_from_sensor.rotation.w = math.cos(yaw / 2)
-            request.prior.radius_m = radius
+            x, y, radius = (prior[0], prior[1], prior[-1]) if len(prior) == 4 else prior
+            request.prior.x, request.prior.y, request.prior.radius_m = x, y, radius
         if gravity is not None:
             request.gravity.x, request.gravity.y, request.gravity.z = (float(g) for g in gravity)
         return _answer(self._call("Relocalize", request, idempotent=True))
@@ -327,19 +374,20 @@ class Client:
         """A tracking session: yields one answer per frame (trees, or (frame_id, trees))."""
 
         def requests():
+            yield tracking_pb2.TrackRequest(header=tracking_pb2.TrackHeader(name=name))
             for number, frame in enumerate(frames):
                 frame_id, trees = frame if isinstance(frame, tuple) else (number, frame)
-                yield tracking_pb2.TrackRequest(map_name=name, trees=_detected(trees),
-                                                frame_id=frame_id)
+                yield tracking_pb2.TrackRequest(frame=tracking_pb2.TrackFrame(
+                    trees=_detected(trees), frame_id=frame_id))
         try:
             for response in self._stub.Track(requests()):
                 yield TrackAnswer(
                     frame_id=response.frame_id,
-                    state=tracking_pb2.TrackResponse.State.Name(response.state),
-                    method=tracking_pb2.TrackResponse.Method.Name(response.method),
+                    state=_label(tracking_pb2.TrackResponse.State, response.state),
+                    method=_label(tracking_pb2.TrackResponse.Method, response.method),
                     frames_lost=response.frames_lost, answer=_answer(response.result))
         except grpc.RpcError as error:
-            raise ForestMapError("Track", error.code(), error.details()) from None
+            raise ForestMapError.of("Track", error) from None
 
     # ---- shared maps ----
 
@@ -347,13 +395,14 @@ class Client:
                 source: str = "forestmap-python") -> ObserveResult:
         """Merges frames (frame_id, trees in the sensor frame, 4 x 4 map_from_sensor or None:
         the server relocalizes the frame) into the map as one new version."""
-        request = observations_pb2.ObserveRequest(map_name=name, source=source)
+        request = observations_pb2.ObserveRequest(name=name, source=source)
         for frame_id, trees, map_from_sensor in frames:
             frame = request.frames.add(frame_id=frame_id, trees=_detected(trees))
             if map_from_sensor is not None:
                 frame.map_from_sensor.CopyFrom(_pose(map_from_sensor))
         response = self._call("Observe", request)
-        merged = sum(f.status == observations_pb2.FrameResult.MERGED for f in response.frames)
+        merged = sum(f.status == observations_pb2.FrameResult.STATUS_MERGED
+                     for f in response.frames)
         details = [f"frame {f.frame_id}: {f.detail}" for f in response.frames if f.detail]
         return ObserveResult(map_version=response.map_version, merged=merged,
                              skipped=len(response.frames) - merged, details=details)

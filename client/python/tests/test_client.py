@@ -11,7 +11,8 @@ import grpc
 import numpy as np
 import pytest
 
-from forestmap import Client, ForestMapError, Tree
+from forestmap import Client, FieldViolation, ForestMapError, Tree
+from forestmap.v1 import forestmap_service_pb2_grpc, maps_pb2, observations_pb2
 
 FRAME = 300  # a frame of Wild_V01 the map localizes
 
@@ -74,6 +75,9 @@ def test_errors_carry_the_grpc_status(server):
     with pytest.raises(ForestMapError) as error:
         client.create_map("bad name!")
     assert error.value.code == grpc.StatusCode.INVALID_ARGUMENT
+    # The bad field also comes as a google.rpc.BadRequest in the status details, and is shown.
+    assert error.value.violations == [FieldViolation("name", error.value.details)]
+    assert str(error.value).endswith("(field: name)")
     with pytest.raises(ValueError):
         client.relocalize("x", np.zeros(3))  # not an N x k array
 
@@ -103,8 +107,122 @@ def test_relocalize_equals_the_cli_to_the_last_digit(wild, server, data_dir, cli
 def test_relocalize_with_a_prior(wild, data_dir):
     trees, _ = detections(data_dir, FRAME)
     free = wild.relocalize("wild", trees)
-    near = wild.relocalize("wild", trees, prior=(free.x + 3, free.y - 2, 0.0, 10.0))
+    near = wild.relocalize("wild", trees, prior=(free.x + 3, free.y - 2, 10.0))
     assert near.localized and abs(near.x - free.x) < 0.05 and abs(near.y - free.y) < 0.05
+    # The 0.1.0 form, (x, y, yaw_deg, radius_m): the same pose, the yaw was never used.
+    old = wild.relocalize("wild", trees, prior=(free.x + 3, free.y - 2, 77.0, 10.0))
+    assert (old.x, old.y, old.quaternion, old.inliers) == (near.x, near.y, near.quaternion,
+                                                           near.inliers)
+    # A prior far from the true position: nothing within its radius.
+    far = wild.relocalize("wild", trees, prior=(free.x + 300, free.y, 10.0))
+    assert not far.localized
+
+
+def test_a_bad_tree_names_its_field_in_the_error_details(wild):
+    trees = np.array([[1.0, 2.0, 0.0], [float("nan"), 1.0, 0.0], [3.0, 4.0, 0.0]])
+    with pytest.raises(ForestMapError) as error:
+        wild.relocalize("wild", trees)
+    assert error.value.code == grpc.StatusCode.INVALID_ARGUMENT
+    assert [v.field for v in error.value.violations] == ["trees[1].position.x"]
+    assert "trees[1].position.x is NaN" in error.value.violations[0].description
+
+
+@pytest.fixture(scope="module")
+def stub(server):
+    with grpc.insecure_channel(server) as channel:
+        yield forestmap_service_pb2_grpc.ForestMapStub(channel)
+
+
+def test_list_maps_pages_concatenate_to_the_whole_list(server, stub):
+    client = Client(server)
+    for i in range(7):
+        client.create_map(f"page-{i}")
+    everything = [m.name for m in client.list_maps()]
+    assert everything == sorted(everything) and len(everything) >= 7
+    for size in (1, 2, 3, 1000, 10**6):  # more than the maximum is the maximum (1000)
+        names, token, pages = [], "", 0
+        while True:
+            page = stub.ListMaps(maps_pb2.ListMapsRequest(page_size=size, page_token=token))
+            assert len(page.maps) <= size
+            names += [m.name for m in page.maps]
+            token, pages = page.next_page_token, pages + 1
+            # Opaque: the token does not spell the last name it follows.
+            assert not any(m.name in token for m in page.maps)
+            if not token:
+                break
+        assert names == everything and pages == -(-len(everything) // size)
+    assert [m.name for m in client.list_maps(page_size=2)] == everything
+    for i in range(7):
+        client.delete_map(f"page-{i}")
+
+
+def test_bad_page_requests_are_invalid_arguments(stub):
+    def error_of(call, request):
+        with pytest.raises(grpc.RpcError) as raised:
+            call(request)
+        return ForestMapError.of("call", raised.value)
+
+    bad_token = error_of(stub.ListMaps, maps_pb2.ListMapsRequest(page_token="not-a-token"))
+    assert bad_token.code == grpc.StatusCode.INVALID_ARGUMENT
+    assert [v.field for v in bad_token.violations] == ["page_token"]
+    negative = error_of(stub.ListMaps, maps_pb2.ListMapsRequest(page_size=-1))
+    assert [v.field for v in negative.violations] == ["page_size"]
+    # A token of one map's history is no token of another's, nor of the list of maps.
+    for name in ("tokens-a", "tokens-b"):
+        _make_map_with_versions(stub, name, 3)
+    page = stub.ListVersions(observations_pb2.ListVersionsRequest(name="tokens-a", page_size=1))
+    assert len(page.versions) == 1 and page.next_page_token
+    other = error_of(stub.ListVersions, observations_pb2.ListVersionsRequest(
+        name="tokens-b", page_size=1, page_token=page.next_page_token))
+    assert [v.field for v in other.violations] == ["page_token"]
+    listing = error_of(stub.ListMaps, maps_pb2.ListMapsRequest(page_token=page.next_page_token))
+    assert [v.field for v in listing.violations] == ["page_token"]
+    for name in ("tokens-a", "tokens-b"):
+        stub.DeleteMap(maps_pb2.DeleteMapRequest(name=name))
+
+
+def _make_map_with_versions(stub, name, versions):
+    """Map `name` with `versions` versions: created, then one upload of one tree per version."""
+    stub.CreateMap(maps_pb2.CreateMapRequest(name=name))
+    for i in range(versions - 1):
+        stub.UploadTrees(iter([
+            maps_pb2.UploadTreesRequest(header=maps_pb2.UploadTreesHeader(name=name)),
+            maps_pb2.UploadTreesRequest(chunk=maps_pb2.TreeChunk(
+                trees=[maps_pb2.Tree(x=float(i), y=0.0)]))]))
+
+
+def test_list_versions_pages_and_limit(stub):
+    _make_map_with_versions(stub, "history", 6)
+
+    def versions(limit, size):
+        out, token = [], ""
+        while True:
+            page = stub.ListVersions(observations_pb2.ListVersionsRequest(
+                name="history", limit=limit, page_size=size, page_token=token))
+            assert len(page.versions) <= size
+            out += [v.version for v in page.versions]
+            token = page.next_page_token
+            if not token:
+                return out
+
+    assert versions(0, 100) == [1, 2, 3, 4, 5, 6]
+    assert versions(0, 4) == [1, 2, 3, 4, 5, 6]
+    assert versions(4, 3) == [3, 4, 5, 6]  # the newest 4, oldest first, over two pages
+    stub.DeleteMap(maps_pb2.DeleteMapRequest(name="history"))
+
+
+def test_the_0_1_0_stream_layout_is_still_accepted(stub):
+    """Upload messages of release 0.1.0: the map named on every message, no header."""
+    stub.CreateMap(maps_pb2.CreateMapRequest(name="legacy"))
+    old = [maps_pb2.UploadTreesRequest(name="legacy", trees=[maps_pb2.Tree(x=1.0, y=2.0)]),
+           maps_pb2.UploadTreesRequest(trees=[maps_pb2.Tree(x=3.0, y=4.0)])]
+    assert stub.UploadTrees(iter(old)).map.tree_count == 2
+    mixed = [maps_pb2.UploadTreesRequest(name="legacy",
+                                         header=maps_pb2.UploadTreesHeader(name="legacy"))]
+    with pytest.raises(grpc.RpcError) as error:
+        stub.UploadTrees(iter(mixed))
+    assert error.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+    stub.DeleteMap(maps_pb2.DeleteMapRequest(name="legacy"))
 
 
 def test_track_yields_one_answer_per_frame(wild, data_dir):

@@ -11,8 +11,8 @@
 #include <set>
 #include <thread>
 
-#include "server/grpc/status.h"
-#include "storage/sqlite_map_store.h"
+#include "server/app/errors.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/gated_store.h"
 
 namespace forestmap::server {
@@ -39,7 +39,7 @@ class MapIndexCacheTest : public ::testing::Test {
   GatedStore gated_{store_};
 };
 
-// Issue 15: a tree at x = 1e308 (stored before validation checked ranges) took the process
+// A tree at x = 1e308 (stored before validation checked ranges) took the process
 // down in the index build; now the map answers an error naming it, once per version.
 TEST_F(MapIndexCacheTest, MapThatCannotBeIndexedIsAnErrorOfThatMapOnly) {
   AddMap("plot", 10);

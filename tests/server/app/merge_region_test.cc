@@ -1,4 +1,4 @@
-// The region a merge rebuilds (server/merge_region.h), against a store whose rows are laid out
+// The region a merge rebuilds (server/app/merge_region.h), against a store whose rows are laid out
 // by hand: whole connected components of rows, grown cell by cell; surveyed trees without rows
 // that stand in them; the rows of a tree that spans components; nothing beyond.
 #include "server/app/merge_region.h"
@@ -8,7 +8,7 @@
 #include <set>
 #include <vector>
 
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 
 namespace forestmap::server {
 namespace {

@@ -91,17 +91,6 @@ TEST(ConvertTest, BoxRoundTrip) {
   EXPECT_EQ(back.max_y, extent.max_y);
 }
 
-TEST(ConvertTest, MapTreeUsesNanForUnknownValues) {
-  const algorithms::MapTree known = ToMapTree(Record(3, 1, 2, 3.5, 0.25));
-  EXPECT_EQ(known.id, 3);
-  EXPECT_EQ(known.position, Eigen::Vector3d(1, 2, 3.5));
-  EXPECT_EQ(known.dbh, 0.25);
-  const algorithms::MapTree unknown = ToMapTree(Record(4, 1, 2, std::nullopt, std::nullopt));
-  EXPECT_TRUE(std::isnan(unknown.position.z()));
-  EXPECT_TRUE(std::isnan(unknown.dbh));
-  EXPECT_EQ(ToMapTrees({Record(1, 0, 0, {}, {}), Record(2, 0, 0, {}, {})}).size(), 2u);
-}
-
 TEST(ConvertTest, DetectedTreeAbsentFieldsBecomeUnknown) {
   v1::DetectedTree bare;
   bare.mutable_position()->set_x(1);
@@ -160,7 +149,7 @@ TEST(ConvertTest, PoseDefaultsAndNormalisation) {
 
 TEST(ConvertTest, RelocalizeRequestToQuery) {
   v1::RelocalizeRequest request;
-  request.set_map_name("m");
+  request.set_name("m");
   for (int i = 0; i < 4; ++i) request.add_trees()->mutable_position()->set_x(i);
   EXPECT_EQ(FromProto(request).trees.size(), 4u);
   EXPECT_FALSE(FromProto(request).gravity.has_value());
@@ -168,15 +157,14 @@ TEST(ConvertTest, RelocalizeRequestToQuery) {
 
   request.mutable_gravity()->set_z(-9.81);
   request.mutable_prior()->set_radius_m(25);
-  *request.mutable_prior()->mutable_map_from_sensor() =
-      ToProto(algorithms::PoseFromXyzYaw(10, 20, 1, 0.5));
+  request.mutable_prior()->set_x(10);
+  request.mutable_prior()->set_y(20);
   const algorithms::RelocalizeQuery query = FromProto(request);
   ASSERT_TRUE(query.gravity.has_value());
   EXPECT_EQ(*query.gravity, Eigen::Vector3d(0, 0, -1));
   ASSERT_TRUE(query.prior.has_value());
   EXPECT_EQ(query.prior->radius, 25);
-  EXPECT_NEAR(algorithms::YawOf(query.prior->map_from_sensor.linear()), 0.5, 1e-12);
-  EXPECT_EQ(query.prior->map_from_sensor.translation(), Eigen::Vector3d(10, 20, 1));
+  EXPECT_EQ(query.prior->map_from_sensor.translation().head<2>(), Eigen::Vector2d(10, 20));
 }
 
 TEST(ConvertTest, RelocalizeResultToResponse) {
@@ -190,7 +178,7 @@ TEST(ConvertTest, RelocalizeResultToResponse) {
   result.detail = "fine";
 
   const v1::RelocalizeResponse response = ToProto(result);
-  EXPECT_EQ(response.status(), v1::RelocalizeResponse::LOCALIZED);
+  EXPECT_EQ(response.status(), v1::RelocalizeResponse::STATUS_LOCALIZED);
   ASSERT_TRUE(response.has_map_from_sensor());
   EXPECT_TRUE(FromProto(response.map_from_sensor()).isApprox(result.map_from_sensor, 1e-12));
   EXPECT_EQ(response.inliers(), 2);
@@ -203,11 +191,82 @@ TEST(ConvertTest, RelocalizeResultToResponse) {
   EXPECT_EQ(response.detail(), "fine");
 
   result.status = algorithms::RelocalizeStatus::kAmbiguous;
-  EXPECT_EQ(ToProto(result).status(), v1::RelocalizeResponse::AMBIGUOUS);
+  EXPECT_EQ(ToProto(result).status(), v1::RelocalizeResponse::STATUS_AMBIGUOUS);
   EXPECT_FALSE(ToProto(result).has_map_from_sensor());  // a pose only when localized
   result.status = algorithms::RelocalizeStatus::kNotFound;
-  EXPECT_EQ(ToProto(result).status(), v1::RelocalizeResponse::NOT_FOUND);
+  EXPECT_EQ(ToProto(result).status(), v1::RelocalizeResponse::STATUS_NOT_FOUND);
   EXPECT_FALSE(ToProto(result).has_map_from_sensor());
+}
+
+TEST(ConvertTest, ObserveRequestToCall) {
+  v1::ObserveRequest request;
+  request.set_name("shared");
+  request.set_source("drone-7");
+  request.set_base_version(4);
+  v1::ObservationFrame* posed = request.add_frames();
+  posed->set_frame_id(11);
+  *posed->mutable_map_from_sensor() = ToProto(algorithms::PoseFromXyzYaw(5, 6, 1.5, 0.25));
+  v1::DetectedTree* tree = posed->add_trees();
+  tree->mutable_position()->set_x(2);
+  tree->set_dbh(0.3);
+  v1::ObservationFrame* lost = request.add_frames();
+  lost->set_frame_id(12);
+  lost->mutable_gravity()->set_z(-9.81);
+
+  ObserveCall call = FromProto(request);
+  EXPECT_EQ(call.map_name, "shared");
+  EXPECT_EQ(call.source, "drone-7");
+  EXPECT_FALSE(call.base_version.has_value());  // MERGE (the default): the base does not count
+  ASSERT_EQ(call.frames.size(), 2u);
+  EXPECT_TRUE(call.frames[0].has_pose);
+  EXPECT_EQ(call.frames[0].observations.source, "drone-7");
+  EXPECT_EQ(call.frames[0].observations.frame_id, 11);
+  EXPECT_TRUE(call.frames[0].observations.map_from_sensor.isApprox(
+      algorithms::PoseFromXyzYaw(5, 6, 1.5, 0.25), 1e-12));
+  ASSERT_EQ(call.frames[0].observations.trees.size(), 1u);
+  EXPECT_EQ(call.frames[0].observations.trees[0].dbh, 0.3);
+  EXPECT_FALSE(call.frames[0].gravity.has_value());
+  EXPECT_FALSE(call.frames[1].has_pose);
+  EXPECT_EQ(call.frames[1].gravity, Eigen::Vector3d(0, 0, -9.81));  // normalised when used
+
+  request.set_conflict_policy(v1::CONFLICT_POLICY_REJECT_IF_STALE);
+  call = FromProto(request);
+  EXPECT_EQ(call.base_version, 4);
+}
+
+TEST(ConvertTest, ObserveOutcomeToResponse) {
+  ObserveOutcome outcome;
+  outcome.map.name = "shared";
+  outcome.map.version = 9;
+  FrameOutcome& merged = outcome.frames.emplace_back();
+  merged.frame_id = 11;
+  merged.merged = true;
+  merged.relocalized = true;
+  merged.map_from_sensor = algorithms::PoseFromXyzYaw(5, 6, 1.5, 0.25);
+  merged.counts = {4, 3, 2, 1};
+  FrameOutcome& skipped = outcome.frames.emplace_back();
+  skipped.frame_id = 12;
+  skipped.detail = "the frame has no trees";
+
+  const v1::ObserveResponse response = ToProto(outcome);
+  EXPECT_EQ(response.map_version(), 9);
+  EXPECT_EQ(response.map().name(), "shared");
+  ASSERT_EQ(response.frames_size(), 2);
+  const v1::FrameResult& first = response.frames(0);
+  EXPECT_EQ(first.frame_id(), 11);
+  EXPECT_EQ(first.status(), v1::FrameResult::STATUS_MERGED);
+  EXPECT_TRUE(first.relocalized());
+  EXPECT_TRUE(FromProto(first.map_from_sensor()).isApprox(merged.map_from_sensor, 1e-12));
+  EXPECT_EQ(first.trees_associated(), 4);
+  EXPECT_EQ(first.trees_added(), 3);
+  EXPECT_EQ(first.trees_promoted(), 2);
+  EXPECT_EQ(first.trees_ignored(), 1);
+  const v1::FrameResult& second = response.frames(1);
+  EXPECT_EQ(second.frame_id(), 12);
+  EXPECT_EQ(second.status(), v1::FrameResult::STATUS_SKIPPED);
+  EXPECT_EQ(second.detail(), "the frame has no trees");
+  EXPECT_FALSE(second.has_map_from_sensor());
+  EXPECT_EQ(response.server_time_ms(), 0);  // the service's to fill in
 }
 
 }  // namespace

@@ -1,5 +1,5 @@
-// Issue 15, finding 7: faults of the database answered INTERNAL "see server log". Every fault code
-// of storage/ maps to its own status (server/status.cc) with a message naming the cause and
+// Faults of the database once answered INTERNAL "see server log". Every fault code
+// of storage/ maps to its own status (server/grpc/status.cc) with a message naming the cause and
 // nothing of the server's paths or SQL, which go to the log only.
 
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Maps with a real CRS (issue 14): CreateMap validates the CRS with PROJ and describes it (WKT,
+// Maps with a real CRS: CreateMap validates the CRS with PROJ and describes it (WKT,
 // EPSG); Relocalize answers on such a map carry the sensor's WGS84 pose, checked against PROJ's
 // own command line (cs2cs) and the transverse Mercator grid convergence.
 
@@ -9,11 +9,11 @@
 #include <filesystem>
 #include <sstream>
 
-#include "client/forestmap_client.h"
 #include "client/io/tree_csv.h"
+#include "client/lib/forestmap_client.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 
 namespace forestmap::server {
 namespace {
@@ -134,7 +134,7 @@ TEST_F(GeoServiceTest, RelocalizationOnPrf025AgreesWithCs2cs) {
   }
   ASSERT_GE(query.size(), 8u);
   const v1::RelocalizeResponse answer = client_.Relocalize("prf025", query);
-  ASSERT_EQ(answer.status(), v1::RelocalizeResponse::LOCALIZED) << answer.detail();
+  ASSERT_EQ(answer.status(), v1::RelocalizeResponse::STATUS_LOCALIZED) << answer.detail();
   const v1::Vector3& t = answer.map_from_sensor().translation();
   EXPECT_NEAR(t.x(), centre.x(), kPoseTolerance);
   EXPECT_NEAR(t.y(), centre.y(), kPoseTolerance);

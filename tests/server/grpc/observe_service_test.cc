@@ -18,7 +18,7 @@
 #include "proto/geometry_convert.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/rpc_test_support.h"
 
 namespace forestmap::server {
@@ -82,7 +82,7 @@ v1::ObserveRequest Request(const std::string& map, const std::string& source, in
                            bool with_poses = true) {
   const Forest& forest = TheForest();
   v1::ObserveRequest request;
-  request.set_map_name(map);
+  request.set_name(map);
   request.set_source(source);
   for (int i = first; i < last; ++i) {
     v1::ObservationFrame* frame = request.add_frames();
@@ -140,7 +140,7 @@ class ObserveServiceTest : public ::testing::Test {
 
   std::vector<v1::Tree> Export(const std::string& map, int64_t version = 0) {
     v1::ExportTreesRequest request;
-    request.set_map_name(map);
+    request.set_name(map);
     request.set_version(version);
     auto context = Context();
     auto reader = stub_->ExportTrees(context.get(), request);
@@ -157,7 +157,7 @@ class ObserveServiceTest : public ::testing::Test {
   std::vector<v1::Tree> Confirmed(const std::string& map) {
     std::vector<v1::Tree> confirmed;
     for (const v1::Tree& tree : Export(map)) {
-      if (tree.status() == v1::CONFIRMED) confirmed.push_back(tree);
+      if (tree.status() == v1::TREE_STATUS_CONFIRMED) confirmed.push_back(tree);
     }
     return confirmed;
   }
@@ -192,7 +192,7 @@ TEST_F(ObserveServiceTest, FramesWithPosesBuildAMapOfTheTrueTrees) {
     EXPECT_EQ(response.map_version(), 2 + begin / 20);  // one version per request
     ASSERT_EQ(response.frames_size(), 20);
     for (const v1::FrameResult& frame : response.frames()) {
-      EXPECT_EQ(frame.status(), v1::FrameResult::MERGED) << frame.detail();
+      EXPECT_EQ(frame.status(), v1::FrameResult::STATUS_MERGED) << frame.detail();
       EXPECT_FALSE(frame.relocalized());
       merged += frame.trees_associated() + frame.trees_added() + frame.trees_ignored();
     }
@@ -220,11 +220,12 @@ TEST_F(ObserveServiceTest, FramesWithPosesBuildAMapOfTheTrueTrees) {
 // survey's prior rows have no sensor height (it used to reach the database as NULL and fail).
 TEST_F(ObserveServiceTest, FramesMergeIntoASurveyWithoutHeights) {
   CreateMap("survey");
+  v1::UploadTreesRequest header;
+  header.mutable_header()->set_name("survey");
   v1::UploadTreesRequest upload;
-  upload.set_map_name("survey");
   const Forest& forest = TheForest();
   for (size_t t = 0; t < forest.trees.size(); ++t) {
-    v1::Tree* tree = upload.add_trees();
+    v1::Tree* tree = upload.mutable_chunk()->add_trees();
     tree->set_x(forest.trees[t].x());
     tree->set_y(forest.trees[t].y());
     tree->set_dbh(forest.dbh[t]);  // no z
@@ -232,6 +233,7 @@ TEST_F(ObserveServiceTest, FramesMergeIntoASurveyWithoutHeights) {
   v1::UploadTreesResponse uploaded;
   auto context = Context();
   auto writer = stub_->UploadTrees(context.get(), &uploaded);
+  ASSERT_TRUE(writer->Write(header));
   ASSERT_TRUE(writer->Write(upload));
   ASSERT_TRUE(writer->WritesDone());
   const grpc::Status status = writer->Finish();
@@ -240,7 +242,7 @@ TEST_F(ObserveServiceTest, FramesMergeIntoASurveyWithoutHeights) {
   const v1::ObserveResponse response = ObserveOk(Request("survey", "drone-1", 0, 20));
   ASSERT_EQ(response.frames_size(), 20);
   for (const v1::FrameResult& frame : response.frames()) {
-    EXPECT_EQ(frame.status(), v1::FrameResult::MERGED) << frame.detail();
+    EXPECT_EQ(frame.status(), v1::FrameResult::STATUS_MERGED) << frame.detail();
   }
   EXPECT_GT(response.map_version(), uploaded.map().version());
 }
@@ -250,7 +252,7 @@ TEST_F(ObserveServiceTest, FramesWithoutPosesAreRelocalizedFirst) {
   // Without confirmed trees nothing can be relocalized: frames are skipped, with the reason.
   v1::ObserveResponse response = ObserveOk(Request("surveyed", "drone-1", 10, 12, false));
   EXPECT_EQ(response.map_version(), 1);
-  EXPECT_EQ(response.frames(0).status(), v1::FrameResult::SKIPPED);
+  EXPECT_EQ(response.frames(0).status(), v1::FrameResult::STATUS_SKIPPED);
   EXPECT_THAT(response.frames(0).detail(), HasSubstr("no confirmed trees"));
 
   ObserveRange("surveyed", "drone-0", 0, 100, 25);  // builds confirmed trees (version 5)
@@ -262,16 +264,16 @@ TEST_F(ObserveServiceTest, FramesWithoutPosesAreRelocalizedFirst) {
   ASSERT_EQ(response.frames_size(), 11);
   for (int i = 0; i < 9; ++i) {
     const v1::FrameResult& frame = response.frames(i);
-    ASSERT_EQ(frame.status(), v1::FrameResult::MERGED) << frame.detail();
+    ASSERT_EQ(frame.status(), v1::FrameResult::STATUS_MERGED) << frame.detail();
     EXPECT_TRUE(frame.relocalized());
     const Eigen::Vector3d found = FromProto(frame.map_from_sensor()).translation();
     const Eigen::Vector3d truth = TheForest().map_from_sensor[40 + i].translation();
     EXPECT_LT((found - truth).head<2>().norm(), 0.1) << "frame " << frame.frame_id();
     EXPECT_GT(frame.trees_associated(), 10);
   }
-  EXPECT_EQ(response.frames(9).status(), v1::FrameResult::SKIPPED);
+  EXPECT_EQ(response.frames(9).status(), v1::FrameResult::STATUS_SKIPPED);
   EXPECT_THAT(response.frames(9).detail(), HasSubstr("fewer than 3 trees"));
-  EXPECT_EQ(response.frames(10).status(), v1::FrameResult::SKIPPED);
+  EXPECT_EQ(response.frames(10).status(), v1::FrameResult::STATUS_SKIPPED);
   EXPECT_THAT(response.frames(10).detail(), HasSubstr("no trees"));
 }
 
@@ -280,7 +282,7 @@ TEST_F(ObserveServiceTest, StaleBaseVersionIsAbortedOrMergedByPolicy) {
   ObserveOk(Request("m", "drone-1", 0, 10));  // version 2
   v1::ObserveRequest request = Request("m", "drone-2", 10, 20);
   request.set_base_version(1);
-  request.set_conflict_policy(v1::REJECT_IF_STALE);
+  request.set_conflict_policy(v1::CONFLICT_POLICY_REJECT_IF_STALE);
   v1::ObserveResponse response;
   grpc::Status status = Observe(request, &response);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::ABORTED);
@@ -288,7 +290,7 @@ TEST_F(ObserveServiceTest, StaleBaseVersionIsAbortedOrMergedByPolicy) {
   request.set_base_version(2);
   EXPECT_EQ(ObserveOk(request).map_version(), 3);
   request.set_base_version(2);
-  request.set_conflict_policy(v1::MERGE);
+  request.set_conflict_policy(v1::CONFLICT_POLICY_MERGE);
   EXPECT_EQ(ObserveOk(request).map_version(), 4);  // stale, merged anyway
 }
 
@@ -333,7 +335,7 @@ TEST_F(ObserveServiceTest, HistoryRestoreAndRemoveSource) {
   const std::vector<v1::Tree> version4 = Export("both", 4);
 
   v1::RemoveSourceRequest remove;
-  remove.set_map_name("both");
+  remove.set_name("both");
   remove.set_source("drone-b");
   v1::RemoveSourceResponse removed;
   ASSERT_TRUE(stub_->RemoveSource(Context().get(), remove, &removed).ok());
@@ -354,7 +356,7 @@ TEST_F(ObserveServiceTest, HistoryRestoreAndRemoveSource) {
   EXPECT_THAT(status.error_message(), HasSubstr("no observations of source \"drone-b\""));
 
   v1::RestoreVersionRequest restore;
-  restore.set_map_name("both");
+  restore.set_name("both");
   restore.set_version(7);
   v1::RestoreVersionResponse restored;
   ASSERT_TRUE(stub_->RestoreVersion(Context().get(), restore, &restored).ok());
@@ -366,15 +368,15 @@ TEST_F(ObserveServiceTest, HistoryRestoreAndRemoveSource) {
   EXPECT_EQ(status.error_code(), grpc::StatusCode::NOT_FOUND);
 
   v1::ListVersionsRequest list;
-  list.set_map_name("both");
+  list.set_name("both");
   v1::ListVersionsResponse history;
   ASSERT_TRUE(stub_->ListVersions(Context().get(), list, &history).ok());
   ASSERT_EQ(history.versions_size(), 9);
-  EXPECT_EQ(history.versions(0).kind(), v1::MapVersion::CREATE);
-  EXPECT_EQ(history.versions(4).kind(), v1::MapVersion::OBSERVE);
+  EXPECT_EQ(history.versions(0).kind(), v1::MapVersion::KIND_CREATE);
+  EXPECT_EQ(history.versions(4).kind(), v1::MapVersion::KIND_OBSERVE);
   EXPECT_EQ(history.versions(4).source(), "drone-b");
-  EXPECT_EQ(history.versions(7).kind(), v1::MapVersion::REMOVE_SOURCE);
-  EXPECT_EQ(history.versions(8).kind(), v1::MapVersion::RESTORE);
+  EXPECT_EQ(history.versions(7).kind(), v1::MapVersion::KIND_REMOVE_SOURCE);
+  EXPECT_EQ(history.versions(8).kind(), v1::MapVersion::KIND_RESTORE);
   EXPECT_EQ(history.versions(8).restored_from(), 7);
 }
 

@@ -1,4 +1,4 @@
-// Issue 15 (robustness): findings that once crashed the server, cut uploads short, applied a
+// Robustness: findings that once crashed the server, cut uploads short, applied a
 // retried write twice or let a fault look like a bug, each checked end to end through a real
 // in-process gRPC server over a SQLite file.
 
@@ -15,7 +15,7 @@
 
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/gated_store.h"
 #include "tests/server/rpc_test_support.h"
 
@@ -56,25 +56,25 @@ class RobustnessTest : public ::testing::Test {
     return stub_->CreateMap(Context().get(), request, &map);
   }
 
-  // Uploads `trees` in one message.
+  // Uploads `trees` in one chunk after the header.
   grpc::Status Upload(const std::string& name, const std::vector<v1::Tree>& trees,
                       v1::UploadTreesResponse* response = nullptr,
-                      const std::string& request_id = "") {
+                      const std::string& request_id = "", bool replace = false) {
     v1::UploadTreesResponse ignored;
     auto context = Context();
     auto writer = stub_->UploadTrees(context.get(), response ? response : &ignored);
+    v1::UploadTreesRequest header = test::UploadHeader(name, replace);
+    header.mutable_header()->set_request_id(request_id);
     v1::UploadTreesRequest message;
-    message.set_map_name(name);
-    message.set_request_id(request_id);
-    for (const v1::Tree& tree : trees) *message.add_trees() = tree;
-    writer->Write(message);
+    for (const v1::Tree& tree : trees) *message.mutable_chunk()->add_trees() = tree;
+    if (writer->Write(header)) writer->Write(message);
     writer->WritesDone();
     return writer->Finish();
   }
 
   grpc::Status Relocalize(const std::string& name) {
     v1::RelocalizeRequest request;
-    request.set_map_name(name);
+    request.set_name(name);
     for (auto [x, y] : {std::pair{0.0, 0.0}, {3.0, 0.0}, {0.0, 4.0}}) {
       v1::DetectedTree* tree = request.add_trees();
       tree->mutable_position()->set_x(x);
@@ -125,7 +125,7 @@ TEST_F(RobustnessTest, FarTreeIsRejectedByNameAndNeverCrashesTheServer) {
 TEST_F(RobustnessTest, FarObservationPoseIsRejectedByName) {
   ASSERT_TRUE(CreateMap("shared").ok());
   v1::ObserveRequest request;
-  request.set_map_name("shared");
+  request.set_name("shared");
   request.set_source("drone1");
   v1::ObservationFrame* frame = request.add_frames();
   frame->mutable_map_from_sensor()->mutable_translation()->set_x(1e45);
@@ -145,23 +145,23 @@ TEST_F(RobustnessTest, UndecodableUploadMessageFailsTheUploadAndWritesNothing) {
   v1::UploadTreesResponse response;
   auto context = Context();
   auto writer = stub_->UploadTrees(context.get(), &response);
+  ASSERT_TRUE(writer->Write(test::UploadHeader("plot")));
   for (int m = 0; m < 5; ++m) {
     v1::UploadTreesRequest message;
-    if (m == 0) message.set_map_name("plot");
     for (int i = 0; i < 1000; ++i) {
       v1::Tree tree = TreeAt(m * 1000 + i, i);
       if (m == 3 && i == 7)
         (*tree.mutable_attributes())["species"] =
             "\xe9pic\xe9"
             "a";
-      *message.add_trees() = tree;
+      *message.mutable_chunk()->add_trees() = tree;
     }
     if (!writer->Write(message)) break;  // the server already answered
   }
   writer->WritesDone();
   const grpc::Status status = writer->Finish();
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
-  EXPECT_THAT(status.error_message(), HasSubstr("upload message 3 (after 3000 trees)"));
+  EXPECT_THAT(status.error_message(), HasSubstr("upload message 4 (after 3000 trees)"));
   EXPECT_THAT(status.error_message(), HasSubstr("nothing was written"));
   EXPECT_EQ(store_.GetMap("plot").tree_count, 0);
   ExpectServing();
@@ -170,7 +170,7 @@ TEST_F(RobustnessTest, UndecodableUploadMessageFailsTheUploadAndWritesNothing) {
 // Three frames seeing the same 6 trees from poses 1 m apart (map frame = sensor frame + x).
 v1::ObserveRequest ObserveFrames(const std::string& request_id) {
   v1::ObserveRequest request;
-  request.set_map_name("shared");
+  request.set_name("shared");
   request.set_source("drone1");
   request.set_request_id(request_id);
   for (int f = 0; f < 3; ++f) {
@@ -268,19 +268,10 @@ TEST_F(RobustnessTest, PruneVersionsKeepsTheNewestVersions) {
   for (int upload = 0; upload < 4; ++upload) {
     std::vector<v1::Tree> trees;
     for (int i = 0; i < 50; ++i) trees.push_back(TreeAt(100.0 * upload + 2 * i, i));
-    v1::UploadTreesRequest replace;
-    auto context = Context();
-    v1::UploadTreesResponse response;
-    auto writer = stub_->UploadTrees(context.get(), &response);
-    replace.set_map_name("plot");
-    replace.set_replace(true);
-    for (const v1::Tree& tree : trees) *replace.add_trees() = tree;
-    writer->Write(replace);
-    writer->WritesDone();
-    ASSERT_TRUE(writer->Finish().ok());
+    ASSERT_TRUE(Upload("plot", trees, nullptr, "", /*replace=*/true).ok());
   }
   v1::PruneVersionsRequest request;
-  request.set_map_name("plot");
+  request.set_name("plot");
   request.set_keep(2);
   v1::PruneVersionsResponse response;
   grpc::Status status = stub_->PruneVersions(Context().get(), request, &response);
@@ -316,6 +307,40 @@ TEST_F(RetentionTest, KeepVersionsPolicyPrunesAfterEveryWrite) {
   }
   EXPECT_EQ(store_.GetMap("shared").version, 7);
   EXPECT_EQ(store_.ListVersions("shared", 0).front().version, 5);
+}
+
+// The upload stream commits apart from the unary writes; it applies the same retention.
+TEST_F(RetentionTest, UploadsArePrunedAfterTheirCommitToo) {
+  ASSERT_TRUE(CreateMap("plot").ok());
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_TRUE(Upload("plot", {TreeAt(10.0 * i, 0)}).ok());
+    EXPECT_LE(store_.ListVersions("plot", 0).size(), 3u) << "after upload " << i;
+  }
+  EXPECT_EQ(store_.GetMap("plot").version, 6);
+  EXPECT_EQ(store_.GetMap("plot").tree_count, 5);
+  EXPECT_EQ(store_.ListVersions("plot", 0).front().version, 4);
+}
+
+// A retention that fails after a committed write: the write stands and is answered OK (a retry
+// would find it applied), and the failure is in the log with its cause, from either path.
+TEST_F(RetentionTest, AFailedRetentionIsLoggedAndTheWriteStands) {
+  ASSERT_TRUE(CreateMap("shared").ok());
+  gated_.before_prune = [] {
+    throw storage::StorageError(storage::StorageError::Code::kFull, "disk full (injected)");
+  };
+  ::testing::internal::CaptureStderr();
+  v1::ObserveResponse observed;
+  const grpc::Status observe = stub_->Observe(Context().get(), ObserveFrames("obs-1"), &observed);
+  const grpc::Status upload = Upload("shared", {TreeAt(50, 50)});
+  const std::string log = ::testing::internal::GetCapturedStderr();
+  EXPECT_TRUE(observe.ok()) << observe.error_message();
+  EXPECT_TRUE(upload.ok()) << upload.error_message();
+  EXPECT_EQ(store_.GetMap("shared").version, 3);  // both writes are there
+  const std::string line =
+      "retention of map \"shared\" failed (the write stands): disk full (injected)";
+  const size_t first = log.find(line);
+  ASSERT_NE(first, std::string::npos) << log;
+  EXPECT_NE(log.find(line, first + 1), std::string::npos) << "one line per write: " << log;
 }
 
 }  // namespace

@@ -19,7 +19,7 @@
 #include "server/grpc/convert.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/gated_store.h"
 #include "tests/server/rpc_test_support.h"
 
@@ -54,7 +54,7 @@ std::vector<storage::TreeRecord> Forest(int count, unsigned seed) {
 v1::RelocalizeRequest ViewOf(const std::string& map, const std::vector<storage::TreeRecord>& trees,
                              const algorithms::Pose3& map_from_sensor, double range) {
   v1::RelocalizeRequest request;
-  request.set_map_name(map);
+  request.set_name(map);
   const algorithms::Pose3 sensor_from_map = map_from_sensor.inverse();
   const Eigen::Vector3d center = map_from_sensor.translation();
   for (const storage::TreeRecord& tree : trees) {
@@ -146,7 +146,7 @@ TEST_F(ServiceConcurrencyTest, RelocalizeAnswersWithTheMapVersionItUsed) {
   EXPECT_EQ(response.map_version(), store_.GetMap("plot").version);
   EXPECT_GT(response.server_time_ms(), 0.0);
   // A noise-free view of ~35 trees of a random forest has one clear answer: the true pose.
-  ASSERT_EQ(response.status(), v1::RelocalizeResponse::LOCALIZED) << response.detail();
+  ASSERT_EQ(response.status(), v1::RelocalizeResponse::STATUS_LOCALIZED) << response.detail();
   const algorithms::Pose3 found = FromProto(response.map_from_sensor());
   EXPECT_LT((found.translation() - truth.translation()).head<2>().norm(), kPositionTolerance);
   EXPECT_LT(std::abs(algorithms::WrapAngle(algorithms::YawOf(found.linear()) -
@@ -174,9 +174,11 @@ TEST_F(ServiceConcurrencyTest, IndexIsRebuiltAfterAnUpload) {
   v1::UploadTreesResponse uploaded;
   auto context = Context();
   auto writer = stub_->UploadTrees(context.get(), &uploaded);
+  v1::UploadTreesRequest header;
+  header.mutable_header()->set_name("plot");
+  ASSERT_TRUE(writer->Write(header));
   v1::UploadTreesRequest message;
-  message.set_map_name("plot");
-  v1::Tree* tree = message.add_trees();
+  v1::Tree* tree = message.mutable_chunk()->add_trees();
   tree->set_x(150);
   tree->set_y(150);
   ASSERT_TRUE(writer->Write(message));
@@ -257,8 +259,8 @@ TEST_F(ServiceConcurrencyTest, RelocalizeRejectsBadQueries) {
   two.set_client_stamp_ns(1234567890123456789);
   grpc::Status status = Relocalize(two, &response);
   ASSERT_TRUE(status.ok()) << status.error_message();  // too few trees: an answer, not an error
-  EXPECT_EQ(response.status(), v1::RelocalizeResponse::NOT_FOUND);
-  EXPECT_EQ(response.reason(), v1::RelocalizeResponse::TOO_FEW_TREES);
+  EXPECT_EQ(response.status(), v1::RelocalizeResponse::STATUS_NOT_FOUND);
+  EXPECT_EQ(response.reason(), v1::RelocalizeResponse::REASON_TOO_FEW_TREES);
   EXPECT_EQ(response.client_stamp_ns(), 1234567890123456789);
 
   v1::RelocalizeRequest huge = good;
@@ -274,13 +276,13 @@ TEST_F(ServiceConcurrencyTest, RelocalizeRejectsBadQueries) {
   EXPECT_THAT(status.error_message(), HasSubstr("trees[1].position.x is NaN"));
 
   v1::RelocalizeRequest unknown = good;
-  unknown.set_map_name("nowhere");
+  unknown.set_name("nowhere");
   status = Relocalize(unknown, &response);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::NOT_FOUND);
   EXPECT_THAT(status.error_message(), HasSubstr("nowhere"));
 
   v1::RelocalizeRequest empty = good;
-  empty.set_map_name("empty");
+  empty.set_name("empty");
   status = Relocalize(empty, &response);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
   EXPECT_THAT(status.error_message(), HasSubstr("\"empty\" has no confirmed trees"));
@@ -296,17 +298,17 @@ TEST_F(ServiceConcurrencyTest, CancelledUploadChangesNothing) {
   grpc::ClientContext context;
   v1::UploadTreesResponse response;
   auto writer = stub_->UploadTrees(&context, &response);
+  v1::UploadTreesRequest header;
+  header.mutable_header()->set_name("plot");
+  ASSERT_TRUE(writer->Write(header));
+  // The server has taken the first message once it began the upload (the map exists).
+  ASSERT_TRUE(Eventually([&] { return store_.uploads_begun() > uploads_begun; }));
   v1::UploadTreesRequest message;
-  message.set_map_name("plot");
   for (int i = 0; i < 1000; ++i) {
-    v1::Tree* tree = message.add_trees();
+    v1::Tree* tree = message.mutable_chunk()->add_trees();
     tree->set_x(i);
     tree->set_y(i);
   }
-  ASSERT_TRUE(writer->Write(message));
-  // The server has taken the first message once it began the upload (the map exists).
-  ASSERT_TRUE(Eventually([&] { return store_.uploads_begun() > uploads_begun; }));
-  message.clear_map_name();
   writer->Write(message);
   context.TryCancel();
   EXPECT_EQ(writer->Finish().error_code(), grpc::StatusCode::CANCELLED);

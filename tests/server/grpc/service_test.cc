@@ -13,7 +13,7 @@
 #include <random>
 
 #include "server/grpc/server.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/rpc_test_support.h"
 
 namespace forestmap::server {
@@ -71,24 +71,23 @@ class ServiceTest : public ::testing::Test {
     return map;
   }
 
-  // Uploads `trees` in messages of `chunk` trees (at least one message).
+  // Uploads `trees`: a header, then messages of `chunk` trees.
   grpc::Status Upload(const std::string& name, const std::vector<v1::Tree>& trees, size_t chunk,
                       bool replace = false, v1::UploadTreesResponse* response = nullptr) {
     v1::UploadTreesResponse ignored;
     auto context = Context();
     auto writer = stub_->UploadTrees(context.get(), response ? response : &ignored);
-    size_t next = 0;
-    do {
+    v1::UploadTreesRequest header;
+    header.mutable_header()->set_name(name);
+    header.mutable_header()->set_replace(replace);
+    bool open = writer->Write(header);
+    for (size_t next = 0; open && next < trees.size();) {
       v1::UploadTreesRequest message;
-      if (next == 0) {
-        message.set_map_name(name);
-        message.set_replace(replace);
-      }
       for (size_t end = std::min(trees.size(), next + chunk); next < end; ++next) {
-        *message.add_trees() = trees[next];
+        *message.mutable_chunk()->add_trees() = trees[next];
       }
-      if (!writer->Write(message)) break;  // the server already answered
-    } while (next < trees.size());
+      open = writer->Write(message);  // false: the server already answered
+    }
     writer->WritesDone();
     return writer->Finish();
   }
@@ -100,7 +99,7 @@ class ServiceTest : public ::testing::Test {
   };
   Export ExportTrees(const std::string& name, const v1::Box2* box = nullptr) {
     v1::ExportTreesRequest request;
-    request.set_map_name(name);
+    request.set_name(name);
     if (box != nullptr) *request.mutable_box() = *box;
     auto context = Context();
     auto reader = stub_->ExportTrees(context.get(), request);
@@ -132,7 +131,7 @@ void ExpectSameTrees(const std::vector<v1::Tree>& actual, const std::vector<v1::
   for (size_t i = 0; i < actual.size(); ++i) {
     // Uploaded trees are surveys: they come back confirmed.
     v1::Tree want = expected[i];
-    if (want.status() == v1::TREE_STATUS_UNSPECIFIED) want.set_status(v1::CONFIRMED);
+    if (want.status() == v1::TREE_STATUS_UNSPECIFIED) want.set_status(v1::TREE_STATUS_CONFIRMED);
     // Exact comparison of doubles: coordinates must come back bit-identical.
     EXPECT_TRUE(MessageDifferencer::Equals(actual[i], want)) << "tree " << i << ":\n"
                                                              << actual[i].DebugString() << "vs\n"
@@ -330,25 +329,25 @@ TEST_F(ServiceTest, DuplicateIdsFailTheWholeUpload) {
   EXPECT_EQ(GetMap("plot").version(), 2);
 }
 
-TEST_F(ServiceTest, UploadMustNameTheMapFirst) {
+TEST_F(ServiceTest, UploadMustStartWithAHeader) {
   CreateMap("plot");
   v1::UploadTreesResponse response;
   auto context = Context();
   auto writer = stub_->UploadTrees(context.get(), &response);
   v1::UploadTreesRequest message;
-  *message.add_trees() = RandomTrees(1, 1, 1)[0];
+  *message.mutable_chunk()->add_trees() = RandomTrees(1, 1, 1)[0];
   writer->Write(message);
   writer->WritesDone();
   grpc::Status status = writer->Finish();
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
-  EXPECT_THAT(status.error_message(), HasSubstr("map_name"));
+  EXPECT_THAT(status.error_message(), HasSubstr("header is missing"));
 
   auto empty_context = Context();
   auto empty = stub_->UploadTrees(empty_context.get(), &response);
   empty->WritesDone();
   status = empty->Finish();
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
-  EXPECT_THAT(status.error_message(), HasSubstr("map_name"));
+  EXPECT_THAT(status.error_message(), HasSubstr("header is missing"));
   EXPECT_EQ(GetMap("plot").version(), 1);
 }
 
@@ -359,15 +358,15 @@ TEST_F(ServiceTest, UploadCannotSwitchMaps) {
   auto context = Context();
   auto writer = stub_->UploadTrees(context.get(), &response);
   v1::UploadTreesRequest first;
-  first.set_map_name("plot");
+  first.mutable_header()->set_name("plot");
   writer->Write(first);
   v1::UploadTreesRequest second;
-  second.set_map_name("other");
+  second.mutable_header()->set_name("other");
   writer->Write(second);
   writer->WritesDone();
   const grpc::Status status = writer->Finish();
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
-  EXPECT_THAT(status.error_message(), HasSubstr("\"other\""));
+  EXPECT_THAT(status.error_message(), HasSubstr("only the first message of an upload is a header"));
   EXPECT_EQ(GetMap("plot").version(), 1);
   EXPECT_EQ(GetMap("other").version(), 1);
 }

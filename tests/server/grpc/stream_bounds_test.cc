@@ -1,4 +1,4 @@
-// Issue 15 (bounded memory, writers per map, atomic create with trees), end to end through an
+// Bounded memory, writers per map and atomic create with trees, end to end through an
 // in-process gRPC server over a SQLite file: uploads are staged in the database while they
 // stream, other maps are written meanwhile, a cancelled create leaves no map and no staged rows,
 // exports follow a slow reader page by page, and streams over their limit are RESOURCE_EXHAUSTED.
@@ -18,8 +18,8 @@
 
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/database.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/gated_store.h"
 #include "tests/server/rpc_test_support.h"
 
@@ -35,12 +35,11 @@ std::unique_ptr<grpc::ClientContext> Context() { return test::CallContext(kCallD
 
 std::filesystem::path TestDir() { return test::FreshTestDir("forestmap_bounds_"); }
 
-// `count` trees with ids first_id.. on a grid.
-v1::UploadTreesRequest Chunk(const std::string& name, int64_t first_id, int count) {
+// A chunk of `count` trees with ids first_id.. on a grid.
+v1::UploadTreesRequest Chunk(int64_t first_id, int count) {
   v1::UploadTreesRequest message;
-  message.set_map_name(name);
   for (int i = 0; i < count; ++i) {
-    v1::Tree* tree = message.add_trees();
+    v1::Tree* tree = message.mutable_chunk()->add_trees();
     tree->set_id(first_id + i);
     tree->set_x(static_cast<double>((first_id + i) % 300));
     tree->set_y(static_cast<double>((first_id + i) / 300));
@@ -89,15 +88,9 @@ class StreamBoundsTest : public ::testing::Test {
     v1::UploadTreesResponse response;
     auto context = Context();
     auto writer = stub_->UploadTrees(context.get(), &response);
-    for (int sent = 0; sent < count || sent == 0; sent += 1000) {
-      v1::UploadTreesRequest message =
-          Chunk(sent == 0 ? name : "", sent + 1, std::min(1000, count - sent));
-      if (sent == 0) {
-        message.set_create_map(create);
-        message.set_replace(replace);
-      }
-      if (!writer->Write(message)) break;
-      if (count == 0) break;
+    bool open = writer->Write(test::UploadHeader(name, replace, create));
+    for (int sent = 0; open && sent < count; sent += 1000) {
+      open = writer->Write(Chunk(sent + 1, std::min(1000, count - sent)));
     }
     writer->WritesDone();
     return writer->Finish();
@@ -139,11 +132,8 @@ TEST_F(StreamBoundsTest, UploadIsStagedWhileItStreamsAndOtherMapsAreWrittenMeanw
   auto context = Context();
   auto writer = stub_->UploadTrees(context.get(), &response);
   constexpr int kMessages = 20;
-  for (int m = 0; m < kMessages; ++m) {
-    v1::UploadTreesRequest message = Chunk(m == 0 ? "a" : "", m * 1000 + 1, 1000);
-    message.set_create_map(m == 0);
-    ASSERT_TRUE(writer->Write(message));
-  }
+  ASSERT_TRUE(writer->Write(test::UploadHeader("a", false, /*create_map=*/true)));
+  for (int m = 0; m < kMessages; ++m) ASSERT_TRUE(writer->Write(Chunk(m * 1000 + 1, 1000)));
   // All but the last chunk are staged before the stream ends.
   ASSERT_TRUE(Eventually([&] { return Pending() >= (kMessages - 1) * 1000; })) << Pending();
   ASSERT_TRUE(CreateMap("b").ok());
@@ -167,11 +157,8 @@ TEST_F(StreamBoundsTest, CancelledCreateWithTreesLeavesNoMapAndNoStagedRows) {
     v1::UploadTreesResponse response;
     auto context = Context();
     auto writer = stub_->UploadTrees(context.get(), &response);
-    for (int m = 0; m < 5; ++m) {
-      v1::UploadTreesRequest message = Chunk(m == 0 ? "plot" : "", m * 1000 + 1, 1000);
-      message.set_create_map(m == 0);
-      ASSERT_TRUE(writer->Write(message));
-    }
+    ASSERT_TRUE(writer->Write(test::UploadHeader("plot", false, /*create_map=*/true)));
+    for (int m = 0; m < 5; ++m) ASSERT_TRUE(writer->Write(Chunk(m * 1000 + 1, 1000)));
     ASSERT_TRUE(Eventually([&] { return Pending() >= 4000; }));
     context->TryCancel();  // the client dies
     EXPECT_EQ(writer->Finish().error_code(), grpc::StatusCode::CANCELLED);
@@ -195,7 +182,7 @@ TEST_F(StreamBoundsTest, SlowReaderGetsTheWholeVersionItStartedOn) {
   ASSERT_TRUE(Upload("big", 12000, /*create=*/true).ok());
   gated_.Close("big");  // the second page waits until the map has changed
   v1::ExportTreesRequest request;
-  request.set_map_name("big");
+  request.set_name("big");
   auto context = Context();
   auto reader = stub_->ExportTrees(context.get(), request);
   v1::ExportTreesResponse message;
@@ -222,7 +209,7 @@ TEST_F(StreamBoundsTest, PruningTheExportedVersionAbortsTheExport) {
   ASSERT_TRUE(Upload("big", 3000, /*create=*/true).ok());
   gated_.Close("big");  // the second page waits until the version is pruned
   v1::ExportTreesRequest request;
-  request.set_map_name("big");
+  request.set_name("big");
   auto context = Context();
   auto reader = stub_->ExportTrees(context.get(), request);
   v1::ExportTreesResponse message;
@@ -261,7 +248,7 @@ TEST_F(StreamBoundsTest, StreamsOverTheLimitsAreResourceExhausted) {
   auto fourth = open(*other);
   ASSERT_TRUE(Eventually([&] { return service_.stream_limits().open() == 3; }));
   v1::ExportTreesRequest request;
-  request.set_map_name("m");
+  request.set_name("m");
   auto context = Context();
   auto reader = NewStub()->ExportTrees(context.get(), request);  // a third client: server full
   status = reader->Finish();
@@ -269,7 +256,7 @@ TEST_F(StreamBoundsTest, StreamsOverTheLimitsAreResourceExhausted) {
   EXPECT_THAT(status.error_message(), HasSubstr("--max-streams 3"));
 
   for (Open* call : {first.get(), second.get(), fourth.get()}) {
-    ASSERT_TRUE(call->writer->Write(Chunk("m", 0, 0)));
+    ASSERT_TRUE(call->writer->Write(test::UploadHeader("m")));
     call->writer->WritesDone();
     EXPECT_TRUE(call->writer->Finish().ok());
   }

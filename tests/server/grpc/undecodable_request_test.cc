@@ -1,4 +1,4 @@
-// Issue 15, finding 7: undecodable request bytes of a unary RPC got UNIMPLEMENTED (gRPC's own
+// Undecodable request bytes of a unary RPC once got UNIMPLEMENTED (gRPC's own
 // answer when it cannot parse a request), which reads as "no such method". Now every unary RPC
 // and ExportTrees (one request message) answer INVALID_ARGUMENT naming the RPC, and the server
 // keeps serving. Raw bytes go through grpc::GenericStub, as a broken or hostile client sends them.
@@ -15,7 +15,7 @@
 
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 
 namespace forestmap::server {
 namespace {
@@ -35,7 +35,7 @@ const std::vector<std::string> kGarbage = {
 
 constexpr const char* kPrefix = "/forestmap.v1.ForestMap/";
 // Every RPC of the service with one request message but ExportTrees (server streaming); the
-// table of server/auth.cc lists them all, and a test there checks that it does.
+// table of server/ops/auth.cc lists them all, and a test there checks that it does.
 constexpr const char* kUnaryRpcs[] = {
     "CreateMap", "ListMaps",     "GetMap",         "DeleteMap",    "Relocalize",
     "Observe",   "ListVersions", "RestoreVersion", "RemoveSource", "PruneVersions"};

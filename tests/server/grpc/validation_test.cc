@@ -6,6 +6,8 @@
 #include <limits>
 #include <string>
 
+#include "server/grpc/upload_validator.h"
+
 namespace forestmap::server {
 namespace {
 
@@ -31,7 +33,7 @@ std::string ErrorOf(Body&& body) {
 
 v1::RelocalizeRequest Query(int trees) {
   v1::RelocalizeRequest request;
-  request.set_map_name("plot");
+  request.set_name("plot");
   for (int i = 0; i < trees; ++i) {
     v1::DetectedTree* tree = request.add_trees();
     tree->mutable_position()->set_x(i);
@@ -40,15 +42,39 @@ v1::RelocalizeRequest Query(int trees) {
   return request;
 }
 
-v1::UploadTreesRequest Chunk(const std::string& name, int first_id, int count) {
+// The field a ValidationError names for the error details (google.rpc.BadRequest).
+template <typename Body>
+std::string FieldOf(Body&& body) {
+  try {
+    body();
+  } catch (const ValidationError& e) {
+    return e.field();
+  }
+  ADD_FAILURE() << "no ValidationError";
+  return "";
+}
+
+v1::UploadTreesRequest Header(const std::string& name, bool replace = false) {
   v1::UploadTreesRequest message;
-  message.set_map_name(name);
+  message.mutable_header()->set_name(name);
+  message.mutable_header()->set_replace(replace);
+  return message;
+}
+
+v1::UploadTreesRequest Chunk(int first_id, int count) {
+  v1::UploadTreesRequest message;
   for (int i = 0; i < count; ++i) {
-    v1::Tree* tree = message.add_trees();
+    v1::Tree* tree = message.mutable_chunk()->add_trees();
     tree->set_id(first_id + i);
     tree->set_x(i);
     tree->set_y(i);
   }
+  return message;
+}
+
+v1::TrackRequest TrackHeader(const std::string& name) {
+  v1::TrackRequest message;
+  message.mutable_header()->set_name(name);
   return message;
 }
 
@@ -67,9 +93,9 @@ TEST(ValidationTest, MapNames) {
   too_long.set_name(std::string(129, 'a'));
   EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(too_long); }), HasSubstr("128"));
   v1::ExportTreesRequest control;
-  control.set_map_name(std::string("a\nb", 3));
-  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(control); }),
-              HasSubstr("map_name \"a\\x0ab\""));
+  control.set_name(std::string("a\nb", 3));
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(control); }), HasSubstr("name \"a\\x0ab\""));
+  EXPECT_EQ(FieldOf([&] { Validate(control); }), "name");
 }
 
 // "." and ".." are paths in a URL: the web page's /api/maps/../trees would name another route.
@@ -116,6 +142,7 @@ TEST(ValidationTest, TreeFields) {
   nan_x.set_x(kNaN);
   EXPECT_EQ(ErrorOf<ValidationError>([&] { ValidateTree(nan_x, "trees[12]"); }),
             "trees[12].x is NaN; numbers must be finite");
+  EXPECT_EQ(FieldOf([&] { ValidateTree(nan_x, "trees[12]"); }), "trees[12].x");
   v1::Tree inf_z = tree;
   inf_z.set_z(-kInf);
   EXPECT_THAT(ErrorOf<ValidationError>([&] { ValidateTree(inf_z, "trees[3]"); }),
@@ -154,7 +181,7 @@ TEST(ValidationTest, NullAttributes) {
               HasSubstr("trees[3].null_attributes: 66 attributes and null attributes exceed"));
 }
 
-// Issue 15: finite but huge coordinates crashed the index build; a map frame is a local frame.
+// Finite but huge coordinates crashed the index build; a map frame is a local frame.
 TEST(ValidationTest, CoordinatesMustLieInALocalFrame) {
   v1::Tree tree;
   tree.set_x(9.99e6);
@@ -180,12 +207,13 @@ TEST(ValidationTest, CoordinatesMustLieInALocalFrame) {
               HasSubstr("trees[1].position.y is 20000000"));
   v1::RelocalizeRequest prior = Query(3);
   prior.mutable_prior()->set_radius_m(10);
-  prior.mutable_prior()->mutable_map_from_sensor()->mutable_translation()->set_x(-1e45);
+  prior.mutable_prior()->set_x(-1e45);
+  prior.mutable_prior()->set_y(0);
   EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(prior, 100); }),
-              HasSubstr("prior.map_from_sensor.translation.x is -1e+45"));
+              HasSubstr("prior.x is -1e+45"));
 
   v1::ObserveRequest observe;
-  observe.set_map_name("shared");
+  observe.set_name("shared");
   observe.set_source("drone");
   v1::ObservationFrame* frame = observe.add_frames();
   frame->add_trees()->mutable_position()->set_z(3e5);
@@ -197,10 +225,9 @@ TEST(ValidationTest, CoordinatesMustLieInALocalFrame) {
               HasSubstr("frames[0].map_from_sensor.translation.y is 1e+45"));
 
   v1::TrackRequest track;
-  track.set_map_name("plot");
-  track.mutable_odometry()->mutable_translation()->set_x(5e7);
-  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(track, "", 100); }),
-              HasSubstr("odometry.translation.x is 50000000"));
+  track.mutable_frame()->mutable_odometry()->mutable_translation()->set_x(5e7);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { ReadTrackMessage(track, "plot", 100); }),
+              HasSubstr("frame.odometry.translation.x is 50000000"));
 }
 
 TEST(ValidationTest, RelocalizeTreeCountLimits) {
@@ -238,31 +265,29 @@ TEST(ValidationTest, RelocalizeDetectedTreeFields) {
 TEST(ValidationTest, RelocalizePriorAndGravity) {
   v1::RelocalizeRequest request = Query(5);
   v1::PriorPose* prior = request.mutable_prior();
+  prior->set_x(12.5);
+  prior->set_y(-3);
   prior->set_radius_m(10);
-  prior->mutable_map_from_sensor()->mutable_rotation()->set_w(1.0004);  // within tolerance
   request.mutable_gravity()->set_z(-9.81);
   EXPECT_NO_THROW(Validate(request, 100));
 
-  v1::RelocalizeRequest far = request;
-  far.mutable_prior()->mutable_map_from_sensor()->mutable_rotation()->set_w(0.5);
-  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(far, 100); }),
-              HasSubstr("prior.map_from_sensor.rotation is not a unit quaternion"));
-  v1::RelocalizeRequest zero_quaternion = request;
-  zero_quaternion.mutable_prior()->mutable_map_from_sensor()->mutable_rotation()->set_w(0);
-  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(zero_quaternion, 100); }),
-              HasSubstr("not a unit quaternion"));
-  v1::RelocalizeRequest nan_translation = request;
-  nan_translation.mutable_prior()->mutable_map_from_sensor()->mutable_translation()->set_y(kNaN);
-  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(nan_translation, 100); }),
-              HasSubstr("prior.map_from_sensor.translation.y is NaN"));
+  v1::RelocalizeRequest nan_y = request;
+  nan_y.mutable_prior()->set_y(kNaN);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(nan_y, 100); }), HasSubstr("prior.y is NaN"));
+  v1::RelocalizeRequest no_x = request;
+  no_x.mutable_prior()->clear_x();
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(no_x, 100); }),
+              HasSubstr("prior.x is missing"));
+  EXPECT_EQ(FieldOf([&] { Validate(no_x, 100); }), "prior.x");
+  v1::RelocalizeRequest no_position = request;
+  no_position.mutable_prior()->clear_x();
+  no_position.mutable_prior()->clear_y();
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(no_position, 100); }),
+              HasSubstr("prior.x is missing; a prior is the sensor's horizontal position"));
   v1::RelocalizeRequest radius = request;
   radius.mutable_prior()->set_radius_m(0);
   EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(radius, 100); }),
               HasSubstr("prior.radius_m is 0; it must be > 0"));
-  v1::RelocalizeRequest no_pose = request;
-  no_pose.mutable_prior()->clear_map_from_sensor();
-  EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(no_pose, 100); }),
-              HasSubstr("prior.map_from_sensor is missing"));
   v1::RelocalizeRequest zero_gravity = request;
   zero_gravity.mutable_gravity()->set_z(0);
   EXPECT_THAT(ErrorOf<ValidationError>([&] { Validate(zero_gravity, 100); }),
@@ -273,9 +298,39 @@ TEST(ValidationTest, RelocalizePriorAndGravity) {
               HasSubstr("gravity.x is NaN"));
 }
 
+TEST(ValidationTest, TrackStreamHeaderThenFrames) {
+  v1::TrackRequest header = TrackHeader("plot");
+  const TrackMessage first = ReadTrackMessage(header, "", 100);
+  EXPECT_EQ(first.map, "plot");
+  EXPECT_FALSE(first.frame);  // a header is not answered
+  v1::TrackRequest frame;
+  frame.mutable_frame()->set_frame_id(7);
+  frame.mutable_frame()->add_trees()->mutable_position()->set_x(1);
+  const TrackMessage next = ReadTrackMessage(frame, "plot", 100);
+  ASSERT_TRUE(next.frame);
+  EXPECT_EQ(next.frame->frame_id(), 7);
+  EXPECT_EQ(next.frame->trees_size(), 1);
+
+  v1::TrackRequest no_header;
+  no_header.mutable_frame()->set_frame_id(1);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { ReadTrackMessage(no_header, "", 100); }),
+              HasSubstr("header is missing: the first message of a Track stream names the map"));
+  v1::TrackRequest second_header = TrackHeader("plot");
+  EXPECT_EQ(FieldOf([&] { ReadTrackMessage(second_header, "plot", 100); }), "header");
+  v1::TrackRequest bad_name = TrackHeader("a b");
+  EXPECT_EQ(FieldOf([&] { ReadTrackMessage(bad_name, "", 100); }), "header.name");
+  v1::TrackRequest nan;
+  nan.mutable_frame()->add_trees()->mutable_position()->set_y(kNaN);
+  EXPECT_EQ(FieldOf([&] { ReadTrackMessage(nan, "plot", 100); }), "frame.trees[0].position.y");
+  v1::TrackRequest many;
+  for (int i = 0; i < 11; ++i) many.mutable_frame()->add_trees()->mutable_position();
+  EXPECT_EQ(ErrorOf<LimitError>([&] { ReadTrackMessage(many, "plot", 10); }),
+            "frame.trees: 11 trees exceed the limit of 10 per frame");
+}
+
 TEST(ValidationTest, ExportBox) {
   v1::ExportTreesRequest request;
-  request.set_map_name("plot");
+  request.set_name("plot");
   request.mutable_box()->set_max_x(10);
   request.mutable_box()->set_max_y(10);
   EXPECT_NO_THROW(Validate(request));
@@ -287,57 +342,66 @@ TEST(ValidationTest, ExportBox) {
 
 TEST(ValidationTest, UploadStreamHappyPath) {
   UploadValidator validator(1000);
-  v1::UploadTreesRequest first = Chunk("plot", 0, 10);
-  first.set_replace(true);
-  validator.Accept(first);
-  validator.Accept(Chunk("", 10, 10));      // later messages may omit the name
-  validator.Accept(Chunk("plot", 20, 10));  // or repeat it
+  v1::UploadTreesRequest header = Header("plot", /*replace=*/true);
+  EXPECT_EQ(validator.Accept(header).size(), 0);
+  for (int first_id : {0, 10, 20}) {
+    v1::UploadTreesRequest chunk = Chunk(first_id, 10);
+    EXPECT_EQ(validator.Accept(chunk).size(), 10);  // the trees, moved out of the message
+  }
   v1::UploadTreesRequest no_ids;
-  no_ids.add_trees()->set_x(1);
+  no_ids.mutable_chunk()->add_trees()->set_x(1);
+  v1::UploadTreesRequest no_ids_again = no_ids;
   validator.Accept(no_ids);
-  validator.Accept(no_ids);  // trees without ids never collide
+  validator.Accept(no_ids_again);  // trees without ids never collide
   EXPECT_NO_THROW(validator.Finish());
-  EXPECT_EQ(validator.map_name(), "plot");
-  EXPECT_TRUE(validator.replace());
-  EXPECT_EQ(validator.messages(), 5);
+  EXPECT_EQ(validator.header().name(), "plot");
+  EXPECT_TRUE(validator.header().replace());
+  EXPECT_EQ(validator.messages(), 6);
   EXPECT_EQ(validator.trees(), 32);
 }
 
 TEST(ValidationTest, UploadStreamErrors) {
   EXPECT_THAT(ErrorOf<ValidationError>([] { UploadValidator(10).Finish(); }),
-              HasSubstr("map_name"));
-  EXPECT_THAT(ErrorOf<ValidationError>([] { UploadValidator(10).Accept(Chunk("", 0, 1)); }),
-              HasSubstr("map_name: the first message of an upload must name the map"));
-  EXPECT_THAT(ErrorOf<ValidationError>([] { UploadValidator(10).Accept(Chunk("a b", 0, 1)); }),
-              HasSubstr("map_name \"a b\""));
+              HasSubstr("header is missing: the upload stream was empty"));
+  v1::UploadTreesRequest chunk = Chunk(0, 1);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { UploadValidator(10).Accept(chunk); }),
+              HasSubstr("header is missing: the first message of an upload names the map"));
+  v1::UploadTreesRequest bad_name = Header("a b");
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { UploadValidator(10).Accept(bad_name); }),
+              HasSubstr("header.name \"a b\""));
+  EXPECT_EQ(FieldOf([&] { UploadValidator(10).Accept(bad_name); }), "header.name");
 
-  UploadValidator other_map(100);
-  other_map.Accept(Chunk("plot", 0, 1));
-  EXPECT_THAT(ErrorOf<ValidationError>([&] { other_map.Accept(Chunk("other", 1, 1)); }),
-              HasSubstr("differs from the upload's map \"plot\""));
-
-  UploadValidator late_replace(100);
-  late_replace.Accept(Chunk("plot", 0, 1));
-  v1::UploadTreesRequest replace = Chunk("", 1, 1);
-  replace.set_replace(true);
-  EXPECT_THAT(ErrorOf<ValidationError>([&] { late_replace.Accept(replace); }),
-              HasSubstr("only the first message may set replace"));
+  UploadValidator two_headers(100);
+  v1::UploadTreesRequest header = Header("plot");
+  two_headers.Accept(header);
+  v1::UploadTreesRequest again = Header("plot");
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { two_headers.Accept(again); }),
+              HasSubstr("header (upload message 1): only the first message of an upload is a "
+                        "header"));
 
   // Ids unique across the stream are the store's check as it stages the trees (constant memory
   // here; tests/storage/staged_upload_test.cc, tests/server/service_test.cc).
   UploadValidator duplicate(100);
-  duplicate.Accept(Chunk("plot", 0, 10));
-  EXPECT_NO_THROW(duplicate.Accept(Chunk("", 5, 10)));
+  duplicate.Accept(header);
+  v1::UploadTreesRequest first_ten = Chunk(0, 10);
+  duplicate.Accept(first_ten);
+  v1::UploadTreesRequest overlapping = Chunk(5, 10);
+  EXPECT_NO_THROW(duplicate.Accept(overlapping));
 
   UploadValidator nan(100);
-  nan.Accept(Chunk("plot", 0, 10));
-  v1::UploadTreesRequest bad = Chunk("", 10, 5);
-  bad.mutable_trees(3)->set_y(kNaN);
+  nan.Accept(header);
+  v1::UploadTreesRequest good = Chunk(0, 10);
+  nan.Accept(good);
+  v1::UploadTreesRequest bad = Chunk(10, 5);
+  bad.mutable_chunk()->mutable_trees(3)->set_y(kNaN);
   EXPECT_THAT(ErrorOf<ValidationError>([&] { nan.Accept(bad); }), HasSubstr("trees[13].y is NaN"));
 
   UploadValidator limit(15);
-  limit.Accept(Chunk("plot", 0, 10));
-  EXPECT_THAT(ErrorOf<LimitError>([&] { limit.Accept(Chunk("", 10, 6)); }),
+  limit.Accept(header);
+  v1::UploadTreesRequest ten = Chunk(0, 10);
+  limit.Accept(ten);
+  v1::UploadTreesRequest six = Chunk(10, 6);
+  EXPECT_THAT(ErrorOf<LimitError>([&] { limit.Accept(six); }),
               HasSubstr("exceeds the limit of 15 trees"));
 }
 

@@ -1,4 +1,4 @@
-// Issue 15: forestmapd --http showed every map to anyone, tokens or not. Now, once a token exists,
+// forestmapd --http once showed every map to anyone, tokens or not. Now, once a token exists,
 // every route needs one with read access on the map (Authorization: Bearer, or ?token= for a
 // browser): checked route by route over HTTP, and in Debian's headless Chromium opening
 // /?token=... and drawing the map's trees.
@@ -13,7 +13,7 @@
 
 #include "server/app/recent_answers.h"
 #include "server/http/http_page.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "storage/token_store.h"
 #include "tests/server/http_get.h"
 

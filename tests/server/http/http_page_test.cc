@@ -1,4 +1,4 @@
-// forestmapd's read-only web page (issue 14) in a real browser: Debian's headless Chromium loads
+// forestmapd's read-only web page in a real browser: Debian's headless Chromium loads
 // the page from an in-process server, waits for the trees to draw (<body data-drawn="N">), and a
 // screenshot must show the stems in their colour.
 
@@ -14,11 +14,11 @@
 #include <fstream>
 #include <sstream>
 
-#include "client/forestmap_client.h"
 #include "client/io/tree_csv.h"
+#include "client/lib/forestmap_client.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 
 namespace forestmap::server {
 namespace {

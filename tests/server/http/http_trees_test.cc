@@ -1,7 +1,8 @@
-// The web page's tree route (server/http_trees.h) and its listeners (server/http_listen.h):
-// /api/maps/NAME/trees is streamed in chunks read page by page and holds every tree exactly, at
-// the page boundaries too; --http and --metrics refuse a port in use (cpp-httplib's default
-// SO_REUSEPORT let a second server share it) and malformed addresses, naming flag and address.
+// The web page's tree route (server/http/http_trees.h) and its listeners
+// (server/http/http_listen.h): /api/maps/NAME/trees is streamed in chunks read page by page and
+// holds every tree exactly, at the page boundaries too; --http and --metrics refuse a port in use
+// (cpp-httplib's default SO_REUSEPORT let a second server share it) and malformed addresses, naming
+// flag and address.
 
 #include "server/http/http_trees.h"
 
@@ -17,7 +18,7 @@
 #include "server/app/recent_answers.h"
 #include "server/http/http_page.h"
 #include "server/http/metrics_http.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/http_get.h"
 
 namespace forestmap::server {

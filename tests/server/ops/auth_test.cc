@@ -14,10 +14,12 @@
 #include <string>
 
 #include "forestmap/v1/forestmap_service.pb.h"
+#include "proto/status_code_name.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "storage/token_store.h"
+#include "tests/server/rpc_test_support.h"
 
 namespace forestmap::server {
 namespace {
@@ -76,11 +78,11 @@ grpc::Status Upload(Stub& stub, const std::string& token, const std::string& map
   auto context = Context(token);
   auto writer = stub.UploadTrees(context.get(), &response);
   v1::UploadTreesRequest request;
-  request.set_map_name(map);
   for (size_t i = 0; i < std::size(kPlot); ++i) {
-    *request.add_trees() = Tree(id0 + static_cast<int64_t>(i), kPlot[i][0], kPlot[i][1]);
+    *request.mutable_chunk()->add_trees() =
+        Tree(id0 + static_cast<int64_t>(i), kPlot[i][0], kPlot[i][1]);
   }
-  writer->Write(request);
+  if (writer->Write(test::UploadHeader(map))) writer->Write(request);
   writer->WritesDone();
   return writer->Finish();
 }
@@ -88,11 +90,12 @@ grpc::Status Upload(Stub& stub, const std::string& token, const std::string& map
 grpc::Status Track(Stub& stub, const std::string& token) {
   auto context = Context(token);
   auto stream = stub.Track(context.get());
+  v1::TrackRequest header;
+  header.mutable_header()->set_name(kMap);
   v1::TrackRequest request;
-  request.set_map_name(kMap);
-  request.set_frame_id(1);
-  AddQueryTrees(request.mutable_trees());
-  stream->Write(request);
+  request.mutable_frame()->set_frame_id(1);
+  AddQueryTrees(request.mutable_frame()->mutable_trees());
+  if (stream->Write(header)) stream->Write(request);
   stream->WritesDone();
   v1::TrackResponse response;
   while (stream->Read(&response)) {
@@ -102,7 +105,7 @@ grpc::Status Track(Stub& stub, const std::string& token) {
 
 grpc::Status Observe(Stub& stub, const std::string& token) {
   v1::ObserveRequest request;
-  request.set_map_name(kMap);
+  request.set_name(kMap);
   request.set_source("auth-test");
   v1::ObservationFrame* frame = request.add_frames();
   frame->set_frame_id(1);
@@ -142,7 +145,7 @@ std::vector<RpcCase> AllRpcs() {
                    }});
   cases.push_back({"ExportTrees", Role::kRead, [](Stub& stub, const std::string& token) {
                      v1::ExportTreesRequest request;
-                     request.set_map_name(kMap);
+                     request.set_name(kMap);
                      auto context = Context(token);
                      auto reader = stub.ExportTrees(context.get(), request);
                      v1::ExportTreesResponse response;
@@ -152,7 +155,7 @@ std::vector<RpcCase> AllRpcs() {
                    }});
   cases.push_back({"Relocalize", Role::kRead, [](Stub& stub, const std::string& token) {
                      v1::RelocalizeRequest request;
-                     request.set_map_name(kMap);
+                     request.set_name(kMap);
                      AddQueryTrees(request.mutable_trees());
                      v1::RelocalizeResponse response;
                      return stub.Relocalize(Context(token).get(), request, &response);
@@ -161,20 +164,20 @@ std::vector<RpcCase> AllRpcs() {
   cases.push_back({"Observe", Role::kWrite, Observe});
   cases.push_back({"ListVersions", Role::kRead, [](Stub& stub, const std::string& token) {
                      v1::ListVersionsRequest request;
-                     request.set_map_name(kMap);
+                     request.set_name(kMap);
                      v1::ListVersionsResponse response;
                      return stub.ListVersions(Context(token).get(), request, &response);
                    }});
   cases.push_back({"RemoveSource", Role::kWrite, [](Stub& stub, const std::string& token) {
                      v1::RemoveSourceRequest request;
-                     request.set_map_name(kMap);
+                     request.set_name(kMap);
                      request.set_source("auth-test");
                      v1::RemoveSourceResponse response;
                      return stub.RemoveSource(Context(token).get(), request, &response);
                    }});
   cases.push_back({"RestoreVersion", Role::kAdmin, [](Stub& stub, const std::string& token) {
                      v1::RestoreVersionRequest request;
-                     request.set_map_name(kMap);
+                     request.set_name(kMap);
                      request.set_version(2);  // after the first upload
                      v1::RestoreVersionResponse response;
                      return stub.RestoreVersion(Context(token).get(), request, &response);
@@ -314,7 +317,7 @@ TEST(AuthRoles, EveryServiceMethodHasARole) {
   ASSERT_NE(service, nullptr);
   for (int i = 0; i < service->method_count(); ++i) {
     EXPECT_TRUE(RequiredRole(service->method(i)->name()).has_value())
-        << service->method(i)->name() << " has no role in server/auth.cc";
+        << service->method(i)->name() << " has no role in server/ops/auth.cc";
   }
   EXPECT_EQ(RequiredRole("CreateMap"), Role::kAdmin);
   EXPECT_EQ(RequiredRole("Observe"), Role::kWrite);

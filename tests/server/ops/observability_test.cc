@@ -20,8 +20,9 @@
 #include "server/ops/daemon.h"
 #include "server/ops/logging.h"
 #include "server/ops/metrics.h"
-#include "storage/sqlite_map_store.h"
+#include "storage/sqlite/store.h"
 #include "tests/server/http_get.h"
+#include "tests/server/rpc_test_support.h"
 
 namespace forestmap::server {
 namespace {
@@ -99,15 +100,15 @@ class ObservabilityTest : public ::testing::Test {
     auto context = Context();
     auto writer = stub_->UploadTrees(context.get(), &response);
     v1::UploadTreesRequest request;
-    request.set_map_name(name);
     const double plot[][2] = {{0, 0}, {7, 1}, {3, 9}, {12, 4}, {9, 13}, {15, 11}};
     int64_t id = 1;
     for (const auto& p : plot) {
-      v1::Tree* tree = request.add_trees();
+      v1::Tree* tree = request.mutable_chunk()->add_trees();
       tree->set_id(id++);
       tree->set_x(p[0]);
       tree->set_y(p[1]);
     }
+    ASSERT_TRUE(writer->Write(test::UploadHeader(name)));
     writer->Write(request);
     writer->WritesDone();
     ASSERT_TRUE(writer->Finish().ok());
@@ -136,7 +137,7 @@ TEST_F(ObservabilityTest, PromtoolAcceptsTheMetricsAndCountersMove) {
   EXPECT_EQ(stub_->GetMap(Context().get(), missing, &map).error_code(),
             grpc::StatusCode::NOT_FOUND);
   v1::RelocalizeRequest query;
-  query.set_map_name("plot-1");
+  query.set_name("plot-1");
   for (const auto& p : {std::pair{0.0, 0.0}, {7.0, 1.0}, {3.0, 9.0}, {12.0, 4.0}}) {
     v1::DetectedTree* tree = query.add_trees();
     tree->mutable_position()->set_x(p.first);
@@ -148,9 +149,11 @@ TEST_F(ObservabilityTest, PromtoolAcceptsTheMetricsAndCountersMove) {
   // A tracking stream held open while scraping.
   auto track_context = Context();
   auto track = stub_->Track(track_context.get());
+  v1::TrackRequest header;
+  header.mutable_header()->set_name("plot-1");
+  ASSERT_TRUE(track->Write(header));
   v1::TrackRequest frame;
-  frame.set_map_name("plot-1");
-  *frame.mutable_trees() = query.trees();
+  *frame.mutable_frame()->mutable_trees() = query.trees();
   ASSERT_TRUE(track->Write(frame));
   v1::TrackResponse tracked;
   ASSERT_TRUE(track->Read(&tracked));

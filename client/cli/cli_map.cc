@@ -1,0 +1,439 @@
+// `forestmap map create|build|list|show|delete|export|history|restore|remove-source`.
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "algorithms/mapping/map_builder.h"
+#include "client/cli/cli_commands.h"
+#include "client/cli/cli_format.h"
+#include "client/cli/cli_tree_crs.h"
+#include "client/cli/cli_tree_input.h"
+#include "client/io/file_replace.h"
+#include "client/io/geo_io.h"
+#include "client/io/tree_csv.h"
+
+namespace forestmap::client {
+namespace {
+
+struct CreateOptions {
+  std::string name;
+  std::string trees_file;
+  std::string crs;
+  std::string to_crs;  // --to-crs: reproject the trees into this CRS, the map's
+  std::string description;
+  std::string columns;   // --columns x=HEADER,... (io/tree_columns.h)
+  std::string dbh_unit;  // --dbh-unit m|cm|mm; empty: from the header, else m
+  std::string layer;     // --layer: a GIS file's layer; empty: the only one with points
+};
+
+// Creates the map with `rows` (from `source`) in one upload stream: the server creates the map
+// in the transaction that commits its trees, so a failed or killed upload leaves no map.
+void CreateWithTrees(const CreateOptions& options, const std::vector<MapTreeRow>& rows,
+                     const std::string& source, const CliContext& context) {
+  ForestMapClient client = context.Connect();
+  v1::Map map;
+  if (rows.empty()) {
+    map = client.CreateMap(options.name, options.description, options.crs);
+  } else {
+    try {
+      map = client
+                .CreateMapWithTrees(options.name, options.description, options.crs, rows,
+                                    UploadProgressTo(*context.err, std::ssize(rows),
+                                                     ClientOptions().upload_chunk_trees))
+                .map();
+    } catch (const std::exception& upload_error) {
+      throw CommandError("creating map '" + options.name + "' with the trees of " + source +
+                         " failed: " + upload_error.what() + "; no map was created");
+    }
+  }
+  *context.out << "created map '" << map.name() << "' (" << map.tree_count() << " trees, version "
+               << map.version() << ")" << std::endl;
+}
+
+void RunCreate(CreateOptions options, const CliContext& context) {
+  std::vector<MapTreeRow> rows;
+  // Read the file before touching the server, so that a bad file leaves nothing behind.
+  if (!options.trees_file.empty()) {
+    TreeFile file = ReadTreeFile(
+        options.trees_file, TreeFileOptionsFrom(options.columns, options.dbh_unit, options.layer));
+    rows = std::move(file.rows);
+    options.crs = CrsOfTrees(options.trees_file, options.crs, file.crs);
+    options.crs =
+        ReprojectTrees(rows, options.trees_file, options.crs, options.to_crs, *context.err);
+    CheckTreePlacement(rows, options.trees_file, options.crs, *context.err);
+  } else if (!options.to_crs.empty()) {
+    throw CommandError("--to-crs reprojects the trees of --trees FILE; without trees give --crs");
+  }
+  if (!options.trees_file.empty() && rows.empty()) {
+    *context.err << "forestmap: warning: " << options.trees_file
+                 << " has no trees; the map is empty" << std::endl;
+  }
+  CreateWithTrees(options, rows, options.trees_file, context);
+}
+
+void AddCreate(CLI::App& map_app, CliContext& context) {
+  auto options = std::make_shared<CreateOptions>();
+  CLI::App* sub = map_app.add_subcommand(
+      "create", "Create a map, empty or with the trees of a CSV file (x,y[,z,dbh,id,...])");
+  sub->add_option("NAME", options->name,
+                  "Map name: 1-128 characters of A-Z a-z 0-9 _ . - (not . or ..)")
+      ->required();
+  sub->add_option("--trees", options->trees_file,
+                  "The map's trees: CSV (columns x,y (m) required; z, dbh (m), id optional; "
+                  "other columns are kept as attributes), or .gpkg / .geojson / .shp points "
+                  "(whose CRS is used when --crs is not given)");
+  AddTreeFileOptions(*sub, options->columns, options->dbh_unit, &options->layer);
+  sub->add_option("--crs", options->crs,
+                  "Coordinate reference system of the trees and the map: EPSG code (EPSG:2959), "
+                  "WKT or PROJ string, in metres");
+  AddToCrsOption(*sub, options->to_crs);
+  sub->add_option("--description", options->description, "Free text");
+  sub->callback(
+      [options, &context] { context.run = [options, &context] { RunCreate(*options, context); }; });
+}
+
+struct BuildOptions {
+  CreateOptions map;  // name, crs, description of the new map
+  std::string frames_file;
+  std::string odometry_file;
+  std::string poses_out;
+};
+
+// Maps an unknown forest here, on the client (algorithms/mapping/map_builder.h), then uploads the
+// confirmed trees as a new map. The first frame defines the map frame.
+void RunBuild(const BuildOptions& options, const CliContext& context) {
+  const std::vector<Frame> frames = ReadFramesCsv(options.frames_file);
+  if (frames.empty()) throw CommandError(options.frames_file + ": no frames (header only)");
+  OdometryFromPoses odometry(options.odometry_file);
+  try {  // fail before the (long) build, not after it
+    context.Connect().GetMap(options.map.name);
+    throw CommandError("map '" + options.map.name + "' already exists; choose another name");
+  } catch (const RpcError& error) {
+    if (error.code() != grpc::StatusCode::NOT_FOUND) throw;
+  }
+
+  algorithms::MapBuilder builder;
+  int fixes[5] = {0, 0, 0, 0, 0};  // by FrameFix
+  for (size_t i = 0; i < frames.size(); ++i) {
+    algorithms::BuilderFrame frame;
+    frame.frame_id = frames[i].frame;
+    frame.trees = frames[i].trees;
+    frame.odometry = odometry.Next(frame.frame_id);
+    ++fixes[static_cast<int>(builder.AddFrame(frame).fix)];
+    if ((i + 1) % 100 == 0 || i + 1 == frames.size()) {
+      *context.err << "map build: " << i + 1 << "/" << frames.size() << " frames, "
+                   << builder.map().size() << " trees, " << builder.loop_closures()
+                   << " loop closures" << std::endl;
+    }
+  }
+  builder.Finish();
+  *context.err << "map build: " << fixes[static_cast<int>(algorithms::FrameFix::kTracked)]
+               << " frames tracked, "
+               << fixes[static_cast<int>(algorithms::FrameFix::kRelocalized)] +
+                      fixes[static_cast<int>(algorithms::FrameFix::kGlobal)]
+               << " relocalized, " << fixes[static_cast<int>(algorithms::FrameFix::kDeadReckoned)]
+               << " without a fix (not merged)" << std::endl;
+
+  if (!options.poses_out.empty()) {
+    std::ofstream out(options.poses_out);
+    out << "frame,timestamp,x,y,z,qx,qy,qz,qw\n" << std::setprecision(10);
+    const std::vector<algorithms::Pose3> poses = builder.Poses();
+    for (size_t i = 0; i < poses.size(); ++i) {
+      const Eigen::Quaterniond q(poses[i].linear());
+      const Eigen::Vector3d t = poses[i].translation();
+      out << frames[i].frame << ',' << i << ',' << t.x() << ',' << t.y() << ',' << t.z() << ','
+          << q.x() << ',' << q.y() << ',' << q.z() << ',' << q.w() << '\n';
+    }
+    if (!out) throw CommandError(options.poses_out + ": cannot write the poses");
+  }
+  std::vector<MapTreeRow> rows;
+  for (const algorithms::MapTree& tree : builder.ConfirmedTrees()) {
+    MapTreeRow row;
+    row.x = tree.position.x();
+    row.y = tree.position.y();
+    if (std::isfinite(tree.position.z())) row.z = tree.position.z();
+    if (std::isfinite(tree.dbh)) row.dbh = tree.dbh;
+    rows.push_back(row);
+  }
+  CreateWithTrees(options.map, rows, "the built map", context);
+}
+
+void AddBuild(CLI::App& map_app, CliContext& context) {
+  auto options = std::make_shared<BuildOptions>();
+  CLI::App* sub = map_app.add_subcommand(
+      "build",
+      "Map an unknown forest from a drone's frames alone (tree SLAM with loop closure, on this "
+      "machine), then create the map with the confirmed trees; the first frame defines the map "
+      "frame");
+  sub->add_option("NAME", options->map.name, "New map's name")->required();
+  sub->add_option("--frames", options->frames_file,
+                  "CSV of the frames' detected trees (frame,x,y,...; sensor frame), in order")
+      ->required()
+      ->check(CLI::ExistingFile);
+  sub->add_option("--odometry", options->odometry_file,
+                  "Poses CSV (frame,timestamp,x,y,z,qx,qy,qz,qw) in any world frame: the motion "
+                  "between consecutive frames is used as odometry")
+      ->check(CLI::ExistingFile);
+  sub->add_option("--poses-out", options->poses_out,
+                  "Write the built trajectory (map_from_sensor per frame) to this CSV");
+  sub->add_option("--description", options->map.description, "Free text");
+  sub->callback(
+      [options, &context] { context.run = [options, &context] { RunBuild(*options, context); }; });
+}
+
+void AddList(CLI::App& map_app, CliContext& context) {
+  CLI::App* sub =
+      map_app.add_subcommand("list", "List the maps: name, trees, version, crs, extent");
+  sub->callback([&context] {
+    context.run = [&context] {
+      *context.out << FormatMapTable(context.Connect().ListMaps()) << std::flush;
+    };
+  });
+}
+
+void AddShow(CLI::App& map_app, CliContext& context) {
+  auto name = std::make_shared<std::string>();
+  CLI::App* sub = map_app.add_subcommand("show", "Show a map's fields");
+  sub->add_option("NAME", *name, "Map name")->required();
+  sub->callback([name, &context] {
+    context.run = [name, &context] {
+      *context.out << FormatMapDetails(context.Connect().GetMap(*name)) << std::flush;
+    };
+  });
+}
+
+void AddDelete(CLI::App& map_app, CliContext& context) {
+  auto name = std::make_shared<std::string>();
+  CLI::App* sub = map_app.add_subcommand("delete", "Delete a map and all its trees");
+  sub->add_option("NAME", *name, "Map name")->required();
+  sub->callback([name, &context] {
+    context.run = [name, &context] {
+      context.Connect().DeleteMap(*name);
+      *context.out << "deleted map '" << *name << "'" << std::endl;
+    };
+  });
+}
+
+struct ExportOptions {
+  std::string name;
+  std::string out_file;  // empty or "-": stdout
+  int64_t version = 0;   // 0: current
+  std::string format;    // csv|geojson|gpkg|shp; empty: from the extension of out_file
+};
+
+// Shared maps: the state of each tree as extra columns (status, observations, sigmas), added
+// only when some tree came from observations, so survey exports keep their columns.
+void AddStateColumns(ExportedTrees& exported) {
+  const bool observed = std::any_of(exported.states.begin(), exported.states.end(),
+                                    [](const TreeState& s) { return s.observations > 0; });
+  if (!observed) return;
+  const auto number = [](const std::optional<double>& v) {
+    if (!v) return std::string();
+    char buffer[32];
+    std::snprintf(buffer, sizeof(buffer), "%.4f", *v);
+    return std::string(buffer);
+  };
+  for (size_t i = 0; i < exported.trees.size(); ++i) {
+    const TreeState& state = exported.states[i];
+    auto& attributes = exported.trees[i].attributes;
+    attributes["status"] = state.confirmed ? "confirmed" : "candidate";
+    attributes["observations"] = std::to_string(state.observations);
+    if (state.position_sigma_m) attributes["position_sigma_m"] = number(state.position_sigma_m);
+    if (state.dbh_sigma_m) attributes["dbh_sigma_m"] = number(state.dbh_sigma_m);
+  }
+}
+
+// --format, or the --out extension's. An extension that names another format is refused (a
+// shapefile is always FILE.shp: GDAL would make a directory of any other name).
+TreeFormat ExportFormat(const ExportOptions& options) {
+  const TreeFormat by_extension = TreeFormatOfPath(options.out_file);
+  if (options.format.empty()) return by_extension;
+  const TreeFormat format = ParseTreeFormat(options.format);
+  std::string extension = std::filesystem::path(options.out_file).extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const bool known = by_extension != TreeFormat::kCsv || extension == ".csv";
+  if ((known && by_extension != format) || (format == TreeFormat::kShapefile && !known)) {
+    throw CommandError("--format " + options.format + " and --out " + options.out_file +
+                       " disagree: name the file " +
+                       std::filesystem::path(options.out_file).replace_extension("").string() +
+                       "." + (format == TreeFormat::kGeoJson ? "geojson" : options.format));
+  }
+  return format;
+}
+
+void RunExport(const ExportOptions& options, const CliContext& context) {
+  ExportedTrees exported =
+      context.Connect().ExportTrees(options.name, std::nullopt, options.version);
+  AddStateColumns(exported);
+  if (options.out_file.empty() || options.out_file == "-") {
+    if (!options.format.empty() && options.format != "csv") {
+      throw CommandError("--format " + options.format + " needs --out FILE");
+    }
+    WriteMapTreesCsv(*context.out, exported.trees);
+    context.out->flush();
+    if (!*context.out) throw CommandError("writing to standard output failed");
+    return;
+  }
+  const TreeFormat format = ExportFormat(options);
+  const v1::Map map = context.Connect().GetMap(options.name);
+  if (format == TreeFormat::kCsv) {
+    ReplaceFile(options.out_file,
+                [&](const std::string& temporary) { WriteMapTreesCsv(temporary, exported.trees); });
+    // The CRS as WKT beside the CSV, as GIS tools keep it (map create --trees reads it back);
+    // for a map without one, an old .prj is removed.
+    WriteCrsSidecar(options.out_file, map.crs());
+  } else {
+    // A GeoPackage takes the map as its layer (others stay); other formats are replaced.
+    for (const std::string& warning :
+         WriteGeoTrees(options.out_file, format, exported.trees, map.crs(), options.name)) {
+      *context.err << "forestmap: warning: " << warning << std::endl;
+    }
+  }
+  *context.err << "exported " << exported.trees.size() << " trees of map '" << options.name
+               << "' (version " << exported.map_version << ") to " << options.out_file;
+  if (format == TreeFormat::kGeoPackage) *context.err << " (layer '" << options.name << "')";
+  *context.err << std::endl;
+}
+
+void AddExport(CLI::App& map_app, CliContext& context) {
+  auto options = std::make_shared<ExportOptions>();
+  CLI::App* sub =
+      map_app.add_subcommand("export",
+                             "Write a map's trees as CSV (id,x,y,z,dbh,<attributes>), GeoJSON, "
+                             "GeoPackage or shapefile (points with the map's CRS)");
+  sub->add_option("NAME", options->name, "Map name")->required();
+  sub->add_option("--out", options->out_file, "Output file (default: CSV on standard output)");
+  sub->add_option("--format", options->format,
+                  "csv, geojson, gpkg or shp (default: from the --out extension, else csv)")
+      ->check(CLI::IsMember({"csv", "geojson", "gpkg", "shp"}));
+  sub->add_option("--version", options->version,
+                  "Map version to export (default 0: the current one; see 'map history')")
+      ->check(CLI::NonNegativeNumber);
+  sub->callback(
+      [options, &context] { context.run = [options, &context] { RunExport(*options, context); }; });
+}
+
+const char* KindName(v1::MapVersion::Kind kind) {
+  switch (kind) {
+    case v1::MapVersion::KIND_CREATE:
+      return "create";
+    case v1::MapVersion::KIND_UPLOAD:
+      return "upload";
+    case v1::MapVersion::KIND_REPLACE:
+      return "replace";
+    case v1::MapVersion::KIND_OBSERVE:
+      return "observe";
+    case v1::MapVersion::KIND_RESTORE:
+      return "restore";
+    case v1::MapVersion::KIND_REMOVE_SOURCE:
+      return "remove-source";
+    case v1::MapVersion::KIND_MIGRATED:
+      return "migrated";
+    default:
+      return "?";
+  }
+}
+
+void PrintHistory(const std::vector<v1::MapVersion>& versions, std::ostream& out) {
+  out << std::left << std::setw(8) << "VERSION" << std::setw(22) << "TIME" << std::setw(14)
+      << "KIND" << std::setw(16) << "SOURCE" << std::right << std::setw(9) << "TREES"
+      << std::setw(10) << "CONFIRMED" << std::setw(8) << "ADDED" << std::setw(8) << "UPDATED"
+      << std::setw(8) << "REMOVED" << std::setw(9) << "OBS+" << std::setw(9) << "OBS-"
+      << "\n";
+  for (const v1::MapVersion& v : versions) {
+    std::string source = v.source().empty() ? "-" : v.source();
+    if (v.kind() == v1::MapVersion::KIND_RESTORE)
+      source = "from v" + std::to_string(v.restored_from());
+    out << std::left << std::setw(8) << v.version() << std::setw(22)
+        << FormatUnixMs(v.created_unix_ms()) << std::setw(14) << KindName(v.kind()) << std::setw(16)
+        << source << std::right << std::setw(9) << v.tree_count() << std::setw(10)
+        << v.confirmed_count() << std::setw(8) << v.trees_added() << std::setw(8)
+        << v.trees_updated() << std::setw(8) << v.trees_removed() << std::setw(9)
+        << v.observations_added() << std::setw(9) << v.observations_removed() << "\n";
+  }
+  out << std::flush;
+}
+
+void AddHistory(CLI::App& map_app, CliContext& context) {
+  auto name = std::make_shared<std::string>();
+  auto limit = std::make_shared<int>(0);
+  CLI::App* sub = map_app.add_subcommand("history", "List a map's versions, oldest first");
+  sub->add_option("NAME", *name, "Map name")->required();
+  sub->add_option("--limit", *limit, "Only the newest N versions (default: all)")
+      ->check(CLI::NonNegativeNumber);
+  sub->callback([name, limit, &context] {
+    context.run = [name, limit, &context] {
+      PrintHistory(context.Connect().ListVersions(*name, *limit), *context.out);
+    };
+  });
+}
+
+void AddRestore(CLI::App& map_app, CliContext& context) {
+  auto name = std::make_shared<std::string>();
+  auto version = std::make_shared<int64_t>(0);
+  CLI::App* sub = map_app.add_subcommand(
+      "restore", "Make a new version whose trees equal those of an older version");
+  sub->add_option("NAME", *name, "Map name")->required();
+  sub->add_option("VERSION", *version, "The version to bring back (see 'map history')")
+      ->required()
+      ->check(CLI::PositiveNumber);
+  sub->callback([name, version, &context] {
+    context.run = [name, version, &context] {
+      const v1::Map map = context.Connect().RestoreVersion(*name, *version);
+      *context.out << "restored map '" << map.name() << "' to the trees of version " << *version
+                   << " as version " << map.version() << " (" << map.tree_count() << " trees)"
+                   << std::endl;
+    };
+  });
+}
+
+void AddRemoveSource(CLI::App& map_app, CliContext& context) {
+  auto name = std::make_shared<std::string>();
+  auto source = std::make_shared<std::string>();
+  CLI::App* sub = map_app.add_subcommand(
+      "remove-source",
+      "Remove every observation of one source (drone) and recompute the trees it touched");
+  sub->add_option("NAME", *name, "Map name")->required();
+  sub->add_option("SOURCE", *source, "The source id given to 'observe --source'")->required();
+  sub->callback([name, source, &context] {
+    context.run = [name, source, &context] {
+      const v1::RemoveSourceResponse r = context.Connect().RemoveSource(*name, *source);
+      *context.out << "removed " << r.observations_removed() << " observations of '" << *source
+                   << "' from map '" << *name << "': " << r.trees_updated() << " trees recomputed, "
+                   << r.trees_removed() << " removed; version " << r.map().version() << " ("
+                   << r.map().tree_count() << " trees)" << std::endl;
+    };
+  });
+}
+
+}  // namespace
+
+void AddMapCommand(CLI::App& app, CliContext& context) {
+  CLI::App* map_app = app.add_subcommand(
+      "map",
+      "Create, upload into, build, list, show, delete and export maps; history, restore, "
+      "remove-source, prune");
+  AddCreate(*map_app, context);
+  AddMapUploadCommand(*map_app, context);
+  AddBuild(*map_app, context);
+  AddList(*map_app, context);
+  AddShow(*map_app, context);
+  AddDelete(*map_app, context);
+  AddExport(*map_app, context);
+  AddHistory(*map_app, context);
+  AddRestore(*map_app, context);
+  AddRemoveSource(*map_app, context);
+  AddMapPruneCommand(*map_app, context);
+}
+
+}  // namespace forestmap::client

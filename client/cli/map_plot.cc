@@ -1,0 +1,226 @@
+#include "client/cli/map_plot.h"
+
+#include <cairo-svg.h>
+#include <cairo.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+
+namespace forestmap::client {
+namespace {
+
+constexpr double kLegendPx = 150;  // px of legend band on the right
+constexpr double kHeaderPx = 44;   // px of title band on top
+
+struct Rgb {
+  double r, g, b;
+};
+constexpr Rgb kConfirmed{0.13, 0.42, 0.20};
+constexpr Rgb kCandidate{0.93, 0.55, 0.10};
+constexpr Rgb kMatched{0.10, 0.35, 0.85};
+constexpr Rgb kUnmatched{0.85, 0.10, 0.10};
+constexpr Rgb kInk{0.10, 0.10, 0.10};
+
+// World (m) to picture (px): y up in the world, down in the picture.
+struct View {
+  double min_x, max_y, scale;  // px per m
+  double left, top;            // px
+  Eigen::Vector2d operator()(double x, double y) const {
+    return {left + (x - min_x) * scale, top + (max_y - y) * scale};
+  }
+};
+
+void SetColour(cairo_t* cr, Rgb c, double alpha = 1.0) {
+  cairo_set_source_rgba(cr, c.r, c.g, c.b, alpha);
+}
+
+void Text(cairo_t* cr, double x, double y, const std::string& text, double size) {
+  cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
+  cairo_set_font_size(cr, size);
+  cairo_move_to(cr, x, y);
+  cairo_show_text(cr, text.c_str());
+}
+
+void Stems(cairo_t* cr, const View& view, const PlotInput& input, const PlotOptions& o) {
+  for (const PlotTree& tree : input.trees) {
+    const Eigen::Vector2d p = view(tree.x, tree.y);
+    const double diameter = tree.dbh.value_or(o.unknown_dbh);
+    const double r = std::max(o.min_stem_px, 0.5 * diameter * view.scale);
+    cairo_new_sub_path(cr);
+    cairo_arc(cr, p.x(), p.y(), r, 0, 2 * M_PI);
+    SetColour(cr, tree.candidate ? kCandidate : kConfirmed);
+    if (tree.dbh && !tree.candidate) {
+      cairo_fill(cr);
+    } else {
+      cairo_set_line_width(cr, 1.2);
+      cairo_stroke(cr);
+    }
+  }
+}
+
+void Cross(cairo_t* cr, const Eigen::Vector2d& p, double r) {
+  cairo_move_to(cr, p.x() - r, p.y() - r);
+  cairo_line_to(cr, p.x() + r, p.y() + r);
+  cairo_move_to(cr, p.x() - r, p.y() + r);
+  cairo_line_to(cr, p.x() + r, p.y() - r);
+  cairo_stroke(cr);
+}
+
+void Answer(cairo_t* cr, const View& view, const PlotInput& input) {
+  cairo_set_line_width(cr, 1.5);
+  if (input.path.size() > 1) {
+    SetColour(cr, kMatched, 0.8);
+    for (size_t i = 0; i < input.path.size(); ++i) {
+      const Eigen::Vector2d p = view(input.path[i].x(), input.path[i].y());
+      i == 0 ? cairo_move_to(cr, p.x(), p.y()) : cairo_line_to(cr, p.x(), p.y());
+    }
+    cairo_stroke(cr);
+  }
+  SetColour(cr, kMatched);
+  for (const Eigen::Vector2d& q : input.matched) Cross(cr, view(q.x(), q.y()), 4);
+  SetColour(cr, kUnmatched);
+  for (const Eigen::Vector2d& q : input.unmatched) Cross(cr, view(q.x(), q.y()), 4);
+  if (!input.sensor) return;
+  const PlotPose& s = *input.sensor;
+  const Eigen::Vector2d p = view(s.x, s.y);
+  if (input.sensor_range > 0) {
+    SetColour(cr, kMatched, 0.6);
+    const double dashes[] = {6, 4};
+    cairo_set_dash(cr, dashes, 2, 0);
+    cairo_new_path(cr);
+    cairo_arc(cr, p.x(), p.y(), input.sensor_range * view.scale, 0, 2 * M_PI);
+    cairo_stroke(cr);
+    cairo_set_dash(cr, nullptr, 0, 0);
+  }
+  // The sensor: a triangle pointing along its x axis.
+  const double a = -s.yaw;  // picture y is down
+  constexpr double kArrowPx = 20;
+  SetColour(cr, kInk);
+  cairo_move_to(cr, p.x() + kArrowPx * std::cos(a), p.y() + kArrowPx * std::sin(a));
+  cairo_line_to(cr, p.x() + 0.6 * kArrowPx * std::cos(a + 2.4),
+                p.y() + 0.6 * kArrowPx * std::sin(a + 2.4));
+  cairo_line_to(cr, p.x() + 0.6 * kArrowPx * std::cos(a - 2.4),
+                p.y() + 0.6 * kArrowPx * std::sin(a - 2.4));
+  cairo_close_path(cr);
+  cairo_fill(cr);
+}
+
+// A round length (1, 2 or 5 times a power of ten) about a fifth of the drawing's width.
+double ScaleBarLength(double width_m) {
+  const double target = width_m / 5;
+  const double power = std::pow(10.0, std::floor(std::log10(target)));
+  for (double step : {5.0, 2.0, 1.0}) {
+    if (step * power <= target) return step * power;
+  }
+  return power;
+}
+
+void Furniture(cairo_t* cr, const View& view, double width_px, double height_px,
+               const PlotInput& input) {
+  SetColour(cr, kInk);
+  Text(cr, 10, 20, input.title, 15);
+  Text(cr, 10, 38, input.crs.empty() ? "no CRS (local map frame)" : "CRS: " + input.crs, 11);
+  // Scale bar, bottom left.
+  const double length = ScaleBarLength(width_px / view.scale);
+  const double x0 = view.left + 10, y0 = height_px - 18;
+  cairo_set_line_width(cr, 3);
+  cairo_move_to(cr, x0, y0);
+  cairo_line_to(cr, x0 + length * view.scale, y0);
+  cairo_stroke(cr);
+  char label[32];
+  std::snprintf(label, sizeof(label), "%g m", length);
+  Text(cr, x0 + length * view.scale + 6, y0 + 4, label, 12);
+  // North arrow (grid north: the map's +y), top right of the map area.
+  const double nx = width_px - kLegendPx - 24, ny = kHeaderPx + 16;
+  cairo_move_to(cr, nx, ny);
+  cairo_line_to(cr, nx - 7, ny + 22);
+  cairo_line_to(cr, nx + 7, ny + 22);
+  cairo_close_path(cr);
+  cairo_fill(cr);
+  Text(cr, nx - 5, ny + 38, "N", 13);
+  // Legend.
+  const double lx = width_px - kLegendPx + 12;
+  double ly = kHeaderPx + 20;
+  const auto entry = [&](Rgb colour, bool filled, const char* text) {
+    SetColour(cr, colour);
+    cairo_new_path(cr);
+    cairo_arc(cr, lx, ly - 4, 5, 0, 2 * M_PI);
+    filled ? cairo_fill(cr) : cairo_stroke(cr);
+    SetColour(cr, kInk);
+    Text(cr, lx + 12, ly, text, 11);
+    ly += 18;
+  };
+  entry(kConfirmed, true, "confirmed stem");
+  entry(kCandidate, false, "candidate stem");
+  if (!input.matched.empty() || !input.unmatched.empty()) {
+    entry(kMatched, true, "query: matched");
+    entry(kUnmatched, true, "query: unmatched");
+  }
+  if (input.sensor) entry(kInk, true, "sensor (heading)");
+  Text(cr, lx - 6, ly + 6, "stems to scale (DBH)", 10);
+}
+
+std::array<double, 4> Extent(const PlotInput& input, const PlotOptions& o) {
+  if (o.window) return {(*o.window)[0], (*o.window)[1], (*o.window)[2], (*o.window)[3]};
+  std::array<double, 4> box = {INFINITY, INFINITY, -INFINITY, -INFINITY};
+  const auto add = [&box](double x, double y) {
+    box = {std::min(box[0], x), std::min(box[1], y), std::max(box[2], x), std::max(box[3], y)};
+  };
+  for (const PlotTree& t : input.trees) add(t.x, t.y);
+  for (const Eigen::Vector2d& p : input.path) add(p.x(), p.y());
+  if (input.sensor) add(input.sensor->x, input.sensor->y);
+  if (!std::isfinite(box[0])) box = {0, 0, 1, 1};
+  return {box[0] - o.margin_m, box[1] - o.margin_m, box[2] + o.margin_m, box[3] + o.margin_m};
+}
+
+}  // namespace
+
+void WritePlot(const std::string& path, const PlotInput& input, const PlotOptions& o) {
+  const std::array<double, 4> box = Extent(input, o);
+  const double width_m = box[2] - box[0], height_m = box[3] - box[1];
+  const double scale = o.size_px / std::max(width_m, height_m);
+  const double width_px = std::ceil(width_m * scale) + kLegendPx;
+  const double height_px = std::ceil(height_m * scale) + kHeaderPx + 30;
+  std::string extension = std::filesystem::path(path).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (extension != ".svg" && extension != ".png") {
+    throw std::runtime_error(path + ": the picture's name must end in .svg or .png");
+  }
+  cairo_surface_t* surface =
+      extension == ".svg"
+          ? cairo_svg_surface_create(path.c_str(), width_px, height_px)
+          : cairo_image_surface_create(CAIRO_FORMAT_RGB24, static_cast<int>(width_px),
+                                       static_cast<int>(height_px));
+  cairo_t* cr = cairo_create(surface);
+  cairo_set_source_rgb(cr, 1, 1, 1);
+  cairo_paint(cr);
+  const View view{box[0], box[3], scale, 0, kHeaderPx};
+  cairo_rectangle(cr, 0, kHeaderPx, width_m * scale, height_m * scale);
+  cairo_set_source_rgb(cr, 0.96, 0.97, 0.94);
+  cairo_fill_preserve(cr);
+  cairo_clip(cr);  // trees outside a --window stay outside
+  Stems(cr, view, input, o);
+  Answer(cr, view, input);
+  cairo_reset_clip(cr);
+  Furniture(cr, view, width_px, height_px, input);
+  cairo_destroy(cr);
+  cairo_status_t status = cairo_surface_status(surface);
+  if (status == CAIRO_STATUS_SUCCESS && extension == ".png") {
+    status = cairo_surface_write_to_png(surface, path.c_str());
+  }
+  cairo_surface_finish(surface);
+  if (status == CAIRO_STATUS_SUCCESS) status = cairo_surface_status(surface);
+  cairo_surface_destroy(surface);
+  if (status != CAIRO_STATUS_SUCCESS) {
+    std::filesystem::remove(path);
+    throw std::runtime_error(path +
+                             ": cannot write the picture: " + cairo_status_to_string(status));
+  }
+}
+
+}  // namespace forestmap::client

@@ -1,0 +1,25 @@
+#pragma once
+// Conversions between the client's types and the API messages (units and frames are the same on
+// both sides: metres, radians, a_from_b poses). Field by field: nothing is validated here (the
+// server validates what it receives) and nothing throws.
+
+#include <optional>
+
+#include "algorithms/core/geometry.h"
+#include "client/io/tree_csv.h"
+#include "forestmap/v1/maps.pb.h"
+#include "forestmap/v1/relocalization.pb.h"
+#include "proto/geometry_convert.h"
+
+namespace forestmap::client {
+
+v1::Tree ToProto(const MapTreeRow& row);
+MapTreeRow FromProto(const v1::Tree& tree);
+
+// An unknown dbh or score (NaN) and an unknown axis (zero) are left unset.
+v1::DetectedTree ToProto(const algorithms::DetectedTree& tree);
+
+using forestmap::FromProto;  // Vector3 and Pose: proto/geometry_convert.h
+using forestmap::ToProto;
+
+}  // namespace forestmap::client

@@ -1,0 +1,63 @@
+#pragma once
+// An upload staged in the database (storage/staged_writes.h), written once: the checks of each
+// chunk, ids, running counts, and the commit's rules (when a version is made, what it counts,
+// when the answer of an exactly-once write is stored). A backend derives from StagedUpload and
+// says only where the chunks go and how they become the map's rows. Not a public API.
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "storage/staged_writes.h"
+#include "storage/store_backend.h"
+#include "storage/upload_chunks.h"
+
+namespace forestmap::storage {
+
+class StagedUpload : public TreeUpload {
+ public:
+  void Append(const std::vector<TreeRecord>& trees) final;
+  MapInfo Commit() final;
+  int64_t staged() const final { return chunks_.staged(); }
+
+ protected:
+  StagedUpload(std::string name, UploadPlan plan)
+      : name_(std::move(name)), plan_(std::move(plan)), chunks_(name_, plan_.mode) {}
+
+  // Ends an upload that is not over (committed or aborted): Abort(). Also for the backend's
+  // destructor.
+  void Discard() noexcept;
+
+  const std::string& name() const { return name_; }
+  const UploadPlan& plan() const { return plan_; }
+  internal::UploadChunks& chunks() { return chunks_; }
+
+  // ---- What the backend does ----
+
+  // Stages one chunk of checked trees (ids from chunks().Assign) in the database.
+  virtual void Stage(const std::vector<TreeRecord>& trees) = 0;
+  // Runs `body` on the upload's connection for its commit.
+  virtual void WithSession(const std::function<void(StoreSession&)>& body) = 0;
+  // In the commit's write transaction: the map the upload writes, locked; created (or revealed)
+  // when the plan says so. kNotFound when it was deleted during the upload.
+  virtual MapRow Target(StoreSession& session) = 0;
+  // In it too: the staged rows become current rows of the map from `version` on.
+  // kInvalidArgument naming the tree for an appended id the map has.
+  virtual void MakeCurrent(StoreSession& session, const MapRow& map, int64_t version) = 0;
+  // In it, last: what the upload kept of itself in the database.
+  virtual void Forget(StoreSession& /*session*/) {}
+  // After a failed Append or Commit, or when destroyed unfinished: the staged rows go.
+  virtual void Abort() noexcept = 0;
+  // After the commit, outside its transaction.
+  virtual void Finished() noexcept {}
+
+ private:
+  std::string name_;
+  UploadPlan plan_;
+  internal::UploadChunks chunks_;
+  bool done_ = false;  // committed or aborted
+};
+
+}  // namespace forestmap::storage

@@ -1,0 +1,63 @@
+// Pictures of maps: stems land where they are, to scale, in both formats.
+#include "client/cli/map_plot.h"
+
+#include <cairo.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace forestmap::client {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Colour of a pixel of an RGB24 image: 0xRRGGBB.
+uint32_t Pixel(cairo_surface_t* image, int x, int y) {
+  const unsigned char* data = cairo_image_surface_get_data(image);
+  const int stride = cairo_image_surface_get_stride(image);
+  return *reinterpret_cast<const uint32_t*>(data + y * stride + 4 * x) & 0xffffff;
+}
+
+TEST(MapPlotTest, PngShowsStemsToScaleAtTheirPlaces) {
+  const fs::path path = fs::temp_directory_path() / ("plot_" + std::to_string(getpid()) + ".png");
+  PlotInput input;
+  input.title = "test";
+  input.trees = {{0, 0, 1.0, false}, {20, 20, 1.0, true}, {10, 10, std::nullopt, false}};
+  PlotOptions options;
+  options.size_px = 240;  // 24 m (20 + 2 x 2 m margin) -> 10 px per m
+  WritePlot(path.string(), input, options);
+  cairo_surface_t* image = cairo_image_surface_create_from_png(path.c_str());
+  ASSERT_EQ(cairo_surface_status(image), CAIRO_STATUS_SUCCESS);
+  // Map area starts at (0, 44 px header); tree (0,0) is 2 m from the left and bottom edges.
+  constexpr int kTop = 44;
+  const int x0 = 20, y0 = kTop + 220;  // px of map (0, 0)
+  const uint32_t confirmed = Pixel(image, x0, y0);
+  EXPECT_GT((confirmed >> 8) & 0xff, (confirmed >> 16) & 0xff) << std::hex << confirmed;  // green
+  // A 1 m stem is 10 px across: filled 3 px from its centre, background 7 px away.
+  EXPECT_EQ(Pixel(image, x0 + 3, y0), confirmed);
+  EXPECT_NE(Pixel(image, x0 + 7, y0), confirmed);
+  // The candidate at (20, 20) is outlined: its ring is drawn, its centre is not.
+  EXPECT_NE(Pixel(image, x0 + 200, y0 - 200), Pixel(image, x0 + 200 + 5, y0 - 200));
+  cairo_surface_destroy(image);
+  fs::remove(path);
+}
+
+TEST(MapPlotTest, SvgIsWrittenAndBadNamesAreRefused) {
+  const fs::path path = fs::temp_directory_path() / ("plot_" + std::to_string(getpid()) + ".svg");
+  PlotInput input;
+  input.trees = {{0, 0, 0.3, false}};
+  input.crs = "EPSG:2959";
+  WritePlot(path.string(), input);
+  std::stringstream text;
+  text << std::ifstream(path).rdbuf();
+  EXPECT_NE(text.str().find("<svg"), std::string::npos);
+  fs::remove(path);
+  EXPECT_THROW(WritePlot((fs::temp_directory_path() / "plot.jpg").string(), input),
+               std::runtime_error);
+}
+
+}  // namespace
+}  // namespace forestmap::client
