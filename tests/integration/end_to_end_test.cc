@@ -160,10 +160,10 @@ TEST_F(EndToEnd, ABadFrameEndsTheSessionWithItsNumberAndTheServerKeepsServing) {
   std::vector<algorithms::DetectedTree> nan = trees;
   nan[1].position.x() = std::nan("");
   expect_error("plot", nan, grpc::StatusCode::INVALID_ARGUMENT,
-               "frame 2: trees[1].position.x is NaN");
+               "frame 2: frame.trees[1].position.x is NaN");
   expect_error("plot", std::vector<algorithms::DetectedTree>(20001),
                grpc::StatusCode::RESOURCE_EXHAUSTED,
-               "frame 2: trees: 20001 trees exceed the limit");
+               "frame 2: frame.trees: 20001 trees exceed the limit");
   try {
     client_->Track("no-such-map").Step({7, trees, {}, {}});
     ADD_FAILURE() << "no error for an unknown map";

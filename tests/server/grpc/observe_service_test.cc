@@ -304,7 +304,7 @@ TEST_F(ObserveServiceTest, BadRequestsAreRejectedWithTheField) {
     EXPECT_THAT(status.error_message(), HasSubstr(fragment));
   };
   expect(Request("nope", "d", 0, 1), grpc::StatusCode::NOT_FOUND, "nope");
-  expect(Request("bad name", "d", 0, 1), grpc::StatusCode::INVALID_ARGUMENT, "map_name");
+  expect(Request("bad name", "d", 0, 1), grpc::StatusCode::INVALID_ARGUMENT, "name \"bad name\"");
   expect(Request("m", "d", 0, 0), grpc::StatusCode::INVALID_ARGUMENT, "at least one frame");
   expect(Request("m", "survey", 0, 1), grpc::StatusCode::INVALID_ARGUMENT, "reserved");
   expect(Request("m", "", 0, 1), grpc::StatusCode::INVALID_ARGUMENT, "source is empty");
