@@ -19,6 +19,10 @@ PoseError ComparePoses(const Pose3& estimate, const Pose3& truth) {
 
 RelocEvaluator::RelocEvaluator(const std::vector<MapTree>& map, const RelocCriteria& criteria)
     : criteria_(criteria) {
+  UseMap(map);
+}
+
+void RelocEvaluator::UseMap(const std::vector<MapTree>& map) {
   std::vector<KdTree<double, 2>::Point> xy;
   xy.reserve(map.size());
   for (const MapTree& t : map) xy.push_back({t.position.x(), t.position.y()});
@@ -27,6 +31,11 @@ RelocEvaluator::RelocEvaluator(const std::vector<MapTree>& map, const RelocCrite
 
 bool RelocEvaluator::Answerable(const std::vector<DetectedTree>& trees,
                                 const Pose3& map_from_sensor) const {
+  return MappedInSight(trees, map_from_sensor) >= criteria_.answerable_min_trees;
+}
+
+int RelocEvaluator::MappedInSight(const std::vector<DetectedTree>& trees,
+                                  const Pose3& map_from_sensor) const {
   int matched = 0;
   const double max_d2 = criteria_.answerable_distance * criteria_.answerable_distance;
   for (const DetectedTree& tree : trees) {
@@ -37,12 +46,14 @@ bool RelocEvaluator::Answerable(const std::vector<DetectedTree>& trees,
     const auto [index, d2] = map_xy_->Nearest({p.x(), p.y()});
     matched += index >= 0 && d2 <= max_d2;
   }
-  return matched >= criteria_.answerable_min_trees;
+  return matched;
 }
 
 bool RelocEvaluator::Add(bool answerable, const Pose3& truth, const RelocalizeResult& result,
-                         double time_ms) {
+                         double time_ms, int mapped_in_sight) {
   RelocSummary& c = counts_;
+  const bool rich = mapped_in_sight >= criteria_.rich_min_trees;
+  c.rich += rich;
   ++c.frames;
   c.answerable += answerable;
   times_.push_back(time_ms);
@@ -61,6 +72,7 @@ bool RelocEvaluator::Add(bool answerable, const Pose3& truth, const RelocalizeRe
       c.wrong += wrong;
       if (answerable && e.xy <= criteria_.correct_xy && e.yaw <= criteria_.correct_yaw_deg) {
         ++c.correct;
+        c.rich_correct += rich;
         error_xy_.push_back(e.xy);
         error_yaw_.push_back(e.yaw);
       }
@@ -77,6 +89,7 @@ RelocSummary RelocEvaluator::Summary() const {
     s.recall = static_cast<double>(s.correct) / s.answerable;
     s.strict_recall = static_cast<double>(s.strict) / s.answerable;
   }
+  if (s.rich > 0) s.rich_recall = static_cast<double>(s.rich_correct) / s.rich;
   if (s.frames > 0) s.wrong_rate = static_cast<double>(s.wrong) / s.frames;
   s.error_xy_p50 = Percentile(error_xy_, 0.5);
   s.error_xy_p95 = Percentile(error_xy_, 0.95);

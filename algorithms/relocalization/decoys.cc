@@ -73,7 +73,7 @@ DecoyTest TestDecoys(const MapIndexImpl& m, const LevelledQuery& q, const Hypoth
   DecoyTest test;
   test.gate = std::clamp(kGateFromRmse * pose.rmse, kMinGateShare * options.inlier_distance,
                          options.inlier_distance);
-  const size_t nearest = std::min<size_t>(q.xy.size(), options.quick_score_trees);
+  const size_t nearest = ScoringPrefix(m, q, pose.pose, options.quick_score_trees);
   Hypothesis scored = pose;
   Score(m, q, options, &scored, test.gate, nearest);
   test.pose_score = scored.score;
@@ -98,7 +98,7 @@ DecoyTest TestDecoys(const MapIndexImpl& m, const LevelledQuery& q, const Hypoth
       const int hits = Hits(m, q, decoy.pose, nearest, 0);
       turn_hits[turn] += (hits - 1.0) / (turn == 0 ? around.size() - 1 : around.size());
       if (hits < needed) continue;
-      Polish(m, q, options, &decoy);
+      Polish(m, q, options, &decoy, nearest);
       if (!Apart(decoy.pose, pose.pose, options) ||
           !tried.insert(Cell(decoy.pose, options.inlier_distance)).second) {
         continue;
@@ -127,12 +127,9 @@ PoseBelief Assess(const MapIndexImpl& m, const LevelledQuery& q, const Hypothesi
   // Regularity: how much more often poses aligned to the local pattern hit than random ones,
   // on the same nearest trees. It scales the random-forest chance, but only where the stand is
   // clearly regular (a natural forest's best heading hits a little more often than average).
-  const size_t nearest = std::min<size_t>(q.xy.size(), options.quick_score_trees);
+  const size_t nearest = ScoringPrefix(m, q, pose.pose, options.quick_score_trees);
   double random_near = 0;
-  for (size_t i = 0; i < nearest; ++i) {
-    const Eigen::Vector2d p = pose.pose(q.xy[i]);
-    random_near += m.occupancy->OccupiedFractionAt(p.x(), p.y());
-  }
+  for (size_t i = 0; i < nearest; ++i) random_near += m.ChanceAt(pose.pose(q.xy[i]));
   const double regularity =
       random_near > 0 ? belief.decoys.pattern_rate * nearest / random_near : 1.0;
   const double random_chance = ChanceInliers(m, q, pose.pose);

@@ -66,14 +66,12 @@ TriangleLevels ChooseLevels(const KdTree<float, 2>& kd, const std::vector<Eigen:
 
 // The levels' triangles, enumerated in parallel over chunks of anchor trees (small maps on the
 // calling thread), one table per level.
-void BuildTriangles(const std::vector<Eigen::Vector2d>& local, const MapIndexOptions& options,
-                    MapIndexImpl& m) {
+void BuildTriangles(const std::vector<Eigen::Vector2d>& local, const SpacingCells& spacing,
+                    const MapIndexOptions& options, MapIndexImpl& m) {
   const size_t n = local.size();
   const int chunks = n < 20000 ? 1 : ThreadCount(options.threads);
   std::vector<uint8_t> level;
-  m.levels =
-      ChooseLevels(*m.positions, local, SpacingCells(*m.positions, options.spacing_cell, chunks),
-                   options, &level);
+  m.levels = ChooseLevels(*m.positions, local, spacing, options, &level);
   std::vector<std::vector<PageVector<Triangle>>> parts(chunks);
   ParallelFor(n, chunks, [&](int chunk, size_t begin, size_t end) {
     parts[chunk] = EnumerateLevelled(*m.positions, local, level, m.levels, begin, end);
@@ -114,6 +112,32 @@ void CheckTreeRange(const std::vector<MapTree>& trees) {
   }
 }
 
+void CheckRingRange(const Ring& ring) {
+  for (const Eigen::Vector2d& v : ring) {
+    if (!(v.cwiseAbs().maxCoeff() <= kMaxIndexCoordinate)) {
+      throw std::invalid_argument(
+          "MapIndex: a boundary vertex lies beyond the index range of 1e9 m");
+    }
+  }
+}
+
+// The coverage: the boundary given (moved to kd coordinates), else the trees' alpha shape, each
+// tree's disc of the inlier gate covered too.
+void BuildCoverage(const std::vector<Eigen::Vector2d>& local, const SpacingCells& spacing,
+                   std::vector<Polygon> boundary, const MapIndexOptions& options, MapIndexImpl& m) {
+  m.coverage_derived = boundary.empty();
+  std::vector<Polygon> kd;
+  if (m.coverage_derived) {
+    kd = DeriveCoverage(local, spacing.TreeSpacing(), options.coverage);
+    m.coverage_outline = Translated(kd, m.origin);
+  } else {
+    kd = Translated(boundary, -m.origin);
+    m.coverage_outline = std::move(boundary);
+  }
+  m.coverage = std::make_unique<CoverageGrid>(kd, local, options.coverage.tree_margin,
+                                              options.coverage.resolution);
+}
+
 }  // namespace
 
 void MapIndexOptions::Check() const {
@@ -140,12 +164,19 @@ void MapIndexOptions::Check() const {
         "MapIndexOptions: need sparse_spacing >= 0 and sparse_budget_factor >= 1");
   }
   if (threads < 0) throw std::invalid_argument("MapIndexOptions: threads must be >= 0");
+  coverage.Check();
 }
 
-MapIndex::MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options)
+MapIndex::MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options,
+                   std::vector<Polygon> boundary)
     : impl_(std::make_unique<MapIndexImpl>()) {
   options.Check();
   CheckTreeRange(trees);
+  CheckPolygons(boundary);
+  for (const Polygon& polygon : boundary) {
+    CheckRingRange(polygon.outer);
+    for (const Ring& hole : polygon.holes) CheckRingRange(hole);
+  }
   MapIndexImpl& m = *impl_;
   m.trees = std::move(trees);
   const size_t n = m.trees.size();
@@ -165,9 +196,13 @@ MapIndex::MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options)
     xy[i] = {static_cast<float>(local[i].x()), static_cast<float>(local[i].y())};
   }
   m.positions = std::make_unique<KdTree<float, 2>>(std::move(xy));
-  BuildTriangles(local, options, m);
-  m.occupancy = std::make_unique<OccupancyGrid>(local, options.occupancy_radius,
-                                                options.occupancy_resolution);
+  const SpacingCells spacing(*m.positions, options.spacing_cell,
+                             n < 20000 ? 1 : ThreadCount(options.threads));
+  BuildTriangles(local, spacing, options, m);
+  BuildCoverage(local, spacing, std::move(boundary), options, m);
+  m.occupancy = std::make_unique<OccupancyGrid>(
+      local, options.occupancy_radius, options.occupancy_resolution,
+      [&m](double x0, double y0, double side) { return m.coverage->CoveredShare(x0, y0, side); });
   std::vector<Eigen::Vector2d>().swap(local);
 #ifdef __GLIBC__
   // The build's buffers (triangles before they are tabled: 28 bytes each) are freed by now;
@@ -178,6 +213,9 @@ MapIndex::MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options)
 
 MapIndex::~MapIndex() = default;
 size_t MapIndex::size() const { return impl_->trees.size(); }
+const std::vector<Polygon>& MapIndex::coverage() const { return impl_->coverage_outline; }
+bool MapIndex::coverage_derived() const { return impl_->coverage_derived; }
+double MapIndex::coverage_area() const { return impl_->coverage->area(); }
 const std::vector<MapTree>& MapIndex::trees() const { return impl_->trees; }
 bool MapIndex::has_z() const { return impl_->has_z; }
 bool MapIndex::has_dbh() const { return impl_->has_dbh; }
@@ -204,7 +242,7 @@ std::vector<std::pair<double, size_t>> MapIndex::triangle_levels() const {
 size_t MapIndex::MemoryBytes() const {
   const MapIndexImpl& m = *impl_;
   return sizeof(MapIndexImpl) + m.trees.capacity() * sizeof(MapTree) + m.positions->MemoryBytes() +
-         m.occupancy->MemoryBytes() + [&] {
+         m.occupancy->MemoryBytes() + m.coverage->MemoryBytes() + [&] {
            size_t bytes = 0;
            for (const auto& table : m.tables) bytes += table ? table->MemoryBytes() : 0;
            return bytes;

@@ -6,6 +6,8 @@
 #include <vector>
 
 #include "algorithms/core/geometry.h"
+#include "algorithms/core/polygon.h"
+#include "algorithms/relocalization/coverage.h"
 
 namespace forestmap::algorithms {
 
@@ -38,6 +40,8 @@ struct MapIndexOptions {
   double occupancy_radius = 0.4;      // m
   double occupancy_resolution = 0.2;  // m
   int threads = 0;  // index build threads for large maps; 0 = hardware concurrency
+  // What the map covers when no survey boundary is given: derived from the trees (coverage.h).
+  CoverageOptions coverage;
   void Check() const;
 };
 
@@ -47,12 +51,15 @@ class MapIndexImpl;
 // the constructor throws std::invalid_argument naming the tree.
 inline constexpr double kMaxIndexCoordinate = 1e9;
 
-// The immutable per-map search structure, built once per map version. Thread-safe for
-// concurrent queries.
+// The immutable per-map search structure, built once per map version, with what the map covers
+// (coverage.h): its survey boundary (polygons with holes, map frame) when given, else the
+// coverage its trees say it has. Thread-safe for concurrent queries.
 class MapIndex {
  public:
-  // Throws std::invalid_argument for invalid options or a tree beyond kMaxIndexCoordinate.
-  MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options = {});
+  // Throws std::invalid_argument for invalid options, a tree beyond kMaxIndexCoordinate or an
+  // invalid boundary polygon.
+  MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options = {},
+           std::vector<Polygon> boundary = {});
   ~MapIndex();
   MapIndex(const MapIndex&) = delete;
   MapIndex& operator=(const MapIndex&) = delete;
@@ -66,6 +73,11 @@ class MapIndex {
   size_t triangle_count() const;
   // Triangles of each level (triangle_levels.h) and their longest side (m).
   std::vector<std::pair<double, size_t>> triangle_levels() const;
+  // The boundary given, else the coverage derived from the trees (map frame), and its area (m^2,
+  // of its raster).
+  const std::vector<Polygon>& coverage() const;
+  bool coverage_derived() const;
+  double coverage_area() const;
   const MapIndexImpl& impl() const { return *impl_; }
 
  private:

@@ -6,92 +6,12 @@
 
 #include "algorithms/relocalization/decoys.h"
 #include "algorithms/relocalization/query_triangles.h"
+#include "algorithms/relocalization/quick_check.h"
 #include "algorithms/relocalization/search_budget.h"
 #include "algorithms/relocalization/significance.h"
 
 namespace forestmap::algorithms {
 namespace {
-
-// Wald's sequential probability ratio test on query trees: does a pose put them on map trees
-// at the rate of a true pose (quick_check_true_rate) or only as often as chance (the occupancy
-// grid's occupied fraction)? Wrong poses are rejected after about four lookups.
-class QuickCheck {
- public:
-  QuickCheck(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options)
-      : m_(m), q_(q), quick_score_trees_(options.quick_score_trees) {
-    // The chance rate p0 is the map's occupied share around the matched map triangle (a dense
-    // stand beside a sparse one: each tested at its own density), in kLevels steps.
-    const double p1 = options.quick_check_true_rate;
-    max_p0_ = 0.5 * p1;
-    for (int k = 0; k < kLevels; ++k) {
-      const double p0 = kMinP0 + (max_p0_ - kMinP0) * k / (kLevels - 1);
-      hit_[k] = std::log(p1 / p0);
-      miss_[k] = std::log((1 - p1) / (1 - p0));
-    }
-    accept_ = std::log(1 / options.quick_check_false_accept);
-    reject_ = std::log(options.quick_check_false_reject);
-  }
-
-  // The query trees checked for poses from triangle `t`: the nearest query trees, nearest to
-  // the triangle first (a triangle's pose is most accurate around it), without its vertices.
-  void SetTriangle(const Triangle& t) {
-    if (t.vertex == vertex_) return;  // the same triangle at another level
-    vertex_ = t.vertex;
-    const uint32_t n = static_cast<uint32_t>(std::min<size_t>(q_.xy.size(), kMaxChecks));
-    const Eigen::Vector2d centroid =
-        (q_.xy[t.vertex[0]] + q_.xy[t.vertex[1]] + q_.xy[t.vertex[2]]) / 3;
-    by_distance_.clear();
-    for (uint32_t i = 0; i < n; ++i) {
-      if (i != t.vertex[0] && i != t.vertex[1] && i != t.vertex[2]) {
-        by_distance_.push_back({static_cast<float>((q_.xy[i] - centroid).squaredNorm()), i});
-      }
-    }
-    std::sort(by_distance_.begin(), by_distance_.end());
-  }
-
-  // Query trees among the quick_score_trees nearest the sensor that `pose` puts near a map tree.
-  int Hits(const Rigid2& pose) const {
-    const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
-    int hits = 0;
-    for (size_t i = 0; i < std::min<size_t>(q_.xy.size(), quick_score_trees_); ++i) {
-      const Eigen::Vector2d& p = q_.xy[i];
-      hits += m_.occupancy->Near(c * p.x() - s * p.y() + pose.translation.x(),
-                                 s * p.x() + c * p.y() + pose.translation.y());
-    }
-    return hits;
-  }
-
-  // The pose maps p to (c p.x - s p.y + tx, s p.x + c p.y + ty); (x, y): where its map
-  // triangle lies.
-  bool Passes(float c, float s, float tx, float ty, float x, float y) const {
-    const double p0 = std::clamp(m_.occupancy->OccupiedFractionAt(x, y), kMinP0, max_p0_);
-    const int level =
-        static_cast<int>(std::lround((p0 - kMinP0) / (max_p0_ - kMinP0) * (kLevels - 1)));
-    const double hit = hit_[level], miss = miss_[level];
-    double llr = 0;
-    for (const auto& [d2, i] : by_distance_) {
-      const Eigen::Vector2d& p = q_.xy[i];
-      llr +=
-          m_.occupancy->Near(c * p.x() - s * p.y() + tx, s * p.x() + c * p.y() + ty) ? hit : miss;
-      if (llr >= accept_) return true;
-      if (llr <= reject_) return false;
-    }
-    return false;
-  }
-
- private:
-  static constexpr size_t kMaxChecks = 40;
-  const MapIndexImpl& m_;
-  const LevelledQuery& q_;
-  const size_t quick_score_trees_;
-  std::vector<std::pair<float, uint32_t>> by_distance_;                    // the check order
-  std::array<uint32_t, 3> vertex_ = {UINT32_MAX, UINT32_MAX, UINT32_MAX};  // ... for this triangle
-  static constexpr int kLevels = 64;
-  static constexpr double kMinP0 = 0.005;
-  double max_p0_ = 0.375;
-  double hit_[kLevels] = {}, miss_[kLevels] = {};
-  double accept_ = 0, reject_ = 0;
-};
 
 // Pose cell for recognising a pose already found (0.5 m x 0.5 m x 1.5 deg).
 uint64_t PoseCell(const Rigid2& pose) {
@@ -104,17 +24,29 @@ uint64_t PoseCell(const Rigid2& pose) {
 
 }  // namespace
 
+size_t ScoringPrefix(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
+                     size_t count) {
+  const size_t n = std::min(q.xy.size(), count);
+  if (n == 0 || (q.xy[n - 1].norm() <= m.coverage->deep_reach() &&
+                 m.coverage->Deep(pose.translation.x(), pose.translation.y()))) {
+    return n;  // deep inside: every one of the nearest trees is
+  }
+  size_t prefix = 0, inside = 0;
+  for (; prefix < q.xy.size() && inside < count; ++prefix) inside += m.Covered(pose(q.xy[prefix]));
+  return prefix;
+}
+
 void Polish(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
-            Hypothesis* h) {
+            Hypothesis* h, size_t limit) {
+  if (limit == 0) limit = ScoringPrefix(m, q, h->pose, options.quick_score_trees);
   const double gate = 1.5 * options.inlier_distance;
-  const std::vector<Association> matches =
-      Associate(m, q, h->pose, options, gate, options.quick_score_trees);
+  const std::vector<Association> matches = Associate(m, q, h->pose, options, gate, limit);
   if (matches.size() >= 3) {
     Rigid2Accumulator acc;
     for (const Association& a : matches) acc.Add(q.xy[a.query], m.Xy(a.map));
     h->pose = acc.Solve();
   }
-  Score(m, q, options, h, options.inlier_distance, options.quick_score_trees);
+  Score(m, q, options, h, options.inlier_distance, limit);
 }
 
 std::vector<Association> Associate(const MapIndexImpl& m, const LevelledQuery& q,
@@ -175,6 +107,32 @@ int RatioTrees(const LevelledQuery& q, const RelocalizerOptions& options) {
   return std::max(in_range, std::min<int>(q.xy.size(), options.min_ratio_trees));
 }
 
+ViewInCoverage InCoverage(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
+                          const RelocalizerOptions& options) {
+  ViewInCoverage view;
+  view.inside.resize(q.xy.size());
+  int inside = 0;
+  for (size_t i = 0; i < q.xy.size(); ++i) {
+    view.inside[i] = m.Covered(pose(q.xy[i]));
+    if (!view.inside[i]) continue;
+    ++inside;
+    if (q.xy[i].norm() <= options.ratio_range || view.nearby < options.min_ratio_trees) {
+      ++view.nearby;
+      view.prefix = static_cast<int>(i) + 1;
+    }
+  }
+  const int nearest = RatioTrees(q, options);
+  int nearest_inside = 0;
+  for (int i = 0; i < nearest; ++i) nearest_inside += view.inside[i];
+  view.share = nearest > 0 ? static_cast<double>(nearest_inside) / nearest : 0.0;
+  return view;
+}
+
+double QueryReach(const LevelledQuery& q, const RelocalizerOptions& options) {
+  const int nearest = RatioTrees(q, options);
+  return nearest > 0 ? q.xy[nearest - 1].norm() : 0.0;
+}
+
 int InliersAmongNearest(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
                         int count, const RelocalizerOptions& options) {
   return static_cast<int>(Associate(m, q, pose, options, options.inlier_distance, count).size());
@@ -182,10 +140,7 @@ int InliersAmongNearest(const MapIndexImpl& m, const LevelledQuery& q, const Rig
 
 double ChanceInliers(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose) {
   double expected = 0;
-  for (const Eigen::Vector2d& xy : q.xy) {
-    const Eigen::Vector2d p = pose(xy);
-    expected += m.occupancy->OccupiedFractionAt(p.x(), p.y());
-  }
+  for (const Eigen::Vector2d& xy : q.xy) expected += m.ChanceAt(pose(xy));
   return expected;
 }
 
@@ -205,6 +160,11 @@ double PoissonTail(int k, double lambda) {
 
 namespace {
 
+// Outer seeds (SearchPoses): kMinOuterCentres to kMaxOuterCentres centres, each searched over
+// at least kMinOuterTriangles triangles.
+constexpr int kMinOuterCentres = 3, kMaxOuterCentres = 8;
+constexpr size_t kMinOuterTriangles = 20;
+
 // One search: the query's triangles, looked up in passes of growing tolerance.
 class Searcher {
  public:
@@ -215,17 +175,22 @@ class Searcher {
         prior_(prior),
         prior_xy_(prior_xy),
         options_(options),
-        seed_xy_(q.xy.begin(),
-                 q.xy.begin() + std::min<size_t>(q.xy.size(), options.max_seed_trees)),
         check_(m, q, options),
-        decisive_(
-            std::max<int>(options.min_inliers,
-                          std::ceil(options.decisive_fraction *
-                                    std::min<size_t>(q.xy.size(), options.quick_score_trees)))),
-        strong_(StrongInliers(q, options)),
-        polish_hits_(std::max(3, static_cast<int>(kPolishShare * decisive_))) {
-    triangles_ = QueryTriangles(seed_xy_, m, QuerySide(seed_xy_, m), options.triangle_tolerance);
-    KeepSpread(triangles_, static_cast<size_t>(std::max(0, options.max_query_triangles)),
+        reach_(QueryReach(q, options)) {}
+
+  // The seeds whose triangles the next passes look up: query trees (indices), nearest to where
+  // they are taken from first.
+  // `budget`: the hypotheses they may score without a decisive one (0: no limit).
+  void Seed(std::vector<uint32_t> pool, int64_t budget) {
+    budget_ = budget;
+    polished_ = 0;
+    over_budget_ = false;
+    pool_ = std::move(pool);
+    seed_xy_.clear();
+    for (uint32_t i : pool_) seed_xy_.push_back(q_.xy[i]);
+    check_.SetPool(pool_);
+    triangles_ = QueryTriangles(seed_xy_, m_, QuerySide(seed_xy_, m_), options_.triangle_tolerance);
+    KeepSpread(triangles_, static_cast<size_t>(std::max(0, options_.max_query_triangles)),
                kFirstTrianglesPerSeed, kMaxTrianglesPerSeed);
   }
 
@@ -275,7 +240,7 @@ class Searcher {
 
   bool Believable(const Hypothesis& refined) {
     const PoseBelief belief =
-        Assess(m_, q_, refined, {result_.matches, SearchArea(m_, prior_)}, options_);
+        Assess(m_, q_, refined, {result_.matches, SearchArea(m_, prior_, reach_)}, options_);
     result_.tested.emplace(refined.pose, belief.decoys);
     return belief.believable();
   }
@@ -283,8 +248,7 @@ class Searcher {
   // Whether the search has scored so many hypotheses without a decisive one that more would
   // only find more of the same (a regular stand, matching everywhere): it ends there.
   bool OverBudget() {
-    over_budget_ = over_budget_ || (options_.max_scored_hypotheses > 0 &&
-                                    polished_ >= options_.max_scored_hypotheses);
+    over_budget_ = over_budget_ || (budget_ > 0 && polished_ >= budget_);
     return over_budget_;
   }
 
@@ -345,21 +309,32 @@ class Searcher {
     bool decisive = false;
     for (size_t k = from; k < result_.hypotheses.size(); ++k) {
       Hypothesis& h = result_.hypotheses[k];
-      // Only a pose that already puts a good share of the nearest trees near map trees can
-      // become decisive: the others stay unscored (score 0) and cost one bitmap pass.
-      if (check_.Hits(h.pose) < PolishHits(m_, q_, h.pose, polish_hits_, options_)) continue;
+      // Only a pose that already puts a good share of the nearest trees inside the coverage
+      // near map trees can become decisive: the others stay unscored (score 0) and cost one
+      // bitmap pass.
+      const QuickCheck::Scored near = check_.Hits(h.pose);
+      const int decisive_inliers = DecisiveInliers(near.inside);
+      const int base = std::max(3, static_cast<int>(kPolishShare * decisive_inliers));
+      if (near.hits < PolishHits(m_, q_, h.pose, base, options_, near.inside)) continue;
       ++polished_;
-      Polish(m_, q_, options_, &h);
-      promising_ = promising_ || h.inliers >= decisive_;
-      if (decisive || h.inliers < decisive_ || h.score <= best_score_) continue;
+      Polish(m_, q_, options_, &h, near.prefix);
+      promising_ = promising_ || h.inliers >= decisive_inliers;
+      if (decisive || h.inliers < decisive_inliers || h.score <= best_score_) continue;
       best_score_ = h.score;
       Hypothesis refined = h;
       Refine(m_, q_, options_, &refined);
-      decisive = InliersAmongNearest(m_, q_, refined.pose, RatioTrees(q_, options_), options_) >=
-                     strong_ &&
+      const ViewInCoverage view = InCoverage(m_, q_, refined.pose, options_);
+      decisive = InliersAmongNearest(m_, q_, refined.pose, view.prefix, options_) >=
+                     StrongInliers(view.nearby, options_) &&
                  Believable(refined);
     }
     return decisive;
+  }
+
+  // Inliers among the nearest quick_score_trees that make a pose worth refining, when
+  // `inside` of them lie inside the coverage under it.
+  int DecisiveInliers(int inside) const {
+    return std::max<int>(options_.min_inliers, std::ceil(options_.decisive_fraction * inside));
   }
 
   const MapIndexImpl& m_;
@@ -367,17 +342,18 @@ class Searcher {
   const std::optional<PriorPose>& prior_;
   const Eigen::Vector2d prior_xy_;
   const RelocalizerOptions& options_;
-  const std::vector<Eigen::Vector2d> seed_xy_;
+  std::vector<uint32_t> pool_;            // the seeds (Seed) ...
+  std::vector<Eigen::Vector2d> seed_xy_;  // ... and their positions
   QuickCheck check_;
-  const int decisive_;  // inliers among the nearest trees that make a pose worth refining
-  const int strong_;    // inliers within ratio_range that decide the search (search_budget.h)
+  const double reach_;  // m, QueryReach: how far beyond the coverage a pose may see into it
   // A hypothesis is polished and scored only with this many bitmap hits among the nearest
-  // trees: this share of decisive_ (a triangle's pose can be a few degrees off before polish).
+  // trees: this share of DecisiveInliers (a triangle's pose can be a few degrees off before
+  // polish).
   static constexpr double kPolishShare = 0.4;
   static constexpr double kMinBandShare = 0.01;  // floor of a band's share in the cost order
-  const int polish_hits_;
-  int64_t polished_ = 0;    // hypotheses polished and scored
-  bool promising_ = false;  // a polished hypothesis explained decisive_ of the nearest trees
+  int64_t polished_ = 0;                         // hypotheses polished and scored ...
+  int64_t budget_ = 0;                           // ... at most, with these seeds
+  bool promising_ = false;  // a polished hypothesis reached its DecisiveInliers
   bool over_budget_ = false;
   std::vector<QueryTriangle> triangles_;
   double best_score_ = 0;
@@ -385,15 +361,50 @@ class Searcher {
   PoseSearchResult result_;
 };
 
+// The `count` query trees nearest `centre` (levelled sensor frame), nearest first.
+std::vector<uint32_t> SeedsAround(const LevelledQuery& q, const Eigen::Vector2d& centre,
+                                  size_t count) {
+  std::vector<std::pair<double, uint32_t>> by_distance;
+  for (uint32_t i = 0; i < q.xy.size(); ++i) {
+    by_distance.push_back({(q.xy[i] - centre).squaredNorm(), i});
+  }
+  count = std::min(count, by_distance.size());
+  std::partial_sort(by_distance.begin(), by_distance.begin() + count, by_distance.end());
+  std::vector<uint32_t> seeds(count);
+  for (size_t k = 0; k < count; ++k) seeds[k] = by_distance[k].second;
+  return seeds;
+}
+
+// Where a view takes seeds on every side in turn: points on a circle halfway between its seeds'
+// reach and the view's, about a seed disc apart (none when its seeds reach as far as it).
+std::vector<Eigen::Vector2d> OuterSeedCentres(const LevelledQuery& q,
+                                              const RelocalizerOptions& options) {
+  const size_t seeds = static_cast<size_t>(options.max_seed_trees);
+  if (q.xy.size() <= seeds) return {};
+  const double inner = q.xy[seeds - 1].norm(), reach = QueryReach(q, options);
+  if (!(inner > 0 && inner < reach)) return {};
+  const double radius = 0.5 * (inner + reach);
+  const int count = std::clamp(static_cast<int>(std::ceil(M_PI * radius / inner)), kMinOuterCentres,
+                               kMaxOuterCentres);
+  std::vector<Eigen::Vector2d> centres;
+  for (int k = 0; k < count; ++k) {
+    const double bearing = 2 * M_PI * k / count;
+    centres.push_back(radius * Eigen::Vector2d(std::cos(bearing), std::sin(bearing)));
+  }
+  return centres;
+}
+
 }  // namespace
 
 PoseSearchResult SearchPoses(const MapIndexImpl& m, const LevelledQuery& q,
                              const std::optional<PriorPose>& prior, const Eigen::Vector2d& prior_xy,
                              const RelocalizerOptions& options) {
   Searcher search(m, q, prior, prior_xy, options);
+  search.Seed(SeedsAround(q, Eigen::Vector2d::Zero(), options.max_seed_trees),
+              options.max_scored_hypotheses);
   // A first pass with a tight tolerance costs an eighth per triangle (the key box is a cube)
   // and finds most poses; the full tolerance follows only when it did not.
-  const bool decided =
+  bool decided =
       options.first_pass_tolerance > 0 &&
       search.Pass(static_cast<float>(options.first_pass_tolerance), options.first_pass_triangles);
   // The full tolerance costs 8 times as much a triangle: all of them only when the first pass
@@ -402,8 +413,22 @@ PoseSearchResult SearchPoses(const MapIndexImpl& m, const LevelledQuery& q,
   // not in the map; its answer comes in about the time of a found one).
   if (!decided && !search.OverBudget()) {
     const bool all = search.promising() || options.first_pass_tolerance == 0;
-    search.Pass(static_cast<float>(options.triangle_tolerance),
-                all ? SIZE_MAX : static_cast<size_t>(options.unpromising_triangles));
+    decided = search.Pass(static_cast<float>(options.triangle_tolerance),
+                          all ? SIZE_MAX : static_cast<size_t>(options.unpromising_triangles));
+  }
+  // The seeds lie nearest the sensor, and so do the first triangles; at the edge of its map
+  // they may all be trees the map does not hold (a dense stand's forty nearest trees lie within
+  // a few metres). Seeds around points farther out on every side in turn, then, with the first
+  // pass's budget shared among them.
+  const std::vector<Eigen::Vector2d> centres = OuterSeedCentres(q, options);
+  const double tolerance =
+      options.first_pass_tolerance > 0 ? options.first_pass_tolerance : options.triangle_tolerance;
+  for (size_t k = 0; k < centres.size() && !decided; ++k) {
+    search.Seed(SeedsAround(q, centres[k], options.max_seed_trees),
+                options.max_scored_hypotheses / static_cast<int64_t>(centres.size()));
+    decided = search.Pass(
+        static_cast<float>(tolerance),
+        std::max<size_t>(kMinOuterTriangles, options.first_pass_triangles / centres.size()));
   }
   return search.Finish();
 }

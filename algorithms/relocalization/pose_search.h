@@ -47,10 +47,16 @@ std::vector<Association> Associate(const MapIndexImpl& m, const LevelledQuery& q
 void Score(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
            Hypothesis* h, double gate, size_t limit = SIZE_MAX);
 
-// One least-squares step on the quick_score_trees nearest trees (a triangle's pose can be a few
-// degrees off), then the score on them.
+// The nearest query trees that hold `count` trees inside the map's coverage under `pose` (all
+// of them when fewer lie inside): a pose is scored on its nearest trees inside the coverage, so
+// a view at the edge of its map is scored on what the map shows of it.
+size_t ScoringPrefix(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
+                     size_t count);
+
+// One least-squares step on the nearest `limit` query trees (0: the ScoringPrefix of
+// quick_score_trees; a triangle's pose can be a few degrees off), then the score on them.
 void Polish(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
-            Hypothesis* h);
+            Hypothesis* h, size_t limit = 0);
 
 // ICP-style refinement: re-association with a shrinking gate, least squares in x, y, yaw.
 void Refine(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOptions& options,
@@ -60,12 +66,28 @@ void Refine(const MapIndexImpl& m, const LevelledQuery& q, const RelocalizerOpti
 // options.ratio_range, at least the nearest options.min_ratio_trees (a drone high above a
 // sparse forest sees its trees far away).
 int RatioTrees(const LevelledQuery& q, const RelocalizerOptions& options);
+// The query trees a pose puts inside the map's coverage (coverage.h): only those are evidence,
+// for the pose or against it. The nearby ones among them are those an answer must explain a
+// share of: the inside trees within options.ratio_range, at least the nearest
+// options.min_ratio_trees inside trees.
+struct ViewInCoverage {
+  std::vector<uint8_t> inside;  // per query tree (LevelledQuery order)
+  int nearby = 0;               // nearby trees inside the coverage
+  int prefix = 0;               // the nearest `prefix` query trees hold every one of them
+  double share = 0;             // of the RatioTrees nearest trees, the share inside
+};
+ViewInCoverage InCoverage(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
+                          const RelocalizerOptions& options);
+// m, the range of the farthest of the RatioTrees nearest trees: how far beyond the coverage a
+// pose may lie and still see into it.
+double QueryReach(const LevelledQuery& q, const RelocalizerOptions& options);
+
 // Inliers of `pose` among the `count` nearest query trees.
 int InliersAmongNearest(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
                         int count, const RelocalizerOptions& options);
 
 // Inliers a random pose would get here: the sum over query trees of the local chance of
-// landing near a map tree (the occupied share of the occupancy grid around each).
+// landing near a map tree (MapIndexImpl::ChanceAt: none outside the coverage).
 double ChanceInliers(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose);
 
 // P(X >= k) for X ~ Poisson(lambda).

@@ -4,10 +4,12 @@
 #include <cmath>
 #include <random>
 #include <stdexcept>
+#include <string>
 #include <unordered_map>
 
 #include "algorithms/core/leveling.h"
 #include "algorithms/relocalization/decoys.h"
+#include "algorithms/relocalization/heading_peaks.h"
 #include "algorithms/relocalization/pose_covariance.h"
 #include "algorithms/relocalization/pose_search.h"
 #include "algorithms/relocalization/tilt_refinement.h"
@@ -95,46 +97,6 @@ RelocalizeResult FinishWithTilt(const MapIndexImpl& m, const LevelledQuery& q,
   return Finish(m, q, best, options);
 }
 
-// Sensor headings that align the query's bearings with the map's as seen from `at` (kd
-// coordinates): every query tree and map tree at about the same range vote for the heading that
-// puts one on the other; returns the centres of the `count` strongest separated bins.
-std::vector<double> HeadingPeaks(const MapIndexImpl& m, const LevelledQuery& q,
-                                 const Eigen::Vector2d& at, int count) {
-  constexpr int kBins = 72;                // 5 deg
-  constexpr double kMinRange = 2.0;        // m, nearer bearings swing with a small position error
-  constexpr double kRangeTolerance = 1.0;  // m
-  double max_range = 0;
-  std::vector<std::pair<double, double>> query;  // range, bearing
-  for (const Eigen::Vector2d& p : q.xy) {
-    if (p.norm() < kMinRange) continue;
-    query.push_back({p.norm(), std::atan2(p.y(), p.x())});
-    max_range = std::max(max_range, p.norm());
-  }
-  std::vector<double> votes(kBins, 0.0);
-  std::vector<std::pair<uint32_t, float>> found;
-  m.positions->Radius({static_cast<float>(at.x()), static_cast<float>(at.y())},
-                      static_cast<float>(max_range + kRangeTolerance), found);
-  for (const auto& [j, d2] : found) {
-    const Eigen::Vector2d d = m.Xy(j) - at;
-    const double range = std::sqrt(d2);
-    if (range < kMinRange) continue;
-    const double bearing = std::atan2(d.y(), d.x());
-    for (const auto& [query_range, query_bearing] : query) {
-      if (std::abs(query_range - range) > kRangeTolerance) continue;
-      const double yaw = WrapAngle(bearing - query_bearing);
-      votes[static_cast<int>((yaw + M_PI) / (2 * M_PI) * kBins) % kBins] += 1.0;
-    }
-  }
-  std::vector<double> peaks;
-  for (int n = 0; n < count; ++n) {
-    const int best = static_cast<int>(std::max_element(votes.begin(), votes.end()) - votes.begin());
-    if (votes[best] <= 0) break;
-    peaks.push_back(-M_PI + (best + 0.5) * 2 * M_PI / kBins);
-    for (int k = -2; k <= 2; ++k) votes[(best + k + kBins) % kBins] = 0;  // separate the peaks
-  }
-  return peaks;
-}
-
 // A levelled pose (kd coordinates) in the map frame, at the height of `like`.
 Pose3 MapPose(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
               const Pose3& like) {
@@ -176,6 +138,34 @@ double MinInlierRatio(const PoseBelief& belief, const RelocalizerOptions& option
                         : options.min_inlier_ratio;
 }
 
+// Why `best` is no answer: too few of the nearby trees inside the map's coverage to tell a wrong
+// pose from a view that shows little of the map (the little that failed is all it can say), no
+// better than chance, or too few of the nearby trees explained.
+std::string NotFoundDetail(const Hypothesis& best, const ViewInCoverage& view, double ratio,
+                           const PoseBelief& belief, const RelocalizerOptions& options) {
+  char detail[256];
+  if (view.nearby < options.min_ratio_trees) {
+    std::snprintf(detail, sizeof detail,
+                  "under the best pose only %d of the nearby trees (%.0f%%) fall inside what the "
+                  "map covers, %d of them matched: too little of the view to judge (need %d)",
+                  view.nearby, 100 * view.share, best.inliers, options.min_ratio_trees);
+  } else if (!belief.significant) {
+    std::snprintf(detail, sizeof detail,
+                  "best pose matches %d trees within %.2f m (%.1f expected at random), %d of "
+                  "the nearest %d: chance does as well somewhere among the %.2g poses searched; "
+                  "is the drone in this map?",
+                  belief.test.inliers, belief.test.gate, belief.test.chance,
+                  belief.test.nearby_inliers, belief.test.nearby, belief.test.trials);
+  } else {
+    std::snprintf(detail, sizeof detail,
+                  "best pose explains only %d trees (%.0f%% of the nearest %d trees); need %d "
+                  "and %.0f%%",
+                  best.inliers, 100 * ratio, view.nearby, options.min_inliers,
+                  100 * MinInlierRatio(belief, options));
+  }
+  return detail;
+}
+
 // The answer for the best hypothesis, given the best distinct rival (none: null): LOCALIZED
 // only when it is far above chance (a random forest's or the local pattern's), explains enough
 // of the nearby trees and beats the rival and its decoys (decoys.h).
@@ -184,33 +174,26 @@ RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q, const Rel
                         const SearchExtent& extent, const RelocalizerOptions& options,
                         const DecoyTest* decoys = nullptr) {
   const double rival = best_rival ? best_rival->score : 0.0;
-  const int nearest = RatioTrees(q, options);
-  const double ratio =
-      nearest > 0
-          ? static_cast<double>(InliersAmongNearest(m, q, best.pose, nearest, options)) / nearest
-          : 0.0;
+  // Only the trees inside the map's coverage under the pose are evidence (coverage.h).
+  const ViewInCoverage view = InCoverage(m, q, best.pose, options);
+  const int nearest = view.nearby;
+  const int nearest_inliers =
+      nearest > 0 ? InliersAmongNearest(m, q, best.pose, view.prefix, options) : 0;
+  const double ratio = nearest > 0 ? static_cast<double>(nearest_inliers) / nearest : 0.0;
 
   RelocalizeResult result = FinishWithTilt(m, q, query, best, options);
   result.confidence = best.score > 0 ? std::clamp(1.0 - rival / best.score, 0.0, 1.0) : 0.0;
+  result.coverage_share = view.share;
+  result.trees_in_coverage = view.nearby;
   const PoseBelief belief = Assess(m, q, best, extent, options, decoys);
-  char detail[256];
-  if (!belief.significant) {
+  const bool too_few =
+      best.inliers < options.min_inliers || ratio < MinInlierRatio(belief, options);
+  if (!belief.significant || too_few) {
     result.status = RelocalizeStatus::kNotFound;
-    result.reason = RelocalizeReason::kNotSignificant;
-    std::snprintf(detail, sizeof detail,
-                  "best pose matches %d trees within %.2f m (%.1f expected at random), %d of "
-                  "the nearest %d: chance does as well somewhere among the %.2g poses searched; "
-                  "is the drone in this map?",
-                  belief.test.inliers, belief.test.gate, belief.test.chance,
-                  belief.test.nearby_inliers, belief.test.nearby, belief.test.trials);
-  } else if (best.inliers < options.min_inliers || ratio < MinInlierRatio(belief, options)) {
-    result.status = RelocalizeStatus::kNotFound;
-    result.reason = RelocalizeReason::kTooFewInliers;
-    std::snprintf(detail, sizeof detail,
-                  "best pose explains only %d trees (%.0f%% of the nearest %d trees); need %d "
-                  "and %.0f%%",
-                  best.inliers, 100 * ratio, nearest, options.min_inliers,
-                  100 * MinInlierRatio(belief, options));
+    result.reason =
+        belief.significant ? RelocalizeReason::kTooFewInliers : RelocalizeReason::kNotSignificant;
+    result.outside_coverage = nearest < options.min_ratio_trees;
+    result.detail = NotFoundDetail(best, view, ratio, belief, options);
   } else if (best_rival && !BeatsRival(m, q, best, *best_rival, belief, options)) {
     Ambiguous(m, q, best, *best_rival, "two distinct poses", &result);
   } else if (!belief.decoys.passed) {
@@ -219,6 +202,7 @@ RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q, const Rel
   } else {
     result.status = RelocalizeStatus::kLocalized;
     result.reason = RelocalizeReason::kNone;
+    char detail[256];
     std::snprintf(
         detail, sizeof detail,
         "%d trees matched (%.0f%% of the nearest %d trees, %.1f expected by chance; "
@@ -226,8 +210,8 @@ RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q, const Rel
         "scores %.1f",
         best.inliers, 100 * ratio, nearest, belief.chance, belief.test.inliers, belief.test.gate,
         belief.test.log_ratio, belief.test.trials, rival);
+    result.detail = detail;
   }
-  if (result.status != RelocalizeStatus::kAmbiguous) result.detail = detail;
   if (result.status != RelocalizeStatus::kLocalized) {
     result.map_from_sensor = Pose3::Identity();
     result.covariance.setZero();
@@ -378,7 +362,8 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   }
   const bool tested = search.tested && search.tested->first.yaw == best.pose.yaw &&
                       search.tested->first.translation == best.pose.translation;
-  result = Decide(m, q, query, best, rival, {search.matches, SearchArea(m, query.prior)}, options,
+  result = Decide(m, q, query, best, rival,
+                  {search.matches, SearchArea(m, query.prior, QueryReach(q, options))}, options,
                   tested ? &search.tested->second : nullptr);
   result.hypotheses = verified;
   result.triangles = search.triangles;
@@ -416,7 +401,8 @@ RelocalizeResult RefineNear(const MapIndex& index, const RelocalizeQuery& query,
         Hypothesis h;
         h.pose.yaw = yaw;
         h.pose.translation = guess_xy + shift * Eigen::Vector2d(dx, dy);
-        Score(m, q, options, &h, 1.5 * options.inlier_distance, options.quick_score_trees);
+        Score(m, q, options, &h, 1.5 * options.inlier_distance,
+              ScoringPrefix(m, q, h.pose, options.quick_score_trees));
         seeds.push_back(h);
       }
     }

@@ -133,6 +133,14 @@ struct RelocalizeResult {
   // Pose uncertainty, map frame, (x, y, z, roll, pitch, yaw) in m and rad about the map axes
   // (ROS order): meaningful when kLocalized (zero otherwise).
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  // Under the answer's pose (the best pose tried when not localized): the share of the nearby
+  // query trees (those within ratio_range, at least min_ratio_trees) inside the map's coverage,
+  // and the nearby trees inside it (the only evidence for or against the pose).
+  double coverage_share = 0;
+  int trees_in_coverage = 0;
+  // NOT_FOUND because too little of the view fell inside the coverage (fewer than
+  // min_ratio_trees nearby trees inside); `reason` says which test the little failed.
+  bool outside_coverage = false;
   int hypotheses = 0;         // pose hypotheses that passed the quick check
   int triangles = 0;          // query triangles looked up
   int64_t poses_checked = 0;  // triangle matches whose pose was checked

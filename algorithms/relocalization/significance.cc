@@ -23,29 +23,29 @@ double PoseCells(const SearchExtent& extent, double gate, double rms_range) {
 
 }  // namespace
 
-double SearchArea(const MapIndexImpl& m, const std::optional<PriorPose>& prior) {
-  // The occupancy grid covers cells within r of a tree: its occupied share is 1 - exp(-rho pi
-  // r^2) at mean density rho (r: the inlier gate the grid was built for).
-  const double radius = RelocalizerOptions{}.inlier_distance;
-  const double occupied = std::clamp(m.occupancy->occupied_fraction(), 1e-6, kMaxOccupied);
-  const double density = -std::log(1 - occupied) / (M_PI * radius * radius);
-  const double map_area = static_cast<double>(m.trees.size()) / density;
-  if (!prior) return map_area;
-  return std::min(map_area, M_PI * prior->radius * prior->radius);
+double SearchArea(const MapIndexImpl& m, const std::optional<PriorPose>& prior, double reach) {
+  const double seen = m.coverage->area() + m.coverage->perimeter() * reach + M_PI * reach * reach;
+  if (!prior) return seen;
+  return std::min(seen, M_PI * prior->radius * prior->radius);
 }
 
 GateSignificance TestSignificance(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
                                   const SearchExtent& extent, double chance_scale,
                                   const RelocalizerOptions& options) {
+  // Only the query trees inside the coverage are evidence: those outside have no chance (0)
+  // and do not count among the nearby trees.
+  const ViewInCoverage view = InCoverage(m, q, pose, options);
   std::vector<double> occupied(q.xy.size());  // local chance at the occupancy grid's radius
   double sum_range2 = 0;
+  int inside = 0;
   for (size_t i = 0; i < q.xy.size(); ++i) {
-    const Eigen::Vector2d p = pose(q.xy[i]);
-    occupied[i] = std::min(kMaxOccupied, m.occupancy->OccupiedFractionAt(p.x(), p.y()));
+    occupied[i] = std::min(kMaxOccupied, m.ChanceAt(pose(q.xy[i])));
+    if (!view.inside[i]) continue;
     sum_range2 += q.xy[i].squaredNorm();
+    ++inside;
   }
-  const double rms_range = q.xy.empty() ? 0 : std::sqrt(sum_range2 / q.xy.size());
-  const int nearby = RatioTrees(q, options);  // the nearest trees, as the inlier ratio's
+  const double rms_range = inside == 0 ? 0 : std::sqrt(sum_range2 / inside);
+  const int nearby = view.nearby, prefix = view.prefix;  // as the inlier ratio's
   const double gates = static_cast<double>(std::size(kGates));
   // Every pair within the widest gate, once: each gate counts those within it.
   const std::vector<Association> pairs = Associate(m, q, pose, options, options.inlier_distance);
@@ -58,13 +58,13 @@ GateSignificance TestSignificance(const MapIndexImpl& m, const LevelledQuery& q,
     for (const Association& a : pairs) {
       if (a.distance > test.gate) continue;
       ++test.inliers;
-      near += static_cast<int>(a.query) < nearby;
+      near += static_cast<int>(a.query) < prefix;
     }
     double near_chance = 0;  // summed over the nearby trees
     for (size_t i = 0; i < occupied.size(); ++i) {
       const double p = chance_scale * (1 - std::pow(1 - occupied[i], share * share));
       test.chance += p;
-      if (static_cast<int>(i) < nearby) near_chance += p;
+      if (static_cast<int>(i) < prefix) near_chance += p;
     }
     // The Poisson tail over the poses tried (each was scored as it is), the likelihood ratio
     // over every pose cell searched (the best of each was found by refinement).

@@ -26,15 +26,17 @@ struct SearchExtent {
   double area = 0;    // m^2 searched; 0: a local search (only `poses` count)
 };
 
-// The searched area: the prior's disk (within the map's), else the map's area (its tree count
-// over the mean density around its trees).
-double SearchArea(const MapIndexImpl& m, const std::optional<PriorPose>& prior);
+// The searched area (m^2): the positions from which a view reaching `reach` (m) sees into the
+// map's coverage (its area, plus its perimeter times the reach, plus a disc of the reach: the
+// coverage grown by the reach, exactly for a convex one, more for others), or the prior's disc
+// when smaller.
+double SearchArea(const MapIndexImpl& m, const std::optional<PriorPose>& prior, double reach = 0);
 
 struct GateSignificance {
   double gate = 0;         // m, the gate that decided (the most significant one)
   int inliers = 0;         // query trees within it of a map tree
   double chance = 0;       // inliers expected at random there
-  int nearby = 0;          // the nearest query trees (RatioTrees) ...
+  int nearby = 0;          // the nearby query trees inside the coverage (InCoverage) ...
   int nearby_inliers = 0;  // ... and those within the gate of a map tree
   double p = 1;            // poses tried x Poisson tail of the inliers
   double trials = 0;       // independent pose cells searched at that gate (x the gates tried)

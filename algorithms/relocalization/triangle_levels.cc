@@ -113,6 +113,14 @@ void SpacingCells::Smooth() {
   }
 }
 
+std::vector<float> SpacingCells::TreeSpacing() const {
+  std::vector<float> spacing(by_cell_.size());
+  for (size_t r = 0; r + 1 < runs_.size(); ++r) {
+    for (size_t i = runs_[r]; i < runs_[r + 1]; ++i) spacing[by_cell_[i].second] = spacing_[r];
+  }
+  return spacing;
+}
+
 double SparseBudget::Factor(double spacing) const {
   if (!(spacing > spacing_from) || spacing_from <= 0) return 1.0;
   return std::min(max_factor, (spacing / spacing_from) * (spacing / spacing_from));

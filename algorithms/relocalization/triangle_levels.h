@@ -54,6 +54,8 @@ class SpacingCells {
   // F x `cap` triangles each (a third of the triangles they are a vertex of).
   std::vector<uint8_t> Levels(const KdTree<float, 2>& kd, const TriangleLevels& levels, double cap,
                               const SparseBudget& sparse = {}) const;
+  // Every tree's spacing (m): its cell's, by tree index.
+  std::vector<float> TreeSpacing() const;
 
  private:
   void Smooth();

@@ -99,6 +99,9 @@ SimulatedView Shuffled(const SimulatedView& view, Rng& rng) {
 void ViewOptions::Check() const {
   Require(std::isfinite(range) && range > 0, "ViewOptions.range must be > 0 m", range);
   Require(miss_rate >= 0 && miss_rate <= 1, "ViewOptions.miss_rate must be in [0, 1]", miss_rate);
+  Require(far_miss_rate <= 1, "ViewOptions.far_miss_rate must be <= 1 (< 0: none)", far_miss_rate);
+  Require(std::isfinite(noise_per_metre) && noise_per_metre >= 0,
+          "ViewOptions.noise_per_metre must be >= 0 m/m", noise_per_metre);
   Require(std::isfinite(false_rate) && false_rate >= 0, "ViewOptions.false_rate must be >= 0",
           false_rate);
   Require(std::isfinite(position_noise) && position_noise >= 0,
@@ -169,9 +172,16 @@ SimulatedView ViewSimulator::Simulate(const Eigen::Vector2d& position_xy, double
   const Pose3 sensor_from_map = view.map_from_sensor.inverse();
   const Eigen::Vector3d up_in_sensor = sensor_from_map.linear() * Eigen::Vector3d::UnitZ();
 
-  std::bernoulli_distribution missed(options.miss_rate);
+  // The chance of missing a tree and the noise of its position, at its horizontal range.
+  auto miss_rate = [&](const Eigen::Vector3d& map_point) {
+    if (options.far_miss_rate < 0) return options.miss_rate;
+    const double share = std::min(1.0, (map_point.head<2>() - position_xy).norm() / options.range);
+    return options.miss_rate + share * (options.far_miss_rate - options.miss_rate);
+  };
   auto detect = [&](Eigen::Vector3d map_point, double dbh, int64_t truth_id) {
-    for (int a = 0; a < 3; ++a) map_point[a] += Gaussian(rng, options.position_noise);
+    const double noise = options.position_noise +
+                         options.noise_per_metre * (map_point.head<2>() - position_xy).norm();
+    for (int a = 0; a < 3; ++a) map_point[a] += Gaussian(rng, noise);
     DetectedTree tree;
     tree.position = sensor_from_map * map_point;
     if (IsKnown(dbh)) tree.dbh = std::max(kMinDetectedDbh, dbh + Gaussian(rng, options.dbh_noise));
@@ -184,8 +194,8 @@ SimulatedView ViewSimulator::Simulate(const Eigen::Vector2d& position_xy, double
   const std::vector<int> visible = VisibleTrees(position_xy, options.range, options.occlusion);
   view.visible_trees = static_cast<int>(visible.size());
   for (int i : visible) {
-    if (missed(rng)) continue;
     const MapTree& tree = map_[i];
+    if (std::bernoulli_distribution(miss_rate(tree.position))(rng)) continue;
     const double z = IsKnown(tree.position.z()) ? tree.position.z() : 0.0;
     detect({tree.position.x(), tree.position.y(), z}, tree.dbh, tree.id);
   }

@@ -17,9 +17,11 @@ namespace forestmap::algorithms {
 
 struct ViewOptions {
   double range = 15.0;           // m, horizontal sensor range
-  double miss_rate = 0.3;        // [0, 1], probability that a visible tree is not detected
+  double miss_rate = 0.3;        // [0, 1], probability that a visible tree is not detected ...
+  double far_miss_rate = -1;     // ... rising linearly to this at `range` ([0, 1]; < 0: constant)
   double false_rate = 0.2;       // >= 0, expected false stems per detected true tree (Poisson)
-  double position_noise = 0.05;  // m, sd of the detected position per axis (x, y and z)
+  double position_noise = 0.05;  // m, sd of the detected position per axis (x, y and z) ...
+  double noise_per_metre = 0.0;  // ... plus this much (m) per metre of horizontal range
   double dbh_noise = 0.02;       // m, sd of the DBH error (detected DBH clamped to >= 0.01 m)
   double axis_noise = 0.035;     // rad, sd per axis of the stem-axis direction error (~2 deg)
   bool occlusion = true;         // a tree whose bearing lies in the angular shadow of a nearer

@@ -13,28 +13,21 @@
 // District cases:  --mosaic A.csv,B.csv,... or --plantation SX,SY,ERROR,MORTALITY with
 //                  --simulate N; --foreign (another seed's map) or --foreign-map B.csv
 //                  relocalizes the views in another forest (cli_bench_reloc_maps.h)
+// Views that see beyond their map: --edge, --overlap (cli_bench_reloc_cases.h)
 // Prints recall, strict recall, wrong answers, error and latency percentiles (the definitions
 // are in algorithms/evaluation/reloc_evaluation.h), as text or one JSON object (--json).
 
-#include <unistd.h>
-
-#include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <ctime>
-#include <fstream>
-#include <iomanip>
 #include <nlohmann/json.hpp>
-#include <random>
 
 #include "algorithms/core/kdtree.h"
 #include "algorithms/evaluation/reloc_evaluation.h"
-#include "algorithms/relocalization/relocalizer.h"
-#include "algorithms/relocalization/tracking.h"
-#include "algorithms/simulation/forest_generator.h"
 #include "algorithms/simulation/view_simulator.h"
 #include "client/io/tree_csv.h"
+#include "client/lab/cli_bench_reloc_cases.h"
 #include "client/lab/cli_bench_reloc_maps.h"
+#include "client/lab/cli_bench_reloc_runner.h"
 #include "client/lab/lab_commands.h"
 #include "client/lib/scan_trees.h"
 
@@ -42,212 +35,6 @@ namespace forestmap::client {
 namespace {
 
 using algorithms::Pose3;
-
-struct BenchOptions {
-  BenchMapOptions maps;  // --map, --generate, --mosaic, --plantation, --foreign..., --seed
-  std::string frames_path, poses_path, scans_dir;
-  double within = 0.3;               // m, also report the share of all frames localized this close
-  std::vector<double> truth_offset;  // x, y, z (m), yaw (deg): map_from_world of the poses
-  std::string truth_map_path;        // the frames' own session map, for local truth alignment
-  int step = 1, limit = 0;
-  double prior_noise = -1, prior_radius = 10;  // m; prior_noise < 0: no prior
-  double imu_noise = -1;  // deg; >= 0: queries carry gravity, the truth's tilted by this RMS
-  int simulate = 0;
-  double range = 15;
-  bool json = false;
-  bool track = false;
-  std::string per_frame_path;  // CSV of every answer, for diagnosis
-};
-
-double Mean(const std::vector<double>& values) {
-  double sum = 0;
-  for (double v : values) sum += v;
-  return values.empty() ? 0.0 : sum / values.size();
-}
-
-double Ms(std::chrono::steady_clock::duration d) {
-  return std::chrono::duration<double, std::milli>(d).count();
-}
-
-// Resident set size of this process (bytes; Linux /proc/self/statm), 0 when unknown.
-size_t ResidentBytes() {
-  std::ifstream statm("/proc/self/statm");
-  size_t pages = 0, resident = 0;
-  if (!(statm >> pages >> resident)) return 0;
-  return resident * static_cast<size_t>(sysconf(_SC_PAGESIZE));
-}
-
-// CPU time of the calling thread (ms): per-query cost even while other work shares the cores.
-double ThreadCpuMs() {
-  timespec t{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return t.tv_sec * 1e3 + t.tv_nsec / 1e6;
-}
-
-// One query: with an optional prior drawn around the truth, timed, scored.
-class Runner {
- public:
-  Runner(const std::vector<algorithms::MapTree>& map, const BenchOptions& options, bool foreign)
-      : options_(options), evaluator_(map), rng_(options.maps.seed), foreign_(foreign) {
-    if (!options.per_frame_path.empty()) {
-      per_frame_.open(options.per_frame_path);
-      if (!per_frame_) throw CommandError("cannot write " + options.per_frame_path);
-      per_frame_ << "query,answerable,status,x,y,yaw_deg,true_x,true_y,true_yaw_deg,error_xy_m,"
-                    "error_yaw_deg,inliers,confidence,ms,cpu_ms,hypotheses,triangles,poses_checked,"
-                    "detail\n";
-    }
-    const size_t resident_before = ResidentBytes();
-    const auto start = std::chrono::steady_clock::now();
-    index_ = std::make_unique<algorithms::MapIndex>(map);
-    build_ms_ = Ms(std::chrono::steady_clock::now() - start);
-    index_resident_ = static_cast<double>(ResidentBytes()) - resident_before;
-    if (options.track) tracker_.emplace();
-  }
-
-  void Run(const std::vector<algorithms::DetectedTree>& trees, const Pose3& truth) {
-    algorithms::RelocalizeQuery query;
-    query.trees = trees;
-    if (options_.prior_noise >= 0) {
-      std::normal_distribution<double> noise(0, options_.prior_noise / std::sqrt(2.0));
-      algorithms::PriorPose prior;
-      prior.map_from_sensor = truth;
-      prior.map_from_sensor.translation() += Eigen::Vector3d(noise(rng_), noise(rng_), 0);
-      prior.radius = options_.prior_radius;
-      query.prior = prior;
-    }
-    if (options_.imu_noise >= 0) query.gravity = NoisyGravity(truth);
-    const double cpu_start = ThreadCpuMs();
-    const auto start = std::chrono::steady_clock::now();
-    const algorithms::RelocalizeResult result =
-        tracker_ ? Track(query) : algorithms::Relocalize(*index_, query);
-    const double ms = Ms(std::chrono::steady_clock::now() - start);
-    const double cpu_ms = ThreadCpuMs() - cpu_start;
-    // In a foreign map no frame is answerable and every LOCALIZED answer is wrong.
-    const bool answerable = !foreign_ && evaluator_.Answerable(trees, truth);
-    evaluator_.Add(answerable, truth, result, ms);
-    if (per_frame_.is_open()) WriteRow(answerable, truth, result, ms, cpu_ms);
-    AddNees(truth, result);
-    ++frames_;
-    within_ += result.status == algorithms::RelocalizeStatus::kLocalized &&
-               algorithms::ComparePoses(result.map_from_sensor, truth).xy <= options_.within;
-  }
-
-  void AddDetectionTime(double ms) { detect_ms_.push_back(ms); }
-
-  // Normalised squared error of a correct LOCALIZED answer in (x, y, yaw) under its covariance
-  // (3 degrees of freedom: a calibrated covariance gives a mean of 3).
-  void AddNees(const Pose3& truth, const algorithms::RelocalizeResult& result) {
-    const algorithms::PoseError error = algorithms::ComparePoses(result.map_from_sensor, truth);
-    if (result.status != algorithms::RelocalizeStatus::kLocalized || error.xy > 0.5 ||
-        error.yaw > 5.0) {
-      return;
-    }
-    Eigen::Vector3d e;
-    e.head<2>() = (result.map_from_sensor.translation() - truth.translation()).head<2>();
-    e.z() = algorithms::WrapAngle(algorithms::YawOf(result.map_from_sensor.linear()) -
-                                  algorithms::YawOf(truth.linear()));
-    const int index[3] = {0, 1, 5};
-    Eigen::Matrix3d cov;
-    for (int a = 0; a < 3; ++a) {
-      for (int b = 0; b < 3; ++b) cov(a, b) = result.covariance(index[a], index[b]);
-    }
-    nees_.push_back(e.dot(cov.ldlt().solve(e)));
-  }
-  const std::vector<algorithms::MapTree>& map() const { return index_->trees(); }
-
-  nlohmann::ordered_json Report(size_t map_trees) const {
-    algorithms::RelocSummary s = evaluator_.Summary();
-    if (foreign_) {
-      s.wrong = s.localized;
-      s.wrong_rate = s.frames ? double(s.wrong) / s.frames : 0.0;
-    }
-    return {{"map_trees", map_trees},
-            {"index_build_ms", build_ms_},
-            {"index_triangle_side_m", index_->triangle_side()},
-            {"index_levels", nlohmann::json(index_->triangle_levels())},  // [side m, count]
-            {"index_bytes_per_tree", map_trees ? double(index_->MemoryBytes()) / map_trees : 0},
-            {"index_resident_bytes_per_tree", map_trees ? index_resident_ / map_trees : 0},
-            {"foreign_map", foreign_},
-            {"frames", s.frames},
-            {"answerable", s.answerable},
-            {"localized", s.localized},
-            {"ambiguous", s.ambiguous},
-            {"not_found", s.not_found},
-            {"recall", s.recall},
-            {"strict_recall", s.strict_recall},
-            {"wrong", s.wrong},
-            {"wrong_rate", s.wrong_rate},
-            {"error_xy_p50_m", s.error_xy_p50},
-            {"error_xy_p95_m", s.error_xy_p95},
-            {"error_yaw_p50_deg", s.error_yaw_p50},
-            {"time_p50_ms", s.time_p50},
-            {"time_p95_ms", s.time_p95},
-            {"time_p99_ms", s.time_p99},
-            {"time_max_ms", s.time_max},
-            {"localized_within", options_.within},
-            {"localized_within_rate", frames_ ? double(within_) / frames_ : 0.0},
-            {"track_local", track_counts_[0]},
-            {"track_recovered", track_counts_[1]},
-            {"track_lost", track_counts_[2]},
-            {"track_longest_loss_frames", longest_loss_},
-            {"nees_xy_yaw_mean", Mean(nees_)},
-            {"nees_xy_yaw_median", algorithms::Percentile(nees_, 0.5)},
-            {"nees_dof", 3},
-            {"detect_p50_ms", algorithms::Percentile(detect_ms_, 0.5)},
-            {"detect_p95_ms", algorithms::Percentile(detect_ms_, 0.95)}};
-  }
-
- private:
-  // Gravity (down) in the sensor frame as an IMU reports it: the truth, tilted about a random
-  // horizontal axis by a Gaussian angle of imu_noise RMS.
-  Eigen::Vector3d NoisyGravity(const Pose3& map_from_sensor) {
-    std::normal_distribution<double> angle(0, options_.imu_noise * M_PI / 180);
-    std::uniform_real_distribution<double> direction(-M_PI, M_PI);
-    const double a = direction(rng_);
-    const Eigen::AngleAxisd tilt(angle(rng_), Eigen::Vector3d(std::cos(a), std::sin(a), 0));
-    return map_from_sensor.linear().transpose() * (tilt * Eigen::Vector3d(0, 0, -1));
-  }
-
-  void WriteRow(bool answerable, const Pose3& truth, const algorithms::RelocalizeResult& result,
-                double ms, double cpu_ms) {
-    const bool localized = result.status == algorithms::RelocalizeStatus::kLocalized;
-    const algorithms::PoseError error = algorithms::ComparePoses(result.map_from_sensor, truth);
-    const Eigen::Vector3d t = result.map_from_sensor.translation(), u = truth.translation();
-    char row[400];
-    std::snprintf(row, sizeof row,
-                  "%d,%d,%s,%.3f,%.3f,%.2f,%.3f,%.3f,%.2f,%.3f,%.3f,%d,%.3f,%.3f,%.3f,%d,%d,%lld,",
-                  frames_, answerable ? 1 : 0, algorithms::ToString(result.status),
-                  localized ? t.x() : NAN, localized ? t.y() : NAN,
-                  localized ? algorithms::YawOf(result.map_from_sensor.linear()) * 180 / M_PI : NAN,
-                  u.x(), u.y(), algorithms::YawOf(truth.linear()) * 180 / M_PI,
-                  localized ? error.xy : NAN, localized ? error.yaw : NAN, result.inliers,
-                  result.confidence, ms, cpu_ms, result.hypotheses, result.triangles,
-                  static_cast<long long>(result.poses_checked));
-    per_frame_ << row << std::quoted(result.detail, '"', '"') << "\n";
-  }
-
-  algorithms::RelocalizeResult Track(const algorithms::RelocalizeQuery& query) {
-    const algorithms::TrackingStep step = tracker_->Step(*index_, {query, std::nullopt});
-    ++track_counts_[static_cast<int>(step.state)];
-    longest_loss_ = std::max(longest_loss_, step.frames_lost);
-    return step.result;
-  }
-
-  const BenchOptions& options_;
-  algorithms::RelocEvaluator evaluator_;
-  std::optional<algorithms::Tracker> tracker_;
-  int track_counts_[3] = {0, 0, 0};  // by TrackState
-  int longest_loss_ = 0;
-  int frames_ = 0, within_ = 0;
-  std::vector<double> detect_ms_;  // per scan (--scans)
-  std::vector<double> nees_;       // per correct LOCALIZED answer
-  std::unique_ptr<algorithms::MapIndex> index_;
-  std::mt19937 rng_;
-  bool foreign_ = false;  // the views come from another forest than the index's
-  double build_ms_ = 0;
-  double index_resident_ = 0;  // growth of the resident set while the index was built (bytes)
-  std::ofstream per_frame_;
-};
 
 // Two sessions' ground truths of one forest agree only up to a drift of ~0.1-0.2 m that varies
 // along the route (see ../shared/data/README.md). The offset at a place: the median
@@ -341,12 +128,18 @@ void RunScans(Runner& runner, const BenchOptions& o, std::ostream& err) {
 void RunSimulated(const std::vector<algorithms::MapTree>& map, Runner& runner,
                   const BenchOptions& o, std::ostream& err) {
   algorithms::ViewSimulator simulator(map);
-  algorithms::ViewOptions view;  // occlusion, 30% misses, 20% false stems, 5 cm noise
-  view.range = o.range;
+  algorithms::ViewOptions view = ViewModel(o, o.range);
   // Keep the sensor a range away from the plot's border, or a quarter of a small plot.
   const Eigen::Vector2d size = simulator.grid().max_corner() - simulator.grid().min_corner();
   const double margin = std::min(o.range, 0.25 * size.minCoeff());
-  const auto poses = simulator.SamplePoses(o.simulate, margin, o.maps.seed, 8, o.range);
+  const auto poses =
+      o.max_density > 0
+          ? SampleViewPoses(simulator, o.simulate, margin, o.maps.seed, o.range,
+                            [&](const Eigen::Vector3d& p) {
+                              return simulator.grid().InRadius(p.head<2>(), o.range).size() <
+                                     o.max_density * M_PI * o.range * o.range;
+                            })
+          : simulator.SamplePoses(o.simulate, margin, o.maps.seed, 8, o.range);
   if (poses.empty()) {
     err << "bench-reloc: no place in the map where the sensor sees 8 trees within " << o.range
         << " m\n";
@@ -362,15 +155,20 @@ void RunSimulated(const std::vector<algorithms::MapTree>& map, Runner& runner,
 void Run(const BenchOptions& o, CliContext& context) {
   const BenchMaps maps = LoadBenchMaps(o.maps, *context.err);
   const std::vector<algorithms::MapTree>& map = maps.index;
-  Runner runner(map, o, maps.foreign);
-  if (o.simulate > 0) {
-    RunSimulated(maps.views, runner, o, *context.err);
-  } else if (!o.scans_dir.empty()) {
-    RunScans(runner, o, *context.err);
+  nlohmann::ordered_json report;
+  if (o.edge || o.overlap) {
+    report = RunCoverageCase(maps.views, o, *context.err);
   } else {
-    RunSequence(runner, o, *context.err);
+    Runner runner(map, o, maps.foreign);
+    if (o.simulate > 0) {
+      RunSimulated(maps.views, runner, o, *context.err);
+    } else if (!o.scans_dir.empty()) {
+      RunScans(runner, o, *context.err);
+    } else {
+      RunSequence(runner, o, *context.err);
+    }
+    report = runner.Report(map.size());
   }
-  const nlohmann::ordered_json report = runner.Report(map.size());
   if (o.json) {
     *context.out << report.dump() << "\n";
     return;
@@ -430,12 +228,20 @@ void AddBenchRelocCommand(CLI::App& app, CliContext& context) {
       ->capture_default_str();
   cmd->add_flag("--track", options->track,
                 "Track the frames in order (one tracking session) instead of relocalizing each");
+  AddCoverageCaseOptions(cmd, *options);
   cmd->add_flag("--json", options->json, "Print one JSON object");
   cmd->add_option("--per-frame", options->per_frame_path,
                   "Also write every answer with its error and time to this CSV");
   cmd->callback([options, &context] {
     const BenchOptions& o = *options;
     CheckBenchMapOptions(o.maps, o.simulate > 0);
+    if ((o.edge || o.overlap) &&
+        (o.maps.map_path.empty() || o.simulate == 0 || o.edge == o.overlap ||
+         !o.maps.foreign_map_path.empty() || o.track || o.prior_noise >= 0)) {
+      throw CLI::ValidationError("--edge",
+                                 "--edge or --overlap needs --map STEMMAP.csv and "
+                                 "--simulate N, without --foreign-map, --track or a prior");
+    }
     if (o.simulate == 0 && o.scans_dir.empty() && (o.frames_path.empty() || o.poses_path.empty())) {
       throw CLI::ValidationError(
           "--frames", "real frames need --frames and --poses (or use --simulate N or --scans DIR)");

@@ -90,6 +90,9 @@ void AddBenchMapOptions(CLI::App* cmd, BenchMapOptions& o) {
   cmd->add_option("--foreign-map", o.foreign_map_path,
                   "Relocalize the views in this other map: every LOCALIZED answer is wrong")
       ->check(CLI::ExistingFile);
+  cmd->add_flag("--no-dbh", o.no_dbh,
+                "Remove the DBH of the map searched (a survey of positions only); the views still "
+                "see and measure the trunks");
   cmd->add_flag("--foreign", o.foreign_seed,
                 "Relocalize the views in a map of the same kind with another seed (--plantation, "
                 "--generate, --mosaic): every LOCALIZED answer is wrong");
@@ -131,6 +134,9 @@ BenchMaps LoadBenchMaps(const BenchMapOptions& o, std::ostream& err) {
     maps.index = maps.views;
   }
   if (maps.index.size() < 3) throw CommandError("the map searched has fewer than 3 trees");
+  if (o.no_dbh) {
+    for (MapTree& t : maps.index) t.dbh = algorithms::kUnknown;
+  }
   return maps;
 }
 

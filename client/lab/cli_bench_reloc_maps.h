@@ -21,6 +21,7 @@ struct BenchMapOptions {
   double plantation_size = 200;     // m, --plantation-size (square)
   std::string foreign_map_path;     // --foreign-map: relocalize the views in this map
   bool foreign_seed = false;        // --foreign: ... in the same kind of map, another seed
+  bool no_dbh = false;              // --no-dbh: the maps without DBH (positions only)
   unsigned seed = 1;                // --seed
 };
 
