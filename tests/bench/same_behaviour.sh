@@ -69,6 +69,7 @@ strip_timing() {
     -e '/^ *[A-Za-z0-9_]*(seconds|_s|_ms|_us|ms_|time|latency|per_second|fps|throughput|rate_hz|resident|rss)[A-Za-z0-9_]*:/d' \
     -e 's/; ms: .*$//' \
     -e 's/(\.cc):[0-9]+: Failure/\1:<line>: Failure/' \
+    -e 's#^[./]*(tests/)?([a-z_]+/)*([a-z_]+\.cc:<line>: Failure)#\3#' \
     -e 's/[0-9]+([.][0-9]+)? *(ms|s|µs|us)( per [a-z]+)?\b/<t>/g' \
     -e 's/[0-9]+([.][0-9]+)? *(frames|scans|queries)\/s/<t>/g'
 }
