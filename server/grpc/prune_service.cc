@@ -29,8 +29,13 @@ void ForestMapService::RunPrune(grpc::CallbackServerContext* context, const Call
   // The stored answer of a request id holds the map; a repeat removes nothing, its counts are 0.
   const auto encode = Encoder<v1::PruneVersionsResponse>(
       [](const storage::MapInfo& info, auto& answer) { *answer.mutable_map() = ToProto(info); });
+  // The id is bound to the request's content (name, keep), whichever field (50, or 3 of 0.1.0)
+  // carried it.
+  v1::PruneVersionsRequest content;
+  content.set_name(request.name());
+  content.set_keep(request.keep());
   const WriteCall call = WriteCallOf(context, caller, "PruneVersions", request.name(), request_id,
-                                     ContentDigest(request));
+                                     ContentDigest(content));
   RunExactlyOnce(store_, call, response, encode,
                  [&] { Fill(PruneHistory(store_, request.name(), request.keep()), response); });
 }

@@ -227,7 +227,7 @@ TEST(ConvertTest, ObserveRequestToCall) {
   EXPECT_EQ(call.frames[0].observations.trees[0].dbh, 0.3);
   EXPECT_FALSE(call.frames[0].gravity.has_value());
   EXPECT_FALSE(call.frames[1].has_pose);
-  EXPECT_EQ(call.frames[1].gravity, Eigen::Vector3d(0, 0, -9.81));  // normalised when used
+  EXPECT_EQ(call.frames[1].gravity, Eigen::Vector3d(0, 0, -1));  // (0, 0, -9.81) normalised
 
   request.set_conflict_policy(v1::CONFLICT_POLICY_REJECT_IF_STALE);
   call = FromProto(request);

@@ -157,7 +157,7 @@ TEST_F(CreatedUploadTest, MigratesAStep6DatabaseAndRemovesTheUploadAKilledServer
     EXPECT_EQ(StagedCreate(store, "half", kChunk)->Commit().tree_count, kChunk);
   }
   sqlite::Database db(path_, SQLITE_OPEN_READONLY, 1000);
-  EXPECT_EQ(db.QueryInt64("PRAGMA user_version"), 7);
+  EXPECT_EQ(db.QueryInt64("PRAGMA user_version"), SqliteMapStore::kSchemaVersion);
   EXPECT_EQ(db.QueryInt64("SELECT COUNT(*) FROM uploads"), 0);
   EXPECT_EQ(db.QueryInt64("SELECT COUNT(*) FROM upload_chunks"), 0);
   EXPECT_EQ(db.QueryInt64("SELECT COUNT(*) FROM trees WHERE valid_to < 0"), 0);
