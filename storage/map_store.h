@@ -26,7 +26,7 @@ class StorageError : public std::runtime_error {
     kConflict,
     kInternal,
     kDeadlineExceeded,  // a write whose WriteRequest deadline passed: nothing was committed
-    // Faults of the database itself, each answered with a status that names it (issue 15):
+    // Faults of the database itself, each answered with a status that names it:
     kFull,         // no room: disk full or the size limit (SQLITE_FULL, SQLSTATE 53100)
     kReadOnly,     // the database cannot be written (read-only file, directory or file system)
     kCorrupt,      // the database is damaged (SQLITE_CORRUPT / NOTADB, SQLSTATE XX001 / XX002)

@@ -1,5 +1,5 @@
 #pragma once
-// Bounded-memory writes and reads of whole maps (issue 15): uploads staged in the database and
+// Bounded-memory writes and reads of whole maps: uploads staged in the database and
 // exports read page by page. Both are MapStore methods (storage/map_store.h); the types live here.
 
 #include <cstdint>

@@ -1,5 +1,5 @@
 #pragma once
-// The client request a write belongs to, for exactly-once writes and deadlines (issue 15).
+// The client request a write belongs to, for exactly-once writes and deadlines.
 //
 // The server opens a WriteRequestScope on the thread that calls a MapStore write method
 // (CreateMap, DeleteMap, WriteTrees, RestoreVersion, Merge, PruneVersions). Every backend honours

@@ -94,7 +94,7 @@ CREATE TABLE map_versions (
 );
 )sql";
 
-// Step 2 (issue 15): answers of writes made with a client request id (exactly-once writes),
+// Step 2: answers of writes made with a client request id (exactly-once writes),
 // the answer bytes as hex text.
 constexpr const char* kStep2 = R"sql(
 CREATE TABLE request_log (

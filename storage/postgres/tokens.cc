@@ -1,4 +1,4 @@
-// Access tokens on PostgreSQL (issue 15): the same rows as the SQLite table access_tokens, in a
+// Access tokens on PostgreSQL: the same rows as the SQLite table access_tokens, in a
 // table of the same name made on first use (CREATE TABLE IF NOT EXISTS under an advisory lock, so
 // replicas starting together make it once). Kept out of the map schema's steps on purpose: the
 // table is the token store's alone and needs no migration of the maps.

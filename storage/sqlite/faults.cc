@@ -1,5 +1,5 @@
 // Faults of a SQLite database found when it is opened: a database this process cannot write is
-// refused with its cause, and the size limit of --max-db-mb (issue 15).
+// refused with its cause, and the size limit of --max-db-mb.
 
 #include <sqlite3.h>
 #include <sys/statvfs.h>

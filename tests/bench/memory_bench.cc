@@ -1,4 +1,4 @@
-// The memory figure of issue 15 against a running forestmapd: UPLOADS clients each stream an
+// The memory figure against a running forestmapd: UPLOADS clients each stream an
 // upload of UPLOAD_TREES trees (with a species attribute) and hold it open, unfinished, while
 // EXPORTS clients export a map of EXPORT_TREES trees, read one message and then stall. Every
 // client has its own connection. Prints one JSON line when everything is open and held; the

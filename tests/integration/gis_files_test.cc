@@ -1,4 +1,4 @@
-// GIS files as a new user meets them (trial 14), through the built `forestmap` binary against a
+// GIS files as a new user meets them, through the built `forestmap` binary against a
 // real in-process server: exports into an existing GeoPackage, atomic replacement, attributes
 // GIS formats cannot hold as named, maps without a CRS, several layers, typed fields, text that
 // is not UTF-8, shapefiles' encoding, field names and missing .dbf. Files are checked with GDAL's

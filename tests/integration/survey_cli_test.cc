@@ -1,4 +1,4 @@
-// Survey teams' workflow (issue 14) through the built `forestmap` binary against a real in-process
+// Survey teams' workflow through the built `forestmap` binary against a real in-process
 // server: PRF025's field inventory uploaded as delivered, exported to GeoPackage / GeoJSON /
 // shapefile and checked with GDAL's own `ogrinfo`, read back, and every input error refused
 // with one message naming file and field, leaving nothing behind.

@@ -1,5 +1,5 @@
-// Uploads staged in the database and exports read page by page on every backend (issue 15,
-// bounded memory; storage/staged_writes.h): a create with trees is atomic, ids are checked, other
+// Uploads staged in the database and exports read page by page on every backend
+// (bounded memory; storage/staged_writes.h): a create with trees is atomic, ids are checked, other
 // maps are written meanwhile, attributes survive the staging, pages add up to their version.
 
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// The index's and the search's budgets (issue 13, index side) against truth: page-mapped build
+// The index's and the search's budgets (index side) against truth: page-mapped build
 // buffers, the sparse stands' larger per-tree triangle budget, when a search is decided, and
 // the bitmap hits a pose needs before it is polished.
 #include <gtest/gtest.h>

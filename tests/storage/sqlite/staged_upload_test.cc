@@ -1,4 +1,4 @@
-// Uploads staged in a SQLite file (issue 15, bounded memory; storage/sqlite/upload.cc): rows are
+// Uploads staged in a SQLite file (bounded memory; storage/sqlite/upload.cc): rows are
 // in the database before the upload commits, other writers go on between its chunks, a create
 // with trees is atomic, an abandoned upload (or one a killed server left) leaves nothing.
 
