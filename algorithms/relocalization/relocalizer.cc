@@ -138,13 +138,20 @@ double MinInlierRatio(const PoseBelief& belief, const RelocalizerOptions& option
                         : options.min_inlier_ratio;
 }
 
-// Why `best` is no answer: too few of the nearby trees inside the map's coverage to tell a wrong
-// pose from a view that shows little of the map (the little that failed is all it can say), no
-// better than chance, or too few of the nearby trees explained.
+// Under the pose, too few query trees fall inside the map's coverage to tell a wrong pose from a
+// view that shows little of the map, because others fall outside it (a small view wholly inside
+// is judged as it is).
+bool TooLittleInside(const ViewInCoverage& view, const RelocalizerOptions& options) {
+  return view.nearby < options.min_ratio_trees &&
+         std::find(view.inside.begin(), view.inside.end(), 0) != view.inside.end();
+}
+
+// Why `best` is no answer: too little of the view inside the map's coverage (the little that
+// failed is all it can say), no better than chance, or too few of the nearby trees explained.
 std::string NotFoundDetail(const Hypothesis& best, const ViewInCoverage& view, double ratio,
                            const PoseBelief& belief, const RelocalizerOptions& options) {
   char detail[256];
-  if (view.nearby < options.min_ratio_trees) {
+  if (TooLittleInside(view, options)) {
     std::snprintf(detail, sizeof detail,
                   "under the best pose only %d of the nearby trees (%.0f%%) fall inside what the "
                   "map covers, %d of them matched: too little of the view to judge (need %d)",
@@ -190,9 +197,12 @@ RelocalizeResult Decide(const MapIndexImpl& m, const LevelledQuery& q, const Rel
       best.inliers < options.min_inliers || ratio < MinInlierRatio(belief, options);
   if (!belief.significant || too_few) {
     result.status = RelocalizeStatus::kNotFound;
-    result.reason =
-        belief.significant ? RelocalizeReason::kTooFewInliers : RelocalizeReason::kNotSignificant;
-    result.outside_coverage = nearest < options.min_ratio_trees;
+    if (TooLittleInside(view, options)) {
+      result.reason = RelocalizeReason::kOutsideCoverage;
+    } else {
+      result.reason =
+          belief.significant ? RelocalizeReason::kTooFewInliers : RelocalizeReason::kNotSignificant;
+    }
     result.detail = NotFoundDetail(best, view, ratio, belief, options);
   } else if (best_rival && !BeatsRival(m, q, best, *best_rival, belief, options)) {
     Ambiguous(m, q, best, *best_rival, "two distinct poses", &result);
@@ -282,6 +292,8 @@ const char* ToString(RelocalizeReason reason) {
       return "ambiguous";
     case RelocalizeReason::kOutsidePrior:
       return "outside_prior";
+    case RelocalizeReason::kOutsideCoverage:
+      return "outside_coverage";
   }
   return "unknown";
 }

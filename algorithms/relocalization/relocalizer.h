@@ -112,6 +112,10 @@ enum class RelocalizeReason {
   kTooFewInliers,            // the best pose explains too few of the nearby trees
   kAmbiguous,                // a distinct rival pose (rival_map_from_sensor) fits about as well
   kOutsidePrior,             // nothing within the prior's radius; the map matches elsewhere
+  // NOT_FOUND: under the best pose too few query trees (fewer than min_ratio_trees) fall inside
+  // the map's coverage, the others outside it, to tell a wrong pose from a view that shows little
+  // of the map.
+  kOutsideCoverage,
 };
 
 struct TreeMatch {
@@ -135,12 +139,10 @@ struct RelocalizeResult {
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
   // Under the answer's pose (the best pose tried when not localized): the share of the nearby
   // query trees (those within ratio_range, at least min_ratio_trees) inside the map's coverage,
-  // and the nearby trees inside it (the only evidence for or against the pose).
+  // and the nearby trees inside it (the only evidence for or against the pose). Zero when no pose
+  // was tried (kTooFewTrees, kNoMatchingConstellation).
   double coverage_share = 0;
   int trees_in_coverage = 0;
-  // NOT_FOUND because too little of the view fell inside the coverage (fewer than
-  // min_ratio_trees nearby trees inside); `reason` says which test the little failed.
-  bool outside_coverage = false;
   int hypotheses = 0;         // pose hypotheses that passed the quick check
   int triangles = 0;          // query triangles looked up
   int64_t poses_checked = 0;  // triangle matches whose pose was checked

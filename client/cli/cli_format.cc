@@ -101,6 +101,8 @@ nlohmann::ordered_json RelocalizeJson(const v1::RelocalizeResponse& response,
   line["inliers"] = response.inliers();
   line["rmse_m"] = response.rmse_m();
   line["confidence"] = response.confidence();
+  line["coverage_share"] = response.coverage_share();
+  line["trees_in_coverage"] = response.trees_in_coverage();
   line["server_ms"] = response.server_time_ms();
   if (response.status() == v1::RelocalizeResponse::STATUS_LOCALIZED &&
       response.covariance_size() == 36) {

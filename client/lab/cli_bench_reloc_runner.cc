@@ -198,7 +198,7 @@ void Runner::WriteRow(bool answerable, int mapped, const Pose3& truth,
       u.y(), algorithms::YawOf(truth.linear()) * 180 / M_PI, localized ? error.xy : NAN,
       localized ? error.yaw : NAN, result.inliers, result.confidence, ms, cpu_ms, result.hypotheses,
       result.triangles, static_cast<long long>(result.poses_checked), mapped, maps_ - 1,
-      result.outside_coverage ? "outside_coverage" : algorithms::ToString(result.reason));
+      algorithms::ToString(result.reason));
   per_frame_ << row << std::quoted(result.detail, '"', '"') << "\n";
 }
 

@@ -134,6 +134,8 @@ v1::RelocalizeResponse::Reason ToProto(algorithms::RelocalizeReason reason) {
       return v1::RelocalizeResponse::REASON_AMBIGUOUS_RIVAL;
     case R::kOutsidePrior:
       return v1::RelocalizeResponse::REASON_OUTSIDE_PRIOR;
+    case R::kOutsideCoverage:
+      return v1::RelocalizeResponse::REASON_OUTSIDE_COVERAGE;
   }
   return v1::RelocalizeResponse::REASON_UNSPECIFIED;
 }
@@ -156,6 +158,8 @@ v1::RelocalizeResponse ToProto(const algorithms::RelocalizeResult& result) {
   out.set_confidence(result.confidence);
   out.set_detail(result.detail);
   out.set_reason(ToProto(result.reason));
+  out.set_coverage_share(result.coverage_share);
+  out.set_trees_in_coverage(result.trees_in_coverage);
   if (result.status == algorithms::RelocalizeStatus::kAmbiguous && result.rival_map_from_sensor) {
     *out.mutable_rival_map_from_sensor() = ToProto(*result.rival_map_from_sensor);
   }

@@ -106,6 +106,12 @@ class Answer:
     server_ms: float
     map_version: int
     detail: str
+    # Why not localized ("NOT_SIGNIFICANT", "OUTSIDE_COVERAGE", ...; "NONE" when localized).
+    reason: str
+    # Under the answer's pose: the share of the nearby trees inside what the map covers, and
+    # how many they are (the only evidence for or against the pose).
+    coverage_share: float
+    trees_in_coverage: int
 
     @property
     def localized(self) -> bool:
@@ -213,7 +219,10 @@ def _answer(response: relocalization_pb2.RelocalizeResponse) -> Answer:
                   yaw_deg=_yaw_deg(q) if localized else None,
                   inliers=response.inliers, rmse_m=response.rmse_m,
                   confidence=response.confidence, server_ms=response.server_time_ms,
-                  map_version=response.map_version, detail=response.detail)
+                  map_version=response.map_version, detail=response.detail,
+                  reason=_label(relocalization_pb2.RelocalizeResponse.Reason, response.reason),
+                  coverage_share=response.coverage_share,
+                  trees_in_coverage=response.trees_in_coverage)
 
 
 def _map_info(message: maps_pb2.Map) -> MapInfo:

@@ -3,6 +3,7 @@
 // copy of their grid, and the covariance must be calibrated (pose_covariance.h).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
@@ -195,6 +196,79 @@ TEST(RelocalizerDecision, UnexplainedNearbyTreesCountAgainstAPose) {
 // perfect map (simulated views) gets none. Calibrated in the densest shared stem map
 // (siplab_boreasNS, 0.47 trees/m^2, 150 matched trees a view), where the systematic term
 // proportional to the whole residual made it three times too large (mean NEES 1.0).
+// A map of the western half of a forest (the survey's edge a straight line), views simulated in
+// the whole forest across the edge: judged on the trees inside what the map covers
+// (coverage_share says how many), never a wrong pose.
+TEST(RelocalizerDecision, ViewsAcrossTheSurveysEdgeAreJudgedOnWhatTheMapCovers) {
+  const std::vector<MapTree> forest = Forest(21);
+  std::vector<MapTree> west;
+  for (const MapTree& tree : forest) {
+    if (tree.position.x() < 100) west.push_back(tree);
+  }
+  const MapIndex index(west);
+  ViewSimulator simulator(forest);
+  int views = 0, localized = 0;
+  for (int k = 0; k < 20; ++k, ++views) {
+    ViewOptions view;
+    view.seed = 500 + static_cast<unsigned>(k);
+    const SimulatedView v = simulator.Simulate(Eigen::Vector2d(103, 30 + 7 * k), 0.3 * k, view);
+    RelocalizeQuery query;
+    query.trees = v.trees;
+    const RelocalizeResult r = Relocalize(index, query);
+    if (r.status != RelocalizeStatus::kLocalized) continue;
+    ++localized;
+    const PoseError e = ComparePoses(r.map_from_sensor, v.map_from_sensor);
+    ASSERT_TRUE(e.xy < 0.5 && e.yaw < 5) << "wrong pose, view " << k;
+    EXPECT_GT(r.coverage_share, 0.0);
+    EXPECT_LT(r.coverage_share, 1.0) << "a view across the edge sees unmapped trees";
+    EXPECT_GT(r.trees_in_coverage, 0);
+  }
+  EXPECT_GE(localized, views / 2);
+}
+
+// A view whose best pose holds fewer than min_ratio_trees trees inside the map's coverage, the
+// rest outside it, is NOT_FOUND for kOutsideCoverage; the same few trees seen alone (a small view
+// wholly inside the map) fail for what they are (here too few inliers), not for the coverage.
+TEST(RelocalizerDecision, AViewMostlyOutsideTheMapIsNotFoundForItsCoverage) {
+  const std::vector<MapTree> forest = Forest(22);
+  std::vector<MapTree> west, east;
+  for (const MapTree& tree : forest) (tree.position.x() < 100 ? west : east).push_back(tree);
+  const MapIndex index(west);
+  const Eigen::Vector3d sensor(101, 100, 0);
+  auto nearest = [&](std::vector<MapTree> trees, size_t count) {
+    std::sort(trees.begin(), trees.end(), [&](const MapTree& a, const MapTree& b) {
+      return (a.position - sensor).head<2>().norm() < (b.position - sensor).head<2>().norm();
+    });
+    trees.resize(count);
+    std::vector<DetectedTree> detected;
+    for (const MapTree& tree : trees) {
+      DetectedTree d;
+      d.position = tree.position - sensor;
+      d.dbh = tree.dbh;
+      detected.push_back(d);
+    }
+    return detected;
+  };
+  RelocalizerOptions options;
+  options.min_inliers = 12;  // more than the 8 mapped trees in sight: never LOCALIZED here
+  RelocalizeQuery alone;
+  alone.trees = nearest(west, 8);
+  RelocalizeQuery edge = alone;
+  for (const DetectedTree& tree : nearest(east, 12)) edge.trees.push_back(tree);
+
+  const RelocalizeResult at_edge = Relocalize(index, edge, options);
+  EXPECT_EQ(at_edge.status, RelocalizeStatus::kNotFound);
+  EXPECT_EQ(at_edge.reason, RelocalizeReason::kOutsideCoverage) << at_edge.detail;
+  EXPECT_EQ(at_edge.trees_in_coverage, 8);
+  EXPECT_LT(at_edge.coverage_share, 0.75);
+  EXPECT_NE(at_edge.detail.find("inside what the map covers"), std::string::npos);
+
+  const RelocalizeResult small = Relocalize(index, alone, options);
+  EXPECT_EQ(small.status, RelocalizeStatus::kNotFound);
+  EXPECT_NE(small.reason, RelocalizeReason::kOutsideCoverage) << small.detail;
+  EXPECT_DOUBLE_EQ(small.coverage_share, 1.0);
+}
+
 TEST(RelocalizerDecision, CovarianceIsCalibratedInADenseStand) {
   PoseCovarianceInput tight, loose;
   for (int i = 0; i < 40; ++i) {

@@ -56,7 +56,8 @@ TEST(RelocalizerReasons, LocalizedAnswerHasNoReasonAndAForeignOneSaysWhy) {
     ++not_found;
     EXPECT_TRUE(r.reason == RelocalizeReason::kNoMatchingConstellation ||
                 r.reason == RelocalizeReason::kNotSignificant ||
-                r.reason == RelocalizeReason::kTooFewInliers)
+                r.reason == RelocalizeReason::kTooFewInliers ||
+                r.reason == RelocalizeReason::kOutsideCoverage)
         << ToString(r.reason);
   }
   EXPECT_GE(not_found, 18);

@@ -62,9 +62,22 @@ TEST(CliFormatTest, RelocalizeJsonHasTheDocumentedKeysInOrder) {
   const nlohmann::ordered_json line = RelocalizeJson(Localized(-120), 17);
   std::vector<std::string> keys;
   for (const auto& item : line.items()) keys.push_back(item.key());
-  const std::vector<std::string> expected = {
-      "frame", "status", "x",       "y",       "z",      "qx",         "qy",
-      "qz",    "qw",     "yaw_deg", "inliers", "rmse_m", "confidence", "server_ms"};
+  const std::vector<std::string> expected = {"frame",
+                                             "status",
+                                             "x",
+                                             "y",
+                                             "z",
+                                             "qx",
+                                             "qy",
+                                             "qz",
+                                             "qw",
+                                             "yaw_deg",
+                                             "inliers",
+                                             "rmse_m",
+                                             "confidence",
+                                             "coverage_share",
+                                             "trees_in_coverage",
+                                             "server_ms"};
   EXPECT_EQ(keys, expected);
   EXPECT_EQ(line["frame"], 17);
   EXPECT_EQ(line["status"], "localized");
@@ -80,8 +93,11 @@ TEST(CliFormatTest, RelocalizeJsonWithoutPoseUnlessLocalized) {
   v1::RelocalizeResponse response;
   response.set_status(v1::RelocalizeResponse::STATUS_AMBIGUOUS);
   response.set_inliers(8);
+  response.set_coverage_share(0.5);
+  response.set_trees_in_coverage(12);
   EXPECT_EQ(RelocalizeJson(response).dump(),
-            R"({"status":"ambiguous","inliers":8,"rmse_m":0.0,"confidence":0.0,"server_ms":0.0})");
+            R"({"status":"ambiguous","inliers":8,"rmse_m":0.0,"confidence":0.0,)"
+            R"("coverage_share":0.5,"trees_in_coverage":12,"server_ms":0.0})");
   response.set_status(v1::RelocalizeResponse::STATUS_NOT_FOUND);
   response.set_detail("best pose matches 3 trees");
   EXPECT_EQ(RelocalizeJson(response)["status"], "not_found");

@@ -196,6 +196,15 @@ TEST(ConvertTest, RelocalizeResultToResponse) {
   result.status = algorithms::RelocalizeStatus::kNotFound;
   EXPECT_EQ(ToProto(result).status(), v1::RelocalizeResponse::STATUS_NOT_FOUND);
   EXPECT_FALSE(ToProto(result).has_map_from_sensor());
+
+  // A view at the map's edge: how much of it the map covers, and why too little is no answer.
+  result.reason = algorithms::RelocalizeReason::kOutsideCoverage;
+  result.coverage_share = 0.375;
+  result.trees_in_coverage = 8;
+  const v1::RelocalizeResponse edge = ToProto(result);
+  EXPECT_EQ(edge.reason(), v1::RelocalizeResponse::REASON_OUTSIDE_COVERAGE);
+  EXPECT_EQ(edge.coverage_share(), 0.375);
+  EXPECT_EQ(edge.trees_in_coverage(), 8);
 }
 
 TEST(ConvertTest, ObserveRequestToCall) {
@@ -238,15 +247,16 @@ TEST(ConvertTest, ObserveOutcomeToResponse) {
   ObserveOutcome outcome;
   outcome.map.name = "shared";
   outcome.map.version = 9;
-  FrameOutcome& merged = outcome.frames.emplace_back();
+  FrameOutcome merged;
   merged.frame_id = 11;
   merged.merged = true;
   merged.relocalized = true;
   merged.map_from_sensor = algorithms::PoseFromXyzYaw(5, 6, 1.5, 0.25);
   merged.counts = {4, 3, 2, 1};
-  FrameOutcome& skipped = outcome.frames.emplace_back();
+  FrameOutcome skipped;
   skipped.frame_id = 12;
   skipped.detail = "the frame has no trees";
+  outcome.frames = {merged, skipped};
 
   const v1::ObserveResponse response = ToProto(outcome);
   EXPECT_EQ(response.map_version(), 9);
