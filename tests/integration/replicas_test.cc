@@ -1,7 +1,7 @@
 // Many replicas, one truth: three real forestmapd processes on one PostgreSQL (a fresh database on
 // the test cluster of tests/pg_fixture.h), driven through the real wire:
-// - a map created and written through replica 1 is answered by replicas 2 and 3 within 1 s, and
-//   so is a new version of it (each replica's index follows the map's version);
+// - a map created and written through replica 1 is answered by replicas 2 and 3 on their next
+//   request, and so is a new version of it (each replica's index follows the map's version);
 // - four drones uploading through different replicas at once build exactly the map one
 //   sequential upload builds, value for value;
 // - replica 2 killed (SIGKILL) in the middle of 1,000 relocalizations: the client moves to
@@ -32,8 +32,7 @@ namespace {
 const std::string kData = FORESTMAP_SHARED_DATA;
 const std::string kForestmapd = FORESTMAPD_PATH;
 constexpr int kReplicas = 3;
-constexpr double kFollowSeconds = 1.0;  // s: a write through one replica is seen by all within
-constexpr int kBatch = 25;              // frames per Observe request, as `forestmap observe` sends
+constexpr int kBatch = 25;  // frames per Observe request, as `forestmap observe` sends
 constexpr int kDrones = 4;
 constexpr size_t kObservedFrames = 400;  // the first frames of Wild_V01 (the whole is ~1,450)
 constexpr int kRelocalizations = 1000;
@@ -105,24 +104,19 @@ std::vector<client::Frame> Frames() {
 
 using Clock = std::chrono::steady_clock;
 
-// Seconds from `written` (when the write returned) until `client` relocalizes `frame` in `map`
-// with an answer that `accept` takes (polling; gives up after 10 s).
-template <typename Accept>
-double SecondsUntil(Clock::time_point written, client::ForestMapClient& client,
-                    const std::string& map, const client::Frame& frame, const Accept& accept) {
-  while (true) {
-    bool accepted = false;
-    try {
-      accepted = accept(client.Relocalize(map, frame.trees));
-    } catch (const client::RpcError&) {  // FAILED_PRECONDITION / NOT_FOUND until it is seen
-    }
-    const double seconds = std::chrono::duration<double>(Clock::now() - written).count();
-    if (accepted || seconds > 10 * kFollowSeconds) return seconds;
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
+// `client`'s first answer for `frame` in `map` after a write (its time printed, for the record:
+// it includes the replica's index build).
+v1::RelocalizeResponse NextAnswer(Clock::time_point written, client::ForestMapClient& client,
+                                  const std::string& map, const client::Frame& frame,
+                                  const std::string& what) {
+  const v1::RelocalizeResponse response = client.Relocalize(map, frame.trees);
+  const double ms = std::chrono::duration<double, std::milli>(Clock::now() - written).count();
+  std::cout << "[ replicas ] " << what << " answered by " << client.address() << " after " << ms
+            << " ms\n";
+  return response;
 }
 
-TEST_F(ReplicasTest, AWriteThroughOneReplicaIsAnsweredByAllWithinOneSecond) {
+TEST_F(ReplicasTest, AWriteThroughOneReplicaIsAnsweredByAllOnTheirNextRequest) {
   const auto map_rows = client::ReadMapTreesCsv(kData + "/sequences/Wild_V01/map.csv");
   const client::Frame frame = Frames().at(300);
   client::ForestMapClient first(Address(0));
@@ -137,12 +131,10 @@ TEST_F(ReplicasTest, AWriteThroughOneReplicaIsAnsweredByAllWithinOneSecond) {
   const auto localized = [](const v1::RelocalizeResponse& response) {
     return response.status() == v1::RelocalizeResponse::STATUS_LOCALIZED;
   };
-  // Replicas 2 and 3 first (measured from the write), then replica 1 for the reference pose.
-  for (auto& other : others) {  // replica 3's time includes replica 2's wait: an upper bound
-    const double seconds = SecondsUntil(written, *other, "forest", frame, localized);
-    EXPECT_LT(seconds, kFollowSeconds) << other->address();
-    std::cout << "[ replicas ] map created on replica 1 localized on " << other->address()
-              << " after " << seconds * 1000 << " ms\n";
+  // Replicas 2 and 3 first (timed from the write), then replica 1 for the reference pose.
+  for (auto& other : others) {
+    EXPECT_TRUE(localized(NextAnswer(written, *other, "forest", frame, "the new map")))
+        << other->address();
   }
 
   const v1::RelocalizeResponse reference = first.Relocalize("forest", frame.trees);
@@ -159,10 +151,8 @@ TEST_F(ReplicasTest, AWriteThroughOneReplicaIsAnsweredByAllWithinOneSecond) {
            std::abs(response.map_from_sensor().translation().x() - (old_x + 100.0)) < 0.5;
   };
   for (auto& other : others) {
-    const double seconds = SecondsUntil(written, *other, "forest", frame, moved);
-    EXPECT_LT(seconds, kFollowSeconds) << other->address();
-    std::cout << "[ replicas ] new version written on replica 1 answered by " << other->address()
-              << " after " << seconds * 1000 << " ms\n";
+    EXPECT_TRUE(moved(NextAnswer(written, *other, "forest", frame, "the new version")))
+        << other->address();
   }
 }
 
