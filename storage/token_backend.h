@@ -15,7 +15,8 @@
 namespace forestmap::storage {
 
 // Columns of every token query, in the order ReadTokenRow expects; `Row` as in storage/rows.h.
-#define FORESTMAP_TOKEN_COLUMNS "id, map_pattern, role, note, created_unix_ms, revoked_unix_ms"
+#define FORESTMAP_TOKEN_COLUMNS \
+  "id, map_pattern, role, note, created_unix_ms, revoked_unix_ms, expires_unix_ms"
 template <typename Row>
 TokenRecord ReadTokenRow(const Row& row) {
   TokenRecord record;
@@ -25,6 +26,7 @@ TokenRecord ReadTokenRow(const Row& row) {
   record.note = row.Text(3);
   record.created_unix_ms = row.Int64(4);
   record.revoked_unix_ms = row.IsNull(5) ? 0 : row.Int64(5);
+  record.expires_unix_ms = row.IsNull(6) ? 0 : row.Int64(6);
   return record;
 }
 

@@ -75,18 +75,25 @@ TokenStore::TokenStore(const std::string& path, int busy_timeout_ms)
 
 TokenStore::~TokenStore() = default;
 
-NewToken TokenStore::Create(const std::string& map_pattern, Role role, const std::string& note) {
+NewToken TokenStore::Create(const std::string& map_pattern, Role role, const std::string& note,
+                            int64_t expires_unix_ms) {
   if (map_pattern.empty() || map_pattern.size() > kMaxPatternBytes) {
     throw StorageError(StorageError::Code::kInvalidArgument,
                        "token map pattern must be 1.." + std::to_string(kMaxPatternBytes) +
                            " bytes (a map name, a glob like 'plot-*', or '*')");
+  }
+  const int64_t now = internal::NowUnixMs();
+  if (expires_unix_ms < 0 || (expires_unix_ms != 0 && expires_unix_ms <= now)) {
+    throw StorageError(StorageError::Code::kInvalidArgument,
+                       "a token's expiry must lie in the future");
   }
   NewToken token;
   token.secret = RandomSecret();
   token.record.map_pattern = map_pattern;
   token.record.role = role;
   token.record.note = note;
-  token.record.created_unix_ms = internal::NowUnixMs();
+  token.record.created_unix_ms = now;
+  token.record.expires_unix_ms = expires_unix_ms;
   token.record.id = backend_->Insert(Sha256Hex(token.secret), token.record);
   return token;
 }
@@ -96,7 +103,9 @@ std::vector<TokenRecord> TokenStore::List() { return backend_->List(); }
 bool TokenStore::Revoke(int64_t id) { return backend_->Revoke(id, internal::NowUnixMs()); }
 
 std::optional<TokenRecord> TokenStore::Find(std::string_view secret) {
-  return backend_->FindValid(Sha256Hex(secret));
+  std::optional<TokenRecord> token = backend_->FindValid(Sha256Hex(secret));
+  if (token && token->expired(internal::NowUnixMs())) return std::nullopt;
+  return token;
 }
 
 bool TokenStore::AnyToken() {

@@ -39,7 +39,11 @@ struct TokenRecord {
   std::string note;             // free text given at creation (who / what it is for)
   int64_t created_unix_ms = 0;  // ms since 1970
   int64_t revoked_unix_ms = 0;  // ms since 1970; 0 while valid
+  int64_t expires_unix_ms = 0;  // ms since 1970; 0: never expires
   bool revoked() const { return revoked_unix_ms != 0; }
+  bool expired(int64_t now_unix_ms) const {
+    return expires_unix_ms != 0 && now_unix_ms >= expires_unix_ms;
+  }
   // True when this (valid) token grants at least `needed` on map `map`.
   bool Allows(Role needed, std::string_view map) const;
 };
@@ -62,12 +66,15 @@ class TokenStore {
   TokenStore(const TokenStore&) = delete;
   TokenStore& operator=(const TokenStore&) = delete;
 
-  // Throws StorageError kInvalidArgument for an empty pattern or one longer than 256 bytes.
-  NewToken Create(const std::string& map_pattern, Role role, const std::string& note = "");
+  // A token valid until `expires_unix_ms` (ms since 1970; 0: no expiry). Throws StorageError
+  // kInvalidArgument for an empty pattern, one longer than 256 bytes, or an expiry not in the
+  // future.
+  NewToken Create(const std::string& map_pattern, Role role, const std::string& note = "",
+                  int64_t expires_unix_ms = 0);
   std::vector<TokenRecord> List();  // by id, revoked ones included
   // False when there is no such token or it was already revoked.
   bool Revoke(int64_t id);
-  // The valid token whose secret is `secret`, if any (revoked tokens are not found).
+  // The valid token whose secret is `secret`, if any (revoked and expired tokens are not found).
   std::optional<TokenRecord> Find(std::string_view secret);
   // True once any token was created (revoked ones count): the server then denies by default.
   bool AnyToken();

@@ -61,7 +61,7 @@ std::optional<PageCaller> Authenticate(storage::TokenStore* tokens, const httpli
   response.set_content(Json{{"error", secret.empty() ? "this server requires a token: send "
                                                        "'Authorization: Bearer <token>' or open "
                                                        "the page as /?token=<token>"
-                                                     : "unknown or revoked token"}}
+                                                     : "unknown, revoked or expired token"}}
                            .dump(),
                        "application/json");
   return std::nullopt;

@@ -104,7 +104,7 @@ Caller Authorizer::Authenticate(std::optional<std::string_view> authorization) c
     throw Unauthenticated("the authorization metadata must be 'Bearer <token>'");
   }
   caller.token = tokens_->Find(secret);
-  if (!caller.token) throw Unauthenticated("unknown or revoked token");
+  if (!caller.token) throw Unauthenticated("unknown, revoked or expired token");
   return caller;
 }
 

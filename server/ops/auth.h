@@ -13,8 +13,9 @@
 //
 // Open or closed: without a token store, or while the store has never held a token, every call
 // is allowed (as before tokens existed). Once a token was created (revoked ones count), every
-// call needs a valid token: none -> UNAUTHENTICATED, unknown or revoked -> UNAUTHENTICATED, too
-// weak a role or another map -> PERMISSION_DENIED. The health and reflection services stay open.
+// call needs a valid token: none -> UNAUTHENTICATED, unknown, revoked or expired ->
+// UNAUTHENTICATED, too weak a role or another map -> PERMISSION_DENIED. The health and reflection
+// services stay open.
 //
 // Thread-safety: all methods may be called concurrently.
 
@@ -49,7 +50,7 @@ class Authorizer {
 
   // The caller presenting `authorization`, the value of its "authorization" metadata (nullopt:
   // none). Throws ServiceError kUnauthenticated when tokens are in force and the call carries
-  // none, a malformed one, or one that is unknown or revoked.
+  // none, a malformed one, or one that is unknown, revoked or expired.
   Caller Authenticate(std::optional<std::string_view> authorization) const;
 
  private:

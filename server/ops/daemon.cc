@@ -1,5 +1,6 @@
 #include "server/ops/daemon.h"
 
+#include <charconv>
 #include <chrono>
 #include <ctime>
 #include <filesystem>
@@ -10,6 +11,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <system_error>
+#include <utility>
 
 #include "server/app/map_index_cache.h"
 #include "server/ops/logging.h"
@@ -26,8 +28,30 @@ struct TokenArgs {
   std::string map = "*";
   std::string role = "read";
   std::string note;
+  std::string expires_in;  // "" (never), or a duration: 90d, 12h, 30m, 3600s
   int64_t id = 0;
 };
+
+// Milliseconds in a duration "<count><unit>" (unit s, m, h or d; 1 s to 100 years).
+int64_t DurationMs(const std::string& text) {
+  static constexpr std::pair<char, int64_t> kUnits[] = {
+      {'s', 1000}, {'m', 60'000}, {'h', 3'600'000}, {'d', 86'400'000}};
+  const std::invalid_argument bad(
+      "--expires-in must be a count and a unit (s, m, h or d), "
+      "e.g. 90d or 12h, between 1 s and 100 years; got '" +
+      text + "'");
+  if (text.size() < 2 || text.size() > 12) throw bad;
+  int64_t count = 0;
+  const char* end = text.data() + text.size() - 1;
+  const auto [rest, error] = std::from_chars(text.data(), end, count);
+  if (error != std::errc() || rest != end || count <= 0) throw bad;
+  for (const auto& [unit, ms] : kUnits) {
+    if (*end != unit) continue;
+    if (count > 100LL * 366 * 86'400'000 / ms) throw bad;
+    return count * ms;
+  }
+  throw bad;
+}
 
 std::string UtcTime(int64_t unix_ms) {
   const std::time_t seconds = static_cast<std::time_t>(unix_ms / 1000);
@@ -41,22 +65,33 @@ std::string UtcTime(int64_t unix_ms) {
 int CreateToken(const TokenArgs& args, std::ostream& out) {
   const std::optional<storage::Role> role = storage::ParseRole(args.role);
   if (!role) throw std::invalid_argument("--role must be read, write or admin");
+  const int64_t lifetime_ms = args.expires_in.empty() ? 0 : DurationMs(args.expires_in);
   storage::TokenStore tokens(args.db);
-  const storage::NewToken token = tokens.Create(args.map, *role, args.note);
+  const int64_t expires = lifetime_ms == 0
+                              ? 0
+                              : std::chrono::duration_cast<std::chrono::milliseconds>(
+                                    std::chrono::system_clock::now().time_since_epoch())
+                                        .count() +
+                                    lifetime_ms;
+  const storage::NewToken token = tokens.Create(args.map, *role, args.note, expires);
   out << token.secret << "\n";
   std::cerr << "token " << token.record.id << ": role " << storage::RoleName(*role) << " on maps '"
-            << args.map << "'. The secret above is shown only this once; "
+            << args.map << "'"
+            << (expires != 0 ? ", valid until " + UtcTime(expires) : std::string())
+            << ". The secret above is shown only this once; "
             << "clients pass it with --token or FORESTMAP_TOKEN.\n";
   return 0;
 }
 
 int ListTokens(const TokenArgs& args, std::ostream& out) {
   storage::TokenStore tokens(args.db);
-  out << "id\trole\tmaps\tcreated\trevoked\tnote\n";
+  out << "id\trole\tmaps\tcreated\trevoked\texpires\tnote\n";
   for (const storage::TokenRecord& token : tokens.List()) {
     out << token.id << "\t" << storage::RoleName(token.role) << "\t" << token.map_pattern << "\t"
         << UtcTime(token.created_unix_ms) << "\t"
-        << (token.revoked() ? UtcTime(token.revoked_unix_ms) : "-") << "\t" << token.note << "\n";
+        << (token.revoked() ? UtcTime(token.revoked_unix_ms) : "-") << "\t"
+        << (token.expires_unix_ms != 0 ? UtcTime(token.expires_unix_ms) : "-") << "\t" << token.note
+        << "\n";
   }
   return 0;
 }
@@ -91,6 +126,9 @@ void AddTokenCommands(CLI::App& app, std::function<int()>& run, std::ostream& ou
       ->check(CLI::IsMember({"read", "write", "admin"}))
       ->capture_default_str();
   create->add_option("--note", args->note, "who or what the token is for");
+  create->add_option("--expires-in", args->expires_in,
+                     "the token stops working after this long: 90d, 12h, 30m, 3600s "
+                     "(default: never)");
   revoke->add_option("id", args->id, "token id (see token list)")->required();
   create->callback([&run, &out, args] { run = [&out, args] { return CreateToken(*args, out); }; });
   list->callback([&run, &out, args] { run = [&out, args] { return ListTokens(*args, out); }; });

@@ -235,7 +235,7 @@ int main(int argc, char** argv) {
       "[--log-level debug|info|warn|error] "
       "[--max-db-mb N] [--help]\n"
       "       forestmapd token create --db PATH [--map NAME|GLOB|*] [--role read|write|admin] "
-      "[--note TEXT]\n"
+      "[--note TEXT] [--expires-in DURATION]\n"
       "       forestmapd token list --db PATH | token revoke --db PATH ID\n"
       "       forestmapd backup --db PATH --out FILE"};
   AddServeOptions(app, config);

@@ -29,7 +29,9 @@ constexpr const char* kCreateTable =
     " role INTEGER NOT NULL CHECK (role BETWEEN 1 AND 3),"
     " note TEXT NOT NULL DEFAULT '',"
     " created_unix_ms BIGINT NOT NULL,"
-    " revoked_unix_ms BIGINT)";
+    " revoked_unix_ms BIGINT);"
+    // Tables made before tokens could expire gain the column (NULL: never).
+    "ALTER TABLE access_tokens ADD COLUMN IF NOT EXISTS expires_unix_ms BIGINT";
 
 class PostgresTokens final : public TokenBackend {
  public:
@@ -48,14 +50,15 @@ class PostgresTokens final : public TokenBackend {
     int64_t id = 0;
     pool_.With([&](Connection& conn) {
       const pg::Result rows = conn.Exec(
-          "INSERT INTO access_tokens (secret_sha256, map_pattern, role, note, created_unix_ms) "
-          "VALUES ($1, $2, $3, $4, $5) RETURNING id",
+          "INSERT INTO access_tokens (secret_sha256, map_pattern, role, note, created_unix_ms, "
+          "expires_unix_ms) VALUES ($1, $2, $3, $4, $5, NULLIF($6::bigint, 0)) RETURNING id",
           Params()
               .Text(secret_sha256)
               .Text(record.map_pattern)
               .Int64(static_cast<int64_t>(record.role))
               .Text(record.note)
-              .Int64(record.created_unix_ms));
+              .Int64(record.created_unix_ms)
+              .Int64(record.expires_unix_ms));
       id = rows.Int64(0, 0);
     });
     return id;

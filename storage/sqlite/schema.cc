@@ -216,11 +216,17 @@ ALTER TABLE request_log ADD COLUMN fingerprint TEXT NOT NULL DEFAULT '';
 PRAGMA user_version = 8;
 )sql";
 
+// Version 9: tokens may expire (storage/token_store.h); NULL: never.
+constexpr const char* kStep9 = R"sql(
+ALTER TABLE access_tokens ADD COLUMN expires_unix_ms INTEGER;
+PRAGMA user_version = 9;
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4,
-                                                 kStep5, kStep6, kStep7, kStep8};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4, kStep5,
+                                                 kStep6, kStep7, kStep8, kStep9};
   return steps;
 }
 

@@ -31,9 +31,10 @@ class SqliteTokens final : public TokenBackend {
     std::lock_guard<std::mutex> lock(mutex_);
     sqlite::Statement(*db_,
                       "INSERT INTO access_tokens (secret_sha256, map_pattern, role, note, "
-                      "created_unix_ms) VALUES (?1, ?2, ?3, ?4, ?5)",
+                      "created_unix_ms, expires_unix_ms) VALUES (?1, ?2, ?3, ?4, ?5, "
+                      "NULLIF(?6, 0))",
                       secret_sha256, record.map_pattern, static_cast<int64_t>(record.role),
-                      record.note, record.created_unix_ms)
+                      record.note, record.created_unix_ms, record.expires_unix_ms)
         .Run();
     return db_->LastInsertRowId();
   }

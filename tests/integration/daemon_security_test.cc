@@ -5,10 +5,12 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <thread>
 
 #include "daemon_process.h"
 
@@ -49,9 +51,10 @@ class DaemonSecurityTest : public ::testing::Test {
   }
   void Stop() { daemon_.Stop(); }
 
-  std::string CreateToken(const std::string& map, const std::string& role) {
+  std::string CreateToken(const std::string& map, const std::string& role,
+                          const std::string& more = "") {
     const Result result = Run("'" FORESTMAPD_PATH "' token create --db '" + db_ + "' --map '" +
-                              map + "' --role " + role);
+                              map + "' --role " + role + " " + more);
     EXPECT_EQ(result.exit_code, 0) << result.err;
     EXPECT_NE(result.err.find("shown only this once"), std::string::npos) << result.err;
     std::string secret = result.out;
@@ -90,7 +93,7 @@ TEST_F(DaemonSecurityTest, TokensFromTheCommandLineGateTheCli) {
   EXPECT_EQ(Run("'" FORESTMAPD_PATH "' token revoke --db '" + db_ + "' 2").exit_code, 0);
   result = Client("map list", "FORESTMAP_TOKEN=" + reader);
   EXPECT_EQ(result.exit_code, 1);
-  EXPECT_NE(result.err.find("unknown or revoked"), std::string::npos) << result.err;
+  EXPECT_NE(result.err.find("unknown, revoked or expired"), std::string::npos) << result.err;
 
   // Every line of the log is a JSON object; the RPC lines name the call and its code.
   Stop();
@@ -102,6 +105,31 @@ TEST_F(DaemonSecurityTest, TokensFromTheCommandLineGateTheCli) {
     if (entry.at("msg") == "rpc") ++rpc_lines;
   }
   EXPECT_EQ(rpc_lines, 5);
+}
+
+// A token with a lifetime works until it ends, then is refused like a revoked one; `token list`
+// shows when. Lifetimes that are no duration are refused with a message.
+TEST_F(DaemonSecurityTest, TokensExpireAfterTheirLifetime) {
+  const std::string admin = CreateToken("*", "admin");
+  Serve("--listen 127.0.0.1:0");
+  const auto created = std::chrono::steady_clock::now();
+  const std::string brief = CreateToken("*", "read", "--expires-in 5s");
+  Result result = Client("map list", "FORESTMAP_TOKEN=" + brief);
+  EXPECT_EQ(result.exit_code, 0) << result.err;
+  const Result listed = Run("'" FORESTMAPD_PATH "' token list --db '" + db_ + "'");
+  EXPECT_NE(listed.out.find("\texpires\t"), std::string::npos) << listed.out;
+  EXPECT_NE(listed.out.find("Z\t-\t20"), std::string::npos) << "an expiry time: " << listed.out;
+  std::this_thread::sleep_until(created + std::chrono::milliseconds(5200));
+  result = Client("map list", "FORESTMAP_TOKEN=" + brief);
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_NE(result.err.find("unknown, revoked or expired"), std::string::npos) << result.err;
+  EXPECT_EQ(Client("map list", "FORESTMAP_TOKEN=" + admin).exit_code, 0);  // no expiry
+
+  for (const char* bad : {"0d", "12", "5w", "-3h", "1e9d", "99999999d"}) {
+    result = Run("'" FORESTMAPD_PATH "' token create --db '" + db_ + "' --expires-in " + bad);
+    EXPECT_NE(result.exit_code, 0) << bad;
+    EXPECT_NE(result.err.find("--expires-in must be"), std::string::npos) << bad << result.err;
+  }
 }
 
 TEST_F(DaemonSecurityTest, TlsServerRefusesPlaintextClients) {

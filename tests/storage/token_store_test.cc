@@ -1,13 +1,16 @@
 // TokenStore on every backend: tokens are stored hashed, found by their secret, scoped by map
-// pattern and role, shared by every store on the database (replicas), and revoked tokens stop
-// working but keep the server closed.
+// pattern and role, shared by every store on the database (replicas), and revoked or expired
+// tokens stop working but keep the server closed.
 
 #include "storage/token_store.h"
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <limits>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "tests/storage/store_backends.h"
@@ -75,6 +78,43 @@ TEST_P(TokenStoreTest, CreateFindRevoke) {
   const std::vector<TokenRecord> all = tokens.List();
   ASSERT_EQ(all.size(), 1u);
   EXPECT_TRUE(all[0].revoked());
+}
+
+TEST(TokenRecord, ExpiresAtItsExpiry) {
+  TokenRecord token = Grant(Role::kRead, "*");
+  EXPECT_FALSE(token.expired(std::numeric_limits<int64_t>::max()));  // 0: never
+  token.expires_unix_ms = 1000;
+  EXPECT_FALSE(token.expired(999));
+  EXPECT_TRUE(token.expired(1000));
+}
+
+TEST_P(TokenStoreTest, ExpiredTokensAreNotFoundButListed) {
+  TokenStore tokens(database_.db());
+  const auto now_ms = [] {
+    return std::chrono::duration_cast<std::chrono::milliseconds>(
+               std::chrono::system_clock::now().time_since_epoch())
+        .count();
+  };
+  EXPECT_THROW(tokens.Create("*", Role::kRead, "", now_ms() - 1), StorageError);
+  EXPECT_THROW(tokens.Create("*", Role::kRead, "", -5), StorageError);
+
+  const int64_t in_an_hour = now_ms() + 3'600'000;
+  const NewToken lasting = tokens.Create("*", Role::kRead, "a day's work", in_an_hour);
+  const std::optional<TokenRecord> found = tokens.Find(lasting.secret);
+  ASSERT_TRUE(found.has_value());
+  EXPECT_EQ(found->expires_unix_ms, in_an_hour);
+
+  const NewToken brief = tokens.Create("*", Role::kRead, "brief", now_ms() + 20);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_FALSE(tokens.Find(brief.secret).has_value());
+  EXPECT_TRUE(tokens.Find(lasting.secret).has_value());
+  const std::vector<TokenRecord> all = tokens.List();
+  ASSERT_EQ(all.size(), 2u);
+  EXPECT_EQ(all[0].expires_unix_ms, in_an_hour);
+  EXPECT_FALSE(all[1].revoked());  // expired, not revoked
+  EXPECT_TRUE(all[1].expired(now_ms()));
+  EXPECT_EQ(tokens.Create("*", Role::kRead).record.expires_unix_ms, 0);  // no expiry
+  EXPECT_EQ(tokens.List().back().expires_unix_ms, 0);
 }
 
 TEST_P(TokenStoreTest, RejectsAnEmptyPattern) {
