@@ -176,19 +176,26 @@ void AddServerMetrics(Metrics& metrics, const MapIndexCache& cache, const std::s
                    });
 }
 
-bool WarnIfExposed(const std::string& listen_address, bool tls, bool tokens) {
+bool WarnIfExposed(const std::string& listen_address, bool tls, bool tokens, Listener listener) {
   if (IsLoopback(listen_address) || (tls && tokens)) return false;
+  const bool web = listener == Listener::kWebPage;
   std::string missing;
-  if (!tls)
-    missing = "WITHOUT TLS (tokens and maps cross the network in clear; --tls-cert/--tls-key)";
+  if (!tls) {
+    missing = web ? "WITHOUT TLS (the web page is plain HTTP: tokens and maps cross the network "
+                    "in clear; keep --http on loopback behind a TLS proxy)"
+                  : "WITHOUT TLS (tokens and maps cross the network in clear; "
+                    "--tls-cert/--tls-key)";
+  }
   if (!tokens) {
     if (!missing.empty()) missing += " and ";
-    missing +=
-        "WITHOUT TOKENS (anyone who reaches the port can read, change and delete every "
-        "map; forestmapd token create)";
+    missing += web ? "WITHOUT TOKENS (anyone who reaches the port can read every map; "
+                     "forestmapd token create)"
+                   : "WITHOUT TOKENS (anyone who reaches the port can read, change and delete "
+                     "every map; forestmapd token create)";
   }
   // Error level: shown whatever --log-level says.
-  Log(LogLevel::kError, "WARNING: listening beyond loopback " + missing,
+  Log(LogLevel::kError,
+      std::string("WARNING: ") + (web ? "web page " : "") + "listening beyond loopback " + missing,
       {{"listen", listen_address}});
   return true;
 }

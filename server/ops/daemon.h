@@ -22,8 +22,12 @@ void AddBackupCommand(CLI::App& app, std::function<int()>& run, std::ostream& ou
 // -wal file), sampled at every scrape. `cache` must outlive `metrics`' scrapes.
 void AddServerMetrics(Metrics& metrics, const MapIndexCache& cache, const std::string& db_path);
 
+// Which listener WarnIfExposed looks at: the gRPC port, or the read-only web page (plain HTTP).
+enum class Listener { kGrpc, kWebPage };
+
 // Logs a warning, loud and at startup, for a listener beyond loopback without TLS or without
 // tokens. Returns true when it warned.
-bool WarnIfExposed(const std::string& listen_address, bool tls, bool tokens);
+bool WarnIfExposed(const std::string& listen_address, bool tls, bool tokens,
+                   Listener listener = Listener::kGrpc);
 
 }  // namespace forestmap::server

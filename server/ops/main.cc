@@ -104,6 +104,8 @@ Listeners StartListeners(const Config& config, forestmap::storage::MapStore& sto
     listeners.page = std::make_unique<forestmap::server::HttpPage>(store, service.recent_answers(),
                                                                    config.http, &tokens);
     forestmap::server::LogLine("web page on http://" + listeners.page->address() + "/");
+    forestmap::server::WarnIfExposed(config.http, /*tls=*/false, tokens.AnyToken(),
+                                     forestmap::server::Listener::kWebPage);
   }
   if (!config.metrics.empty()) {
     listeners.metrics_http = std::make_unique<forestmap::server::MetricsHttpServer>(

@@ -146,8 +146,15 @@ TEST_F(DaemonSecurityTest, TlsServerRefusesPlaintextClients) {
 }
 
 TEST_F(DaemonSecurityTest, BackupWhileServingAndExposedListenerWarning) {
-  Serve("--listen 0.0.0.0:0");
+  Serve("--listen 0.0.0.0:0 --http 0.0.0.0:0");
   EXPECT_NE(ReadFile(log_).find("WARNING: listening beyond loopback WITHOUT TLS"),
+            std::string::npos)
+      << ReadFile(log_);
+  EXPECT_NE(ReadFile(log_).find("WARNING: web page listening beyond loopback WITHOUT TLS (the web "
+                                "page is plain HTTP"),
+            std::string::npos)
+      << ReadFile(log_);
+  EXPECT_NE(ReadFile(log_).find("WITHOUT TOKENS (anyone who reaches the port can read every map"),
             std::string::npos)
       << ReadFile(log_);
   ASSERT_EQ(Client("map create plot-1").exit_code, 0);
