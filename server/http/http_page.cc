@@ -7,6 +7,8 @@
 #include <httplib.h>
 // clang-format on
 
+#include <algorithm>
+#include <cctype>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -44,16 +46,39 @@ struct PageCaller {
   }
 };
 
+constexpr std::string_view kTokenCookie = "forestmap_token";
+
+// The token `request` carries: its Authorization header ("Bearer <token>", the scheme in any
+// case), else its cookie (set by the page, below), else ?token= (a browser's first visit).
+std::string RequestToken(const httplib::Request& request) {
+  const std::string header = request.get_header_value("Authorization");
+  constexpr std::string_view kBearer = "bearer ";
+  if (header.size() > kBearer.size() &&
+      std::equal(kBearer.begin(), kBearer.end(), header.begin(),
+                 [](char a, char b) { return a == std::tolower(static_cast<unsigned char>(b)); })) {
+    return header.substr(kBearer.size());
+  }
+  // Cookie: name=value; name2=value2
+  const std::string cookies = request.get_header_value("Cookie");
+  for (size_t at = 0; at < cookies.size();) {
+    const size_t end = std::min(cookies.find(';', at), cookies.size());
+    std::string_view pair = std::string_view(cookies).substr(at, end - at);
+    while (!pair.empty() && pair.front() == ' ') pair.remove_prefix(1);
+    if (pair.starts_with(kTokenCookie) && pair.substr(kTokenCookie.size()).starts_with('=')) {
+      return std::string(pair.substr(kTokenCookie.size() + 1));
+    }
+    at = end + 1;
+  }
+  return request.get_param_value("token");
+}
+
 // The caller of `request`, or nullopt after answering 401 (tokens in force, no valid token).
 std::optional<PageCaller> Authenticate(storage::TokenStore* tokens, const httplib::Request& request,
                                        httplib::Response& response) {
   PageCaller caller;
   if (tokens == nullptr || !tokens->AnyToken()) return caller;
   caller.open = false;
-  std::string secret = request.get_param_value("token");
-  const std::string header = request.get_header_value("Authorization");
-  constexpr std::string_view kBearer = "Bearer ";
-  if (std::string_view(header).starts_with(kBearer)) secret = header.substr(kBearer.size());
+  const std::string secret = RequestToken(request);
   if (!secret.empty()) caller.token = tokens->Find(secret);
   if (caller.token) return caller;
   response.status = 401;
@@ -164,7 +189,18 @@ std::unique_ptr<httplib::Server> PageRoutes(storage::MapStore& store, const Rece
   using httplib::Request;
   using httplib::Response;
   http.Get("/", [tokens](const Request& request, Response& response) {
-    if (!Authenticate(tokens, request, response)) return;
+    const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
+    if (!caller) return;
+    if (caller->token && request.has_param("token")) {
+      // A browser's first visit, /?token=...: the token moves into a cookie that scripts cannot
+      // read and other sites cannot send, and the page reloads without it in its address (and
+      // so in the history); the fragment (#map=...) stays.
+      response.set_header("Set-Cookie", std::string(kTokenCookie) + "=" +
+                                            request.get_param_value("token") +
+                                            "; Path=/; HttpOnly; SameSite=Strict");
+      response.set_redirect("/", 303);
+      return;
+    }
     response.set_content(kHttpPageHtml, "text/html; charset=utf-8");
   });
   http.Get("/api/maps", [&store, tokens](const Request& request, Response& response) {

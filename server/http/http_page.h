@@ -4,10 +4,11 @@
 //
 // Tokens: once the server has a token (storage/token_store.h, deny by default as for
 // the RPCs), every route needs a valid one with read access, sent as `Authorization: Bearer
-// <secret>` or, for a browser, as `?token=<secret>` in the URL (the page passes it on to its API
-// calls in the header): none, unknown, revoked or expired -> 401, a map the token may not read ->
-// 403; /api/maps and /api/relocalizations list only the maps the token can read. Prefer the header:
-// a URL lands in browser history and proxy logs.
+// <secret>` (the scheme in any case), or by a browser as the cookie `forestmap_token`, which the
+// page sets on a first visit to /?token=<secret> before it reloads itself without the token in
+// its address (HttpOnly, SameSite=Strict); ?token= is also read on any route. None, unknown,
+// revoked or expired -> 401, a map the token may not read -> 403; /api/maps and
+// /api/relocalizations list only the maps the token can read.
 //
 // Routes: GET /                        the page (server/http/http_page_html.cc)
 //         GET /api/maps                [{name, trees, version, crs, extent}]

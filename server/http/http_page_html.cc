@@ -26,10 +26,8 @@ const char* const kHttpPageHtml = R"html(<!DOCTYPE html>
 <script>
 const canvas = document.getElementById('map'), ctx = canvas.getContext('2d');
 let trees = [], answers = [], view = null, current = null;
-// A token given as /?token=... goes to the API calls in the Authorization header.
-const token = new URLSearchParams(location.search).get('token');
-const get = url => fetch(url, token ? { headers: { Authorization: 'Bearer ' + token } } : {})
-  .then(r => r.json());
+// With tokens, the server's cookie (set on the first visit, /?token=...) goes with every call.
+const get = url => fetch(url, { credentials: 'same-origin' }).then(r => r.json());
 function fit() {
   if (!trees.length) return;
   let x0 = Infinity, y0 = Infinity, x1 = -Infinity, y1 = -Infinity;

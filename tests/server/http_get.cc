@@ -5,10 +5,11 @@
 namespace forestmap::test {
 
 HttpAnswer HttpGet(const std::string& host, int port, const std::string& path,
-                   const std::string& bearer) {
+                   const std::string& bearer, const std::string& cookie) {
   httplib::Client client(host, port);
   httplib::Headers headers;
   if (!bearer.empty()) headers.emplace("Authorization", "Bearer " + bearer);
+  if (!cookie.empty()) headers.emplace("Cookie", cookie);
   const httplib::Result result = client.Get(path.c_str(), headers);
   HttpAnswer answer;
   if (!result) return answer;
@@ -16,6 +17,8 @@ HttpAnswer HttpGet(const std::string& host, int port, const std::string& path,
   answer.status = result->status;
   answer.content_type = result->get_header_value("Content-Type");
   answer.transfer_encoding = result->get_header_value("Transfer-Encoding");
+  answer.location = result->get_header_value("Location");
+  answer.set_cookie = result->get_header_value("Set-Cookie");
   answer.body = result->body;
   return answer;
 }

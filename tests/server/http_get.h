@@ -11,11 +11,13 @@ struct HttpAnswer {
   int status = 0;   // HTTP status code
   std::string content_type;
   std::string transfer_encoding;  // "chunked" for a streamed answer
+  std::string location;           // of a redirect
+  std::string set_cookie;
   std::string body;
 };
 
-// `bearer` non-empty: sent as "Authorization: Bearer <bearer>".
+// `bearer` non-empty: sent as "Authorization: Bearer <bearer>"; `cookie` as "Cookie: <cookie>".
 HttpAnswer HttpGet(const std::string& host, int port, const std::string& path,
-                   const std::string& bearer = "");
+                   const std::string& bearer = "", const std::string& cookie = "");
 
 }  // namespace forestmap::test

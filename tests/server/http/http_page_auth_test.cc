@@ -1,7 +1,7 @@
 // forestmapd --http once showed every map to anyone, tokens or not. Now, once a token exists,
-// every route needs one with read access on the map (Authorization: Bearer, or ?token= for a
-// browser): checked route by route over HTTP, and in Debian's headless Chromium opening
-// /?token=... and drawing the map's trees.
+// every route needs one with read access on the map (Authorization: Bearer, or for a browser a
+// cookie the page sets from /?token=): checked route by route over HTTP, and in Debian's headless
+// Chromium opening /?token=... and drawing the map's trees.
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -89,10 +89,36 @@ TEST_F(HttpPageAuthTest, OpenWithoutTokensClosedOnceOneExists) {
   EXPECT_EQ(denied.status, 403);
   EXPECT_NE(denied.body.find("may not read map 'secret'"), std::string::npos) << denied.body;
   EXPECT_EQ(Get("/api/maps/secret/versions", reader).status, 403);
-  // The browser's way: ?token= in the URL.
+  // The browser's way: a first visit to /?token= moves the token into a cookie and reloads the
+  // page without it in the address; the cookie then opens every route.
   EXPECT_EQ(Get("/api/maps?token=" + reader).status, 200);
-  EXPECT_EQ(Get("/?token=" + reader).status, 200);
+  const test::HttpAnswer first = Get("/?token=" + reader);
+  EXPECT_EQ(first.status, 303);
+  EXPECT_EQ(first.location, "/");
+  EXPECT_EQ(first.set_cookie, "forestmap_token=" + reader + "; Path=/; HttpOnly; SameSite=Strict");
   EXPECT_EQ(Get("/?token=" + revoked.secret).status, 401);
+  const std::string cookie = "theme=dark; forestmap_token=" + reader;
+  EXPECT_EQ(HttpGet("127.0.0.1", port_, "/", "", cookie).status, 200);
+  EXPECT_EQ(Json::parse(HttpGet("127.0.0.1", port_, "/api/maps", "", cookie).body).size(), 1u);
+  EXPECT_EQ(
+      HttpGet("127.0.0.1", port_, "/api/maps", "", "forestmap_token=" + revoked.secret).status,
+      401);
+  EXPECT_EQ(HttpGet("127.0.0.1", port_, "/api/maps", "", "forestmap_tokenx=" + reader).status, 401);
+}
+
+TEST_F(HttpPageAuthTest, TheBearerSchemeIsReadInAnyCase) {
+  const std::string reader = tokens_->Create("plot-*", storage::Role::kRead).secret;
+  for (const char* scheme : {"Bearer", "bearer", "BEARER"}) {
+    const std::string command =
+        "curl -s -o /dev/null -w '%{http_code}' -H 'Authorization: " + std::string(scheme) + " " +
+        reader + "' http://" + page_->address() + "/api/maps";
+    FILE* pipe = popen(command.c_str(), "r");
+    ASSERT_NE(pipe, nullptr);
+    char code[8] = {};
+    ASSERT_NE(std::fgets(code, sizeof code, pipe), nullptr);
+    pclose(pipe);
+    EXPECT_STREQ(code, "200") << scheme;
+  }
 }
 
 TEST_F(HttpPageAuthTest, ChromiumDrawsTheMapWithATokenInTheUrl) {
