@@ -5,6 +5,7 @@
 #include <openssl/rand.h>
 
 #include <array>
+#include <cctype>
 
 #include "storage/store_steps.h"
 #include "storage/token_backend.h"
@@ -59,6 +60,17 @@ bool TokenRecord::Allows(Role needed, std::string_view map) const {
   if (revoked() || static_cast<int>(role) < static_cast<int>(needed)) return false;
   const std::string name(map);
   return fnmatch(map_pattern.c_str(), name.c_str(), 0) == 0;
+}
+
+std::string_view BearerSecret(std::string_view authorization) {
+  constexpr std::string_view kBearer = "bearer";
+  if (authorization.size() <= kBearer.size() || authorization[kBearer.size()] != ' ') return {};
+  for (size_t i = 0; i < kBearer.size(); ++i) {
+    if (std::tolower(static_cast<unsigned char>(authorization[i])) != kBearer[i]) return {};
+  }
+  authorization.remove_prefix(kBearer.size());
+  while (authorization.starts_with(' ')) authorization.remove_prefix(1);
+  return authorization;
 }
 
 std::string Sha256Hex(std::string_view data) {

@@ -53,6 +53,11 @@ struct NewToken {
   std::string secret;  // "fmt_" + 64 hex digits; shown once, stored only as its SHA-256
 };
 
+// The secret of an Authorization value "Bearer <secret>" (gRPC metadata or an HTTP header): the
+// scheme in any case (RFC 7235 section 2.1), one or more spaces before the secret (RFC 6750
+// section 2.1). Empty when malformed.
+std::string_view BearerSecret(std::string_view authorization);
+
 // Lowercase hex SHA-256 of `data` (OpenSSL libcrypto).
 std::string Sha256Hex(std::string_view data);
 

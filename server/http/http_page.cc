@@ -8,7 +8,6 @@
 // clang-format on
 
 #include <algorithm>
-#include <cctype>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -48,16 +47,11 @@ struct PageCaller {
 
 constexpr std::string_view kTokenCookie = "forestmap_token";
 
-// The token `request` carries: its Authorization header ("Bearer <token>", the scheme in any
-// case), else its cookie (set by the page, below), else ?token= (a browser's first visit).
+// The token `request` carries: its Authorization header ("Bearer <token>"), else its cookie
+// (set by the page, below), else ?token= (a browser's first visit).
 std::string RequestToken(const httplib::Request& request) {
   const std::string header = request.get_header_value("Authorization");
-  constexpr std::string_view kBearer = "bearer ";
-  if (header.size() > kBearer.size() &&
-      std::equal(kBearer.begin(), kBearer.end(), header.begin(),
-                 [](char a, char b) { return a == std::tolower(static_cast<unsigned char>(b)); })) {
-    return header.substr(kBearer.size());
-  }
+  if (!header.empty()) return std::string(storage::BearerSecret(header));
   // Cookie: name=value; name2=value2
   const std::string cookies = request.get_header_value("Cookie");
   for (size_t at = 0; at < cookies.size();) {

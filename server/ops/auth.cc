@@ -1,7 +1,6 @@
 #include "server/ops/auth.h"
 
 #include <array>
-#include <cctype>
 
 #include "server/app/errors.h"
 
@@ -10,7 +9,6 @@ namespace {
 
 using storage::Role;
 
-constexpr std::string_view kBearer = "bearer";
 constexpr const char* kHowToPass =
     "pass one with --token or the environment variable FORESTMAP_TOKEN (gRPC metadata "
     "'authorization: Bearer <token>')";
@@ -36,18 +34,6 @@ constexpr std::array<RpcRole, 13> kRoles = {{
     {"RemoveSource", Role::kWrite},
     {"PruneVersions", Role::kAdmin},
 }};
-
-// The token of "Bearer <token>"; the scheme is case-insensitive (RFC 7235 section 2.1), and one
-// or more spaces separate it from the token (RFC 6750 section 2.1). Empty when malformed.
-std::string_view BearerToken(std::string_view value) {
-  if (value.size() <= kBearer.size() || value[kBearer.size()] != ' ') return {};
-  for (size_t i = 0; i < kBearer.size(); ++i) {
-    if (std::tolower(static_cast<unsigned char>(value[i])) != kBearer[i]) return {};
-  }
-  value.remove_prefix(kBearer.size());
-  while (value.starts_with(' ')) value.remove_prefix(1);
-  return value;
-}
 
 ServiceError Unauthenticated(const std::string& message) {
   return ServiceError(ErrorCode::kUnauthenticated, message);
@@ -99,7 +85,7 @@ Caller Authorizer::Authenticate(std::optional<std::string_view> authorization) c
   if (!authorization) {
     throw Unauthenticated(std::string("this server requires a token; ") + kHowToPass);
   }
-  const std::string_view secret = BearerToken(*authorization);
+  const std::string_view secret = storage::BearerSecret(*authorization);
   if (secret.empty()) {
     throw Unauthenticated("the authorization metadata must be 'Bearer <token>'");
   }
