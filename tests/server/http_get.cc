@@ -5,12 +5,11 @@
 namespace forestmap::test {
 
 HttpAnswer HttpGet(const std::string& host, int port, const std::string& path,
-                   const std::string& bearer, const std::string& cookie) {
+                   const std::string& bearer, const HttpHeaders& headers) {
   httplib::Client client(host, port);
-  httplib::Headers headers;
-  if (!bearer.empty()) headers.emplace("Authorization", "Bearer " + bearer);
-  if (!cookie.empty()) headers.emplace("Cookie", cookie);
-  const httplib::Result result = client.Get(path.c_str(), headers);
+  httplib::Headers sent(headers.begin(), headers.end());
+  if (!bearer.empty()) sent.emplace("Authorization", "Bearer " + bearer);
+  const httplib::Result result = client.Get(path.c_str(), sent);
   HttpAnswer answer;
   if (!result) return answer;
   answer.ok = true;

@@ -3,6 +3,8 @@
 // breaks Eigen headers included after it.
 
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace forestmap::test {
 
@@ -16,8 +18,10 @@ struct HttpAnswer {
   std::string body;
 };
 
-// `bearer` non-empty: sent as "Authorization: Bearer <bearer>"; `cookie` as "Cookie: <cookie>".
+using HttpHeaders = std::vector<std::pair<std::string, std::string>>;
+
+// `bearer` non-empty: sent as "Authorization: Bearer <bearer>"; `headers` are sent as given.
 HttpAnswer HttpGet(const std::string& host, int port, const std::string& path,
-                   const std::string& bearer = "", const std::string& cookie = "");
+                   const std::string& bearer = "", const HttpHeaders& headers = {});
 
 }  // namespace forestmap::test

@@ -192,10 +192,6 @@ TEST(RelocalizerDecision, UnexplainedNearbyTreesCountAgainstAPose) {
             400 * TestSignificance(m, half, truth, prior, 1.0, options).trials);
 }
 
-// Covariance: the map's own error is what the residuals show beyond the detection noise; a
-// perfect map (simulated views) gets none. Calibrated in the densest shared stem map
-// (siplab_boreasNS, 0.47 trees/m^2, 150 matched trees a view), where the systematic term
-// proportional to the whole residual made it three times too large (mean NEES 1.0).
 // A map of the western half of a forest (the survey's edge a straight line), views simulated in
 // the whole forest across the edge: judged on the trees inside what the map covers
 // (coverage_share says how many), never a wrong pose.
@@ -269,6 +265,10 @@ TEST(RelocalizerDecision, AViewMostlyOutsideTheMapIsNotFoundForItsCoverage) {
   EXPECT_DOUBLE_EQ(small.coverage_share, 1.0);
 }
 
+// Covariance: the map's own error is what the residuals show beyond the detection noise; a
+// perfect map (simulated views) gets none. Calibrated in the densest shared stem map
+// (siplab_boreasNS, 0.47 trees/m^2, 150 matched trees a view), where the systematic term
+// proportional to the whole residual made it three times too large (mean NEES 1.0).
 TEST(RelocalizerDecision, CovarianceIsCalibratedInADenseStand) {
   PoseCovarianceInput tight, loose;
   for (int i = 0; i < 40; ++i) {
