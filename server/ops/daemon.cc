@@ -18,13 +18,20 @@
 #include "server/ops/metrics.h"
 #include "server/ops/tls.h"
 #include "storage/backup.h"
+#include "storage/open_store.h"
 #include "storage/token_store.h"
 
 namespace forestmap::server {
 namespace {
 
+// The help of a subcommand's --db, which defaults to forestmapd's own --db (its variable, the
+// configuration file): the server's database.
+constexpr const char* kDbHelp =
+    "database of the server: SQLite file or postgresql:// URI (default: as forestmapd would "
+    "serve it: --db, FORESTMAPD_DB, the configuration file's db, ./forestmap.db)";
+
 struct TokenArgs {
-  std::string db = "./forestmap.db";
+  std::string db;  // empty: the server's
   std::string map = "*";
   std::string role = "read";
   std::string note;
@@ -108,18 +115,15 @@ int RevokeToken(const TokenArgs& args, std::ostream& out) {
 
 }  // namespace
 
-void AddTokenCommands(CLI::App& app, std::function<int()>& run, std::ostream& out) {
+void AddTokenCommands(CLI::App& app, const std::string& server_db, std::function<int()>& run,
+                      std::ostream& out) {
   CLI::App* token = app.add_subcommand("token", "manage access tokens (stored hashed in --db)");
   token->require_subcommand(1);
   auto args = std::make_shared<TokenArgs>();
   CLI::App* create = token->add_subcommand("create", "create a token; prints its secret once");
   CLI::App* list = token->add_subcommand("list", "list tokens (never their secrets)");
   CLI::App* revoke = token->add_subcommand("revoke", "revoke a token by id");
-  for (CLI::App* command : {create, list, revoke}) {
-    command
-        ->add_option("--db", args->db, "database of the server: SQLite file or postgresql:// URI")
-        ->capture_default_str();
-  }
+  for (CLI::App* command : {create, list, revoke}) command->add_option("--db", args->db, kDbHelp);
   create->add_option("--map", args->map, "map name, glob ('plot-*') or '*' for every map")
       ->capture_default_str();
   create->add_option("--role", args->role, "read, write or admin")
@@ -130,19 +134,39 @@ void AddTokenCommands(CLI::App& app, std::function<int()>& run, std::ostream& ou
                      "the token stops working after this long: 90d, 12h, 30m, 3600s "
                      "(default: never)");
   revoke->add_option("id", args->id, "token id (see token list)")->required();
-  create->callback([&run, &out, args] { run = [&out, args] { return CreateToken(*args, out); }; });
-  list->callback([&run, &out, args] { run = [&out, args] { return ListTokens(*args, out); }; });
-  revoke->callback([&run, &out, args] { run = [&out, args] { return RevokeToken(*args, out); }; });
+  // The server's --db is read when the command runs: after parsing, with every source applied.
+  const auto command = [&run, &out, &server_db,
+                        args](int (*action)(const TokenArgs&, std::ostream&)) {
+    return [&run, &out, &server_db, args, action] {
+      run = [&out, &server_db, args, action] {
+        TokenArgs resolved = *args;
+        if (resolved.db.empty()) resolved.db = server_db;
+        return action(resolved, out);
+      };
+    };
+  };
+  create->callback(command(&CreateToken));
+  list->callback(command(&ListTokens));
+  revoke->callback(command(&RevokeToken));
 }
 
-void AddBackupCommand(CLI::App& app, std::function<int()>& run, std::ostream& out) {
+void AddBackupCommand(CLI::App& app, const std::string& server_db, std::function<int()>& run,
+                      std::ostream& out) {
   CLI::App* backup = app.add_subcommand(
       "backup", "copy the database consistently while the server keeps running (SQLite backup)");
-  auto db = std::make_shared<std::string>("./forestmap.db");
+  auto db = std::make_shared<std::string>();
   auto file = std::make_shared<std::string>();
-  backup->add_option("--db", *db, "SQLite database of the server")->capture_default_str();
+  backup->add_option("--db", *db, kDbHelp);
   backup->add_option("--out", *file, "the copy to write (must not exist)")->required();
-  backup->callback([&run, &out, db, file] {
+  backup->callback([&run, &out, &server_db, db, file] {
+    if (db->empty()) *db = server_db;
+    if (storage::IsPostgresUri(*db)) {
+      throw CLI::ValidationError(
+          "--db", "forestmapd backup copies a SQLite database; back up PostgreSQL (" +
+                      storage::DescribeDatabase(*db) +
+                      ") with its own tools: pg_dump --format=custom --file=forestmap.dump "
+                      "'postgresql://...' (restore with pg_restore)");
+    }
     run = [&out, db, file] {
       const storage::BackupResult result = storage::BackupDatabase(*db, *file);
       out << "backup " << *file << ": " << result.pages << " pages, " << result.bytes

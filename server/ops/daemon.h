@@ -12,11 +12,16 @@ namespace forestmap::server {
 class Metrics;
 class MapIndexCache;
 
-// `forestmapd token create|list|revoke --db PATH ...` and `forestmapd backup --db PATH --out F`.
-// Each sets `run` to its action (returning the exit status) when chosen; the action prints
-// results to `out` (a new token's secret, once) and throws on failure.
-void AddTokenCommands(CLI::App& app, std::function<int()>& run, std::ostream& out);
-void AddBackupCommand(CLI::App& app, std::function<int()>& run, std::ostream& out);
+// `forestmapd token create|list|revoke [--db PATH] ...` and `forestmapd backup [--db PATH] --out
+// F`. Without their --db they use `server_db`, forestmapd's own --db as parsed (flag, variable,
+// configuration file, default), read when the action runs. Each sets `run` to its action
+// (returning the exit status) when chosen; the action prints results to `out` (a new token's
+// secret, once) and throws on failure. A PostgreSQL --db for backup is a usage error (CLI11's
+// ValidationError, at parsing) that names pg_dump.
+void AddTokenCommands(CLI::App& app, const std::string& server_db, std::function<int()>& run,
+                      std::ostream& out);
+void AddBackupCommand(CLI::App& app, const std::string& server_db, std::function<int()>& run,
+                      std::ostream& out);
 
 // Index builds and cache size (from `cache`) and the database file size (`db_path` plus its
 // -wal file), sampled at every scrape. `cache` must outlive `metrics`' scrapes.

@@ -1,5 +1,6 @@
 #include "server/ops/logging.h"
 
+#include <grpc/support/log.h>
 #include <spdlog/sinks/stdout_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -14,6 +15,10 @@ namespace {
 
 // Read by Log() on every call; swapped by ConfigureLogging (before serving).
 std::atomic<LogFormat> g_format{LogFormat::kText};
+std::atomic<LogLevel> g_level{LogLevel::kInfo};
+std::atomic<bool> g_grpc_errors_are_warnings{false};
+std::mutex g_held_mutex;
+std::string g_held_grpc_errors;  // guarded by g_held_mutex
 std::once_flag g_default_once;
 std::atomic<bool> g_configured{false};
 
@@ -61,6 +66,13 @@ std::string Format(LogFormat format, std::string_view message,
   return line;
 }
 
+// Without ConfigureLogging (tests): text on stderr, not spdlog's default (stdout).
+void EnsureLogger() {
+  std::call_once(g_default_once, [] {
+    if (!g_configured) ConfigureLogging({});
+  });
+}
+
 }  // namespace
 
 LogLevel ParseLogLevel(std::string_view name) {
@@ -89,16 +101,61 @@ void ConfigureLogging(const LogOptions& options) {
   logger->set_level(ToSpdlog(options.level));
   logger->flush_on(spdlog::level::debug);  // one line per event, never held back
   g_format = options.format;
+  g_level = options.level;
   spdlog::set_default_logger(std::move(logger));
   g_configured = true;
 }
 
+LogLevel SetLogLevel(LogLevel level) {
+  EnsureLogger();
+  spdlog::default_logger()->set_level(ToSpdlog(level));
+  return g_level.exchange(level);
+}
+
+const char* LogLevelName(LogLevel level) {
+  switch (level) {
+    case LogLevel::kDebug:
+      return "debug";
+    case LogLevel::kInfo:
+      return "info";
+    case LogLevel::kWarn:
+      return "warn";
+    case LogLevel::kError:
+      return "error";
+  }
+  return "info";
+}
+
+void RouteGrpcLogs() {
+  gpr_set_log_function([](gpr_log_func_args* args) {
+    const std::string_view message = args->message;
+    LogLevel level = LogLevel::kDebug;
+    if (args->severity == GPR_LOG_SEVERITY_ERROR) {
+      if (g_grpc_errors_are_warnings) {
+        level = LogLevel::kWarn;
+      } else if (message.starts_with("assertion failed")) {
+        level = LogLevel::kError;
+      } else {
+        const std::lock_guard lock(g_held_mutex);
+        if (!g_held_grpc_errors.empty()) g_held_grpc_errors += "; ";
+        g_held_grpc_errors += message.substr(0, message.find(" {"));  // without gRPC's details
+      }
+    }
+    Log(level, message,
+        {{"source", "grpc"}, {"at", std::string(args->file) + ":" + std::to_string(args->line)}});
+  });
+}
+
+std::string HeldGrpcErrors() {
+  const std::lock_guard lock(g_held_mutex);
+  return g_held_grpc_errors;
+}
+
+void GrpcErrorsAreWarnings() { g_grpc_errors_are_warnings = true; }
+
 void Log(LogLevel level, std::string_view message, const std::vector<LogField>& fields) noexcept {
   try {
-    // Without ConfigureLogging (tests): text on stderr, not spdlog's default (stdout).
-    std::call_once(g_default_once, [] {
-      if (!g_configured) ConfigureLogging({});
-    });
+    EnsureLogger();
     if (!spdlog::should_log(ToSpdlog(level))) return;
     spdlog::log(ToSpdlog(level), "{}", Format(g_format, message, fields));
   } catch (...) {

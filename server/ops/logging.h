@@ -30,6 +30,20 @@ LogFormat ParseLogFormat(std::string_view name);
 // Replaces the process-wide logger (stderr). Without a call: text, info.
 void ConfigureLogging(const LogOptions& options);
 
+// Changes the level of the running logger (forestmapd's SIGHUP) and returns the one it replaced.
+LogLevel SetLogLevel(LogLevel level);
+const char* LogLevelName(LogLevel level);  // "debug", "info", "warn", "error"
+
+// Sends gRPC's own log lines (gpr_log: errors unless GRPC_VERBOSITY says otherwise) through
+// Log, with the field source=grpc, in the format of the others. Until GrpcErrorsAreWarnings(),
+// gRPC's errors are debug lines kept for HeldGrpcErrors(): a start-up failure is then one line,
+// forestmapd's own, naming the flag, with gRPC's reason as a field ("Name or service not known"
+// alone says neither the flag nor the address). Its failed assertions are errors always (the
+// process aborts). After it, gRPC's errors are warnings.
+void RouteGrpcLogs();
+void GrpcErrorsAreWarnings();
+std::string HeldGrpcErrors();  // "; "-joined; empty when none
+
 struct LogField {
   std::string_view key;
   std::string value;

@@ -1,5 +1,7 @@
-// forestmapd: the ForestMap gRPC server. Parses the command line, opens the database, serves
-// until SIGINT or SIGTERM, then shuts down cleanly (running calls get a grace period).
+// forestmapd: the ForestMap gRPC server. Reads its configuration (command line, environment,
+// configuration file: server/ops/config.h), opens the database, serves until SIGINT or SIGTERM,
+// then shuts down cleanly (running calls get a grace period). SIGHUP reloads the log level and
+// the TLS files.
 
 #include <pthread.h>
 #include <signal.h>
@@ -12,7 +14,9 @@
 #include <iostream>
 #include <memory>
 #include <string>
+#include <vector>
 
+#include "forestmap_version.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
 #include "server/grpc/status.h"
@@ -20,6 +24,7 @@
 #include "server/http/http_page.h"
 #include "server/http/metrics_http.h"
 #include "server/ops/auth.h"
+#include "server/ops/config.h"
 #include "server/ops/daemon.h"
 #include "server/ops/logging.h"
 #include "server/ops/metrics.h"
@@ -31,8 +36,19 @@ namespace {
 
 constexpr auto kShutdownGrace = std::chrono::seconds(5);
 
-void LogError(const std::string& message) {
-  forestmap::server::Log(forestmap::server::LogLevel::kError, message);
+using forestmap::server::Log;
+using forestmap::server::LogLevel;
+
+// A start-up failure: one error line naming the flag at fault (field "flag"), exit status 1.
+int StartupFailure(const std::string& message) {
+  std::vector<forestmap::server::LogField> fields;
+  const std::string flag = forestmap::server::FlagNamedIn(message);
+  if (!flag.empty()) fields.push_back({"flag", flag});
+  const std::string grpc = forestmap::server::HeldGrpcErrors();
+  if (!grpc.empty()) fields.push_back({"grpc", grpc});
+  fields.push_back({"exit_code", std::to_string(forestmap::server::kExitFailure), true});
+  Log(LogLevel::kError, message, fields);
+  return forestmap::server::kExitFailure;
 }
 
 struct Config {
@@ -50,13 +66,12 @@ struct Config {
   double stream_idle_timeout_s = 30;              // --stream-idle-timeout-s
 };
 
-// Blocks SIGINT and SIGTERM in this thread and in every thread started after it (gRPC's), so
-// that they are only ever received by sigwait below: no async signal handler at all.
-sigset_t BlockShutdownSignals() {
+// Blocks SIGINT, SIGTERM and SIGHUP in this thread and in every thread started after it
+// (gRPC's), so that they are only ever received by sigwait below: no async signal handler.
+sigset_t BlockSignals() {
   sigset_t signals;
   sigemptyset(&signals);
-  sigaddset(&signals, SIGINT);
-  sigaddset(&signals, SIGTERM);
+  for (const int signal_number : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&signals, signal_number);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   return signals;
 }
@@ -67,13 +82,13 @@ std::string ShownDatabase(const std::string& db) {
   return forestmap::storage::DescribeDatabase(db);
 }
 
-// Runs `open`; when it throws, logs `failure: <what>` as an error and returns null.
+// Runs `open`; when it throws, reports `failure: <what>` as a start-up failure, returns null.
 template <typename T, typename Open>
 std::unique_ptr<T> OpenOrLog(const std::string& failure, const Open& open) {
   try {
     return open();
   } catch (const std::exception& e) {
-    LogError(failure + ": " + e.what());
+    StartupFailure(failure + ": " + e.what());
     return nullptr;
   }
 }
@@ -89,17 +104,20 @@ struct Listeners {
 Listeners StartListeners(const Config& config, forestmap::storage::MapStore& store,
                          forestmap::server::ForestMapService& service,
                          forestmap::server::Metrics& metrics,
-                         forestmap::storage::TokenStore& tokens) {
+                         forestmap::storage::TokenStore& tokens,
+                         const forestmap::server::TlsCredentials* tls) {
   forestmap::server::ServerOptions server_options;
   server_options.max_receive_message_bytes = config.max_message_mb << 20;
   server_options.metrics = &metrics;
-  const bool tls =
-      !config.tls.cert.empty() || !config.tls.key.empty() || !config.tls.client_ca.empty();
-  if (tls) server_options.credentials = forestmap::server::TlsServerCredentials(config.tls);
+  if (tls != nullptr) server_options.credentials = tls->credentials();
   Listeners listeners;
-  listeners.server =
-      std::make_unique<forestmap::server::ServerRunner>(config.listen, service, server_options);
-  forestmap::server::WarnIfExposed(config.listen, tls, tokens.AnyToken());
+  try {
+    listeners.server =
+        std::make_unique<forestmap::server::ServerRunner>(config.listen, service, server_options);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error("--listen " + config.listen + ": " + e.what());
+  }
+  forestmap::server::WarnIfExposed(config.listen, tls != nullptr, tokens.AnyToken());
   if (!config.http.empty()) {
     listeners.page = std::make_unique<forestmap::server::HttpPage>(store, service.recent_answers(),
                                                                    config.http, &tokens);
@@ -116,14 +134,6 @@ Listeners StartListeners(const Config& config, forestmap::storage::MapStore& sto
         "/metrics");
   }
   return listeners;
-}
-
-// Blocks until SIGINT or SIGTERM arrives, and logs which.
-void WaitForShutdownSignal(const sigset_t& shutdown_signals) {
-  int signal_number = 0;
-  sigwait(&shutdown_signals, &signal_number);
-  forestmap::server::LogLine(std::string("received ") +
-                             (signal_number == SIGINT ? "SIGINT" : "SIGTERM") + ", shutting down");
 }
 
 // The flags of serving (not of the token and backup subcommands), into `config`.
@@ -179,19 +189,137 @@ void AddServeOptions(CLI::App& app, Config& config) {
       ->capture_default_str();
 }
 
-int Serve(const Config& config, const sigset_t& shutdown_signals) {
+// forestmapd's command line around `config`: the flags of serving, their variables and the
+// configuration file, --version, and (with `offline`) the token and backup subcommands.
+std::unique_ptr<CLI::App> MakeApp(Config& config, std::function<int()>* offline) {
+  auto app = std::make_unique<CLI::App>(
+      "forestmapd: the ForestMap gRPC server (maps of trees, relocalization).\n"
+      "Usage: forestmapd [--db PATH|postgresql://USER@HOST:PORT/DB] [--listen ADDR] "
+      "[--max-message-mb N]\n"
+      "                  [--http ADDR] [--keep-versions N] [--max-streams N] "
+      "[--max-streams-per-client N]\n"
+      "                  [--stream-idle-timeout-s S] [--tls-cert F --tls-key F [--tls-client-ca "
+      "F]]\n"
+      "                  [--metrics ADDR] [--log-format text|json] "
+      "[--log-level debug|info|warn|error] "
+      "[--max-db-mb N] [--config FILE] [--version] [--help]\n"
+      "       forestmapd token create [--db PATH] [--map NAME|GLOB|*] [--role read|write|admin] "
+      "[--note TEXT] [--expires-in DURATION]\n"
+      "       forestmapd token list [--db PATH] | token revoke [--db PATH] ID\n"
+      "       forestmapd backup [--db PATH] --out FILE\n"
+      "Every flag of serving is also the variable FORESTMAPD_<FLAG> (FORESTMAPD_LISTEN) and the "
+      "key <flag> of the configuration file (listen = \"...\"); the command line wins over the "
+      "environment, which wins over the file. Exit status: 0 ok, 1 failure, 2 usage error.",
+      "forestmapd");
+  AddServeOptions(*app, config);
+  forestmap::server::AddConfigurationSources(*app, forestmap::VersionLine("forestmapd"));
+  if (offline != nullptr) {
+    forestmap::server::AddTokenCommands(*app, config.db, *offline, std::cout);
+    forestmap::server::AddBackupCommand(*app, config.db, *offline, std::cout);
+    app->require_subcommand(0, 1);
+  }
+  return app;
+}
+
+// What SIGHUP changes. The command line, the environment (as at start) and the configuration
+// file (as now) are read again; the log level and the TLS files take effect (the next
+// connections get the new certificate); other settings that changed need a restart. Tokens are
+// looked up in the database at every call: nothing of theirs is cached. One log line says what
+// was reloaded, and what was not.
+class Reloader {
+ public:
+  Reloader(int argc, const char* const* argv, const CLI::App& started,
+           forestmap::server::TlsCredentials* tls)
+      : argc_(argc), argv_(argv), started_(started), tls_(tls) {}
+
+  void Reload() const {
+    Config config;
+    const auto app = MakeApp(config, nullptr);
+    try {
+      app->parse(argc_, argv_);
+    } catch (const CLI::ParseError& e) {
+      Log(LogLevel::kError, std::string("SIGHUP: configuration not reloaded: ") + e.what());
+      return;
+    }
+    std::vector<std::string> done, failed;
+    const LogLevel level = forestmap::server::ParseLogLevel(config.log_level);
+    done.push_back(std::string("log level ") + forestmap::server::LogLevelName(level) + " (was " +
+                   forestmap::server::LogLevelName(forestmap::server::SetLogLevel(level)) + ")");
+    if (tls_ != nullptr) {
+      try {
+        done.push_back("TLS certificate " + tls_->Reload(config.tls));
+      } catch (const std::exception& e) {
+        failed.push_back(std::string("TLS (kept ") + tls_->Describe() + "): " + e.what());
+      }
+    }
+    std::vector<std::string> restart = forestmap::server::ChangedFlags(
+        started_, *app, {"--log-level", "--tls-cert", "--tls-key", "--tls-client-ca"});
+    if (tls_ == nullptr && config.tls.any()) restart.push_back("TLS on (--tls-cert)");
+    std::string line = "SIGHUP: reloaded " + Join(done);
+    if (!failed.empty()) line += "; NOT reloaded: " + Join(failed);
+    if (!restart.empty()) line += "; changed, applied only by a restart: " + Join(restart);
+    const std::string file = forestmap::server::ConfigFileRead(*app);
+    Log(!failed.empty()    ? LogLevel::kError
+        : !restart.empty() ? LogLevel::kWarn
+                           : LogLevel::kInfo,
+        line, {{"config", file.empty() ? "none" : file}});
+  }
+
+ private:
+  static std::string Join(const std::vector<std::string>& parts) {
+    std::string text;
+    for (const std::string& part : parts) text += (text.empty() ? "" : ", ") + part;
+    return text;
+  }
+
+  int argc_;
+  const char* const* argv_;
+  const CLI::App& started_;
+  forestmap::server::TlsCredentials* tls_;
+};
+
+// Serves until SIGINT or SIGTERM; SIGHUP reloads.
+void ServeUntilShutdown(const sigset_t& signals, const Reloader& reloader) {
+  for (;;) {
+    int signal_number = 0;
+    sigwait(&signals, &signal_number);
+    if (signal_number != SIGHUP) {
+      forestmap::server::LogLine(std::string("received ") +
+                                 (signal_number == SIGINT ? "SIGINT" : "SIGTERM") +
+                                 ", shutting down");
+      return;
+    }
+    try {
+      reloader.Reload();
+    } catch (const std::exception& e) {  // a reload never stops the server
+      Log(LogLevel::kError, std::string("SIGHUP: reload failed: ") + e.what());
+    }
+  }
+}
+
+// Serves `config` (parsed by `app` from `argv`, read again on SIGHUP) until SIGINT or SIGTERM.
+int Serve(const Config& config, const CLI::App& app, int argc, const char* const* argv) {
   using forestmap::server::LogLine;
+  const sigset_t signals = BlockSignals();
+  std::unique_ptr<forestmap::server::TlsCredentials> tls;
+  if (config.tls.any()) {
+    try {
+      tls = std::make_unique<forestmap::server::TlsCredentials>(config.tls);
+    } catch (const std::exception& e) {
+      return StartupFailure(e.what());  // names --tls-cert, --tls-key or --tls-client-ca
+    }
+  }
   const std::string shown_db = ShownDatabase(config.db);
   const auto store = OpenOrLog<forestmap::storage::MapStore>(
-      "cannot open database " + shown_db,
+      "--db: cannot open database " + shown_db,
       [&] { return forestmap::storage::OpenMapStore(config.db, config.max_db_mb); });
-  if (!store) return 1;
+  if (!store) return forestmap::server::kExitFailure;
   const size_t map_count = store->ListMaps().size();
   // Tokens live in the same database (table access_tokens), SQLite file or PostgreSQL.
   const auto tokens = OpenOrLog<forestmap::storage::TokenStore>(
-      "cannot open the access tokens of " + shown_db,
+      "--db: cannot open the access tokens of " + shown_db,
       [&] { return std::make_unique<forestmap::storage::TokenStore>(config.db); });
-  if (!tokens) return 1;
+  if (!tokens) return forestmap::server::kExitFailure;
   const forestmap::server::Authorizer authorizer(tokens.get());
 
   forestmap::server::ServiceOptions service_options;
@@ -205,63 +333,44 @@ int Serve(const Config& config, const sigset_t& shutdown_signals) {
   forestmap::server::AddServerMetrics(metrics, service.index_cache(), config.db);
   Listeners listeners;
   try {
-    listeners = StartListeners(config, *store, service, metrics, *tokens);
+    listeners = StartListeners(config, *store, service, metrics, *tokens, tls.get());
   } catch (const std::exception& e) {
-    LogError(e.what());
-    return 1;
+    return StartupFailure(e.what());
   }
-  LogLine("serving on " + listeners.server->address() + ", database " + shown_db + ", " +
-          std::to_string(map_count) + " maps");
+  forestmap::server::GrpcErrorsAreWarnings();
+  const std::string file = forestmap::server::ConfigFileRead(app);
+  Log(LogLevel::kInfo,
+      "serving on " + listeners.server->address() + ", database " + shown_db + ", " +
+          std::to_string(map_count) + " maps",
+      {{"config", file.empty() ? "none" : file}});
 
-  WaitForShutdownSignal(shutdown_signals);
+  ServeUntilShutdown(signals, Reloader(argc, argv, app, tls.get()));
   listeners.page.reset();
   listeners.server->Shutdown(kShutdownGrace);
   listeners.server->Wait();
   LogLine("stopped");
-  return 0;
+  return forestmap::server::kExitOk;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
+  forestmap::server::ApplyEnvironmentAliases();
+  forestmap::server::RouteGrpcLogs();
   Config config;
-  CLI::App app{
-      "forestmapd: the ForestMap gRPC server (maps of trees, relocalization).\n"
-      "Usage: forestmapd [--db PATH|postgresql://USER@HOST:PORT/DB] [--listen ADDR] "
-      "[--max-message-mb N]\n"
-      "                  [--http ADDR] [--keep-versions N] [--max-streams N] "
-      "[--max-streams-per-client N]\n"
-      "                  [--stream-idle-timeout-s S] [--tls-cert F --tls-key F [--tls-client-ca "
-      "F]]\n"
-      "                  [--metrics ADDR] [--log-format text|json] "
-      "[--log-level debug|info|warn|error] "
-      "[--max-db-mb N] [--help]\n"
-      "       forestmapd token create --db PATH [--map NAME|GLOB|*] [--role read|write|admin] "
-      "[--note TEXT] [--expires-in DURATION]\n"
-      "       forestmapd token list --db PATH | token revoke --db PATH ID\n"
-      "       forestmapd backup --db PATH --out FILE"};
-  AddServeOptions(app, config);
   std::function<int()> offline;  // a subcommand instead of serving
-  forestmap::server::AddTokenCommands(app, offline, std::cout);
-  forestmap::server::AddBackupCommand(app, offline, std::cout);
-  app.require_subcommand(0, 1);
-  CLI11_PARSE(app, argc, argv);
+  const auto app = MakeApp(config, &offline);
+  const int status = forestmap::server::ParseConfiguration(*app, argc, argv);
+  if (status >= 0) return status;
   forestmap::server::ConfigureLogging({forestmap::server::ParseLogFormat(config.log_format),
                                        forestmap::server::ParseLogLevel(config.log_level)});
-  if (offline) {
-    try {
-      return offline();
-    } catch (const std::exception& e) {
-      std::cerr << "forestmapd: error: " << e.what() << std::endl;
-      return 1;
-    }
-  }
-
-  const sigset_t shutdown_signals = BlockShutdownSignals();
   try {
-    return Serve(config, shutdown_signals);
+    return offline ? offline() : Serve(config, *app, argc, argv);
   } catch (const std::exception& e) {
-    LogError(std::string("fatal: ") + e.what());
-    return 1;
+    if (offline) {
+      std::cerr << "forestmapd: error: " << e.what() << std::endl;
+      return forestmap::server::kExitFailure;
+    }
+    return StartupFailure(std::string("fatal: ") + e.what());
   }
 }

@@ -1,10 +1,17 @@
 #include "server/ops/tls.h"
 
-#include <grpcpp/security/server_credentials.h>
+#include <grpc/grpc.h>
+#include <grpc/grpc_security.h>
+#include <openssl/err.h>
+#include <openssl/pem.h>
+#include <openssl/x509.h>
 
+#include <ctime>
 #include <fstream>
+#include <mutex>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 namespace forestmap::server {
 namespace {
@@ -20,20 +27,146 @@ std::string ReadPem(const std::string& path, const char* flag) {
   return text.str();
 }
 
-}  // namespace
+template <typename T, void (*Free)(T*)>
+struct Freer {
+  void operator()(T* p) const { Free(p); }
+};
+using Bio = std::unique_ptr<BIO, Freer<BIO, BIO_free_all>>;
+using Certificate = std::unique_ptr<X509, Freer<X509, X509_free>>;
+using Key = std::unique_ptr<EVP_PKEY, Freer<EVP_PKEY, EVP_PKEY_free>>;
 
-std::shared_ptr<grpc::ServerCredentials> TlsServerCredentials(const TlsFiles& files) {
+Bio MemoryBio(const std::string& pem) {
+  return Bio(BIO_new_mem_buf(pem.data(), static_cast<int>(pem.size())));
+}
+
+// "CN=forestmapd (not after 2027-01-01T00:00:00Z)".
+std::string Description(X509* certificate) {
+  char subject[256] = "";
+  X509_NAME_oneline(X509_get_subject_name(certificate), subject, sizeof subject);
+  std::tm not_after{};
+  char expiry[32] = "?";
+  if (ASN1_TIME_to_tm(X509_get0_notAfter(certificate), &not_after) == 1) {
+    std::strftime(expiry, sizeof expiry, "%Y-%m-%dT%H:%M:%SZ", &not_after);
+  }
+  const std::string name = subject[0] == '/' ? subject + 1 : subject;
+  return name + " (not after " + expiry + ")";
+}
+
+// The PEM texts of `files`, checked: the key belongs to the (first) certificate.
+struct Pem {
+  std::string cert, key, client_ca, description;
+};
+
+Pem ReadTlsFiles(const TlsFiles& files) {
   if (files.cert.empty() || files.key.empty()) {
     throw std::runtime_error("TLS needs both --tls-cert and --tls-key");
   }
-  grpc::SslServerCredentialsOptions options(
-      files.client_ca.empty() ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
-                              : GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY);
-  options.pem_key_cert_pairs.push_back(
-      {ReadPem(files.key, "--tls-key"), ReadPem(files.cert, "--tls-cert")});
-  if (!files.client_ca.empty())
-    options.pem_root_certs = ReadPem(files.client_ca, "--tls-client-ca");
-  return grpc::SslServerCredentials(options);
+  Pem pem{ReadPem(files.cert, "--tls-cert"), ReadPem(files.key, "--tls-key"), "", ""};
+  if (!files.client_ca.empty()) pem.client_ca = ReadPem(files.client_ca, "--tls-client-ca");
+  const Certificate certificate(
+      PEM_read_bio_X509(MemoryBio(pem.cert).get(), nullptr, nullptr, nullptr));
+  const Key key(PEM_read_bio_PrivateKey(MemoryBio(pem.key).get(), nullptr, nullptr, nullptr));
+  const bool matches = certificate && key && X509_check_private_key(certificate.get(), key.get());
+  ERR_clear_error();
+  if (!certificate) throw std::runtime_error("--tls-cert: " + files.cert + " holds no certificate");
+  if (!key) throw std::runtime_error("--tls-key: " + files.key + " holds no private key");
+  if (!matches) {
+    throw std::runtime_error("--tls-key: " + files.key + " is not the key of --tls-cert " +
+                             files.cert);
+  }
+  pem.description = Description(certificate.get());
+  return pem;
+}
+
+grpc_ssl_server_certificate_config* CertificateConfig(const Pem& pem) {
+  const grpc_ssl_pem_key_cert_pair pair{pem.key.c_str(), pem.cert.c_str()};
+  // gRPC 1.51 asserts that a fetched config has root certificates even when it requests no
+  // client certificate (ssl_security_connector.cc); then they are never used to verify a
+  // client, so the server's own chain stands in.
+  const std::string& roots = pem.client_ca.empty() ? pem.cert : pem.client_ca;
+  return grpc_ssl_server_certificate_config_create(roots.c_str(), &pair, 1);  // copies the texts
+}
+
+// grpc::ServerCredentials around C credentials: gRPC's Server adds its port through them.
+class CoreServerCredentials final : public grpc::ServerCredentials {
+ public:
+  explicit CoreServerCredentials(grpc_server_credentials* credentials)
+      : credentials_(credentials) {}
+  ~CoreServerCredentials() override { grpc_server_credentials_release(credentials_); }
+  void SetAuthMetadataProcessor(const std::shared_ptr<grpc::AuthMetadataProcessor>&) override {
+    throw std::logic_error(
+        "TlsCredentials: no AuthMetadataProcessor (tokens are checked "
+        "by the service)");
+  }
+
+ private:
+  int AddPortToServer(const std::string& address, grpc_server* server) override {
+    return grpc_server_add_http2_port(server, address.c_str(), credentials_);
+  }
+  grpc_server_credentials* credentials_;
+};
+
+}  // namespace
+
+struct TlsCredentials::State {
+  bool client_ca = false;
+  std::mutex mutex;
+  grpc_ssl_server_certificate_config* next = nullptr;  // for the next handshake; guarded
+  std::string description;                             // guarded
+  State() { grpc_init(); }
+  ~State() {
+    if (next != nullptr) grpc_ssl_server_certificate_config_destroy(next);
+    grpc_shutdown();
+  }
+  State(const State&) = delete;
+  State& operator=(const State&) = delete;
+
+  // gRPC's fetcher: called before each handshake, from gRPC's threads.
+  static grpc_ssl_certificate_config_reload_status Fetch(
+      void* user_data, grpc_ssl_server_certificate_config** config) {
+    State* state = static_cast<State*>(user_data);
+    const std::lock_guard lock(state->mutex);
+    if (state->next == nullptr) return GRPC_SSL_CERTIFICATE_CONFIG_RELOAD_UNCHANGED;
+    *config = std::exchange(state->next, nullptr);  // gRPC owns it now
+    return GRPC_SSL_CERTIFICATE_CONFIG_RELOAD_NEW;
+  }
+};
+
+TlsCredentials::TlsCredentials(const TlsFiles& files) : state_(std::make_unique<State>()) {
+  const Pem pem = ReadTlsFiles(files);
+  state_->client_ca = !pem.client_ca.empty();
+  state_->next = CertificateConfig(pem);
+  state_->description = pem.description;
+  grpc_ssl_server_credentials_options* options =
+      grpc_ssl_server_credentials_create_options_using_config_fetcher(
+          state_->client_ca ? GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY
+                            : GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE,
+          &State::Fetch, state_.get());
+  grpc_server_credentials* credentials = grpc_ssl_server_credentials_create_with_options(options);
+  if (credentials == nullptr) throw std::runtime_error("gRPC refused the TLS credentials");
+  credentials_ = std::make_shared<CoreServerCredentials>(credentials);
+}
+
+TlsCredentials::~TlsCredentials() = default;  // credentials_ first, then state_
+
+std::string TlsCredentials::Reload(const TlsFiles& files) {
+  const Pem pem = ReadTlsFiles(files);
+  if (pem.client_ca.empty() == state_->client_ca) {
+    throw std::runtime_error(
+        "--tls-client-ca can only be turned on or off by a restart (the certificate in use is "
+        "kept)");
+  }
+  grpc_ssl_server_certificate_config* config = CertificateConfig(pem);
+  const std::lock_guard lock(state_->mutex);
+  if (state_->next != nullptr) grpc_ssl_server_certificate_config_destroy(state_->next);
+  state_->next = config;
+  state_->description = pem.description;
+  return pem.description;
+}
+
+std::string TlsCredentials::Describe() const {
+  const std::lock_guard lock(state_->mutex);
+  return state_->description;
 }
 
 bool IsLoopback(const std::string& address) {

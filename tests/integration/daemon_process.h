@@ -57,14 +57,17 @@ class DaemonProcess {
   DaemonProcess& operator=(const DaemonProcess&) = delete;
   ~DaemonProcess() { Stop(); }
 
-  // Starts `forestmapd ARGS` in the background, stderr into `log`, its pid into `pid_file`, and
-  // waits for its "serving on HOST:PORT" line (address() then holds 127.0.0.1:PORT).
+  // Starts `forestmapd ARGS` in the background (with the shell words VAR=value of `env` in its
+  // environment), stderr into `log`, its pid into `pid_file`, and waits for its "serving on
+  // HOST:PORT" line (address() then holds 127.0.0.1:PORT).
   ::testing::AssertionResult Start(const std::string& args, const std::filesystem::path& log,
-                                   const std::filesystem::path& pid_file) {
-    const std::string command = "'" FORESTMAPD_PATH "' " + args + " 2>'" + log.string() +
-                                "' & echo $! > '" + pid_file.string() + "'";
-    if (std::system(command.c_str()) != 0) {
-      return ::testing::AssertionFailure() << "cannot run " << command;
+                                   const std::filesystem::path& pid_file,
+                                   const std::string& env = "") {
+    const std::string command = (env.empty() ? "exec " : "exec env " + env + " ") +
+                                "'" FORESTMAPD_PATH "' " + args + " 2>'" + log.string() + "'";
+    const std::string background = "(" + command + ") & echo $! > '" + pid_file.string() + "'";
+    if (std::system(background.c_str()) != 0) {
+      return ::testing::AssertionFailure() << "cannot run " << background;
     }
     pid_ = std::stoi(ReadFile(pid_file));
     const std::regex serving(R"(serving on [^ ]*:(\d+))");
@@ -93,6 +96,7 @@ class DaemonProcess {
   }
 
   const std::string& address() const { return address_; }
+  int pid() const { return pid_; }  // -1 when stopped
 
  private:
   int pid_ = -1;

@@ -2,7 +2,8 @@
 // self-signed server certificate for 127.0.0.1 and one for a client), an in-process server on
 // port 0. A plaintext client is refused, a TLS client that trusts the certificate works, one that
 // does not is refused; with --tls-client-ca a client without a certificate is refused. Tokens go
-// through the same channel.
+// through the same channel. Reload (forestmapd's SIGHUP) gives new connections the new
+// certificate, and a reload that fails keeps the old one.
 
 #include "server/ops/tls.h"
 
@@ -58,9 +59,10 @@ class TlsTest : public ::testing::Test {
     server::ServiceOptions service_options;
     service_options.authorizer = &authorizer_;
     service_ = std::make_unique<server::ForestMapService>(store_, service_options);
+    tls_ = std::make_unique<server::TlsCredentials>(
+        server::TlsFiles{File("server.crt"), File("server.key"), client_ca});
     server::ServerOptions options;
-    options.credentials =
-        server::TlsServerCredentials({File("server.crt"), File("server.key"), client_ca});
+    options.credentials = tls_->credentials();
     runner_ = std::make_unique<server::ServerRunner>("127.0.0.1:0", *service_, options);
   }
 
@@ -76,6 +78,7 @@ class TlsTest : public ::testing::Test {
   storage::SqliteMapStore store_{":memory:"};
   storage::TokenStore tokens_{":memory:"};
   server::Authorizer authorizer_{&tokens_};
+  std::unique_ptr<server::TlsCredentials> tls_;  // outlives the server
   std::unique_ptr<server::ForestMapService> service_;
   std::unique_ptr<server::ServerRunner> runner_;
 };
@@ -133,14 +136,51 @@ TEST_F(TlsTest, TokensTravelOverTls) {
   EXPECT_EQ(with_token.CreateMap("plot-2").name(), "plot-2");
 }
 
-TEST(TlsFiles, MissingOrNonPemFilesAreNamed) {
+TEST_F(TlsTest, ReloadServesTheNewCertificateToNewConnections) {
+  Serve();
+  {
+    client::ForestMapClient before(runner_->address(), Tls(File("server.crt")));
+    EXPECT_TRUE(before.ListMaps().empty());
+  }
+  // "stranger" holds a certificate for 127.0.0.1 too, from another (self-signed) issuer.
+  EXPECT_NE(tls_->Reload({File("stranger.crt"), File("stranger.key"), ""}).find("CN=stranger"),
+            std::string::npos);
+  client::ForestMapClient old_trust(runner_->address(), Tls(File("server.crt")));
+  EXPECT_THROW(old_trust.ListMaps(), client::RpcError);
+  client::ForestMapClient new_trust(runner_->address(), Tls(File("stranger.crt")));
+  EXPECT_TRUE(new_trust.ListMaps().empty());
+}
+
+TEST_F(TlsTest, AFailedReloadKeepsTheCertificate) {
+  Serve();
+  // A key of another certificate, a missing file, and turning on client certificates.
+  EXPECT_THROW(tls_->Reload({File("server.crt"), File("stranger.key"), ""}), std::runtime_error);
+  EXPECT_THROW(tls_->Reload({File("server.crt"), File("missing.key"), ""}), std::runtime_error);
+  EXPECT_THROW(tls_->Reload({File("server.crt"), File("server.key"), File("client.crt")}),
+               std::runtime_error);
+  EXPECT_NE(tls_->Describe().find("CN=forestmapd-test"), std::string::npos) << tls_->Describe();
+  client::ForestMapClient trusting(runner_->address(), Tls(File("server.crt")));
+  EXPECT_TRUE(trusting.ListMaps().empty());
+}
+
+TEST_F(TlsTest, MissingNonPemOrMismatchedFilesAreNamed) {
   try {
-    server::TlsServerCredentials({"/nonexistent/server.crt", "/nonexistent/server.key", ""});
+    server::TlsCredentials({"/nonexistent/server.crt", "/nonexistent/server.key", ""});
     FAIL() << "no error";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent/server"), std::string::npos) << e.what();
   }
-  EXPECT_THROW(server::TlsServerCredentials({"", "", ""}), std::runtime_error);
+  EXPECT_THROW(server::TlsCredentials({"", "", ""}), std::runtime_error);
+  try {
+    server::TlsCredentials({File("server.crt"), File("client.key"), ""});
+    FAIL() << "a key of another certificate was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("is not the key of --tls-cert"), std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(TlsFiles, LoopbackAddresses) {
   EXPECT_TRUE(server::IsLoopback("127.0.0.1:50051"));
   EXPECT_TRUE(server::IsLoopback("[::1]:50051"));
   EXPECT_TRUE(server::IsLoopback("localhost:1"));
