@@ -101,8 +101,8 @@ class MapIndexCache {
   // Finds the map's slot (LRU order updated); when neither a ready entry nor a build of `info`'s
   // version is there, registers a build whose result `promise` will carry. Rethrows the
   // remembered error of a version that cannot be indexed.
-  Lookup LookUp(const std::string& name, const storage::MapInfo& info,
-                std::promise<Entry>& promise, bool count);
+  Lookup LookUp(const std::string& name, const storage::MapInfo& info, std::promise<Entry>& promise,
+                bool count);
   Entry GetCounted(const std::string& name, bool count);
   // Runs build `build_id` (of map version `version`), publishes its entry or error to the slot
   // and to `promise`'s waiters, and returns the entry or throws the error.
