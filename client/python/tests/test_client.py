@@ -11,6 +11,7 @@ import grpc
 import numpy as np
 import pytest
 
+import forestmap
 from forestmap import Client, FieldViolation, ForestMapError, Tree
 from forestmap.v1 import forestmap_service_pb2_grpc, maps_pb2, observations_pb2
 
@@ -18,28 +19,20 @@ FRAME = 300  # a frame of Wild_V01 the map localizes
 
 
 def detections(data_dir, frame):
-    """Rows x, y, z, dbh, axis_x, axis_y, axis_z, score of one frame, as the CLI reads them
-    (text -> double by the same correctly rounded parse; the axis normalised as the CLI does)."""
-    rows, lines = [], []
+    """One frame's detections as a structured array of trees.csv's columns (x, y, z, dbh,
+    axis_x, ..., score), and the frame's lines as CSV text for the CLI."""
+    lines = []
     with open(os.path.join(data_dir, "trees.csv")) as f:
         header = f.readline()
-        for line in f:
-            if int(line.split(",", 1)[0]) != frame:
-                continue
-            lines.append(line)
-            r = dict(zip(header.strip().split(","), line.strip().split(",")))
-            axis = [float(r["axis_x"]), float(r["axis_y"]), float(r["axis_z"])]
-            norm = math.sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2])
-            axis = [a / norm for a in axis] if norm > 1e-9 else [0.0, 0.0, 0.0]
-            rows.append([float(r["x"]), float(r["y"]), float(r["z"]), float(r["dbh"])] + axis +
-                        [float(r["score"])])
-    return np.array(rows), header + "".join(lines)
+        lines = [line for line in f if int(line.split(",", 1)[0]) == frame]
+    names = header.strip().split(",")
+    rows = [tuple(float(v) if v else math.nan for v in line.strip().split(",")) for line in lines]
+    return np.array(rows, dtype=[(n, np.float64) for n in names]), header + "".join(lines)
 
 
 def map_array(data_dir):
-    with open(os.path.join(data_dir, "map.csv")) as f:
-        return np.array([[float(r["x"]), float(r["y"]), float(r["z"]), float(r["dbh"])]
-                         for r in csv.DictReader(f)])
+    """map.csv (id, x, y, z, dbh, count) as a structured array."""
+    return forestmap.read_csv(os.path.join(data_dir, "map.csv"))[["x", "y", "z", "dbh"]]
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +46,8 @@ def test_trees_round_trip_bit_for_bit(server):
     client = Client(server)
     rng = np.random.default_rng(5)
     trees = np.column_stack([rng.uniform(-500, 500, (200, 3)), rng.uniform(0.05, 0.9, 200)])
-    info = client.create_map("roundtrip", trees, description="numpy", crs="EPSG:32633")
+    info = client.create_map("roundtrip", trees, description="numpy", crs="EPSG:32633",
+                             columns=("x", "y", "z", "dbh"))
     assert info.tree_count == 200 and info.version == 2 and info.crs == "EPSG:32633"
     exported = client.export("roundtrip")
     assert [(t.x, t.y, t.z, t.dbh) for t in exported] == [tuple(row) for row in trees]
@@ -79,7 +73,7 @@ def test_errors_carry_the_grpc_status(server):
     assert error.value.violations == [FieldViolation("name", error.value.details)]
     assert str(error.value).endswith("(field: name)")
     with pytest.raises(ValueError):
-        client.relocalize("x", np.zeros(3))  # not an N x k array
+        client.relocalize("x", np.zeros(3), columns=("x", "y", "z"))  # not an N x 3 array
 
 
 def test_relocalize_equals_the_cli_to_the_last_digit(wild, server, data_dir, cli, tmp_path):
@@ -119,12 +113,12 @@ def test_relocalize_with_a_prior(wild, data_dir):
 
 
 def test_a_bad_tree_names_its_field_in_the_error_details(wild):
-    trees = np.array([[1.0, 2.0, 0.0], [float("nan"), 1.0, 0.0], [3.0, 4.0, 0.0]])
+    trees = np.array([[1.0, 2.0, 0.0], [1.0, 1.0, -1.0], [3.0, 4.0, 0.0]])
     with pytest.raises(ForestMapError) as error:
-        wild.relocalize("wild", trees)
+        wild.relocalize("wild", trees, columns=("x", "y", "dbh"))
     assert error.value.code == grpc.StatusCode.INVALID_ARGUMENT
-    assert [v.field for v in error.value.violations] == ["trees[1].position.x"]
-    assert "trees[1].position.x is NaN" in error.value.violations[0].description
+    assert [v.field for v in error.value.violations] == ["trees[1].dbh"]
+    assert "trees[1].dbh" in error.value.violations[0].description
 
 
 @pytest.fixture(scope="module")
