@@ -11,7 +11,7 @@ import numpy as np
 
 from forestmap.answers import Tree, tree_of
 from forestmap.errors import ForestMapError
-from forestmap.v1 import maps_pb2
+from forestmap.v1 import geometry_pb2, maps_pb2
 
 # export(as_array=True): unknown numbers are NaN.
 TREE_DTYPE = np.dtype([("id", np.int64), ("x", np.float64), ("y", np.float64),
@@ -67,12 +67,13 @@ class Gather:
         return out
 
 
-def box_message(box) -> maps_pb2.Box2:
+def box_message(box) -> geometry_pb2.Box2:
     """(min_x, min_y, max_x, max_y), map frame, m."""
     values = [float(v) for v in box]
     if len(values) != 4 or not all(math.isfinite(v) for v in values):
-        raise ValueError(f"box: want 4 finite numbers (min_x, min_y, max_x, max_y), got {box!r}")
-    return maps_pb2.Box2(min_x=values[0], min_y=values[1], max_x=values[2], max_y=values[3])
+        raise ValueError(f"box: want 4 finite numbers (min_x, min_y, max_x, max_y), got "
+                         f"{box!r}")
+    return geometry_pb2.Box2(min_x=values[0], min_y=values[1], max_x=values[2], max_y=values[3])
 
 
 __all__ = ["Gather", "TREE_DTYPE", "Tree", "box_message"]

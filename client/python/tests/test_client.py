@@ -1,38 +1,18 @@
 """The Python client against a loopback forestmapd: round trips, errors, relocalization equal to
 the C++ CLI's answer to the last digit, tracking and observing a real sequence (Wild_V01)."""
 
-import csv
 import json
-import math
-import os
 import subprocess
 
 import grpc
 import numpy as np
 import pytest
 
-import forestmap
+from forest_data import detections, map_array, poses
 from forestmap import Client, FieldViolation, ForestMapError, Tree
 from forestmap.v1 import forestmap_service_pb2_grpc, maps_pb2, observations_pb2
 
 FRAME = 300  # a frame of Wild_V01 the map localizes
-
-
-def detections(data_dir, frame):
-    """One frame's detections as a structured array of trees.csv's columns (x, y, z, dbh,
-    axis_x, ..., score), and the frame's lines as CSV text for the CLI."""
-    lines = []
-    with open(os.path.join(data_dir, "trees.csv")) as f:
-        header = f.readline()
-        lines = [line for line in f if int(line.split(",", 1)[0]) == frame]
-    names = header.strip().split(",")
-    rows = [tuple(float(v) if v else math.nan for v in line.strip().split(",")) for line in lines]
-    return np.array(rows, dtype=[(n, np.float64) for n in names]), header + "".join(lines)
-
-
-def map_array(data_dir):
-    """map.csv (id, x, y, z, dbh, count) as a structured array."""
-    return forestmap.read_csv(os.path.join(data_dir, "map.csv"))[["x", "y", "z", "dbh"]]
 
 
 @pytest.fixture(scope="module")
@@ -229,17 +209,8 @@ def test_track_yields_one_answer_per_frame(wild, data_dir):
 def test_observe_builds_a_shared_map(server, data_dir):
     client = Client(server)
     client.create_map("observed")
-    poses = {}
-    with open(os.path.join(data_dir, "poses.csv")) as f:
-        for r in csv.DictReader(f):
-            x, y, z, w = (float(r[k]) for k in ("qx", "qy", "qz", "qw"))
-            matrix = np.eye(4)
-            matrix[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                              [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                              [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
-            matrix[:3, 3] = [float(r["x"]), float(r["y"]), float(r["z"])]
-            poses[int(r["frame"])] = matrix
-    frames = [(f, detections(data_dir, f)[0], poses[f]) for f in range(0, 25)]
+    truth = poses(data_dir)
+    frames = [(f, detections(data_dir, f)[0], truth[f]) for f in range(0, 25)]
     result = client.observe("observed", frames, source="py-drone")
     assert result.merged == 25 and result.skipped == 0
     trees = client.export("observed")
