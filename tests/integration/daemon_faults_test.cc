@@ -148,7 +148,7 @@ TEST_F(DaemonFaultsTest, TokensOnPostgresqlDenyByDefault) {
   EXPECT_NE(result.err.find("UNAUTHENTICATED"), std::string::npos) << result.err;
   result = Client("--token " + reader + " map show plot-1");
   EXPECT_EQ(result.exit_code, 0) << result.err;
-  result = Client("--token " + reader + " map delete plot-1");
+  result = Client("--token " + reader + " map delete --yes plot-1");
   EXPECT_NE(result.err.find("PERMISSION_DENIED"), std::string::npos) << result.err;
   EXPECT_EQ(Client("--token " + admin + " map create plot-2").exit_code, 0);
   result = Client("--token " + admin + "0 map list");
