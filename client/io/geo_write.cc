@@ -51,9 +51,10 @@ bool IsInteger(const std::string& text) {
   return errno == 0 && end == text.c_str() + text.size() && std::to_string(value) == text;
 }
 
-// A number whose text reads back the same from the field (FormatReal's 15 digits; a shapefile's
-// fixed decimals).
-bool IsReal(const std::string& text, TreeFormat format) {
+// A number whose text reads back the same from a Real field of every format written (FormatReal's
+// 15 digits; a shapefile's fixed decimals), so that a column has one type in all of them: "1e-7"
+// is text everywhere, not Real in a GeoPackage and String in a shapefile.
+bool IsReal(const std::string& text) {
   if (text.empty()) return false;
   char* end = nullptr;
   const double value = std::strtod(text.c_str(), &end);
@@ -64,23 +65,21 @@ bool IsReal(const std::string& text, TreeFormat format) {
       std::strtod(shortest, nullptr) != value) {
     return false;
   }
-  if (format != TreeFormat::kShapefile) return true;
   char fixed[64];
   std::snprintf(fixed, sizeof(fixed), "%.15f", value);
   return std::fabs(value) < kShapefileRealLimit && std::strtod(fixed, nullptr) == value;
 }
 
-// Integer64 when every value of the attribute is an integer, Real when every one is a number,
-// else String (and String when no row has a value).
-OGRFieldType AttributeType(const std::vector<MapTreeRow>& rows, const std::string& name,
-                           TreeFormat format) {
+// Integer64 when every value of the attribute is an integer, Real when every one is a number
+// (IsReal), else String (and String when no row has a value); the same in every format.
+OGRFieldType AttributeType(const std::vector<MapTreeRow>& rows, const std::string& name) {
   bool integer = true, real = true, any = false;
   for (const MapTreeRow& row : rows) {
     const auto it = row.attributes.find(name);
     if (it == row.attributes.end()) continue;
     any = true;
     integer = integer && IsInteger(it->second);
-    real = real && IsReal(it->second, format);
+    real = real && IsReal(it->second);
     if (!integer && !real) return OFTString;
   }
   if (!any) return OFTString;
@@ -177,7 +176,7 @@ std::vector<std::string> WriteLayer(GDALDataset& dataset, const std::vector<MapT
                                     const GeoWriteProgress& progress) {
   std::vector<Column> columns;
   for (const ExportedAttribute& attribute : ExportedAttributes(rows, kGeoReserved)) {
-    columns.push_back({attribute, AttributeType(rows, attribute.name, spec.format)});
+    columns.push_back({attribute, AttributeType(rows, attribute.name)});
   }
   const char* shapefile_options[] = {"ENCODING=UTF-8", nullptr};  // and a .cpg saying so
   char** options =

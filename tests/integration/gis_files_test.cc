@@ -276,7 +276,8 @@ TEST_F(GisFilesTest, DetectWithoutCrsLeavesNoOldPrj) {
 }
 
 TEST_F(GisFilesTest, NumbersAreExportedAsNumbersAndReadBackAsWritten) {
-  CreateLocal("plot", "Ht,count,code,mixed", {"62,3,007,1", "6,12,010,2.5", "16.8,-4,x1,NA"});
+  CreateLocal("plot", "Ht,count,code,mixed,tiny",
+              {"62,3,007,1,0.5", "6,12,010,2.5,1e-20", "16.8,-4,x1,NA,2"});
   for (const std::string name : {"n.gpkg", "n.shp", "n.geojson"}) {
     ASSERT_EQ(Cli("map export plot --out '" + Path(name) + "'").exit_code, 0);
     const Result info = Shell("ogrinfo -so -al '" + Path(name) + "'");
@@ -284,6 +285,8 @@ TEST_F(GisFilesTest, NumbersAreExportedAsNumbersAndReadBackAsWritten) {
     EXPECT_TRUE(Has(info.out, "\ncount: Integer")) << name << info.out;
     EXPECT_TRUE(Has(info.out, "\ncode: String")) << name << info.out;  // 007 is no integer
     EXPECT_TRUE(Has(info.out, "\nmixed: Real")) << name << info.out;
+    // 1e-20 cannot be written in a shapefile's 15 decimals: text in every format, not in one only.
+    EXPECT_TRUE(Has(info.out, "\ntiny: String")) << name << info.out;
     // QGIS's Ht > 5 compares numbers: all three trees, not the 6 alone as text.
     const Result tall = Shell("ogrinfo -al -q -where 'Ht > 10' '" + Path(name) + "'");
     EXPECT_TRUE(Has(tall.out, "Ht (Real) = 62") && Has(tall.out, "Ht (Real) = 16.8") &&
