@@ -19,6 +19,7 @@
 #include "client/cli/cli_compare_report.h"
 #include "client/cli/cli_tree_crs.h"
 #include "client/cli/cli_tree_input.h"
+#include "client/io/file_replace.h"
 #include "client/io/las_crs.h"
 #include "client/lib/scan_trees.h"
 
@@ -38,8 +39,9 @@ struct CompareOptions {
   algorithms::InventoryComparisonOptions comparison;
   bool register_first = false;
   bool json = false;
-  std::string links_out;     // --out: the links as CSV
-  std::string unlinked_out;  // --out-unlinked: missed reference trees and unlinked detections
+  std::string links_out;       // --out: the links as CSV
+  std::string unlinked_out;    // --out-unlinked: missed reference trees and unlinked detections
+  std::string registered_out;  // --registered-out: the detections moved into the reference
 };
 
 // Point clouds by extension; a .csv or .txt is a tree file unless --scan says it is a scan.
@@ -140,6 +142,20 @@ std::string RegistrationFailure(const algorithms::RelocalizeResult& result) {
          "Without --register they are compared in the coordinates they have";
 }
 
+// The detections' rows with their positions moved into the reference's frame (`registered`),
+// as CSV with the reference's CRS beside it.
+void WriteRegistered(const std::string& path, std::vector<MapTreeRow> rows,
+                     const std::vector<algorithms::DetectedTree>& registered,
+                     const std::string& crs) {
+  for (size_t i = 0; i < rows.size(); ++i) {
+    rows[i].x = registered[i].position.x();
+    rows[i].y = registered[i].position.y();
+    if (rows[i].z) rows[i].z = registered[i].position.z();
+  }
+  ReplaceFile(path, [&](const std::string& temporary) { WriteMapTreesCsv(temporary, rows); });
+  WriteCrsSidecar(path, crs);
+}
+
 // Moves `detected` into the reference's frame; throws CommandError when it cannot.
 CompareRegistration Register(std::vector<algorithms::DetectedTree>& detected,
                              const std::vector<algorithms::MapTree>& reference, std::ostream& log) {
@@ -150,14 +166,29 @@ CompareRegistration Register(std::vector<algorithms::DetectedTree>& detected,
   }
   const algorithms::Pose3& t = registration.reference_from_detected;
   for (algorithms::DetectedTree& tree : detected) tree.position = t * tree.position;
-  const CompareRegistration out{algorithms::YawOf(t.linear()) * 180 / M_PI, t.translation().x(),
-                                t.translation().y(), registration.result.inliers,
-                                registration.result.rmse};
-  char text[160];
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (const algorithms::MapTree& tree : reference) {
+    centre += Eigen::Vector3d(tree.position.x(), tree.position.y(), 0);
+  }
+  centre /= static_cast<double>(std::max<size_t>(1, reference.size()));
+  // p' - c = R (p - c) + shift: the shift is what the transform does at the centre.
+  const Eigen::Vector3d shift = t * centre - centre;
+  CompareRegistration out;
+  out.rotation_deg = algorithms::YawOf(t.linear()) * 180 / M_PI;
+  out.centre_x = centre.x();
+  out.centre_y = centre.y();
+  out.shift_x = shift.x();
+  out.shift_y = shift.y();
+  out.translation_x = t.translation().x();
+  out.translation_y = t.translation().y();
+  out.inliers = registration.result.inliers;
+  out.rmse = registration.result.rmse;
+  char text[200];
   std::snprintf(text, sizeof(text),
-                "registered: rotation %.3f deg, translation (%.3f, %.3f) m, %d inliers, "
-                "rmse %.3f m\n",
-                out.rotation_deg, out.translation_x, out.translation_y, out.inliers, out.rmse);
+                "registered: rotation %.3f deg and shift (%.3f, %.3f) m about the reference's "
+                "centre (%.1f, %.1f), %d inliers, rmse %.3f m\n",
+                out.rotation_deg, out.shift_x, out.shift_y, out.centre_x, out.centre_y, out.inliers,
+                out.rmse);
   log << text;
   return out;
 }
@@ -174,7 +205,14 @@ void Run(const CompareOptions& o, const CliContext& context) {
   std::vector<algorithms::DetectedTree> detected = AsDetections(detected_rows);
   const std::vector<algorithms::MapTree> reference = ToMapTrees(reference_rows);
   CompareReport report{o.detections, o.reference, o.comparison.link_distance, {}, {}, {}};
+  if (!o.registered_out.empty()) {
+    if (!o.register_first) throw CommandError("--registered-out needs --register");
+    CheckNoSidecarClash(o.registered_out, TreeFormat::kCsv);
+  }
   if (o.register_first) report.registration = Register(detected, reference, *context.err);
+  if (!o.registered_out.empty()) {
+    WriteRegistered(o.registered_out, detected_rows, detected, reference_file.crs);
+  }
   report.result = algorithms::CompareInventories(detected, reference, o.comparison);
   if (const auto visible = VisibleColumn(reference_rows, o.reference)) {
     report.visible = algorithms::CompletenessOver(report.result, *visible);
@@ -248,6 +286,9 @@ void AddCompareCommand(CLI::App& app, CliContext& context) {
   sub->add_option("--out-unlinked", o->unlinked_out,
                   "Write the trees without a link as CSV (status,id,x,y,dbh_m): missed reference "
                   "trees, then unlinked detections (status commission)");
+  sub->add_option("--registered-out", o->registered_out,
+                  "With --register: write the detections moved into the reference's "
+                  "coordinates as CSV (the reference's CRS in a .prj beside it)");
   sub->callback([o, &context] { context.run = [o, &context] { Run(*o, context); }; });
 }
 

@@ -103,6 +103,10 @@ nlohmann::ordered_json CompareJson(const CompareReport& report) {
   if (report.registration) {
     const CompareRegistration& t = *report.registration;
     json["registration"] = {{"rotation_deg", t.rotation_deg},
+                            {"centre_x_m", t.centre_x},
+                            {"centre_y_m", t.centre_y},
+                            {"shift_x_m", t.shift_x},
+                            {"shift_y_m", t.shift_y},
                             {"translation_x_m", t.translation_x},
                             {"translation_y_m", t.translation_y},
                             {"inliers", t.inliers},

@@ -16,9 +16,16 @@
 namespace forestmap::client {
 
 // The --register transform, when there was one.
+// The shift is given about the reference's centre (the mean of its trees), where a reader can
+// judge it: how far the detections there move. The translation is the same transform's about
+// the coordinates' origin (a UTM origin is hundreds of km away), for machines.
 struct CompareRegistration {
   double rotation_deg = 0;   // yaw, reference from detected
-  double translation_x = 0;  // m
+  double centre_x = 0;       // m, the reference's centre
+  double centre_y = 0;       // m
+  double shift_x = 0;        // m, of the detections at the centre
+  double shift_y = 0;        // m
+  double translation_x = 0;  // m, reference_from_detected's, about the origin
   double translation_y = 0;  // m
   int inliers = 0;           // trees the relocalizer matched
   double rmse = 0;           // m, of those matches

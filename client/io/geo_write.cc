@@ -51,9 +51,10 @@ bool IsInteger(const std::string& text) {
   return errno == 0 && end == text.c_str() + text.size() && std::to_string(value) == text;
 }
 
-// A number whose text reads back the same from the field (FormatReal's 15 digits; a shapefile's
-// fixed decimals).
-bool IsReal(const std::string& text, TreeFormat format) {
+// A number whose text reads back the same from a Real field of every format written (FormatReal's
+// 15 digits; a shapefile's fixed decimals), so that a column has one type in all of them: "1e-7"
+// is text everywhere, not Real in a GeoPackage and String in a shapefile.
+bool IsReal(const std::string& text) {
   if (text.empty()) return false;
   char* end = nullptr;
   const double value = std::strtod(text.c_str(), &end);
@@ -64,23 +65,21 @@ bool IsReal(const std::string& text, TreeFormat format) {
       std::strtod(shortest, nullptr) != value) {
     return false;
   }
-  if (format != TreeFormat::kShapefile) return true;
   char fixed[64];
   std::snprintf(fixed, sizeof(fixed), "%.15f", value);
   return std::fabs(value) < kShapefileRealLimit && std::strtod(fixed, nullptr) == value;
 }
 
-// Integer64 when every value of the attribute is an integer, Real when every one is a number,
-// else String (and String when no row has a value).
-OGRFieldType AttributeType(const std::vector<MapTreeRow>& rows, const std::string& name,
-                           TreeFormat format) {
+// Integer64 when every value of the attribute is an integer, Real when every one is a number
+// (IsReal), else String (and String when no row has a value); the same in every format.
+OGRFieldType AttributeType(const std::vector<MapTreeRow>& rows, const std::string& name) {
   bool integer = true, real = true, any = false;
   for (const MapTreeRow& row : rows) {
     const auto it = row.attributes.find(name);
     if (it == row.attributes.end()) continue;
     any = true;
     integer = integer && IsInteger(it->second);
-    real = real && IsReal(it->second, format);
+    real = real && IsReal(it->second);
     if (!integer && !real) return OFTString;
   }
   if (!any) return OFTString;
@@ -173,10 +172,11 @@ struct LayerSpec {
 };
 
 std::vector<std::string> WriteLayer(GDALDataset& dataset, const std::vector<MapTreeRow>& rows,
-                                    const LayerSpec& spec, const std::string& path) {
+                                    const LayerSpec& spec, const std::string& path,
+                                    const GeoWriteProgress& progress) {
   std::vector<Column> columns;
   for (const ExportedAttribute& attribute : ExportedAttributes(rows, kGeoReserved)) {
-    columns.push_back({attribute, AttributeType(rows, attribute.name, spec.format)});
+    columns.push_back({attribute, AttributeType(rows, attribute.name)});
   }
   const char* shapefile_options[] = {"ENCODING=UTF-8", nullptr};  // and a .cpg saying so
   char** options =
@@ -186,7 +186,10 @@ std::vector<std::string> WriteLayer(GDALDataset& dataset, const std::vector<MapT
   std::vector<std::string> warnings = CreateFields(*layer, columns, path);
   // One transaction (GeoPackage): thousands of features commit at once.
   const bool transaction = dataset.StartTransaction() == OGRERR_NONE;
-  for (size_t i = 0; i < rows.size(); ++i) WriteFeature(*layer, rows[i], columns, i, path);
+  for (size_t i = 0; i < rows.size(); ++i) {
+    WriteFeature(*layer, rows[i], columns, i, path);
+    if (progress) progress(static_cast<int64_t>(i + 1), std::ssize(rows));
+  }
   if (transaction && dataset.CommitTransaction() != OGRERR_NONE) {
     throw CsvError(path + ": cannot commit: " + LastGdalError());
   }
@@ -265,7 +268,7 @@ void PlaceShapefile(const std::string& temporary, const std::string& path) {
 
 std::vector<std::string> WriteGeoTrees(const std::string& path, TreeFormat format,
                                        const std::vector<MapTreeRow>& rows, const std::string& crs,
-                                       const std::string& layer) {
+                                       const std::string& layer, const GeoWriteProgress& progress) {
   geo_internal::RegisterGdal();
   GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(DriverName(format));
   if (!driver || format == TreeFormat::kCsv) {
@@ -283,7 +286,7 @@ std::vector<std::string> WriteGeoTrees(const std::string& path, TreeFormat forma
     CPLErrorReset();
     DatasetPtr dataset = OpenForWriting(*driver, format, path, target, layer);
     const std::string name = shapefile ? fs::path(path).stem().string() : layer;
-    warnings = WriteLayer(*dataset, rows, {name, format, srs.get()}, path);
+    warnings = WriteLayer(*dataset, rows, {name, format, srs.get()}, path, progress);
     dataset.reset();  // closes: GeoJSON and shapefiles are complete only now
     if (CPLGetLastErrorType() == CE_Failure) throw CsvError(path + ": " + LastGdalError());
     if (format == TreeFormat::kGeoJson && crs.empty()) MarkNoCrs(temporary, path);

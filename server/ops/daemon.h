@@ -1,6 +1,6 @@
 #pragma once
-// Pieces of forestmapd's main besides serving: the offline subcommands (token admin, backup),
-// the server's own metrics, and the warning for an exposed, unprotected listener.
+// Pieces of forestmapd's main besides serving: the offline subcommands (token admin, backup)
+// and the warning for an exposed, unprotected listener.
 
 #include <CLI/CLI.hpp>
 #include <functional>
@@ -8,9 +8,6 @@
 #include <string>
 
 namespace forestmap::server {
-
-class Metrics;
-class MapIndexCache;
 
 // `forestmapd token create|list|revoke [--db PATH] ...` and `forestmapd backup [--db PATH] --out
 // F`. Without their --db they use `server_db`, forestmapd's own --db as parsed (flag, variable,
@@ -22,10 +19,6 @@ void AddTokenCommands(CLI::App& app, const std::string& server_db, std::function
                       std::ostream& out);
 void AddBackupCommand(CLI::App& app, const std::string& server_db, std::function<int()>& run,
                       std::ostream& out);
-
-// Index builds and cache size (from `cache`) and the database file size (`db_path` plus its
-// -wal file), sampled at every scrape. `cache` must outlive `metrics`' scrapes.
-void AddServerMetrics(Metrics& metrics, const MapIndexCache& cache, const std::string& db_path);
 
 // Which listener WarnIfExposed looks at: the gRPC port, or the read-only web page (plain HTTP).
 enum class Listener { kGrpc, kWebPage };

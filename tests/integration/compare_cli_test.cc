@@ -125,12 +125,46 @@ TEST_F(CompareCliTest, RegisterTransformIsInTheJson) {
   }
   Write("r.csv", reference.str());
   Write("d.csv", detected.str());
-  const Result json = Compare("d.csv --reference r.csv --register --json");
+  const Result json =
+      Compare("d.csv --reference r.csv --register --json --registered-out moved.csv");
   ASSERT_EQ(json.exit_code, 0) << json.err;
   const nlohmann::json r = nlohmann::json::parse(json.out);
   ASSERT_TRUE(r.contains("registration")) << json.out;
-  EXPECT_NEAR(r["registration"]["rotation_deg"].get<double>(), -angle * 180 / M_PI, 0.1);
+  const nlohmann::json& t = r["registration"];
+  EXPECT_NEAR(t["rotation_deg"].get<double>(), -angle * 180 / M_PI, 0.1);
   EXPECT_EQ(r["linked"], 60);
+  // The shift about the reference's centre c is what the transform does there: T(c) - c, with
+  // T(d) = R(-angle) (d - (100, -50)) (the detections are the reference turned by `angle` about
+  // the origin, then moved by (100, -50)).
+  const double cx = t["centre_x_m"], cy = t["centre_y_m"];
+  EXPECT_GT(cx, 10);
+  EXPECT_LT(cx, 30);
+  const double qx = cx - 100, qy = cy + 50;
+  const double tx = std::cos(angle) * qx + std::sin(angle) * qy;
+  const double ty = -std::sin(angle) * qx + std::cos(angle) * qy;
+  EXPECT_NEAR(t["shift_x_m"].get<double>(), tx - cx, 0.05);
+  EXPECT_NEAR(t["shift_y_m"].get<double>(), ty - cy, 0.05);
+  EXPECT_NE(json.err.find("about the reference's centre"), std::string::npos) << json.err;
+  // The registered detections lie on the reference's trees, with their own columns.
+  std::ifstream moved(dir_ / "moved.csv");
+  std::ifstream truth(dir_ / "r.csv");
+  std::string header, line, expected;
+  std::getline(moved, header);
+  std::getline(truth, expected);
+  EXPECT_EQ(header, "id,x,y,z,dbh");
+  int rows = 0;
+  while (std::getline(moved, line) && std::getline(truth, expected)) {
+    double id, x, y, ex, ey, ignored;
+    char c;
+    std::istringstream(line) >> id >> c >> x >> c >> y;
+    std::istringstream(expected) >> ignored >> c >> ex >> c >> ey;
+    EXPECT_NEAR(x, ex, 0.05) << line;
+    EXPECT_NEAR(y, ey, 0.05) << line;
+    ++rows;
+  }
+  EXPECT_EQ(rows, 60);
+  EXPECT_NE(Compare("d.csv --reference r.csv --registered-out m.csv").err.find("needs --register"),
+            std::string::npos);
 }
 
 TEST_F(CompareCliTest, MessagesNameTheFlagGivenAndAreShort) {
