@@ -8,7 +8,8 @@
 - deploy/kubernetes/forestmapd.yaml is YAML: TLS from a Secret, metrics port and Prometheus
   annotations, a NetworkPolicy; its ConfigMap's forestmapd.conf, with the pod's variables, starts
   the built forestmapd beyond loopback with TLS and no warning once the documented bootstrap
-  command made a token in the same database, which then gates the calls.
+  command made a token in the same database, which then gates the calls; the probes' paths
+  answer 200 on the metrics port.
 
 Usage: manifests_test.py FORESTMAPD FORESTMAP (the built binaries)
 """
@@ -22,6 +23,7 @@ import sys
 import tempfile
 import time
 import unittest
+import urllib.request
 
 import yaml
 
@@ -108,6 +110,10 @@ class Kubernetes(unittest.TestCase):
         self.assertNotIn("from", by_port["grpc"])  # clients from anywhere, with TLS and tokens
         self.assertIn("namespaceSelector", by_port["metrics"]["from"][0])  # Prometheus only
         self.assertEqual(set(policy["policyTypes"]), {"Ingress", "Egress"})
+        # Probes on the metrics port (kubelet's gRPC probe speaks no TLS), paths the test serves.
+        for probe, path in (("readinessProbe", "/readyz"), ("livenessProbe", "/healthz"),
+                            ("startupProbe", "/healthz")):
+            self.assertEqual(self.container[probe]["httpGet"], {"path": path, "port": "metrics"})
 
     def test_config_map_serves_tls_and_the_bootstrap_token_gates_it(self):
         conf = self.docs["ConfigMap/forestmapd-config"]["data"]["forestmapd.conf"]
@@ -137,11 +143,16 @@ class Kubernetes(unittest.TestCase):
                                                          "FORESTMAPD_LISTEN": "0.0.0.0:0"},
                                       stderr=log)
             try:
-                port = self.wait_for_port(tmp / "server.log")
+                port = self.wait_for(tmp / "server.log", r"serving on [^ ]*:(\d+)")
+                metrics = self.wait_for(tmp / "server.log", r"metrics on http://[^ ]*:(\d+)/")
+                for path in ("/healthz", "/readyz"):  # the probes' paths
+                    with urllib.request.urlopen(f"http://127.0.0.1:{metrics}{path}") as answer:
+                        self.assertEqual(answer.status, 200, path)
                 lines = [json.loads(line) for line in (tmp / "server.log").read_text().splitlines()]
                 self.assertFalse([l for l in lines if "WARNING" in l["msg"]], lines)
                 client = [FORESTMAP, "--server", f"localhost:{port}", "--tls-ca",
                           str(tmp / "tls.crt")]
+                self.assertEqual(run(client + ["health"], {}).returncode, 0)
                 refused = run(client + ["map", "list"], {})
                 self.assertNotEqual(refused.returncode, 0)
                 self.assertIn("UNAUTHENTICATED", refused.stderr)
@@ -152,10 +163,10 @@ class Kubernetes(unittest.TestCase):
                 server.wait(timeout=20)
                 log.close()
 
-    def wait_for_port(self, log):
+    def wait_for(self, log, pattern):
         deadline = time.monotonic() + 20
         while time.monotonic() < deadline:
-            match = re.search(r"serving on [^ ]*:(\d+)", log.read_text())
+            match = re.search(pattern, log.read_text())
             if match:
                 return int(match.group(1))
             time.sleep(0.05)
