@@ -7,6 +7,7 @@
 #include <signal.h>
 
 #include <CLI/CLI.hpp>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -148,30 +149,43 @@ Listeners StartListeners(const Config& config, forestmap::storage::MapStore& sto
   } catch (const std::runtime_error& e) {
     throw std::runtime_error("--listen " + config.listen + ": " + e.what());
   }
-  forestmap::server::WarnIfExposed(config.listen, tls != nullptr, tokens.AnyToken());
-  listeners.readiness = StartReadiness(config, store, service, *listeners.server);
-  forestmap::server::AddReadinessMetric(metrics, *listeners.readiness);
   if (!config.http.empty()) {
     listeners.page = std::make_unique<forestmap::server::HttpPage>(store, service.recent_answers(),
                                                                    config.http, &tokens);
-    forestmap::server::LogLine("web page on http://" + listeners.page->address() + "/");
-    forestmap::server::WarnIfExposed(config.http, /*tls=*/false, tokens.AnyToken(),
-                                     forestmap::server::Listener::kWebPage);
   }
+  // The readiness starts last (it logs), so that a listener failing to start is the only line;
+  // until then /readyz answers "starting".
+  auto readiness = std::make_shared<std::atomic<const forestmap::server::Readiness*>>(nullptr);
   if (!config.metrics.empty()) {
-    const forestmap::server::Readiness* readiness = listeners.readiness.get();
     listeners.metrics_http = std::make_unique<forestmap::server::MetricsHttpServer>(
         config.metrics, [&metrics] { return metrics.Render(); },
         [readiness] {
-          const auto state = readiness->state();
+          const forestmap::server::Readiness* started = *readiness;
+          if (started == nullptr) return std::make_pair(false, std::string("starting"));
+          const auto state = started->state();
           return std::make_pair(state.ready, state.reason);
         });
+  }
+  listeners.readiness = StartReadiness(config, store, service, *listeners.server);
+  *readiness = listeners.readiness.get();
+  forestmap::server::AddReadinessMetric(metrics, *listeners.readiness);
+  return listeners;
+}
+
+// The warnings and lines of the listeners, once all of them started.
+void AnnounceListeners(const Config& config, const Listeners& listeners, bool tls, bool tokens) {
+  forestmap::server::WarnIfExposed(config.listen, tls, tokens);
+  if (listeners.page) {
+    forestmap::server::LogLine("web page on http://" + listeners.page->address() + "/");
+    forestmap::server::WarnIfExposed(config.http, /*tls=*/false, tokens,
+                                     forestmap::server::Listener::kWebPage);
+  }
+  if (listeners.metrics_http) {
     forestmap::server::LogLine(
         "metrics on http://" +
         forestmap::server::BoundHttpAddress(config.metrics, listeners.metrics_http->port()) +
         "/metrics");
   }
-  return listeners;
 }
 
 // The flags of serving (not of the token and backup subcommands), into `config`.
@@ -392,6 +406,7 @@ int Serve(const Config& config, const CLI::App& app, int argc, const char* const
     return StartupFailure(e.what());
   }
   forestmap::server::GrpcErrorsAreWarnings();
+  AnnounceListeners(config, listeners, tls != nullptr, tokens->AnyToken());
   const std::string file = forestmap::server::ConfigFileRead(app);
   Log(LogLevel::kInfo,
       "serving on " + listeners.server->address() + ", database " + shown_db + ", " +
