@@ -22,6 +22,7 @@ PACKAGES=(
   postgresql  # initdb / pg_ctl for the tests' throwaway cluster (tests/pg_fixture.h)
   python3-grpcio python3-protobuf python3-numpy python3-pytest  # client/python and its tests
   systemd  # systemd-analyze verify of deploy/forestmapd.service (a test)
+  dpkg-dev file  # cpack's Debian packages: dpkg-shlibdeps computes their Depends (deploy/package.sh)
   libssl-dev openssl  # token hashes (libcrypto); tests make TLS certificates with the CLI
   libspdlog-dev  # forestmapd's structured logs (--metrics uses libcpp-httplib-dev above)
   prometheus  # promtool, which checks the metrics exposition in a test
