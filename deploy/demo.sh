@@ -24,7 +24,7 @@ kill -0 $server 2>/dev/null || { echo "demo: forestmapd did not start (is $addr 
 # A real surveyed stem map when ../shared/data is beside the clone, else a generated forest.
 "$bin/client/lab/forestmap-lab" demo-data --out demo-out \
   --stemmap ../shared/data/stemmaps/spatstat_longleaf.csv
-"$bin/client/cli/forestmap" map delete demo >/dev/null 2>&1 || true
+"$bin/client/cli/forestmap" map delete --yes demo >/dev/null 2>&1 || true
 "$bin/client/cli/forestmap" map create demo --trees demo-out/map.csv \
   --description "ForestMap demo forest"
 "$bin/client/cli/forestmap" map show demo

@@ -21,6 +21,7 @@ PACKAGES=(
   libpq-dev   # the PostgreSQL map store (--db postgresql://...)
   postgresql  # initdb / pg_ctl for the tests' throwaway cluster (tests/pg_fixture.h)
   python3-grpcio python3-protobuf python3-numpy python3-pytest  # client/python and its tests
+  python3-pip python3-setuptools python3-wheel python3-venv  # its wheel, built offline and installed in a venv
   systemd  # systemd-analyze verify of deploy/forestmapd.service (a test)
   dpkg-dev file  # cpack's Debian packages: dpkg-shlibdeps computes their Depends (deploy/package.sh)
   mmdebstrap  # a Debian 12 root filesystem for deploy/Dockerfile's runtime stage (a test)

@@ -100,14 +100,8 @@ std::unique_ptr<PostgresCluster> PostgresCluster::Start() {
                "--no-sync --no-instructions");
   for (int attempt = 1;; ++attempt) {
     cluster->port_ = FreeLoopbackPort();
-    // fsync off: a test cluster never outlives a crash, and it makes CREATE DATABASE fast.
-    const std::string options = "-p " + std::to_string(cluster->port_) + " -k '" + dir +
-                                "' -c listen_addresses=127.0.0.1 -c fsync=off "
-                                "-c synchronous_commit=off -c full_page_writes=off "
-                                "-c max_connections=300";
     try {
-      Run(dir, bin + "/pg_ctl -D '" + dir + "/data' -l '" + dir + "/postgres.log' -w -t 60 -o \"" +
-                   options + "\" start");
+      cluster->StartServer();
       break;
     } catch (const std::exception&) {
       if (attempt == kStartAttempts) throw;
@@ -115,6 +109,22 @@ std::unique_ptr<PostgresCluster> PostgresCluster::Start() {
   }
   return cluster;
 }
+
+void PostgresCluster::StartServer() {
+  // fsync off: a test cluster never outlives a crash, and it makes CREATE DATABASE fast.
+  const std::string options = "-p " + std::to_string(port_) + " -k '" + dir_ +
+                              "' -c listen_addresses=127.0.0.1 -c fsync=off "
+                              "-c synchronous_commit=off -c full_page_writes=off "
+                              "-c max_connections=300";
+  Run(dir_, BinDir() + "/pg_ctl -D '" + dir_ + "/data' -l '" + dir_ +
+                "/postgres.log' -w -t 60 -o \"" + options + "\" start");
+}
+
+void PostgresCluster::Stop() {
+  Run(dir_, BinDir() + "/pg_ctl -D '" + dir_ + "/data' -m fast -w stop");
+}
+
+void PostgresCluster::Restart() { StartServer(); }
 
 PostgresCluster::~PostgresCluster() {
   if (detached_) return;

@@ -29,6 +29,10 @@ class PostgresCluster {
   // postgresql://postgres@127.0.0.1:PORT (append "/dbname").
   std::string server_url() const;
   const std::string& dir() const { return dir_; }
+  // Stops the server (its clients' connections break; new ones are refused) and starts it
+  // again on the same port, for tests of a database that goes away and comes back.
+  void Stop();
+  void Restart();
   // Leaves the cluster running when this object is destroyed (the CTest fixture's start).
   void Detach() { detached_ = true; }
   // Stops the cluster that lives in `dir` and removes the directory.
@@ -36,6 +40,7 @@ class PostgresCluster {
 
  private:
   PostgresCluster(std::string dir, int port) : dir_(std::move(dir)), port_(port) {}
+  void StartServer();  // pg_ctl start on port_
   std::string dir_;
   int port_ = 0;
   bool detached_ = false;

@@ -13,12 +13,14 @@ namespace forestmap::client {
 void AddMapCommand(CLI::App& app, CliContext& context);            // cli_map.cc
 void AddMapPruneCommand(CLI::App& map_app, CliContext& context);   // cli_prune.cc ("map prune")
 void AddMapUploadCommand(CLI::App& map_app, CliContext& context);  // cli_map_upload.cc
-void AddRelocalizeCommand(CLI::App& app, CliContext& context);     // cli_relocalize.cc
-void AddObserveCommand(CLI::App& app, CliContext& context);        // cli_observe.cc
-void AddDetectCommand(CLI::App& app, CliContext& context);         // cli_detect.cc
-void AddTrackCommand(CLI::App& app, CliContext& context);          // cli_track.cc
-void AddHealthCommand(CLI::App& app, CliContext& context);         // cli_health.cc
-void AddCompareCommand(CLI::App& app, CliContext& context);        // cli_compare.cc
-void AddPlotCommand(CLI::App& app, CliContext& context);           // cli_plot.cc
+// cli_map_list.cc: "map list", "map show", "map history" (each with --json) and "map delete".
+void AddMapListingCommands(CLI::App& map_app, CliContext& context);
+void AddRelocalizeCommand(CLI::App& app, CliContext& context);  // cli_relocalize.cc
+void AddObserveCommand(CLI::App& app, CliContext& context);     // cli_observe.cc
+void AddDetectCommand(CLI::App& app, CliContext& context);      // cli_detect.cc
+void AddTrackCommand(CLI::App& app, CliContext& context);       // cli_track.cc
+void AddHealthCommand(CLI::App& app, CliContext& context);      // cli_health.cc
+void AddCompareCommand(CLI::App& app, CliContext& context);     // cli_compare.cc
+void AddPlotCommand(CLI::App& app, CliContext& context);        // cli_plot.cc
 
 }  // namespace forestmap::client

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <ctime>
+#include <memory>
 #include <stdexcept>
 
 #include "client/io/csv_columns.h"
@@ -130,19 +131,22 @@ std::string FormatExtent(const v1::Map& map) {
 }
 
 UploadProgress UploadProgressTo(std::ostream& err, int64_t trees, int64_t chunk) {
-  if (trees <= chunk) return {};
-  return [&err, chunk](int64_t sent, int64_t total) {
-    if (IsProgressStep(sent, total, chunk)) {
-      err << "uploading: " << sent << "/" << total << " trees" << std::endl;
-    }
-  };
+  const auto progress = ProgressTo(err, "uploading", trees, chunk);
+  if (!progress) return {};
+  return [progress](int64_t sent, int64_t) { progress(sent); };
 }
 
-bool IsProgressStep(int64_t sent, int64_t total, int64_t chunk) {
-  constexpr int64_t kProgressSteps = 10;  // lines of progress per upload, about
-  if (total <= 0 || sent >= total) return true;
-  const int64_t before = std::max<int64_t>(0, sent - chunk);
-  return sent * kProgressSteps / total != before * kProgressSteps / total;
+std::function<void(int64_t done)> ProgressTo(std::ostream& err, std::string verb, int64_t total,
+                                             int64_t chunk) {
+  static constexpr int64_t kSteps = 10;  // lines of progress per job, at most
+  if (total <= chunk) return {};
+  auto printed = std::make_shared<int64_t>(0);  // the last tenth printed
+  return [&err, verb = std::move(verb), total, printed](int64_t done) {
+    const int64_t step = std::min(kSteps, done * kSteps / total);
+    if (step <= *printed) return;
+    *printed = step;
+    err << verb << ": " << std::min(done, total) << "/" << total << " trees" << std::endl;
+  };
 }
 
 std::string FormatUnixMs(int64_t unix_ms) {

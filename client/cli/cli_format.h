@@ -3,6 +3,7 @@
 // that it can be tested without a server.
 
 #include <cstdint>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <ostream>
@@ -50,13 +51,14 @@ std::string FormatMapDetails(const v1::Map& map);
 // "x 0.00..200.00 m, y 8.80..200.00 m" or "-" for an empty map.
 std::string FormatExtent(const v1::Map& map);
 
-// Whether an upload that has sent `sent` of `total` trees, `chunk` per message, prints its
-// progress now: when it crosses a tenth of `total` and at the end (at most 11 lines, whether or
-// not stderr is a terminal).
-bool IsProgressStep(int64_t sent, int64_t total, int64_t chunk);
+// The progress of a job over `total` trees (an upload, an export, a file written), done `chunk`
+// at a time or less: a line "<verb>: DONE/TOTAL trees" on `err` when DONE reaches a new tenth of
+// TOTAL, the last one at the end (at most 10 lines, whether or not `err` is a terminal); empty
+// (nothing to call) for a job of one chunk.
+std::function<void(int64_t done)> ProgressTo(std::ostream& err, std::string verb, int64_t total,
+                                             int64_t chunk);
 
-// The progress of an upload of `trees` trees, `chunk` per message: "uploading: SENT/TOTAL trees"
-// lines on `err` at each IsProgressStep; nothing for an upload of one message.
+// ProgressTo for an upload of `trees` trees, `chunk` per message ("uploading: ...").
 UploadProgress UploadProgressTo(std::ostream& err, int64_t trees, int64_t chunk);
 
 // UTC ISO 8601 ("2024-05-01T12:00:00Z"), or "-" for 0.

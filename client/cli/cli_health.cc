@@ -1,6 +1,8 @@
 // `forestmap health`: asks every --server replica for its gRPC health (grpc.health.v1.Health,
-// service "" = the whole server) and prints one line each. Exit status 0 when all answer SERVING:
-// the container HEALTHCHECK and the Kubernetes probes run it.
+// service "" = the whole server: SERVING once the database answers and the preloaded indexes are
+// built; with --map, "map/NAME" = that preloaded map's index is warm) and prints one line each.
+// Exit status 0 when all answer SERVING: the container HEALTHCHECK and the Kubernetes probes run
+// it. The channel has the global TLS flags (the health service needs no token).
 
 #include <grpcpp/grpcpp.h>
 
@@ -16,17 +18,24 @@ namespace {
 
 struct HealthOptions {
   double timeout_s = 2.0;  // s, deadline of each check
+  std::string map;         // --map: that preloaded map's status instead of the server's
 };
 
 // "SERVING", or what went wrong.
-std::string Check(const std::string& address, double timeout_s) {
-  const auto channel = grpc::CreateChannel(address, grpc::InsecureChannelCredentials());
+std::string Check(const std::string& address, const HealthOptions& options,
+                  const ClientOptions& client) {
+  const auto channel = grpc::CreateChannel(address, ChannelCredentialsFor(client));
   const auto stub = grpc::health::v1::Health::NewStub(channel);
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() +
-                       std::chrono::milliseconds(static_cast<int64_t>(timeout_s * 1000)));
+                       std::chrono::milliseconds(static_cast<int64_t>(options.timeout_s * 1000)));
+  grpc::health::v1::HealthCheckRequest request;
+  if (!options.map.empty()) request.set_service("map/" + options.map);
   grpc::health::v1::HealthCheckResponse response;
-  const grpc::Status status = stub->Check(&context, {}, &response);
+  const grpc::Status status = stub->Check(&context, request, &response);
+  if (status.error_code() == grpc::StatusCode::NOT_FOUND && !options.map.empty()) {
+    return "UNKNOWN: map '" + options.map + "' is not preloaded (forestmapd --preload)";
+  }
   if (!status.ok()) return "unreachable: " + status.error_message();
   return grpc::health::v1::HealthCheckResponse::ServingStatus_Name(response.status());
 }
@@ -35,7 +44,7 @@ void Run(const HealthOptions& options, const CliContext& context) {
   std::stringstream list(context.server);
   int unhealthy = 0;
   for (std::string address; std::getline(list, address, ',');) {
-    const std::string state = Check(address, options.timeout_s);
+    const std::string state = Check(address, options, context.client);
     *context.out << address << " " << state << "\n";
     unhealthy += state != "SERVING";
   }
@@ -55,6 +64,9 @@ void AddHealthCommand(CLI::App& app, CliContext& context) {
   sub->add_option("--timeout", options->timeout_s, "Deadline of each check, s")
       ->check(CLI::Range(0.01, 600.0))
       ->capture_default_str();
+  sub->add_option("--map", options->map,
+                  "Whether this map's relocalization index is built (a map forestmapd "
+                  "preloads, --preload) instead of the whole server");
   sub->callback(
       [options, &context] { context.run = [options, &context] { Run(*options, context); }; });
 }

@@ -5,7 +5,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <iomanip>
 #include <map>
 #include <memory>
 #include <optional>
@@ -190,39 +189,6 @@ void AddBuild(CLI::App& map_app, CliContext& context) {
       [options, &context] { context.run = [options, &context] { RunBuild(*options, context); }; });
 }
 
-void AddList(CLI::App& map_app, CliContext& context) {
-  CLI::App* sub =
-      map_app.add_subcommand("list", "List the maps: name, trees, version, crs, extent");
-  sub->callback([&context] {
-    context.run = [&context] {
-      *context.out << FormatMapTable(context.Connect().ListMaps()) << std::flush;
-    };
-  });
-}
-
-void AddShow(CLI::App& map_app, CliContext& context) {
-  auto name = std::make_shared<std::string>();
-  CLI::App* sub = map_app.add_subcommand("show", "Show a map's fields");
-  sub->add_option("NAME", *name, "Map name")->required();
-  sub->callback([name, &context] {
-    context.run = [name, &context] {
-      *context.out << FormatMapDetails(context.Connect().GetMap(*name)) << std::flush;
-    };
-  });
-}
-
-void AddDelete(CLI::App& map_app, CliContext& context) {
-  auto name = std::make_shared<std::string>();
-  CLI::App* sub = map_app.add_subcommand("delete", "Delete a map and all its trees");
-  sub->add_option("NAME", *name, "Map name")->required();
-  sub->callback([name, &context] {
-    context.run = [name, &context] {
-      context.Connect().DeleteMap(*name);
-      *context.out << "deleted map '" << *name << "'" << std::endl;
-    };
-  });
-}
-
 struct ExportOptions {
   std::string name;
   std::string out_file;  // empty or "-": stdout
@@ -271,21 +237,36 @@ TreeFormat ExportFormat(const ExportOptions& options) {
   return format;
 }
 
+// Trees of the exported version, for the progress lines (0: unknown).
+int64_t TreesToExport(ForestMapClient& client, const v1::Map& map, int64_t version) {
+  if (version == 0 || version == map.version()) return map.tree_count();
+  for (const v1::MapVersion& listed : client.ListVersions(map.name())) {
+    if (listed.version() == version) return listed.tree_count();
+  }
+  return 0;
+}
+
 void RunExport(const ExportOptions& options, const CliContext& context) {
+  constexpr int64_t kExportChunk = 5000;  // trees per message the server sends, at most
+  const bool to_stdout = options.out_file.empty() || options.out_file == "-";
+  if (to_stdout && !options.format.empty() && options.format != "csv") {
+    throw CommandError("--format " + options.format + " needs --out FILE");
+  }
+  // Checked before the download.
+  const TreeFormat format = to_stdout ? TreeFormat::kCsv : ExportFormat(options);
+  ForestMapClient client = context.Connect();
+  const v1::Map map = client.GetMap(options.name);
+  const int64_t total = TreesToExport(client, map, options.version);
   ExportedTrees exported =
-      context.Connect().ExportTrees(options.name, std::nullopt, options.version);
+      client.ExportTrees(options.name, std::nullopt, options.version,
+                         ProgressTo(*context.err, "exporting", total, kExportChunk));
   AddStateColumns(exported);
-  if (options.out_file.empty() || options.out_file == "-") {
-    if (!options.format.empty() && options.format != "csv") {
-      throw CommandError("--format " + options.format + " needs --out FILE");
-    }
+  if (to_stdout) {
     WriteMapTreesCsv(*context.out, exported.trees);
     context.out->flush();
     if (!*context.out) throw CommandError("writing to standard output failed");
     return;
   }
-  const TreeFormat format = ExportFormat(options);
-  const v1::Map map = context.Connect().GetMap(options.name);
   if (format == TreeFormat::kCsv) {
     ReplaceFile(options.out_file,
                 [&](const std::string& temporary) { WriteMapTreesCsv(temporary, exported.trees); });
@@ -294,8 +275,11 @@ void RunExport(const ExportOptions& options, const CliContext& context) {
     WriteCrsSidecar(options.out_file, map.crs());
   } else {
     // A GeoPackage takes the map as its layer (others stay); other formats are replaced.
-    for (const std::string& warning :
-         WriteGeoTrees(options.out_file, format, exported.trees, map.crs(), options.name)) {
+    const auto written = ProgressTo(*context.err, "writing " + options.out_file,
+                                    std::ssize(exported.trees), kExportChunk);
+    for (const std::string& warning : WriteGeoTrees(
+             options.out_file, format, exported.trees, map.crs(), options.name,
+             written ? [&written](int64_t done, int64_t) { written(done); } : GeoWriteProgress())) {
       *context.err << "forestmap: warning: " << warning << std::endl;
     }
   }
@@ -321,61 +305,6 @@ void AddExport(CLI::App& map_app, CliContext& context) {
       ->check(CLI::NonNegativeNumber);
   sub->callback(
       [options, &context] { context.run = [options, &context] { RunExport(*options, context); }; });
-}
-
-const char* KindName(v1::MapVersion::Kind kind) {
-  switch (kind) {
-    case v1::MapVersion::KIND_CREATE:
-      return "create";
-    case v1::MapVersion::KIND_UPLOAD:
-      return "upload";
-    case v1::MapVersion::KIND_REPLACE:
-      return "replace";
-    case v1::MapVersion::KIND_OBSERVE:
-      return "observe";
-    case v1::MapVersion::KIND_RESTORE:
-      return "restore";
-    case v1::MapVersion::KIND_REMOVE_SOURCE:
-      return "remove-source";
-    case v1::MapVersion::KIND_MIGRATED:
-      return "migrated";
-    default:
-      return "?";
-  }
-}
-
-void PrintHistory(const std::vector<v1::MapVersion>& versions, std::ostream& out) {
-  out << std::left << std::setw(8) << "VERSION" << std::setw(22) << "TIME" << std::setw(14)
-      << "KIND" << std::setw(16) << "SOURCE" << std::right << std::setw(9) << "TREES"
-      << std::setw(10) << "CONFIRMED" << std::setw(8) << "ADDED" << std::setw(8) << "UPDATED"
-      << std::setw(8) << "REMOVED" << std::setw(9) << "OBS+" << std::setw(9) << "OBS-"
-      << "\n";
-  for (const v1::MapVersion& v : versions) {
-    std::string source = v.source().empty() ? "-" : v.source();
-    if (v.kind() == v1::MapVersion::KIND_RESTORE)
-      source = "from v" + std::to_string(v.restored_from());
-    out << std::left << std::setw(8) << v.version() << std::setw(22)
-        << FormatUnixMs(v.created_unix_ms()) << std::setw(14) << KindName(v.kind()) << std::setw(16)
-        << source << std::right << std::setw(9) << v.tree_count() << std::setw(10)
-        << v.confirmed_count() << std::setw(8) << v.trees_added() << std::setw(8)
-        << v.trees_updated() << std::setw(8) << v.trees_removed() << std::setw(9)
-        << v.observations_added() << std::setw(9) << v.observations_removed() << "\n";
-  }
-  out << std::flush;
-}
-
-void AddHistory(CLI::App& map_app, CliContext& context) {
-  auto name = std::make_shared<std::string>();
-  auto limit = std::make_shared<int>(0);
-  CLI::App* sub = map_app.add_subcommand("history", "List a map's versions, oldest first");
-  sub->add_option("NAME", *name, "Map name")->required();
-  sub->add_option("--limit", *limit, "Only the newest N versions (default: all)")
-      ->check(CLI::NonNegativeNumber);
-  sub->callback([name, limit, &context] {
-    context.run = [name, limit, &context] {
-      PrintHistory(context.Connect().ListVersions(*name, *limit), *context.out);
-    };
-  });
 }
 
 void AddRestore(CLI::App& map_app, CliContext& context) {
@@ -426,11 +355,8 @@ void AddMapCommand(CLI::App& app, CliContext& context) {
   AddCreate(*map_app, context);
   AddMapUploadCommand(*map_app, context);
   AddBuild(*map_app, context);
-  AddList(*map_app, context);
-  AddShow(*map_app, context);
-  AddDelete(*map_app, context);
+  AddMapListingCommands(*map_app, context);
   AddExport(*map_app, context);
-  AddHistory(*map_app, context);
   AddRestore(*map_app, context);
   AddRemoveSource(*map_app, context);
   AddMapPruneCommand(*map_app, context);

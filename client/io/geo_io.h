@@ -25,6 +25,8 @@
 // was: everything is written to a temporary file (a shapefile: directory) beside it and renamed
 // into place when complete.
 
+#include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -46,9 +48,12 @@ const char* TreeFormatName(TreeFormat format);
 // shapefile: its parts, an old .prj or .cpg included). `crs` is the map's CRS as stored (EPSG:n,
 // WKT or PROJ string); empty: none. Returns warnings for the user: fields a shapefile renamed
 // (its names have 10 characters).
+// `progress(written, total)` is called after each feature when given.
+using GeoWriteProgress = std::function<void(int64_t written, int64_t total)>;
 std::vector<std::string> WriteGeoTrees(const std::string& path, TreeFormat format,
                                        const std::vector<MapTreeRow>& rows, const std::string& crs,
-                                       const std::string& layer = "trees");
+                                       const std::string& layer = "trees",
+                                       const GeoWriteProgress& progress = {});
 
 struct GeoTrees {
   std::vector<MapTreeRow> rows;

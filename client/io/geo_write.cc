@@ -173,7 +173,8 @@ struct LayerSpec {
 };
 
 std::vector<std::string> WriteLayer(GDALDataset& dataset, const std::vector<MapTreeRow>& rows,
-                                    const LayerSpec& spec, const std::string& path) {
+                                    const LayerSpec& spec, const std::string& path,
+                                    const GeoWriteProgress& progress) {
   std::vector<Column> columns;
   for (const ExportedAttribute& attribute : ExportedAttributes(rows, kGeoReserved)) {
     columns.push_back({attribute, AttributeType(rows, attribute.name, spec.format)});
@@ -186,7 +187,10 @@ std::vector<std::string> WriteLayer(GDALDataset& dataset, const std::vector<MapT
   std::vector<std::string> warnings = CreateFields(*layer, columns, path);
   // One transaction (GeoPackage): thousands of features commit at once.
   const bool transaction = dataset.StartTransaction() == OGRERR_NONE;
-  for (size_t i = 0; i < rows.size(); ++i) WriteFeature(*layer, rows[i], columns, i, path);
+  for (size_t i = 0; i < rows.size(); ++i) {
+    WriteFeature(*layer, rows[i], columns, i, path);
+    if (progress) progress(static_cast<int64_t>(i + 1), std::ssize(rows));
+  }
   if (transaction && dataset.CommitTransaction() != OGRERR_NONE) {
     throw CsvError(path + ": cannot commit: " + LastGdalError());
   }
@@ -265,7 +269,7 @@ void PlaceShapefile(const std::string& temporary, const std::string& path) {
 
 std::vector<std::string> WriteGeoTrees(const std::string& path, TreeFormat format,
                                        const std::vector<MapTreeRow>& rows, const std::string& crs,
-                                       const std::string& layer) {
+                                       const std::string& layer, const GeoWriteProgress& progress) {
   geo_internal::RegisterGdal();
   GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(DriverName(format));
   if (!driver || format == TreeFormat::kCsv) {
@@ -283,7 +287,7 @@ std::vector<std::string> WriteGeoTrees(const std::string& path, TreeFormat forma
     CPLErrorReset();
     DatasetPtr dataset = OpenForWriting(*driver, format, path, target, layer);
     const std::string name = shapefile ? fs::path(path).stem().string() : layer;
-    warnings = WriteLayer(*dataset, rows, {name, format, srs.get()}, path);
+    warnings = WriteLayer(*dataset, rows, {name, format, srs.get()}, path, progress);
     dataset.reset();  // closes: GeoJSON and shapefiles are complete only now
     if (CPLGetLastErrorType() == CE_Failure) throw CsvError(path + ": " + LastGdalError());
     if (format == TreeFormat::kGeoJson && crs.empty()) MarkNoCrs(temporary, path);

@@ -146,6 +146,7 @@ void Relocalize(const BenchMappingOptions& o, const std::vector<algorithms::MapT
     map_from_world = algorithms::PoseFromXyzYaw(o.truth_offset[0], o.truth_offset[1],
                                                 o.truth_offset[2], o.truth_offset[3] * M_PI / 180);
   }
+  err << "bench-mapping: building the index of the " << map.size() << " trees mapped" << std::endl;
   const algorithms::MapIndex index(map);
   algorithms::RelocEvaluator evaluator(map);
   for (size_t i = 0; i < eval.frames.size(); ++i) {

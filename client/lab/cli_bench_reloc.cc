@@ -159,7 +159,9 @@ void Run(const BenchOptions& o, CliContext& context) {
   if (o.edge || o.overlap) {
     report = RunCoverageCase(maps.views, o, *context.err);
   } else {
+    *context.err << "bench-reloc: building the index of " << map.size() << " trees" << std::endl;
     Runner runner(map, o, maps.foreign);
+    *context.err << "bench-reloc: index built" << std::endl;
     if (o.simulate > 0) {
       RunSimulated(maps.views, runner, o, *context.err);
     } else if (!o.scans_dir.empty()) {

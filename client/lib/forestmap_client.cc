@@ -293,7 +293,7 @@ grpc::Status ForestMapClient::UploadOnce(const v1::UploadTreesHeader& header,
 }
 
 ExportedTrees ForestMapClient::ExportTrees(const std::string& name, const std::optional<Box2>& box,
-                                           int64_t version) {
+                                           int64_t version, const ExportProgress& progress) {
   v1::ExportTreesRequest request;
   request.set_name(name);
   request.set_version(version);
@@ -303,10 +303,11 @@ ExportedTrees ForestMapClient::ExportTrees(const std::string& name, const std::o
     request.mutable_box()->set_max_x(box->max_x);
     request.mutable_box()->set_max_y(box->max_y);
   }
-  return WithFailover([&] { return ExportTreesOnce(request); });
+  return WithFailover([&] { return ExportTreesOnce(request, progress); });
 }
 
-ExportedTrees ForestMapClient::ExportTreesOnce(const v1::ExportTreesRequest& request) {
+ExportedTrees ForestMapClient::ExportTreesOnce(const v1::ExportTreesRequest& request,
+                                               const ExportProgress& progress) {
   const auto context = NewContext(options_.stream_timeout);
   const auto reader = stub_->ExportTrees(context.get(), request);
   ExportedTrees exported;
@@ -326,6 +327,7 @@ ExportedTrees ForestMapClient::ExportTreesOnce(const v1::ExportTreesRequest& req
       exported.trees.push_back(FromProto(tree));
       exported.states.push_back(StateOf(tree));
     }
+    if (progress) progress(std::ssize(exported.trees));
   }
   Check(reader->Finish(), "ExportTrees");
   connected_ = true;

@@ -136,6 +136,7 @@ class TrackSession {
 
 // (trees sent so far, trees in total), called after each chunk of an upload.
 using UploadProgress = std::function<void(int64_t sent, int64_t total)>;
+using ExportProgress = std::function<void(int64_t received)>;
 
 // Thread-compatible: one instance per thread, or external locking.
 //
@@ -178,9 +179,10 @@ class ForestMapClient {
                                              const std::vector<MapTreeRow>& rows,
                                              const UploadProgress& progress = {});
 
-  // `version` 0: the current version; else an older one (see ListVersions).
+  // `version` 0: the current version; else an older one (see ListVersions). `progress` gets the
+  // count of trees received after each message.
   ExportedTrees ExportTrees(const std::string& name, const std::optional<Box2>& box = {},
-                            int64_t version = 0);
+                            int64_t version = 0, const ExportProgress& progress = {});
 
   // Shared maps. One Observe call is one request (one new version); batch large sequences.
   v1::ObserveResponse Observe(const std::string& name, const std::vector<ObservedFrame>& frames,
@@ -215,7 +217,8 @@ class ForestMapClient {
   // replica (each replica once).
   template <typename Call>
   auto WithFailover(const Call& call) -> decltype(call());
-  ExportedTrees ExportTreesOnce(const v1::ExportTreesRequest& request);
+  ExportedTrees ExportTreesOnce(const v1::ExportTreesRequest& request,
+                                const ExportProgress& progress);
   // A write RPC: `attempt(request_id)` makes one try and returns its status; tries again with
   // the same id (up to write_attempts) after DEADLINE_EXCEEDED or UNAVAILABLE.
   void WriteWithRetries(const std::function<grpc::Status(const std::string&)>& attempt,

@@ -1,5 +1,6 @@
 #include "server/app/map_index_cache.h"
 
+#include <algorithm>
 #include <chrono>
 #include <stdexcept>
 #include <utility>
@@ -38,10 +39,16 @@ MapIndexCache::MapIndexCache(storage::MapStore& store, MapIndexCacheOptions opti
   options_.Check();
 }
 
-MapIndexCache::Entry MapIndexCache::Get(const std::string& name) {
+MapIndexCache::Entry MapIndexCache::Get(const std::string& name) { return GetCounted(name, true); }
+
+MapIndexCache::Entry MapIndexCache::Warm(const std::string& name) {
+  return GetCounted(name, false);
+}
+
+MapIndexCache::Entry MapIndexCache::GetCounted(const std::string& name, bool count) {
   const storage::MapInfo info = CurrentInfo(name);
   std::promise<Entry> promise;
-  Lookup lookup = LookUp(name, info, promise);
+  Lookup lookup = LookUp(name, info, promise, count);
   if (lookup.ready) return *std::move(lookup.ready);
   if (lookup.other_build.valid()) return lookup.other_build.get();  // rethrows that build's error
   return BuildAndPublish(name, info.version, lookup.build_id, promise);
@@ -60,12 +67,12 @@ storage::MapInfo MapIndexCache::CurrentInfo(const std::string& name) {
 }
 
 MapIndexCache::Lookup MapIndexCache::LookUp(const std::string& name, const storage::MapInfo& info,
-                                            std::promise<Entry>& promise) {
+                                            std::promise<Entry>& promise, bool count) {
   std::lock_guard<std::mutex> lock(mutex_);
   Slot& slot = SlotLocked(name);
   Lookup lookup;
   if (slot.ready && SameMapVersion(*slot.ready, info)) {
-    ++stats_.hits;
+    if (count) ++stats_.hits;
     lookup.ready = *slot.ready;
     return lookup;
   }
@@ -75,7 +82,7 @@ MapIndexCache::Lookup MapIndexCache::LookUp(const std::string& name, const stora
   }
   if (slot.building.valid() && slot.building_version == info.version &&
       slot.building_created_ms == info.created_unix_ms) {
-    ++stats_.waits;
+    if (count) ++stats_.waits;
     lookup.other_build = slot.building;
     return lookup;
   }
@@ -200,12 +207,21 @@ size_t MapIndexCache::size() const {
 }
 
 size_t MapIndexCache::memory_bytes() const {
-  std::lock_guard<std::mutex> lock(mutex_);
   size_t bytes = 0;
-  for (const auto& [name, slot] : slots_) {
-    if (slot.ready) bytes += slot.ready->index->MemoryBytes();
-  }
+  for (const auto& [name, map_bytes] : memory_bytes_by_map()) bytes += map_bytes;
   return bytes;
+}
+
+std::vector<std::pair<std::string, size_t>> MapIndexCache::memory_bytes_by_map() const {
+  std::vector<std::pair<std::string, size_t>> by_map;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& [name, slot] : slots_) {
+      if (slot.ready) by_map.emplace_back(name, slot.ready->index->MemoryBytes());
+    }
+  }
+  std::sort(by_map.begin(), by_map.end());
+  return by_map;
 }
 
 MapIndexCache::Stats MapIndexCache::stats() const {

@@ -20,6 +20,8 @@
 #include <optional>
 #include <string>
 #include <unordered_map>
+#include <utility>
+#include <vector>
 
 #include "algorithms/relocalization/relocalizer.h"
 #include "geo/crs.h"
@@ -59,12 +61,18 @@ class MapIndexCache {
   // checked ranges; remembered per version, so the build is not retried until the map changes),
   // and whatever else the store or the build throws (waiters of a failed build get the same).
   Entry Get(const std::string& name);
+  // The same for a preload (forestmapd --preload): builds what Get would, without counting a
+  // hit or a wait in stats().
+  Entry Warm(const std::string& name);
 
   void Evict(const std::string& name);
+  size_t max_entries() const { return static_cast<size_t>(options_.max_entries); }
   size_t size() const;
   Stats stats() const;
   // Approximate memory of the ready indexes (algorithms::MapIndex::MemoryBytes), bytes.
   size_t memory_bytes() const;
+  // The same per map (ready indexes only), sorted by name.
+  std::vector<std::pair<std::string, size_t>> memory_bytes_by_map() const;
 
  private:
   // A map's slot: the ready entry and/or the one build in progress.
@@ -93,8 +101,9 @@ class MapIndexCache {
   // Finds the map's slot (LRU order updated); when neither a ready entry nor a build of `info`'s
   // version is there, registers a build whose result `promise` will carry. Rethrows the
   // remembered error of a version that cannot be indexed.
-  Lookup LookUp(const std::string& name, const storage::MapInfo& info,
-                std::promise<Entry>& promise);
+  Lookup LookUp(const std::string& name, const storage::MapInfo& info, std::promise<Entry>& promise,
+                bool count);
+  Entry GetCounted(const std::string& name, bool count);
   // Runs build `build_id` (of map version `version`), publishes its entry or error to the slot
   // and to `promise`'s waiters, and returns the entry or throws the error.
   Entry BuildAndPublish(const std::string& name, int64_t version, uint64_t build_id,

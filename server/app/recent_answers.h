@@ -1,16 +1,19 @@
 #pragma once
-// The last relocalization answers the service gave, for the read-only web page
-// (server/http/http_page.h). Thread-safe; bounded.
+// What the service answered: the last relocalization answers, for the read-only web page
+// (server/http/http_page.h), and the count of every kind of answer since the start, for the
+// metrics. Thread-safe; bounded.
 
 #include <chrono>
 #include <cstdint>
 #include <deque>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "algorithms/relocalization/relocalizer.h"
+#include "algorithms/relocalization/tracking.h"
 #include "geo/crs.h"
 
 namespace forestmap::server {
@@ -53,6 +56,35 @@ class RecentAnswers {
  private:
   mutable std::mutex mutex_;
   std::deque<RecentAnswer> answers_;
+};
+
+// Answers by kind since the service started: Relocalize by (status, reason), Track frames by
+// state. The keys are the algorithms' enums, a handful each: the counts stay bounded.
+class AnswerCounts {
+ public:
+  using RelocalizeKey = std::pair<algorithms::RelocalizeStatus, algorithms::RelocalizeReason>;
+
+  void Relocalized(const algorithms::RelocalizeResult& result) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++relocalized_[{result.status, result.reason}];
+  }
+  void Tracked(algorithms::TrackState state) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++tracked_[state];
+  }
+  std::map<RelocalizeKey, int64_t> relocalized() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return relocalized_;
+  }
+  std::map<algorithms::TrackState, int64_t> tracked() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return tracked_;
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::map<RelocalizeKey, int64_t> relocalized_;
+  std::map<algorithms::TrackState, int64_t> tracked_;
 };
 
 }  // namespace forestmap::server

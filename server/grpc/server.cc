@@ -69,11 +69,16 @@ ServerRunner::ServerRunner(const std::string& address, grpc::Service& service,
                              " (address in use, not local, or malformed?)");
   }
   address_ = BoundAddress(address, port_);
+  SetServing("", options.serving_at_start);
+}
+
+void ServerRunner::SetServing(const std::string& service, bool serving) {
+  std::lock_guard<std::mutex> lock(health_mutex_);
   grpc::HealthCheckServiceInterface* health = server_->GetHealthCheckService();
-  if (health != nullptr) {
-    health->SetServingStatus("", true);
-    health->SetServingStatus(v1::ForestMap::service_full_name(), true);
-  }
+  if (health == nullptr || shut_down_) return;
+  health->SetServingStatus(service, serving);
+  // The service's own name answers as the whole server does.
+  if (service.empty()) health->SetServingStatus(v1::ForestMap::service_full_name(), serving);
 }
 
 ServerRunner::~ServerRunner() {
@@ -83,8 +88,12 @@ ServerRunner::~ServerRunner() {
 
 void ServerRunner::Shutdown(std::chrono::milliseconds grace) {
   std::call_once(shutdown_once_, [&] {
-    grpc::HealthCheckServiceInterface* health = server_->GetHealthCheckService();
-    if (health != nullptr) health->SetServingStatus(false);
+    {
+      std::lock_guard<std::mutex> lock(health_mutex_);
+      shut_down_ = true;
+      grpc::HealthCheckServiceInterface* health = server_->GetHealthCheckService();
+      if (health != nullptr) health->SetServingStatus(false);
+    }
     server_->Shutdown(std::chrono::system_clock::now() + grace);
   });
 }

@@ -24,7 +24,10 @@ struct ServerOptions {
   // One log line per RPC and the RPC metrics (server/grpc/rpc_observer.h).
   bool observe_rpcs = true;
   Metrics* metrics = nullptr;  // RPC counts and latencies go here when set; must outlive the server
-  void Check() const;          // throws std::invalid_argument
+  // The health service's answer once started: SERVING, or NOT_SERVING until SetServing says
+  // otherwise (forestmapd's health monitor, server/ops/health.h, decides it then).
+  bool serving_at_start = true;
+  void Check() const;  // throws std::invalid_argument
 };
 
 class ServerRunner {
@@ -42,6 +45,11 @@ class ServerRunner {
   int port() const { return port_; }  // the bound port (the selected one for 0)
   const std::string& address() const { return address_; }  // host:port actually bound
 
+  // Sets the gRPC health status (grpc.health.v1.Health) of `service`: "" is the whole server;
+  // any other name a client may ask for (forestmapd adds one per preloaded map). Ignored after
+  // Shutdown, which marks everything NOT_SERVING for good.
+  void SetServing(const std::string& service, bool serving);
+
   // Marks the server NOT_SERVING, stops accepting calls and waits up to `grace` for running
   // calls to finish before cancelling them. Idempotent.
   void Shutdown(std::chrono::milliseconds grace = std::chrono::seconds(5));
@@ -53,6 +61,8 @@ class ServerRunner {
   int port_ = 0;
   std::string address_;
   std::once_flag shutdown_once_;
+  std::mutex health_mutex_;  // SetServing vs Shutdown
+  bool shut_down_ = false;
 };
 
 }  // namespace forestmap::server

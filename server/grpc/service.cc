@@ -162,12 +162,14 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
         std::chrono::steady_clock::now() - start;
     response->set_server_time_ms(elapsed.count());
     recent_answers_.Add(request->name(), result, geodetic);
+    answer_counts_.Relocalized(result);
   });
 }
 
 grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse>* ForestMapService::Track(
     grpc::CallbackServerContext* context) {
-  return new TrackReactor(index_cache_, options_, work_pool_, idle_streams_, context);
+  return new TrackReactor(index_cache_, options_, work_pool_, idle_streams_, answer_counts_,
+                          context);
 }
 
 grpc::ServerUnaryReactor* ForestMapService::Observe(grpc::CallbackServerContext* context,

@@ -119,6 +119,8 @@ class ForestMapService final
   const ServiceOptions& options() const { return options_; }
   const MapIndexCache& index_cache() const { return index_cache_; }
   const RecentAnswers& recent_answers() const { return recent_answers_; }  // the web page's
+  const AnswerCounts& answer_counts() const { return answer_counts_; }     // the metrics'
+  MapIndexCache& index_cache() { return index_cache_; }  // warmed by forestmapd's readiness
   const StreamLimits& stream_limits() const { return stream_limits_; }
 
   grpc::ServerUnaryReactor* CreateMap(grpc::CallbackServerContext* context,
@@ -173,6 +175,7 @@ class ForestMapService final
   ServiceOptions options_;
   MapIndexCache index_cache_;
   RecentAnswers recent_answers_;
+  AnswerCounts answer_counts_;
   StreamLimits stream_limits_;
   IdleStreams idle_streams_;   // cancels upload, export and Track streams idle or revoked
   RetentionPolicy retention_;  // --keep-versions, after every write (unary and upload)

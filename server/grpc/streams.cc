@@ -28,11 +28,12 @@ algorithms::TrackingOptions SessionOptions(const ServiceOptions& options) {
 }  // namespace
 
 TrackReactor::TrackReactor(MapIndexCache& index_cache, const ServiceOptions& options,
-                           WorkerPool& work_pool, IdleStreams& idle,
+                           WorkerPool& work_pool, IdleStreams& idle, AnswerCounts& counts,
                            grpc::CallbackServerContext* context)
     : index_cache_(index_cache),
       work_pool_(work_pool),
       authorizer_(options.authorizer),
+      counts_(counts),
       context_(context),
       watch_(idle.Add(*context, "Track")),
       max_query_trees_(options.max_query_trees),
@@ -105,7 +106,9 @@ bool TrackReactor::Answer() {
   if (!message.frame) return false;  // a header: nothing to answer
   const v1::TrackFrame& frame = *message.frame;
   const MapIndexCache::Entry entry = index_cache_.Get(map_name_);
-  response_ = ToProto(tracker_.Step(*entry.index, FromProto(frame)));
+  const algorithms::TrackingStep step = tracker_.Step(*entry.index, FromProto(frame));
+  counts_.Tracked(step.state);
+  response_ = ToProto(step);
   response_.set_frame_id(frame.frame_id());
   v1::RelocalizeResponse& result = *response_.mutable_result();
   result.set_map_version(entry.version);

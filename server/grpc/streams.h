@@ -14,6 +14,7 @@
 #include "forestmap/v1/maps.pb.h"
 #include "forestmap/v1/tracking.pb.h"
 #include "server/app/map_index_cache.h"
+#include "server/app/recent_answers.h"
 #include "server/app/retention.h"
 #include "server/app/tree_pages.h"
 #include "server/app/worker_pool.h"
@@ -139,8 +140,9 @@ class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTrees
 // ("frame 12: frame.trees[3].position.x is NaN").
 class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse> {
  public:
+  // Each frame's answer is counted in `counts` (which must outlive the stream).
   TrackReactor(MapIndexCache& index_cache, const ServiceOptions& options, WorkerPool& work_pool,
-               IdleStreams& idle, grpc::CallbackServerContext* context);
+               IdleStreams& idle, AnswerCounts& counts, grpc::CallbackServerContext* context);
 
   void OnReadDone(bool ok) override;
   void OnWriteDone(bool ok) override;
@@ -154,6 +156,7 @@ class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::
   MapIndexCache& index_cache_;
   WorkerPool& work_pool_;
   const Authorizer* authorizer_;  // checked as the stream opens and on the first message
+  AnswerCounts& counts_;
   grpc::CallbackServerContext* context_;
   std::unique_ptr<IdleStreams::Watch> watch_;
   int max_query_trees_;

@@ -1,11 +1,16 @@
 #pragma once
-// The HTTP endpoint of forestmapd's metrics (--metrics ADDR): GET /metrics answers the
-// Prometheus text exposition; anything else 404. Plain HTTP on its own port (cpp-httplib), so
-// bind it to loopback or a monitoring network.
+// The HTTP endpoint of forestmapd's metrics (--metrics ADDR), for monitoring and orchestrators:
+//   GET /metrics  the Prometheus text exposition
+//   GET /healthz  200 "ok" while the process serves (liveness)
+//   GET /readyz   200 "ready", or 503 with the reason (readiness: server/app/readiness.h)
+//   GET /         the list of these
+// anything else 404. Plain HTTP on its own port (cpp-httplib), so bind it to loopback or a
+// monitoring network.
 // Thread-safety: the constructor starts a thread that serves until the destructor stops it.
 
 #include <functional>
 #include <string>
+#include <utility>
 
 #include "server/http/http_listen.h"
 
@@ -14,11 +19,13 @@ namespace forestmap::server {
 class MetricsHttpServer {
  public:
   using Render = std::function<std::string()>;
+  // Whether the server is ready, and why not ("" when ready).
+  using Ready = std::function<std::pair<bool, std::string>()>;
 
-  // Binds `address` ("host:port"; port 0 picks a free one) and serves `render()` on /metrics.
-  // Throws std::runtime_error when the address cannot be bound or is malformed.
-  // Destroying it stops serving and joins the thread.
-  MetricsHttpServer(const std::string& address, Render render);
+  // Binds `address` ("host:port"; port 0 picks a free one) and serves `render()` on /metrics and
+  // `ready()` on /readyz. Throws std::runtime_error when the address cannot be bound or is
+  // malformed. Destroying it stops serving and joins the thread.
+  MetricsHttpServer(const std::string& address, Render render, Ready ready);
 
   int port() const { return listener_.port(); }
 

@@ -3,7 +3,6 @@
 #include <charconv>
 #include <chrono>
 #include <ctime>
-#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <memory>
@@ -13,9 +12,7 @@
 #include <system_error>
 #include <utility>
 
-#include "server/app/map_index_cache.h"
 #include "server/ops/logging.h"
-#include "server/ops/metrics.h"
 #include "server/ops/tls.h"
 #include "storage/backup.h"
 #include "storage/token_store.h"
@@ -150,30 +147,6 @@ void AddBackupCommand(CLI::App& app, std::function<int()>& run, std::ostream& ou
       return 0;
     };
   });
-}
-
-void AddServerMetrics(Metrics& metrics, const MapIndexCache& cache, const std::string& db_path) {
-  const MapIndexCache* index_cache = &cache;
-  metrics.AddCounter("forestmap_index_builds_total", "Relocalization indexes built.",
-                     [index_cache] { return static_cast<double>(index_cache->stats().builds); });
-  metrics.AddCounter("forestmap_index_build_seconds_total",
-                     "Wall time spent building relocalization indexes, seconds.",
-                     [index_cache] { return index_cache->stats().build_seconds; });
-  metrics.AddGauge("forestmap_index_cache_maps", "Maps with an index in the cache.",
-                   [index_cache] { return static_cast<double>(index_cache->size()); });
-  metrics.AddGauge("forestmap_index_cache_bytes",
-                   "Approximate memory of the cached indexes, bytes.",
-                   [index_cache] { return static_cast<double>(index_cache->memory_bytes()); });
-  metrics.AddGauge("forestmap_database_bytes", "Size of the database file and its WAL, bytes.",
-                   [db_path] {
-                     std::error_code error;
-                     double bytes = 0;
-                     for (const std::string& path : {db_path, db_path + "-wal"}) {
-                       const auto size = std::filesystem::file_size(path, error);
-                       if (!error) bytes += static_cast<double>(size);
-                     }
-                     return bytes;
-                   });
 }
 
 bool WarnIfExposed(const std::string& listen_address, bool tls, bool tokens, Listener listener) {

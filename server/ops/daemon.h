@@ -1,6 +1,6 @@
 #pragma once
-// Pieces of forestmapd's main besides serving: the offline subcommands (token admin, backup),
-// the server's own metrics, and the warning for an exposed, unprotected listener.
+// Pieces of forestmapd's main besides serving: the offline subcommands (token admin, backup)
+// and the warning for an exposed, unprotected listener.
 
 #include <CLI/CLI.hpp>
 #include <functional>
@@ -9,18 +9,11 @@
 
 namespace forestmap::server {
 
-class Metrics;
-class MapIndexCache;
-
 // `forestmapd token create|list|revoke --db PATH ...` and `forestmapd backup --db PATH --out F`.
 // Each sets `run` to its action (returning the exit status) when chosen; the action prints
 // results to `out` (a new token's secret, once) and throws on failure.
 void AddTokenCommands(CLI::App& app, std::function<int()>& run, std::ostream& out);
 void AddBackupCommand(CLI::App& app, std::function<int()>& run, std::ostream& out);
-
-// Index builds and cache size (from `cache`) and the database file size (`db_path` plus its
-// -wal file), sampled at every scrape. `cache` must outlive `metrics`' scrapes.
-void AddServerMetrics(Metrics& metrics, const MapIndexCache& cache, const std::string& db_path);
 
 // Which listener WarnIfExposed looks at: the gRPC port, or the read-only web page (plain HTTP).
 enum class Listener { kGrpc, kWebPage };

@@ -11,8 +11,12 @@
 #include <exception>
 #include <iostream>
 #include <memory>
+#include <optional>
+#include <stdexcept>
 #include <string>
+#include <utility>
 
+#include "server/app/readiness.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
 #include "server/grpc/status.h"
@@ -23,6 +27,7 @@
 #include "server/ops/daemon.h"
 #include "server/ops/logging.h"
 #include "server/ops/metrics.h"
+#include "server/ops/server_metrics.h"
 #include "server/ops/tls.h"
 #include "storage/open_store.h"
 #include "storage/token_store.h"
@@ -48,6 +53,7 @@ struct Config {
   int64_t max_db_mb = 0;  // MiB the SQLite database may grow to; 0: no limit
   forestmap::server::StreamLimitOptions streams;  // --max-streams, --max-streams-per-client
   double stream_idle_timeout_s = 30;              // --stream-idle-timeout-s
+  std::string preload;  // --preload all|NAME,...: indexes built at start and after writes
 };
 
 // Blocks SIGINT and SIGTERM in this thread and in every thread started after it (gRPC's), so
@@ -78,12 +84,36 @@ std::unique_ptr<T> OpenOrLog(const std::string& failure, const Open& open) {
   }
 }
 
-// The gRPC server, the optional web page and Prometheus endpoint (destroyed in reverse order).
+// The gRPC server, its readiness, the optional web page and Prometheus endpoint (destroyed in
+// reverse order).
 struct Listeners {
   std::unique_ptr<forestmap::server::ServerRunner> server;
+  std::unique_ptr<forestmap::server::Readiness> readiness;
   std::unique_ptr<forestmap::server::HttpPage> page;
   std::unique_ptr<forestmap::server::MetricsHttpServer> metrics_http;
 };
+
+// The readiness of `server` (server/app/readiness.h): its health status follows the database
+// and the preloaded indexes; every change of the whole server's status is logged.
+std::unique_ptr<forestmap::server::Readiness> StartReadiness(
+    const Config& config, forestmap::storage::MapStore& store,
+    forestmap::server::ForestMapService& service, forestmap::server::ServerRunner& server) {
+  forestmap::server::ReadinessOptions options;
+  if (!config.preload.empty()) forestmap::server::ParsePreload(config.preload, options);
+  auto last = std::make_shared<std::optional<bool>>();
+  return std::make_unique<forestmap::server::Readiness>(
+      store, service.index_cache(), options,
+      [&server, last](const std::string& name, bool serving, const std::string& reason) {
+        server.SetServing(name, serving);
+        if (!name.empty() || *last == serving) return;
+        if (last->has_value()) {  // the first status is Readiness' own "starting"
+          forestmap::server::Log(
+              serving ? forestmap::server::LogLevel::kInfo : forestmap::server::LogLevel::kWarn,
+              serving ? "ready" : "not ready: " + reason);
+        }
+        *last = serving;
+      });
+}
 
 // Starts the listeners of `config` for `service`; throws when one cannot start.
 Listeners StartListeners(const Config& config, forestmap::storage::MapStore& store,
@@ -93,6 +123,7 @@ Listeners StartListeners(const Config& config, forestmap::storage::MapStore& sto
   forestmap::server::ServerOptions server_options;
   server_options.max_receive_message_bytes = config.max_message_mb << 20;
   server_options.metrics = &metrics;
+  server_options.serving_at_start = false;  // until the readiness' first round says otherwise
   const bool tls =
       !config.tls.cert.empty() || !config.tls.key.empty() || !config.tls.client_ca.empty();
   if (tls) server_options.credentials = forestmap::server::TlsServerCredentials(config.tls);
@@ -100,6 +131,8 @@ Listeners StartListeners(const Config& config, forestmap::storage::MapStore& sto
   listeners.server =
       std::make_unique<forestmap::server::ServerRunner>(config.listen, service, server_options);
   forestmap::server::WarnIfExposed(config.listen, tls, tokens.AnyToken());
+  listeners.readiness = StartReadiness(config, store, service, *listeners.server);
+  forestmap::server::AddReadinessMetric(metrics, *listeners.readiness);
   if (!config.http.empty()) {
     listeners.page = std::make_unique<forestmap::server::HttpPage>(store, service.recent_answers(),
                                                                    config.http, &tokens);
@@ -108,8 +141,13 @@ Listeners StartListeners(const Config& config, forestmap::storage::MapStore& sto
                                      forestmap::server::Listener::kWebPage);
   }
   if (!config.metrics.empty()) {
+    const forestmap::server::Readiness* readiness = listeners.readiness.get();
     listeners.metrics_http = std::make_unique<forestmap::server::MetricsHttpServer>(
-        config.metrics, [&metrics] { return metrics.Render(); });
+        config.metrics, [&metrics] { return metrics.Render(); },
+        [readiness] {
+          const auto state = readiness->state();
+          return std::make_pair(state.ready, state.reason);
+        });
     forestmap::server::LogLine(
         "metrics on http://" +
         forestmap::server::BoundHttpAddress(config.metrics, listeners.metrics_http->port()) +
@@ -177,6 +215,19 @@ void AddServeOptions(CLI::App& app, Config& config) {
                  "is cancelled, seconds")
       ->check(CLI::Range(0.001, 86400.0))
       ->capture_default_str();
+  app.add_option("--preload", config.preload,
+                 "build the relocalization indexes of these maps at start and again after "
+                 "every write: 'all' or NAME,NAME,...; the server reports ready (gRPC health, "
+                 "/readyz) once they are built")
+      ->check([](const std::string& text) {
+        forestmap::server::ReadinessOptions options;
+        try {
+          forestmap::server::ParsePreload(text, options);
+        } catch (const std::invalid_argument& e) {
+          return std::string(e.what());
+        }
+        return std::string();
+      });
 }
 
 int Serve(const Config& config, const sigset_t& shutdown_signals) {
@@ -202,7 +253,9 @@ int Serve(const Config& config, const sigset_t& shutdown_signals) {
   service_options.authorizer = &authorizer;
   forestmap::server::ForestMapService service(*store, service_options);
   forestmap::server::Metrics metrics;
-  forestmap::server::AddServerMetrics(metrics, service.index_cache(), config.db);
+  forestmap::server::AddServerMetrics(metrics, service.index_cache(), service.answer_counts(),
+                                      config.db);
+  forestmap::server::AddProcessMetrics(metrics);
   Listeners listeners;
   try {
     listeners = StartListeners(config, *store, service, metrics, *tokens);
@@ -235,7 +288,7 @@ int main(int argc, char** argv) {
       "F]]\n"
       "                  [--metrics ADDR] [--log-format text|json] "
       "[--log-level debug|info|warn|error] "
-      "[--max-db-mb N] [--help]\n"
+      "[--max-db-mb N] [--preload all|NAME,...] [--help]\n"
       "       forestmapd token create --db PATH [--map NAME|GLOB|*] [--role read|write|admin] "
       "[--note TEXT] [--expires-in DURATION]\n"
       "       forestmapd token list --db PATH | token revoke --db PATH ID\n"

@@ -14,8 +14,12 @@ namespace {
 std::string Number(double value) {
   if (std::isnan(value)) return "NaN";
   if (std::isinf(value)) return value > 0 ? "+Inf" : "-Inf";
-  // The shortest form that reads back as the same double (0.0025, not 0.0025000000000000001).
   char text[32];
+  if (value == std::trunc(value) && std::fabs(value) < 1e15) {  // counts, bytes: 20, not 2e+01
+    std::snprintf(text, sizeof text, "%.0f", value);
+    return text;
+  }
+  // The shortest form that reads back as the same double (0.0025, not 0.0025000000000000001).
   for (int precision = 1; precision <= 17; ++precision) {
     std::snprintf(text, sizeof text, "%.*g", precision, value);
     if (std::strtod(text, nullptr) == value) break;
@@ -26,6 +30,11 @@ std::string Number(double value) {
 void Header(std::string& out, std::string_view name, std::string_view help, std::string_view type) {
   out.append("# HELP ").append(name).append(" ").append(help).append("\n");
   out.append("# TYPE ").append(name).append(" ").append(type).append("\n");
+}
+
+// A single value is the series without labels.
+Metrics::SampleSeries Single(Metrics::Sample sample) {
+  return [sample = std::move(sample)] { return std::vector<Metrics::Series>{{"", sample()}}; };
 }
 
 }  // namespace
@@ -86,14 +95,26 @@ void Metrics::RpcFinished(std::string_view rpc, bool streaming, grpc::StatusCode
   }
 }
 
-void Metrics::AddGauge(std::string name, std::string help, Sample sample) {
+void Metrics::AddSampled(std::string name, std::string help, std::string type,
+                         SampleSeries sample) {
   std::lock_guard<std::mutex> lock(mutex_);
-  sampled_.push_back({std::move(name), std::move(help), "gauge", std::move(sample)});
+  sampled_.push_back({std::move(name), std::move(help), std::move(type), std::move(sample)});
+}
+
+void Metrics::AddGauge(std::string name, std::string help, Sample sample) {
+  AddSampled(std::move(name), std::move(help), "gauge", Single(std::move(sample)));
 }
 
 void Metrics::AddCounter(std::string name, std::string help, Sample sample) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  sampled_.push_back({std::move(name), std::move(help), "counter", std::move(sample)});
+  AddSampled(std::move(name), std::move(help), "counter", Single(std::move(sample)));
+}
+
+void Metrics::AddGaugeSeries(std::string name, std::string help, SampleSeries sample) {
+  AddSampled(std::move(name), std::move(help), "gauge", std::move(sample));
+}
+
+void Metrics::AddCounterSeries(std::string name, std::string help, SampleSeries sample) {
+  AddSampled(std::move(name), std::move(help), "counter", std::move(sample));
 }
 
 void Metrics::RenderRpcs(std::string& out) const {
@@ -146,13 +167,18 @@ std::string Metrics::Render() const {
   // Samples run without the lock: they may take their own (index cache, file system).
   for (const Sampled& metric : sampled) {
     Header(out, metric.name, metric.help, metric.type);
-    double value = NAN;
+    std::vector<Series> series;
     try {
-      value = metric.sample();
+      series = metric.sample();
     } catch (...) {
       // A failing sample (a vanished file) reads NaN rather than failing the scrape.
+      series = {{"", NAN}};
     }
-    out += metric.name + " " + Number(value) + "\n";
+    for (const Series& one : series) {
+      out.append(metric.name);
+      if (!one.labels.empty()) out.append("{").append(one.labels).append("}");
+      out.append(" ").append(Number(one.value)).append("\n");
+    }
   }
   return out;
 }

@@ -40,6 +40,13 @@ std::string MetricLabelValue(std::string_view value);
 class Metrics {
  public:
   using Sample = std::function<double()>;
+  // A labelled series: its labels as written between the braces (`status="localized"`, label
+  // values through MetricLabelValue), and its value.
+  struct Series {
+    std::string labels;
+    double value = 0;
+  };
+  using SampleSeries = std::function<std::vector<Series>()>;
 
   // Upper bounds (s) of the latency histogram buckets; +Inf is implied.
   static const std::vector<double>& LatencyBuckets();
@@ -50,6 +57,9 @@ class Metrics {
   // A value read at every scrape. `name` must be a valid metric name, unique; `help` one line.
   void AddGauge(std::string name, std::string help, Sample sample);
   void AddCounter(std::string name, std::string help, Sample sample);  // must never decrease
+  // The same for a family of labelled series, read at every scrape.
+  void AddGaugeSeries(std::string name, std::string help, SampleSeries sample);
+  void AddCounterSeries(std::string name, std::string help, SampleSeries sample);
 
   // The whole exposition text.
   std::string Render() const;
@@ -64,8 +74,9 @@ class Metrics {
   };
   struct Sampled {
     std::string name, help, type;
-    Sample sample;
+    SampleSeries sample;
   };
+  void AddSampled(std::string name, std::string help, std::string type, SampleSeries sample);
   void RenderRpcs(std::string& out) const;
   RpcStats& StatsOf(std::string_view rpc);  // under mutex_
 

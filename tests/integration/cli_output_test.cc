@@ -7,8 +7,10 @@
 
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "daemon_process.h"
 #include "geo/crs.h"
@@ -69,6 +71,50 @@ TEST_F(CliOutputTest, UploadProgressAtMostEveryTenth) {
     EXPECT_LE(lines, kMaxProgressLines) << result.err;
     EXPECT_NE(result.err.find("uploading: 100000/100000 trees"), std::string::npos) << result.err;
   }
+  // The way back: the download and the GeoPackage's writing, each at most every tenth.
+  const CommandResult exported =
+      Client("map export big --out '" + (dir_ / "big.gpkg").string() + "'");
+  ASSERT_EQ(exported.exit_code, 0) << exported.err;
+  EXPECT_LE(CountLines(exported.err, "exporting: "), 10) << exported.err;
+  EXPECT_NE(exported.err.find("exporting: 100000/100000 trees"), std::string::npos) << exported.err;
+  EXPECT_LE(CountLines(exported.err, "writing "), 10) << exported.err;
+  EXPECT_NE(exported.err.find(": 100000/100000 trees\nexported 100000 trees"), std::string::npos)
+      << exported.err;
+}
+
+TEST_F(CliOutputTest, ListingsPrintOneJsonObjectPerLineWithJson) {
+  ASSERT_EQ(Client("map create plot --crs EPSG:2193 --description 'north plot'").exit_code, 0);
+  ASSERT_EQ(Client("map create empty").exit_code, 0);
+  const fs::path csv = dir_ / "trees.csv";
+  std::ofstream(csv) << "id,x,y,dbh\n1,0,0,0.3\n2,5,1,0.2\n3,2,7,0.4\n";
+  ASSERT_EQ(Client("map upload plot --trees '" + csv.string() + "'").exit_code, 0);
+
+  const CommandResult list = Client("map list --json");
+  ASSERT_EQ(list.exit_code, 0) << list.err;
+  std::vector<nlohmann::json> maps;
+  std::istringstream lines(list.out);
+  for (std::string line; std::getline(lines, line);) maps.push_back(nlohmann::json::parse(line));
+  ASSERT_EQ(maps.size(), 2u) << list.out;
+  EXPECT_EQ(maps[0]["name"], "empty");
+  EXPECT_TRUE(maps[0]["extent"].is_null());
+  EXPECT_EQ(maps[1]["name"], "plot");
+  EXPECT_EQ(maps[1]["trees"], 3);
+  EXPECT_EQ(maps[1]["epsg"], 2193);
+  EXPECT_EQ(maps[1]["extent"], nlohmann::json::parse("[0.0, 0.0, 5.0, 7.0]"));
+
+  const CommandResult show = Client("map show plot --json");
+  ASSERT_EQ(show.exit_code, 0) << show.err;
+  const nlohmann::json plot = nlohmann::json::parse(show.out);
+  EXPECT_EQ(plot["description"], "north plot");
+  EXPECT_EQ(plot["version"], 2);
+
+  const CommandResult history = Client("map history plot --json");
+  ASSERT_EQ(history.exit_code, 0) << history.err;
+  std::istringstream versions(history.out);
+  std::string first, second;
+  ASSERT_TRUE(std::getline(versions, first) && std::getline(versions, second)) << history.out;
+  EXPECT_EQ(nlohmann::json::parse(first)["kind"], "create");
+  EXPECT_EQ(nlohmann::json::parse(second)["trees_added"], 3);
 }
 
 TEST_F(CliOutputTest, MapListShowsAShortCrsAndMapShowTheWhole) {

@@ -1,19 +1,25 @@
-// Issue 15, finding 7, with the built binaries as an operator runs them: forestmapd on a read-only
-// database refuses to start and says why (it used to "serve" and fail every write as INTERNAL),
-// and a full database (--max-db-mb, as a full disk) answers RESOURCE_EXHAUSTED "database full"
-// while the maps already stored stay intact and the server keeps serving. And a server on
-// PostgreSQL takes tokens too (`forestmapd token create --db postgresql://...`): it used to stay
-// open whatever tokens were made.
+// Faults of the database, with the built binaries as an operator runs them: forestmapd on a
+// read-only database refuses to start and says why (it used to "serve" and fail every write as
+// INTERNAL), and a full database (--max-db-mb, as a full disk) answers RESOURCE_EXHAUSTED
+// "database full" while the maps already stored stay intact and the server keeps serving. A server
+// on PostgreSQL takes tokens too (`forestmapd token create --db postgresql://...`): it used to
+// stay open whatever tokens were made. Its health tells the truth: NOT_SERVING (and /readyz 503)
+// while PostgreSQL is down, SERVING again when it is back, and a preloaded map's index is warm
+// before the server says it is ready.
 
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <string>
+#include <thread>
 
 #include "daemon_process.h"
 #include "tests/pg_fixture.h"
+#include "tests/server/http_get.h"
 
 namespace forestmap {
 namespace {
@@ -142,7 +148,7 @@ TEST_F(DaemonFaultsTest, TokensOnPostgresqlDenyByDefault) {
   EXPECT_NE(result.err.find("UNAUTHENTICATED"), std::string::npos) << result.err;
   result = Client("--token " + reader + " map show plot-1");
   EXPECT_EQ(result.exit_code, 0) << result.err;
-  result = Client("--token " + reader + " map delete plot-1");
+  result = Client("--token " + reader + " map delete --yes plot-1");
   EXPECT_NE(result.err.find("PERMISSION_DENIED"), std::string::npos) << result.err;
   EXPECT_EQ(Client("--token " + admin + " map create plot-2").exit_code, 0);
   result = Client("--token " + admin + "0 map list");
@@ -154,6 +160,59 @@ TEST_F(DaemonFaultsTest, TokensOnPostgresqlDenyByDefault) {
   EXPECT_EQ(Run("'" FORESTMAPD_PATH "' token revoke --db '" + database.url() + "' 1").exit_code, 0);
   result = Client("--token " + reader + " map show plot-1");
   EXPECT_NE(result.err.find("UNAUTHENTICATED"), std::string::npos) << result.err;
+  Stop();
+}
+
+// Polls `condition` (a server reacting to its database) until true; false after 60 s.
+bool Eventually(const std::function<bool()>& condition) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!condition()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return true;
+}
+
+TEST_F(DaemonFaultsTest, HealthIsNotServingWhilePostgresqlIsDownAndPreloadedIndexesAreWarm) {
+  // A cluster of its own: this test stops it.
+  const auto cluster = testing::PostgresCluster::Start();
+  const std::string db = cluster->server_url() + "/postgres";
+  WriteTrees(dir_ / "plot.csv", 2000);
+  const int metrics_port = testing::FreeLoopbackPort();
+  const auto readyz = [&] { return test::HttpGet("127.0.0.1", metrics_port, "/readyz"); };
+  Serve(db, "--preload plot,absent --metrics 127.0.0.1:" + std::to_string(metrics_port));
+  ASSERT_EQ(Client("map create plot --trees '" + (dir_ / "plot.csv").string() + "'").exit_code, 0);
+  // The preload builds the new map's index without a query: the map's own status says so.
+  EXPECT_TRUE(Eventually([&] { return Client("health --map plot").exit_code == 0; }))
+      << Client("health --map plot").out;
+  EXPECT_TRUE(Eventually([&] { return Client("health").exit_code == 0; }));
+  const Result absent = Client("health --map absent");
+  EXPECT_EQ(absent.exit_code, 1);
+  EXPECT_NE(absent.out.find("NOT_SERVING"), std::string::npos) << absent.out;
+  EXPECT_EQ(Client("health --map never-named").out.find("SERVING"), std::string::npos);
+  const test::HttpAnswer ready = readyz();
+  EXPECT_EQ(ready.status, 200) << ready.body;
+  EXPECT_EQ(test::HttpGet("127.0.0.1", metrics_port, "/healthz").status, 200);
+  const std::string metrics = test::HttpGet("127.0.0.1", metrics_port, "/metrics").body;
+  EXPECT_NE(metrics.find("forestmap_ready 1"), std::string::npos);
+  EXPECT_NE(metrics.find("forestmap_index_bytes{map=\"plot\"}"), std::string::npos);
+
+  cluster->Stop();
+  EXPECT_TRUE(Eventually([&] { return Client("health").exit_code == 1; }));
+  const Result down = Client("health");
+  EXPECT_NE(down.out.find("NOT_SERVING"), std::string::npos) << down.out << down.err;
+  EXPECT_EQ(Client("health --map plot").exit_code, 1);
+  const test::HttpAnswer not_ready = readyz();
+  EXPECT_EQ(not_ready.status, 503);
+  EXPECT_NE(not_ready.body.find("database"), std::string::npos) << not_ready.body;
+  EXPECT_EQ(test::HttpGet("127.0.0.1", metrics_port, "/healthz").status, 200);  // alive
+
+  cluster->Restart();
+  EXPECT_TRUE(Eventually([&] { return Client("health").exit_code == 0; }));
+  EXPECT_EQ(readyz().status, 200);
+  const std::string log = ReadFile(log_);
+  EXPECT_NE(log.find("not ready: database unreachable"), std::string::npos) << log;
+  EXPECT_NE(log.find("ready"), std::string::npos) << log;
   Stop();
 }
 

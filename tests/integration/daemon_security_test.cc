@@ -83,7 +83,7 @@ TEST_F(DaemonSecurityTest, TokensFromTheCommandLineGateTheCli) {
   result = Client("map list", "FORESTMAP_TOKEN=" + reader);
   EXPECT_EQ(result.exit_code, 0) << result.err;
   EXPECT_NE(result.out.find("plot-1"), std::string::npos) << result.out;
-  result = Client("map delete plot-1", "FORESTMAP_TOKEN=" + reader);
+  result = Client("map delete --yes plot-1", "FORESTMAP_TOKEN=" + reader);
   EXPECT_EQ(result.exit_code, 1);
   EXPECT_NE(result.err.find("PERMISSION_DENIED"), std::string::npos) << result.err;
 

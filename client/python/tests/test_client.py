@@ -1,45 +1,18 @@
 """The Python client against a loopback forestmapd: round trips, errors, relocalization equal to
 the C++ CLI's answer to the last digit, tracking and observing a real sequence (Wild_V01)."""
 
-import csv
 import json
-import math
-import os
 import subprocess
 
 import grpc
 import numpy as np
 import pytest
 
+from forest_data import detections, map_array, poses
 from forestmap import Client, FieldViolation, ForestMapError, Tree
 from forestmap.v1 import forestmap_service_pb2_grpc, maps_pb2, observations_pb2
 
 FRAME = 300  # a frame of Wild_V01 the map localizes
-
-
-def detections(data_dir, frame):
-    """Rows x, y, z, dbh, axis_x, axis_y, axis_z, score of one frame, as the CLI reads them
-    (text -> double by the same correctly rounded parse; the axis normalised as the CLI does)."""
-    rows, lines = [], []
-    with open(os.path.join(data_dir, "trees.csv")) as f:
-        header = f.readline()
-        for line in f:
-            if int(line.split(",", 1)[0]) != frame:
-                continue
-            lines.append(line)
-            r = dict(zip(header.strip().split(","), line.strip().split(",")))
-            axis = [float(r["axis_x"]), float(r["axis_y"]), float(r["axis_z"])]
-            norm = math.sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2])
-            axis = [a / norm for a in axis] if norm > 1e-9 else [0.0, 0.0, 0.0]
-            rows.append([float(r["x"]), float(r["y"]), float(r["z"]), float(r["dbh"])] + axis +
-                        [float(r["score"])])
-    return np.array(rows), header + "".join(lines)
-
-
-def map_array(data_dir):
-    with open(os.path.join(data_dir, "map.csv")) as f:
-        return np.array([[float(r["x"]), float(r["y"]), float(r["z"]), float(r["dbh"])]
-                         for r in csv.DictReader(f)])
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +26,8 @@ def test_trees_round_trip_bit_for_bit(server):
     client = Client(server)
     rng = np.random.default_rng(5)
     trees = np.column_stack([rng.uniform(-500, 500, (200, 3)), rng.uniform(0.05, 0.9, 200)])
-    info = client.create_map("roundtrip", trees, description="numpy", crs="EPSG:32633")
+    info = client.create_map("roundtrip", trees, description="numpy", crs="EPSG:32633",
+                             columns=("x", "y", "z", "dbh"))
     assert info.tree_count == 200 and info.version == 2 and info.crs == "EPSG:32633"
     exported = client.export("roundtrip")
     assert [(t.x, t.y, t.z, t.dbh) for t in exported] == [tuple(row) for row in trees]
@@ -79,7 +53,7 @@ def test_errors_carry_the_grpc_status(server):
     assert error.value.violations == [FieldViolation("name", error.value.details)]
     assert str(error.value).endswith("(field: name)")
     with pytest.raises(ValueError):
-        client.relocalize("x", np.zeros(3))  # not an N x k array
+        client.relocalize("x", np.zeros(3), columns=("x", "y", "z"))  # not an N x 3 array
 
 
 def test_relocalize_equals_the_cli_to_the_last_digit(wild, server, data_dir, cli, tmp_path):
@@ -119,12 +93,12 @@ def test_relocalize_with_a_prior(wild, data_dir):
 
 
 def test_a_bad_tree_names_its_field_in_the_error_details(wild):
-    trees = np.array([[1.0, 2.0, 0.0], [float("nan"), 1.0, 0.0], [3.0, 4.0, 0.0]])
+    trees = np.array([[1.0, 2.0, 0.0], [1.0, 1.0, -1.0], [3.0, 4.0, 0.0]])
     with pytest.raises(ForestMapError) as error:
-        wild.relocalize("wild", trees)
+        wild.relocalize("wild", trees, columns=("x", "y", "dbh"))
     assert error.value.code == grpc.StatusCode.INVALID_ARGUMENT
-    assert [v.field for v in error.value.violations] == ["trees[1].position.x"]
-    assert "trees[1].position.x is NaN" in error.value.violations[0].description
+    assert [v.field for v in error.value.violations] == ["trees[1].dbh"]
+    assert "trees[1].dbh" in error.value.violations[0].description
 
 
 @pytest.fixture(scope="module")
@@ -235,17 +209,8 @@ def test_track_yields_one_answer_per_frame(wild, data_dir):
 def test_observe_builds_a_shared_map(server, data_dir):
     client = Client(server)
     client.create_map("observed")
-    poses = {}
-    with open(os.path.join(data_dir, "poses.csv")) as f:
-        for r in csv.DictReader(f):
-            x, y, z, w = (float(r[k]) for k in ("qx", "qy", "qz", "qw"))
-            matrix = np.eye(4)
-            matrix[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                              [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                              [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
-            matrix[:3, 3] = [float(r["x"]), float(r["y"]), float(r["z"])]
-            poses[int(r["frame"])] = matrix
-    frames = [(f, detections(data_dir, f)[0], poses[f]) for f in range(0, 25)]
+    truth = poses(data_dir)
+    frames = [(f, detections(data_dir, f)[0], truth[f]) for f in range(0, 25)]
     result = client.observe("observed", frames, source="py-drone")
     assert result.merged == 25 and result.skipped == 0
     trees = client.export("observed")

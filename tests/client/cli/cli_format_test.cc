@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <iostream>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -167,23 +170,29 @@ TEST(CliFormatTest, MapTableShowsAShortCrs) {
   EXPECT_NE(FormatMapDetails(map).find(wkt1), std::string::npos);  // `map show`: the whole
 }
 
-// Upload progress: at most one line per tenth of the trees, and the last (was one per message).
+// Progress of uploads, exports and writes: at most one line per tenth of the trees, and the last
+// (was one per message), whatever the steps; nothing for a job of one chunk.
 TEST(CliFormatTest, ProgressEveryTenth) {
   constexpr int64_t kChunk = 5000;
   for (const int64_t total : {int64_t{10'001}, int64_t{1'000'000}, int64_t{123'456}}) {
-    int lines = 0;
-    bool last = false;
-    for (int64_t sent = std::min(kChunk, total); sent <= total;
-         sent = sent == total ? total + 1 : std::min(sent + kChunk, total)) {
-      if (IsProgressStep(sent, total, kChunk)) {
-        ++lines;
-        last = sent == total;
+    for (const int64_t step : {kChunk, int64_t{1}, int64_t{777}}) {
+      std::ostringstream err;
+      const auto progress = ProgressTo(err, "exporting", total, kChunk);
+      for (int64_t done = std::min(step, total); done <= total;
+           done = done == total ? total + 1 : std::min(done + step, total)) {
+        progress(done);
       }
+      const std::string text = err.str();
+      const auto lines = std::count(text.begin(), text.end(), '\n');
+      EXPECT_LE(lines, 10) << total << " by " << step;
+      EXPECT_GE(lines, std::min<int64_t>(10, (total + step - 1) / step)) << total << " by " << step;
+      EXPECT_NE(text.find("exporting: " + std::to_string(total) + "/" + std::to_string(total) +
+                          " trees\n"),
+                std::string::npos)
+          << text;
     }
-    EXPECT_LE(lines, 11) << total;
-    EXPECT_GE(lines, std::min<int64_t>(10, (total + kChunk - 1) / kChunk)) << total;
-    EXPECT_TRUE(last) << total;
   }
+  EXPECT_FALSE(ProgressTo(std::cerr, "exporting", kChunk, kChunk));
 }
 
 // A map's name, description and CRS come from the server: printed raw, an escape sequence in

@@ -99,6 +99,28 @@ TEST_F(CliTest, HelpExitsZeroForEveryCommand) {
   }
 }
 
+TEST_F(CliTest, ATypoGetsTheClosestCommandOrFlag) {
+  const Result command = Run("map craete x");
+  EXPECT_EQ(command.exit_code, 2);
+  EXPECT_NE(command.err.find("did you mean 'forestmap map create'?"), std::string::npos)
+      << command.err;
+  const Result flag = Run("map list --jsn");
+  EXPECT_EQ(flag.exit_code, 2);
+  EXPECT_NE(flag.err.find("did you mean 'forestmap map list --json'?"), std::string::npos)
+      << flag.err;
+  const Result global = Run("--servr x:1 map list");
+  EXPECT_NE(global.err.find("did you mean 'forestmap --server'?"), std::string::npos) << global.err;
+  EXPECT_EQ(Run("map frobnicate").err.find("did you mean"), std::string::npos);
+}
+
+TEST_F(CliTest, AnAddressWithoutAPortDialsForestmapdsPort) {
+  // No server there: the error names the address dialled (gRPC alone would dial 443).
+  const Result result = Run("--server 127.0.0.1 map list");
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_NE(result.err.find("127.0.0.1:50051"), std::string::npos) << result.err;
+  EXPECT_EQ(result.err.find(":443"), std::string::npos) << result.err;
+}
+
 TEST_F(CliTest, InvalidCommandLinesExitNonZeroWithAMessage) {
   struct Case {
     const char* args;
@@ -212,7 +234,24 @@ TEST_F(CliTest, MapCreateListShowExportDelete) {
   EXPECT_EQ(duplicate.exit_code, 1);
   EXPECT_TRUE(StartsWith(duplicate.err, "forestmap: error: CreateMap: ALREADY_EXISTS: "));
 
-  EXPECT_EQ(Run(s + "map delete plot").out, "deleted map 'plot'\n");
+  // Deleting drops the whole history: never without a word. No terminal and no --yes: refused.
+  const Result unconfirmed = Run(s + "map delete plot </dev/null");
+  EXPECT_EQ(unconfirmed.exit_code, 1);
+  EXPECT_NE(unconfirmed.err.find("refusing to delete map 'plot' (2 trees"), std::string::npos)
+      << unconfirmed.err;
+  EXPECT_EQ(Run(s + "map show plot").exit_code, 0);
+  // On a terminal (a pseudo-terminal made by script(1)) it asks for the map's name.
+  const auto typed = [&](const std::string& answer) {
+    const std::string command = "printf '" + answer +
+                                "\\n' | env -u FORESTMAP_SERVER script -qec \"'" FORESTMAP_CLI_PATH
+                                "' " +
+                                s + "map delete plot\" /dev/null >/dev/null 2>&1";
+    const int status = std::system(command.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  };
+  EXPECT_EQ(typed("plo"), 1);
+  EXPECT_EQ(Run(s + "map show plot").exit_code, 0);
+  EXPECT_EQ(typed("plot"), 0);
   const Result gone = Run(s + "map show plot");
   EXPECT_EQ(gone.exit_code, 1);
   EXPECT_EQ(gone.err, "forestmap: error: GetMap: NOT_FOUND: no map named 'plot'\n");

@@ -13,7 +13,10 @@
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <sstream>
+#include <thread>
+#include <utility>
 
+#include "server/app/readiness.h"
 #include "server/grpc/rpc_observer.h"
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
@@ -21,6 +24,7 @@
 #include "server/ops/daemon.h"
 #include "server/ops/logging.h"
 #include "server/ops/metrics.h"
+#include "server/ops/server_metrics.h"
 #include "storage/sqlite/store.h"
 #include "tests/server/http_get.h"
 #include "tests/server/rpc_test_support.h"
@@ -47,11 +51,34 @@ class ObservabilityTest : public ::testing::Test {
         runner_("127.0.0.1:0", service_, WithMetrics(&metrics_)),
         stub_(v1::ForestMap::NewStub(
             grpc::CreateChannel(runner_.address(), grpc::InsecureChannelCredentials()))) {
-    AddServerMetrics(metrics_, service_.index_cache(), (dir_ / "maps.db").string());
-    http_ =
-        std::make_unique<MetricsHttpServer>("127.0.0.1:0", [this] { return metrics_.Render(); });
+    AddServerMetrics(metrics_, service_.index_cache(), service_.answer_counts(),
+                     (dir_ / "maps.db").string());
+    AddProcessMetrics(metrics_);
+    ReadinessOptions readiness;
+    readiness.preload_all = true;
+    readiness.interval = std::chrono::milliseconds(20);
+    readiness_ = std::make_unique<Readiness>(
+        store_, service_.index_cache(), readiness,
+        [this](const std::string& name, bool serving, const std::string&) {
+          runner_.SetServing(name, serving);
+        });
+    AddReadinessMetric(metrics_, *readiness_);
+    // The first round (an empty SQLite store) takes microseconds; this only turns a hang into a
+    // failure.
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (!readiness_->state().ready && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    http_ = std::make_unique<MetricsHttpServer>(
+        "127.0.0.1:0", [this] { return metrics_.Render(); },
+        [this] {
+          const Readiness::State state = readiness_->state();
+          return std::make_pair(state.ready, state.reason);
+        });
   }
   ~ObservabilityTest() override {
+    http_.reset();
+    readiness_.reset();
     stub_.reset();
     fs::remove_all(dir_);
   }
@@ -88,6 +115,16 @@ class ObservabilityTest : public ::testing::Test {
     return std::nan("");
   }
 
+  // The sum of every sample whose series starts with `prefix`.
+  static double SumOf(const std::string& text, const std::string& prefix) {
+    std::istringstream lines(text);
+    double sum = 0;
+    for (std::string line; std::getline(lines, line);) {
+      if (line.rfind(prefix, 0) == 0) sum += std::stod(line.substr(line.rfind(' ') + 1));
+    }
+    return sum;
+  }
+
   v1::Map CreateMap(const std::string& name) {
     v1::CreateMapRequest request;
     request.set_name(name);
@@ -121,6 +158,7 @@ class ObservabilityTest : public ::testing::Test {
   Metrics metrics_;
   ServerRunner runner_;
   std::unique_ptr<v1::ForestMap::Stub> stub_;
+  std::unique_ptr<Readiness> readiness_;
   std::unique_ptr<MetricsHttpServer> http_;
 };
 
@@ -179,6 +217,16 @@ TEST_F(ObservabilityTest, PromtoolAcceptsTheMetricsAndCountersMove) {
   EXPECT_EQ(Sample(during, "forestmap_index_cache_maps"), 1);
   EXPECT_GT(Sample(during, "forestmap_index_cache_bytes"), 0);
   EXPECT_GT(Sample(during, "forestmap_database_bytes"), 0);
+  EXPECT_GT(Sample(during, R"(forestmap_index_bytes{map="plot-1"})"), 0);
+  // One answer of each kind counted under its outcome, whichever it was.
+  EXPECT_EQ(SumOf(during, "forestmap_relocalizations_total{status=\""), 1);
+  EXPECT_EQ(SumOf(during, "forestmap_track_frames_total{state=\""), 1);
+  EXPECT_EQ(Sample(during, "forestmap_ready"), 1);
+  EXPECT_GT(Sample(during, "process_resident_memory_bytes"), 1 << 20);
+  EXPECT_GT(Sample(during, "process_open_fds"), 2);
+  EXPECT_GT(Sample(during, "process_max_fds"), Sample(during, "process_open_fds"));
+  EXPECT_GT(Sample(during, "process_cpu_seconds_total"), 0);
+  EXPECT_GT(Sample(during, "process_start_time_seconds"), 1.7e9);
 
   ASSERT_TRUE(track->WritesDone());
   while (track->Read(&tracked)) {
@@ -189,6 +237,16 @@ TEST_F(ObservabilityTest, PromtoolAcceptsTheMetricsAndCountersMove) {
   EXPECT_EQ(Sample(after, R"(forestmap_rpc_requests_total{rpc="CreateMap",code="OK"})"), 2);
   EXPECT_EQ(Sample(after, R"(forestmap_rpc_requests_total{rpc="Track",code="OK"})"), 1);
   EXPECT_EQ(Sample(after, "forestmap_open_streams"), 0);
+}
+
+TEST_F(ObservabilityTest, TheMetricsPortAnswersLivenessReadinessAndAnIndex) {
+  for (const auto& [path, body] :
+       {std::pair{"/healthz", "ok"}, {"/readyz", "ready"}, {"/", "/metrics"}}) {
+    const test::HttpAnswer answer = test::HttpGet("127.0.0.1", http_->port(), path);
+    EXPECT_EQ(answer.status, 200) << path;
+    EXPECT_NE(answer.body.find(body), std::string::npos) << path << ": " << answer.body;
+  }
+  EXPECT_EQ(test::HttpGet("127.0.0.1", http_->port(), "/nothing").status, 404);
 }
 
 // Calls a method path through a generic stub; returns the status the server (or the channel)
