@@ -24,6 +24,8 @@ installed() { dpkg-query -W -f='${db:Status-Status}' "$1" 2>/dev/null | grep -qv
 for package in forestmapd forestmap; do
   ! installed "$package" || fail "package $package is installed on this machine; the test " \
     "installs and purges its own: 'apt-get purge $package' first"
+  [ ! -e "/usr/bin/$package" ] || fail "/usr/bin/$package exists (cmake --install --prefix /usr?)" \
+    "and would be replaced, then deleted: remove it first"
 done
 
 work="$(mktemp -d /tmp/forestmap-package-XXXXXX)"
