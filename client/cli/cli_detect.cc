@@ -138,6 +138,7 @@ void Run(const DetectCommandOptions& options, const CliContext& context) {
   if (options.out.empty() || options.out == "-") {
     *context.out << text.str() << std::flush;
   } else {
+    if (options.format != "json") CheckNoSidecarClash(options.out, TreeFormat::kCsv);
     std::ofstream file(options.out);
     file << text.str();
     file.close();

@@ -219,15 +219,20 @@ void AddStateColumns(ExportedTrees& exported) {
 }
 
 // --format, or the --out extension's. An extension that names another format is refused (a
-// shapefile is always FILE.shp: GDAL would make a directory of any other name).
+// shapefile is always FILE.shp: GDAL would make a directory of any other name), and so is one
+// that names no format we write (x.kml would silently be CSV); no extension at all is CSV.
 TreeFormat ExportFormat(const ExportOptions& options) {
   const TreeFormat by_extension = TreeFormatOfPath(options.out_file);
-  if (options.format.empty()) return by_extension;
-  const TreeFormat format = ParseTreeFormat(options.format);
-  std::string extension = std::filesystem::path(options.out_file).extension().string();
-  std::transform(extension.begin(), extension.end(), extension.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const std::string extension = LowerExtension(options.out_file);
   const bool known = by_extension != TreeFormat::kCsv || extension == ".csv";
+  if (options.format.empty()) {
+    if (!known && !extension.empty()) {
+      throw CommandError("--out " + options.out_file + ": forestmap writes no '" + extension +
+                         "' files; name it .csv, .geojson, .gpkg or .shp (or give --format)");
+    }
+    return by_extension;
+  }
+  const TreeFormat format = ParseTreeFormat(options.format);
   if ((known && by_extension != format) || (format == TreeFormat::kShapefile && !known)) {
     throw CommandError("--format " + options.format + " and --out " + options.out_file +
                        " disagree: name the file " +
@@ -254,6 +259,12 @@ void RunExport(const ExportOptions& options, const CliContext& context) {
   }
   // Checked before the download.
   const TreeFormat format = to_stdout ? TreeFormat::kCsv : ExportFormat(options);
+  std::string out_file = options.out_file;
+  // GDAL writes a shapefile's parts in lower case: t.SHP is written (and reported) as t.shp.
+  if (format == TreeFormat::kShapefile) {
+    out_file = std::filesystem::path(out_file).replace_extension(".shp").string();
+  }
+  if (!to_stdout) CheckNoSidecarClash(out_file, format);
   ForestMapClient client = context.Connect();
   const v1::Map map = client.GetMap(options.name);
   const int64_t total = TreesToExport(client, map, options.version);
@@ -268,23 +279,23 @@ void RunExport(const ExportOptions& options, const CliContext& context) {
     return;
   }
   if (format == TreeFormat::kCsv) {
-    ReplaceFile(options.out_file,
+    ReplaceFile(out_file,
                 [&](const std::string& temporary) { WriteMapTreesCsv(temporary, exported.trees); });
     // The CRS as WKT beside the CSV, as GIS tools keep it (map create --trees reads it back);
     // for a map without one, an old .prj is removed.
-    WriteCrsSidecar(options.out_file, map.crs());
+    WriteCrsSidecar(out_file, map.crs());
   } else {
     // A GeoPackage takes the map as its layer (others stay); other formats are replaced.
-    const auto written = ProgressTo(*context.err, "writing " + options.out_file,
-                                    std::ssize(exported.trees), kExportChunk);
+    const auto written =
+        ProgressTo(*context.err, "writing " + out_file, std::ssize(exported.trees), kExportChunk);
     for (const std::string& warning : WriteGeoTrees(
-             options.out_file, format, exported.trees, map.crs(), options.name,
+             out_file, format, exported.trees, map.crs(), options.name,
              written ? [&written](int64_t done, int64_t) { written(done); } : GeoWriteProgress())) {
       *context.err << "forestmap: warning: " << warning << std::endl;
     }
   }
   *context.err << "exported " << exported.trees.size() << " trees of map '" << options.name
-               << "' (version " << exported.map_version << ") to " << options.out_file;
+               << "' (version " << exported.map_version << ") to " << out_file;
   if (format == TreeFormat::kGeoPackage) *context.err << " (layer '" << options.name << "')";
   *context.err << std::endl;
 }

@@ -1,5 +1,6 @@
 #include "client/cli/cli_tree_input.h"
 
+#include <algorithm>
 #include <cctype>
 #include <filesystem>
 #include <fstream>
@@ -82,6 +83,30 @@ TreeFile ReadTreeFile(const std::string& path, const TreeFileOptions& options) {
   file.rows = std::move(trees.rows);
   file.crs = std::move(trees.crs_wkt);
   return file;
+}
+
+std::string LowerExtension(const std::filesystem::path& path) {
+  std::string extension = path.extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return extension;
+}
+
+// A sidecar file of one export must not replace another's: a CSV's CRS goes to FILE.prj, which
+// is also a part of the shapefile FILE.shp (and the other way round).
+void CheckNoSidecarClash(const std::filesystem::path& out, TreeFormat format) {
+  if (format != TreeFormat::kCsv && format != TreeFormat::kShapefile) return;
+  const std::string other = format == TreeFormat::kCsv ? ".shp" : ".csv";
+  std::error_code error;
+  const std::filesystem::path folder = out.has_parent_path() ? out.parent_path() : ".";
+  for (const auto& entry : std::filesystem::directory_iterator(folder, error)) {
+    if (entry.path().stem() == out.stem() && LowerExtension(entry.path()) == other) {
+      throw CommandError("--out " + out.string() + ": its CRS file " +
+                         std::filesystem::path(out).replace_extension(".prj").string() +
+                         " would replace that of " + entry.path().string() +
+                         "; export to another name or folder");
+    }
+  }
 }
 
 void WriteCrsSidecar(const std::string& csv_path, const std::string& crs) {

@@ -3,9 +3,11 @@
 // file format chosen by extension (CSV, or GeoPackage / GeoJSON / shapefile through GDAL).
 
 #include <CLI/CLI.hpp>
+#include <filesystem>
 #include <string>
 #include <vector>
 
+#include "client/io/geo_io.h"
 #include "client/io/tree_columns.h"
 #include "client/io/tree_csv.h"
 
@@ -35,6 +37,14 @@ TreeFile ReadTreeFile(const std::string& path, const TreeFileOptions& options);
 // Writes `crs` as WKT to PATH.prj (PATH without its extension), beside a CSV, replacing any
 // PATH.prj or PATH.PRJ; an empty `crs` (none) removes them and writes nothing.
 void WriteCrsSidecar(const std::string& csv_path, const std::string& crs);
+
+// A file's extension in lower case (".shp").
+std::string LowerExtension(const std::filesystem::path& path);
+
+// Throws CommandError when writing `out` in `format` would replace a file of another export: a
+// CSV's CRS sidecar FILE.prj is also a part of the shapefile FILE.shp, and the other way round.
+// Called before anything is written.
+void CheckNoSidecarClash(const std::filesystem::path& out, TreeFormat format);
 
 // "EPSG:n", or the name in a WKT's first quotes, for messages.
 std::string ShortCrs(const std::string& crs);

@@ -180,8 +180,8 @@ TEST_F(GisFilesTest, AttributesEveryFormatCannotNameAreRenamedAndEveryMapExports
   shapefile["attr_speci"] = "o";
   const std::map<std::string, std::string> csv = {
       {"Species", "Oak"}, {"attr_species", "o"}, {"fid", "1"}, {"geom", "a"}};
-  for (const std::string name : {"r.gpkg", "r.geojson", "r.shp", "r.csv"}) {
-    const auto& expected = name == "r.csv" ? csv : name == "r.shp" ? shapefile : gis;
+  for (const std::string name : {"r.gpkg", "r.geojson", "r.shp", "rc.csv"}) {
+    const auto& expected = name == "rc.csv" ? csv : name == "r.shp" ? shapefile : gis;
     const Result exported = Cli("map export plot --out '" + Path(name) + "'");
     ASSERT_EQ(exported.exit_code, 0) << name << ": " << exported.err;
     const std::string copy = "copy_" + fs::path(name).extension().string().substr(1);
@@ -193,7 +193,7 @@ TEST_F(GisFilesTest, AttributesEveryFormatCannotNameAreRenamedAndEveryMapExports
 
 TEST_F(GisFilesTest, MapsWithoutCrsReadBackWithoutOne) {
   CreateLocal("local", "h", {"1", "2", "3"});
-  for (const std::string name : {"b.geojson", "b.gpkg", "b.shp", "b.csv"}) {
+  for (const std::string name : {"b.geojson", "b.gpkg", "b.shp", "c.csv"}) {
     ASSERT_EQ(Cli("map export local --out '" + Path(name) + "'").exit_code, 0) << name;
     const std::string copy = "copy_" + fs::path(name).extension().string().substr(1);
     EXPECT_EQ(ReadBack(copy, Path(name)).size(), 3u) << name;
@@ -227,6 +227,37 @@ TEST_F(GisFilesTest, MapsWithoutCrsReadBackWithoutOne) {
   const Result garbage = Cli("map create garbage --trees '" + Path("h.csv") + "'");
   EXPECT_EQ(garbage.exit_code, 1);
   EXPECT_TRUE(Has(garbage.err, Path("h.PRJ") + ": not a CRS PROJ knows")) << garbage.err;
+}
+
+// One export never replaces another's files, and names only what it writes: x.csv's CRS file
+// x.prj is also the shapefile x.shp's; x.kml is no format we write (it used to be CSV, silently);
+// t.SHP is written by GDAL as t.shp, and said so.
+TEST_F(GisFilesTest, ExportsNeverClobberAnotherExportsFilesNorWriteUnknownFormats) {
+  CreateLocal("plot", "sp", {"oak", "ash", "elm"}, "--crs EPSG:2959");
+  ASSERT_EQ(Cli("map export plot --out '" + Path("x.shp") + "'").exit_code, 0);
+  const std::string prj = ReadWholeFile(dir_ / "x.prj");
+  const Result csv = Cli("map export plot --out '" + Path("x.csv") + "'");
+  EXPECT_EQ(csv.exit_code, 1);
+  EXPECT_TRUE(Has(csv.err, "would replace that of " + Path("x.shp"))) << csv.err;
+  EXPECT_FALSE(fs::exists(dir_ / "x.csv"));
+  EXPECT_EQ(ReadWholeFile(dir_ / "x.prj"), prj);
+  EXPECT_TRUE(Has(Shell("ogrinfo -so -al '" + Path("x.shp") + "'").out, "EPSG\",2959"));
+  ASSERT_EQ(Cli("map export plot --out '" + Path("y.csv") + "'").exit_code, 0);
+  const Result shp = Cli("map export plot --out '" + Path("y.shp") + "'");
+  EXPECT_EQ(shp.exit_code, 1);
+  EXPECT_TRUE(Has(shp.err, "would replace that of " + Path("y.csv"))) << shp.err;
+
+  const std::vector<std::string> before = Listing(dir_);
+  for (const std::string name : {"t.kml", "t.fgb", "t.txt"}) {
+    const Result unknown = Cli("map export plot --out '" + Path(name) + "'");
+    EXPECT_EQ(unknown.exit_code, 1) << name;
+    EXPECT_TRUE(Has(unknown.err, "name it .csv, .geojson, .gpkg or .shp")) << unknown.err;
+  }
+  EXPECT_EQ(Listing(dir_), before);
+  const Result upper = Cli("map export plot --out '" + Path("t.SHP") + "'");
+  ASSERT_EQ(upper.exit_code, 0) << upper.err;
+  EXPECT_TRUE(Has(upper.err, "to " + Path("t.shp"))) << upper.err;
+  EXPECT_TRUE(fs::exists(dir_ / "t.shp"));
 }
 
 // `detect` on a scan without a CRS writes no .prj beside its CSV and removes an old one.

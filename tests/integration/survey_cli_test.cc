@@ -115,7 +115,7 @@ TEST_F(SurveyCliTest, FieldInventoryUploadsAndExportsToGeoPackageWithCrsAndAttri
 
 TEST_F(SurveyCliTest, GeoJsonShapefileAndCsvRoundTripWithTheirCrsAndNullFields) {
   ASSERT_EQ(CreateField("prf025", "--dbh-unit cm --crs EPSG:2959").exit_code, 0);
-  for (const std::string name : {"trees.geojson", "trees.shp", "trees.csv"}) {
+  for (const std::string name : {"trees.geojson", "trees.shp", "table.csv"}) {
     const std::string path = (dir_ / name).string();
     const Result exported = Cli("map export prf025 --out '" + path + "'");
     ASSERT_EQ(exported.exit_code, 0) << exported.err;
