@@ -40,6 +40,9 @@ if(NOT FORESTMAP_PACKAGES)
 endif()
 
 set(CPACK_GENERATOR DEB)
+# cpack packages what was built and builds nothing (deploy/package.sh builds first): without
+# this its `preinstall` step would build every target, tests included.
+set(CMAKE_SKIP_INSTALL_ALL_DEPENDENCY ON)
 set(CPACK_PACKAGE_NAME forestmap)
 set(CPACK_PACKAGE_VENDOR "ForestMap")
 set(CPACK_PACKAGE_CONTACT "ForestMap maintainers <forestmap@localhost>")
