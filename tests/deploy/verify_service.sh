@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs the build into a temporary prefix (`cmake --install`), checks that the programs are
-# there and run, and verifies deploy/forestmapd.service with `systemd-analyze verify` (ExecStart
-# pointed at the installed forestmapd, since verify checks that the binary exists).
+# there and run, that the installed unit's ExecStart is the installed forestmapd, and verifies the
+# unit with `systemd-analyze verify` (which checks that the binary exists).
 # Usage: verify_service.sh BUILD_DIR [PROGRAM...]   (default: forestmapd forestmap)
 set -euo pipefail
 build="$1"
@@ -18,7 +18,9 @@ for binary in "${programs[@]}"; do
 done
 unit="$prefix/lib/systemd/system/forestmapd.service"
 test -f "$unit" || { echo "cmake --install did not install forestmapd.service"; exit 1; }
-sed -i "s|/usr/local/bin/forestmapd|$prefix/bin/forestmapd|" "$unit"
+# ExecStart names the forestmapd of this install's prefix (cmake/install_unit.cmake).
+grep -q "^ExecStart=$prefix/bin/forestmapd " "$unit" ||
+  { echo "the installed unit does not start $prefix/bin/forestmapd: $(grep ^ExecStart "$unit")"; exit 1; }
 # verify prints problems as warnings on stderr but only some make it fail: fail on any output.
 output="$(systemd-analyze verify "$unit" 2>&1 || echo "systemd-analyze verify failed")"
 if [ -n "$output" ]; then
