@@ -1,26 +1,36 @@
 # What `cmake --install BUILD [--prefix DIR]` puts where (GNU layout under the prefix):
 #   bin/forestmapd, bin/forestmap, bin/forestmap-lab    the programs that were built
-#   lib/systemd/system/forestmapd.service               the service unit (with the server)
+#   lib/systemd/system/forestmapd.service               the service unit (with the server), its
+#                                                        ExecStart the installed bin/forestmapd
 #   lib/libforestmap_{client,io,proto,detection,core}.a the client library and what it links
 #   include/forestmap/...                                its headers, under the paths the code
 #                                                        includes ("client/lib/forestmap_client.h")
 #   lib/cmake/ForestMap/                                 find_package(ForestMap CONFIG):
 #                                                        ForestMap::client
 #   lib/pkgconfig/forestmap-client.pc                    the same for pkg-config users
+# Install components (`cmake --install BUILD --component NAME`; the Debian packages of
+# cmake/packaging.cmake are the first two): forestmapd (server and unit), forestmap (client CLI),
+# lab (forestmap-lab), dev (the client library).
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
 if(FORESTMAP_BUILD_SERVER)
-  install(TARGETS forestmapd RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
-  install(FILES deploy/forestmapd.service DESTINATION lib/systemd/system)
+  install(TARGETS forestmapd RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT forestmapd)
+  # The unit is written at install time, when the prefix is known (`cmake --install --prefix`,
+  # CPack's /usr), with ExecStart naming the forestmapd installed there.
+  install(CODE "set(FORESTMAP_UNIT_SOURCE \"${PROJECT_SOURCE_DIR}/deploy/forestmapd.service\")
+    set(FORESTMAP_UNIT_BINDIR \"${CMAKE_INSTALL_BINDIR}\")
+    set(FORESTMAP_UNIT_STAGING \"${PROJECT_BINARY_DIR}/installed-unit\")" COMPONENT forestmapd)
+  install(SCRIPT cmake/install_unit.cmake COMPONENT forestmapd)
 endif()
 if(FORESTMAP_BUILD_LAB)
-  install(TARGETS forestmap-lab RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+  install(TARGETS forestmap-lab RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT lab)
 endif()
 if(NOT FORESTMAP_BUILD_CLIENT)
   return()
 endif()
-install(TARGETS forestmap RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+install(TARGETS forestmap RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT forestmap)
+set(CMAKE_INSTALL_DEFAULT_COMPONENT_NAME dev)  # every rule below
 
 # ---- The client library: static archives, headers, CMake package, pkg-config file ----
 set(FORESTMAP_INCLUDE_DIR ${CMAKE_INSTALL_INCLUDEDIR}/forestmap)

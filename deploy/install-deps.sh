@@ -23,6 +23,9 @@ PACKAGES=(
   python3-grpcio python3-protobuf python3-numpy python3-pytest  # client/python and its tests
   python3-pip python3-setuptools python3-wheel python3-venv  # its wheel, built offline and installed in a venv
   systemd  # systemd-analyze verify of deploy/forestmapd.service (a test)
+  dpkg-dev file  # cpack's Debian packages: dpkg-shlibdeps computes their Depends (deploy/package.sh)
+  mmdebstrap  # a Debian 12 root filesystem for deploy/Dockerfile's runtime stage (a test)
+  iproute2  # loopback up in that test's network namespace
   libssl-dev openssl  # token hashes (libcrypto); tests make TLS certificates with the CLI
   libspdlog-dev  # forestmapd's structured logs (--metrics uses libcpp-httplib-dev above)
   prometheus  # promtool, which checks the metrics exposition in a test

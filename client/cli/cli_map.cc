@@ -19,6 +19,7 @@
 #include "client/io/file_replace.h"
 #include "client/io/geo_io.h"
 #include "client/io/tree_csv.h"
+#include "geo/crs.h"
 
 namespace forestmap::client {
 namespace {
@@ -194,7 +195,27 @@ struct ExportOptions {
   std::string out_file;  // empty or "-": stdout
   int64_t version = 0;   // 0: current
   std::string format;    // csv|geojson|gpkg|shp; empty: from the extension of out_file
+  std::string to_crs;    // --to-crs: the trees reprojected into this CRS; empty: the map's
 };
+
+// --to-crs: `rows` moved from the map's CRS into `to` (any CRS, degrees too: EPSG:4326 for web
+// tools). Returns `to`.
+std::string ReprojectExport(std::vector<MapTreeRow>& rows, const v1::Map& map,
+                            const std::string& to) {
+  if (map.crs().empty()) {
+    throw CommandError("--to-crs: map '" + map.name() + "' has no CRS to reproject from");
+  }
+  try {
+    const geo::Reprojection move(map.crs(), to);
+    for (MapTreeRow& row : rows) {
+      double z = row.z.value_or(0);  // heights are kept as they are
+      move.Apply(row.x, row.y, z);
+    }
+  } catch (const geo::CrsError& e) {
+    throw CommandError(std::string("--to-crs ") + to + ": " + e.what());
+  }
+  return to;
+}
 
 // Shared maps: the state of each tree as extra columns (status, observations, sigmas), added
 // only when some tree came from observations, so survey exports keep their columns.
@@ -265,6 +286,13 @@ void RunExport(const ExportOptions& options, const CliContext& context) {
     out_file = std::filesystem::path(out_file).replace_extension(".shp").string();
   }
   if (!to_stdout) CheckNoSidecarClash(out_file, format);
+  if (!options.to_crs.empty()) {
+    try {
+      geo::ParseCrs(options.to_crs);
+    } catch (const geo::CrsError& e) {
+      throw CommandError(std::string("--to-crs ") + options.to_crs + ": " + e.what());
+    }
+  }
   ForestMapClient client = context.Connect();
   const v1::Map map = client.GetMap(options.name);
   const int64_t total = TreesToExport(client, map, options.version);
@@ -272,6 +300,8 @@ void RunExport(const ExportOptions& options, const CliContext& context) {
       client.ExportTrees(options.name, std::nullopt, options.version,
                          ProgressTo(*context.err, "exporting", total, kExportChunk));
   AddStateColumns(exported);
+  const std::string crs =
+      options.to_crs.empty() ? map.crs() : ReprojectExport(exported.trees, map, options.to_crs);
   if (to_stdout) {
     WriteMapTreesCsv(*context.out, exported.trees);
     context.out->flush();
@@ -283,13 +313,13 @@ void RunExport(const ExportOptions& options, const CliContext& context) {
                 [&](const std::string& temporary) { WriteMapTreesCsv(temporary, exported.trees); });
     // The CRS as WKT beside the CSV, as GIS tools keep it (map create --trees reads it back);
     // for a map without one, an old .prj is removed.
-    WriteCrsSidecar(out_file, map.crs());
+    WriteCrsSidecar(out_file, crs);
   } else {
     // A GeoPackage takes the map as its layer (others stay); other formats are replaced.
     const auto written =
         ProgressTo(*context.err, "writing " + out_file, std::ssize(exported.trees), kExportChunk);
     for (const std::string& warning : WriteGeoTrees(
-             out_file, format, exported.trees, map.crs(), options.name,
+             out_file, format, exported.trees, crs, options.name,
              written ? [&written](int64_t done, int64_t) { written(done); } : GeoWriteProgress())) {
       *context.err << "forestmap: warning: " << warning << std::endl;
     }
@@ -311,6 +341,9 @@ void AddExport(CLI::App& map_app, CliContext& context) {
   sub->add_option("--format", options->format,
                   "csv, geojson, gpkg or shp (default: from the --out extension, else csv)")
       ->check(CLI::IsMember({"csv", "geojson", "gpkg", "shp"}));
+  sub->add_option("--to-crs", options->to_crs,
+                  "Reproject the trees into this CRS (EPSG:n, WKT or PROJ), e.g. EPSG:4326: a "
+                  "GeoJSON in WGS 84 is written as RFC 7946, as web tools expect");
   sub->add_option("--version", options->version,
                   "Map version to export (default 0: the current one; see 'map history')")
       ->check(CLI::NonNegativeNumber);

@@ -154,8 +154,7 @@ void AddHistory(CLI::App& map_app, CliContext& context) {
 
 // Deleting a map removes its whole history: on a terminal the user confirms it by typing the
 // map's name; elsewhere (scripts) --yes says so, and without it nothing is deleted.
-void ConfirmDelete(const v1::Map& map, bool yes, const CliContext& context) {
-  if (yes) return;
+void ConfirmDelete(const v1::Map& map, const CliContext& context) {
   const std::string what = "map '" + TerminalSafe(map.name()) + "' (" +
                            std::to_string(map.tree_count()) + " trees, " +
                            std::to_string(map.version()) + " versions of history)";
@@ -180,7 +179,7 @@ void AddDelete(CLI::App& map_app, CliContext& context) {
   sub->callback([name, yes, &context] {
     context.run = [name, yes, &context] {
       ForestMapClient client = context.Connect();
-      ConfirmDelete(client.GetMap(*name), *yes, context);
+      if (!*yes) ConfirmDelete(client.GetMap(*name), context);
       client.DeleteMap(*name);
       *context.out << "deleted map '" << TerminalSafe(*name) << "'" << std::endl;
     };

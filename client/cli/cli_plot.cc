@@ -138,8 +138,9 @@ void AddPlotCommand(CLI::App& app, CliContext& context) {
   auto o = std::make_shared<PlotCommandOptions>();
   CLI::App* sub = app.add_subcommand(
       "plot",
-      "Draw a map as SVG or PNG: stems to scale, candidates vs confirmed, scale bar, north "
-      "arrow, CRS; optionally a relocalization answer or a tracked path");
+      "Draw a map as SVG or PNG: stems to scale, candidates vs confirmed, a grid with the "
+      "map's coordinates, scale bar, north arrow, CRS, DBH key; optionally a relocalization "
+      "answer or a tracked path");
   sub->add_option("NAME", o->map, "Map name (or --trees FILE)");
   sub->add_option("--trees", o->trees_file, "Draw a tree file instead of a map");
   AddTreeFileOptions(*sub, o->columns, o->dbh_unit);

@@ -10,6 +10,8 @@
 #include <filesystem>
 #include <memory>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 namespace forestmap::client {
 namespace {
@@ -25,6 +27,7 @@ constexpr Rgb kCandidate{0.93, 0.55, 0.10};
 constexpr Rgb kMatched{0.10, 0.35, 0.85};
 constexpr Rgb kUnmatched{0.85, 0.10, 0.10};
 constexpr Rgb kInk{0.10, 0.10, 0.10};
+constexpr Rgb kGrid{0.72, 0.74, 0.70};
 
 // World (m) to picture (px): y up in the world, down in the picture.
 struct View {
@@ -110,23 +113,111 @@ void Answer(cairo_t* cr, const View& view, const PlotInput& input) {
   cairo_fill(cr);
 }
 
-// A round length (1, 2 or 5 times a power of ten) about a fifth of the drawing's width.
-double ScaleBarLength(double width_m) {
-  const double target = width_m / 5;
-  const double power = std::pow(10.0, std::floor(std::log10(target)));
-  for (double step : {5.0, 2.0, 1.0}) {
-    if (step * power <= target) return step * power;
+struct LegendEntry {
+  Rgb colour;
+  bool filled;
+  std::string text;
+};
+
+std::vector<LegendEntry> LegendEntries(const PlotInput& input) {
+  const auto any = [&](auto predicate) {
+    return std::any_of(input.trees.begin(), input.trees.end(), predicate);
+  };
+  std::vector<LegendEntry> entries;
+  if (any([](const PlotTree& t) { return !t.candidate && t.dbh; })) {
+    entries.push_back({kConfirmed, true, "confirmed stem"});
   }
-  return power;
+  if (any([](const PlotTree& t) { return !t.candidate && !t.dbh; })) {
+    entries.push_back({kConfirmed, false, "stem, DBH unknown"});
+  }
+  if (any([](const PlotTree& t) { return t.candidate; })) {
+    entries.push_back({kCandidate, false, "candidate stem"});
+  }
+  if (!input.matched.empty()) entries.push_back({kMatched, true, "query: matched"});
+  if (!input.unmatched.empty()) entries.push_back({kUnmatched, true, "query: unmatched"});
+  if (input.path.size() > 1) entries.push_back({kMatched, false, "tracked path"});
+  if (input.sensor) entries.push_back({kInk, true, "sensor (heading)"});
+  return entries;
+}
+
+// "123.5" for a grid label: as many decimals as the step needs.
+std::string Coordinate(double value, double step) {
+  const int decimals = step >= 1 ? 0 : static_cast<int>(std::ceil(-std::log10(step)));
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.*f", decimals, value);
+  return text;
+}
+
+// Grid lines every GridStep in the map's coordinates, labelled along the bottom and the left
+// edges of the map area, so that any tree can be located.
+void Grid(cairo_t* cr, const View& view, const std::array<double, 4>& box) {
+  const double step = GridStep(box[2] - box[0]);
+  cairo_set_line_width(cr, 0.6);
+  for (double x = std::ceil(box[0] / step) * step; x <= box[2]; x += step) {
+    const Eigen::Vector2d bottom = view(x, box[1]), top = view(x, box[3]);
+    SetColour(cr, kGrid);
+    cairo_move_to(cr, bottom.x(), bottom.y());
+    cairo_line_to(cr, top.x(), top.y());
+    cairo_stroke(cr);
+    SetColour(cr, kInk, 0.75);
+    Text(cr, bottom.x() + 2, bottom.y() - 3, Coordinate(x, step), 9);
+  }
+  for (double y = std::ceil(box[1] / step) * step; y <= box[3]; y += step) {
+    const Eigen::Vector2d left = view(box[0], y), right = view(box[2], y);
+    SetColour(cr, kGrid);
+    cairo_move_to(cr, left.x(), left.y());
+    cairo_line_to(cr, right.x(), right.y());
+    cairo_stroke(cr);
+    SetColour(cr, kInk, 0.75);
+    // Not at the bottom edge, where the x labels are.
+    if (left.y() < view(box[0], box[1]).y() - 12) {
+      Text(cr, left.x() + 2, left.y() - 3, Coordinate(y, step), 9);
+    }
+  }
+}
+
+// Circles of round DBHs drawn as the stems are (to scale, at least min_stem_px), under the
+// legend: what a stem's size means at this scale.
+double DbhKey(cairo_t* cr, const View& view, const PlotInput& input, const PlotOptions& o, double x,
+              double y) {
+  std::vector<double> dbh;
+  for (const PlotTree& tree : input.trees) {
+    if (tree.dbh) dbh.push_back(*tree.dbh);
+  }
+  if (dbh.empty()) return y;
+  std::sort(dbh.begin(), dbh.end());
+  SetColour(cr, kInk);
+  Text(cr, x - 6, y, "DBH key (to scale):", 10);
+  y += 16;
+  double last = -1;
+  for (double quantile : {0.1, 0.5, 0.9}) {
+    // Rounded to 5 cm (1 cm below 10 cm), each key different.
+    const double value = dbh[static_cast<size_t>(quantile * (dbh.size() - 1))];
+    const double unit = value < 0.1 ? 0.01 : 0.05;
+    const double rounded = std::max(unit, std::round(value / unit) * unit);
+    if (rounded <= last) continue;
+    last = rounded;
+    const double r = std::max(o.min_stem_px, 0.5 * rounded * view.scale);
+    SetColour(cr, kConfirmed);
+    cairo_new_path(cr);
+    cairo_arc(cr, x + 6, y - 4, r, 0, 2 * M_PI);
+    cairo_fill(cr);
+    SetColour(cr, kInk);
+    char label[32];
+    std::snprintf(label, sizeof(label), "%.0f cm", rounded * 100);
+    Text(cr, x + 12 + std::max(0.0, r - 6), y, label, 11);
+    y += std::max(18.0, 2 * r + 6);
+  }
+  return y;
 }
 
 void Furniture(cairo_t* cr, const View& view, double width_px, double height_px,
-               const PlotInput& input) {
+               const PlotInput& input, const PlotOptions& o) {
   SetColour(cr, kInk);
   Text(cr, 10, 20, input.title, 15);
   Text(cr, 10, 38, input.crs.empty() ? "no CRS (local map frame)" : "CRS: " + input.crs, 11);
   // Scale bar, bottom left.
-  const double length = ScaleBarLength(width_px / view.scale);
+  const double length = GridStep(width_px / view.scale);
   const double x0 = view.left + 10, y0 = height_px - 18;
   cairo_set_line_width(cr, 3);
   cairo_move_to(cr, x0, y0);
@@ -146,23 +237,17 @@ void Furniture(cairo_t* cr, const View& view, double width_px, double height_px,
   // Legend.
   const double lx = width_px - kLegendPx + 12;
   double ly = kHeaderPx + 20;
-  const auto entry = [&](Rgb colour, bool filled, const char* text) {
-    SetColour(cr, colour);
+  cairo_set_line_width(cr, 1.2);
+  for (const LegendEntry& entry : LegendEntries(input)) {
+    SetColour(cr, entry.colour);
     cairo_new_path(cr);
     cairo_arc(cr, lx, ly - 4, 5, 0, 2 * M_PI);
-    filled ? cairo_fill(cr) : cairo_stroke(cr);
+    entry.filled ? cairo_fill(cr) : cairo_stroke(cr);
     SetColour(cr, kInk);
-    Text(cr, lx + 12, ly, text, 11);
+    Text(cr, lx + 12, ly, entry.text, 11);
     ly += 18;
-  };
-  entry(kConfirmed, true, "confirmed stem");
-  entry(kCandidate, false, "candidate stem");
-  if (!input.matched.empty() || !input.unmatched.empty()) {
-    entry(kMatched, true, "query: matched");
-    entry(kUnmatched, true, "query: unmatched");
   }
-  if (input.sensor) entry(kInk, true, "sensor (heading)");
-  Text(cr, lx - 6, ly + 6, "stems to scale (DBH)", 10);
+  DbhKey(cr, view, input, o, lx, ly + 12);
 }
 
 std::array<double, 4> Extent(const PlotInput& input, const PlotOptions& o) {
@@ -179,6 +264,21 @@ std::array<double, 4> Extent(const PlotInput& input, const PlotOptions& o) {
 }
 
 }  // namespace
+
+std::vector<std::string> LegendOf(const PlotInput& input) {
+  std::vector<std::string> lines;
+  for (const LegendEntry& entry : LegendEntries(input)) lines.push_back(entry.text);
+  return lines;
+}
+
+double GridStep(double width_m) {
+  const double target = width_m / 5;
+  const double power = std::pow(10.0, std::floor(std::log10(target)));
+  for (double step : {5.0, 2.0, 1.0}) {
+    if (step * power <= target) return step * power;
+  }
+  return power;
+}
 
 void WritePlot(const std::string& path, const PlotInput& input, const PlotOptions& o) {
   const std::array<double, 4> box = Extent(input, o);
@@ -204,10 +304,11 @@ void WritePlot(const std::string& path, const PlotInput& input, const PlotOption
   cairo_set_source_rgb(cr, 0.96, 0.97, 0.94);
   cairo_fill_preserve(cr);
   cairo_clip(cr);  // trees outside a --window stay outside
+  Grid(cr, view, box);
   Stems(cr, view, input, o);
   Answer(cr, view, input);
   cairo_reset_clip(cr);
-  Furniture(cr, view, width_px, height_px, input);
+  Furniture(cr, view, width_px, height_px, input, o);
   cairo_destroy(cr);
   cairo_status_t status = cairo_surface_status(surface);
   if (status == CAIRO_STATUS_SUCCESS && extension == ".png") {

@@ -1,8 +1,9 @@
 #pragma once
 // Pictures of a map (cairo, the one file that includes it): stems to scale by DBH, candidate
-// and confirmed trees told apart, a scale bar, a north arrow and the CRS; optionally one
-// relocalization answer (sensor pose, range, matched and unmatched query trees) or a tracked
-// path. SVG or PNG by the output's extension.
+// and confirmed trees told apart, a grid with its coordinates in the map's CRS, a scale bar, a
+// north arrow, the CRS, a DBH key and a legend of what is drawn; optionally one relocalization
+// answer (sensor pose, range, matched and unmatched query trees) or a tracked path. SVG or PNG
+// by the output's extension.
 
 #include <Eigen/Core>
 #include <optional>
@@ -41,6 +42,13 @@ struct PlotOptions {
   // Only this window of the map (m, map frame); empty: everything.
   std::optional<Eigen::Vector4d> window;  // min_x, min_y, max_x, max_y
 };
+
+// The legend's lines, in order: only what the picture shows.
+std::vector<std::string> LegendOf(const PlotInput& input);
+
+// The spacing of the coordinate grid (m): a round length (1, 2 or 5 times a power of ten) about a
+// fifth of `width_m`; also the scale bar's length.
+double GridStep(double width_m);
 
 // Writes `path` (.svg or .png). Throws std::runtime_error naming the file when it cannot.
 void WritePlot(const std::string& path, const PlotInput& input, const PlotOptions& options = {});

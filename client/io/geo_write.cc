@@ -179,8 +179,15 @@ std::vector<std::string> WriteLayer(GDALDataset& dataset, const std::vector<MapT
     columns.push_back({attribute, AttributeType(rows, attribute.name)});
   }
   const char* shapefile_options[] = {"ENCODING=UTF-8", nullptr};  // and a .cpg saying so
-  char** options =
-      spec.format == TreeFormat::kShapefile ? const_cast<char**>(shapefile_options) : nullptr;
+  // GeoJSON in WGS 84 is written as RFC 7946 (longitude, latitude; no 2008 "crs" member), which
+  // web tools expect.
+  const char* rfc7946_options[] = {"RFC7946=YES", nullptr};
+  const bool wgs84 = spec.srs != nullptr && spec.srs->GetAuthorityName(nullptr) != nullptr &&
+                     std::string(spec.srs->GetAuthorityName(nullptr)) == "EPSG" &&
+                     std::string(spec.srs->GetAuthorityCode(nullptr)) == "4326";
+  char** options = nullptr;
+  if (spec.format == TreeFormat::kShapefile) options = const_cast<char**>(shapefile_options);
+  if (spec.format == TreeFormat::kGeoJson && wgs84) options = const_cast<char**>(rfc7946_options);
   OGRLayer* layer = dataset.CreateLayer(spec.name.c_str(), spec.srs, wkbPoint, options);
   if (!layer) throw CsvError(path + ": cannot create a layer: " + LastGdalError());
   std::vector<std::string> warnings = CreateFields(*layer, columns, path);

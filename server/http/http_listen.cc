@@ -18,6 +18,11 @@ namespace {
 
 constexpr int kMaxPort = 65535;
 constexpr auto kStopPoll = std::chrono::milliseconds(5);  // while waiting for the listen loop
+// A connection that sends nothing (half-open, a slow client) holds one of cpp-httplib's workers
+// until its read timeout; with its defaults (8 workers, 5 s) 50 such connections stalled the
+// page and /metrics for 30 s. Many workers and a short first-byte timeout keep them answering.
+constexpr int kHttpWorkers = 64;
+constexpr int kReadTimeoutS = 2;
 
 struct HostPort {
   std::string host;  // without the brackets of an IPv6 literal
@@ -75,6 +80,9 @@ std::string BindFailure(const HostPort& where) {
 
 int BindHttpListener(httplib::Server& http, const std::string& flag, const std::string& address) {
   const HostPort where = Parse(flag, address);
+  http.new_task_queue = [] { return new httplib::ThreadPool(kHttpWorkers); };
+  http.set_read_timeout(kReadTimeoutS, 0);
+  http.set_keep_alive_timeout(kReadTimeoutS);
   http.set_socket_options([](int sock) {
     int yes = 1;
     setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));

@@ -2,7 +2,9 @@
 // Binding forestmapd's HTTP listeners (--http, --metrics) the way its gRPC --listen binds: one
 // port, one server. cpp-httplib sets SO_REUSEPORT on its sockets by default, which lets a second
 // forestmapd bind a port already in use and silently take part of its connections; the sockets
-// bound here only get SO_REUSEADDR (restart after TIME_WAIT), so a port in use is an error.
+// bound here only get SO_REUSEADDR (restart after TIME_WAIT), so a port in use is an error. Each
+// listener has 64 workers and a 2 s read timeout, so idle or half-open connections cannot stall
+// it.
 
 #include <atomic>
 #include <memory>

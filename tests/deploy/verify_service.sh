@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Installs the build into a temporary prefix (`cmake --install`), checks that the programs are
-# there and run (--help, --version), and verifies deploy/forestmapd.service with
-# `systemd-analyze verify` (ExecStart pointed at the installed forestmapd, since verify checks
-# that the binary exists). The unit passes no settings (forestmapd reads
-# /etc/forestmapd/forestmapd.conf), reloads with SIGHUP and does not restart on a usage error.
+# there and run (--help, --version), that the installed unit's ExecStart is the installed
+# forestmapd, and verifies the unit with `systemd-analyze verify` (which checks that the binary
+# exists). The unit passes no settings (forestmapd reads /etc/forestmapd/forestmapd.conf), reloads
+# with SIGHUP and does not restart on a usage error.
 # Usage: verify_service.sh BUILD_DIR [PROGRAM...]   (default: forestmapd forestmap)
 set -euo pipefail
 build="$1"
@@ -23,11 +23,12 @@ version="$("$prefix/bin/forestmapd" --version)"
   { echo "forestmapd --version printed '$version'"; exit 1; }
 unit="$prefix/lib/systemd/system/forestmapd.service"
 test -f "$unit" || { echo "cmake --install did not install forestmapd.service"; exit 1; }
-for line in '^ExecStart=[^ ]*/forestmapd$' '^ExecReload=/bin/kill -HUP \$MAINPID$' \
+# ExecStart names the forestmapd of this install's prefix (cmake/install_unit.cmake), with no
+# flags; the unit reloads with SIGHUP and does not restart after a usage error.
+for line in "^ExecStart=$prefix/bin/forestmapd\$" '^ExecReload=/bin/kill -HUP \$MAINPID$' \
     '^RestartPreventExitStatus=2$'; do
-  grep -qE "$line" "$unit" || { echo "forestmapd.service has no line matching $line"; exit 1; }
+  grep -qE "$line" "$unit" || { echo "the installed unit has no line matching $line"; exit 1; }
 done
-sed -i "s|/usr/local/bin/forestmapd|$prefix/bin/forestmapd|" "$unit"
 # verify prints problems as warnings on stderr but only some make it fail: fail on any output.
 output="$(systemd-analyze verify "$unit" 2>&1 || echo "systemd-analyze verify failed")"
 if [ -n "$output" ]; then

@@ -260,6 +260,44 @@ TEST_F(GisFilesTest, ExportsNeverClobberAnotherExportsFilesNorWriteUnknownFormat
   EXPECT_TRUE(fs::exists(dir_ / "t.shp"));
 }
 
+// --to-crs EPSG:4326 writes the GeoJSON web tools expect (RFC 7946: longitude, latitude, no "crs"
+// member), each point where cs2cs puts it; CSV and the other formats take any CRS too.
+TEST_F(GisFilesTest, ExportsReprojectIntoAnotherCrsAndGeoJsonInWgs84IsRfc7946) {
+  Write("utm.csv", "x,y,dbh\n300000,5100000,0.3\n300050.5,5100020.25,0.4\n");
+  ASSERT_EQ(Cli("map create utm --crs EPSG:32618 --trees '" + Path("utm.csv") + "'").exit_code, 0);
+  const Result web = Cli("map export utm --to-crs EPSG:4326 --out '" + Path("w.geojson") + "'");
+  ASSERT_EQ(web.exit_code, 0) << web.err;
+  const std::string text = ReadWholeFile(dir_ / "w.geojson");
+  EXPECT_FALSE(Has(text, "\"crs\"")) << text;
+  const Result expected = Shell(
+      "printf '300000 5100000\\n300050.5 5100020.25\\n' | "
+      "cs2cs -f %.8f EPSG:32618 OGC:CRS84");
+  ASSERT_EQ(expected.exit_code, 0) << expected.err;
+  std::istringstream lines(expected.out);
+  const Result csv = Cli("map export utm --to-crs EPSG:4326 --out '" + Path("w.csv") + "'");
+  ASSERT_EQ(csv.exit_code, 0) << csv.err;
+  std::istringstream rows(ReadWholeFile(dir_ / "w.csv"));
+  std::string row;
+  std::getline(rows, row);  // header
+  for (int i = 0; i < 2; ++i) {
+    double lon = 0, lat = 0, x = 0, y = 0;
+    char comma = 0;
+    int64_t id = 0;
+    lines >> lon >> lat;
+    std::getline(lines, row);  // the rest of cs2cs' line
+    ASSERT_TRUE(std::getline(rows, row));
+    std::istringstream(row) >> id >> comma >> x >> comma >> y;
+    EXPECT_NEAR(x, lon, 1e-8) << row;
+    EXPECT_NEAR(y, lat, 1e-8) << row;
+    EXPECT_TRUE(Has(text, "[ " + std::to_string(lon).substr(0, 9))) << text;
+  }
+  EXPECT_TRUE(Has(ReadWholeFile(dir_ / "w.prj"), "WGS 84"));
+  const Result bad = Cli("map export utm --to-crs EPSG:99999999 --out '" + Path("b.gpkg") + "'");
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_TRUE(Has(bad.err, "--to-crs EPSG:99999999")) << bad.err;
+  EXPECT_FALSE(fs::exists(dir_ / "b.gpkg"));
+}
+
 // `detect` on a scan without a CRS writes no .prj beside its CSV and removes an old one.
 TEST_F(GisFilesTest, DetectWithoutCrsLeavesNoOldPrj) {
   std::string scan;

@@ -1,4 +1,5 @@
-// Pictures of maps: stems land where they are, to scale, in both formats.
+// Pictures of maps: stems land where they are, to scale, in both formats, over a grid of round
+// coordinates; the legend lists only what is drawn.
 #include "client/cli/map_plot.h"
 
 #include <cairo.h>
@@ -8,6 +9,8 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <string>
+#include <vector>
 
 namespace forestmap::client {
 namespace {
@@ -43,6 +46,41 @@ TEST(MapPlotTest, PngShowsStemsToScaleAtTheirPlaces) {
   EXPECT_NE(Pixel(image, x0 + 200, y0 - 200), Pixel(image, x0 + 200 + 5, y0 - 200));
   cairo_surface_destroy(image);
   fs::remove(path);
+}
+
+TEST(MapPlotTest, GridLinesLieOnRoundCoordinatesOfTheMap) {
+  const fs::path path = fs::temp_directory_path() / ("grid_" + std::to_string(getpid()) + ".png");
+  PlotInput input;
+  input.trees = {{0, 0, 0.3, false}, {100, 100, 0.3, false}};
+  PlotOptions options;
+  options.size_px = 520;  // 104 m (100 + 2 x 2 m margin) -> 5 px per m
+  ASSERT_EQ(GridStep(104), 20);
+  WritePlot(path.string(), input, options);
+  cairo_surface_t* image = cairo_image_surface_create_from_png(path.c_str());
+  ASSERT_EQ(cairo_surface_status(image), CAIRO_STATUS_SUCCESS);
+  // World (x, 50) is at px ((x + 2) * 5, 44 + (102 - 50) * 5): empty ground, lines at 40 and 60.
+  const auto at = [&](double x) { return Pixel(image, static_cast<int>((x + 2) * 5), 304); };
+  const uint32_t ground = at(50);
+  EXPECT_NE(at(40), ground);
+  EXPECT_NE(at(60), ground);
+  EXPECT_EQ(at(45), ground);
+  EXPECT_EQ(at(41), ground);
+  cairo_surface_destroy(image);
+  fs::remove(path);
+}
+
+TEST(MapPlotTest, TheLegendListsOnlyWhatIsDrawn) {
+  PlotInput survey;
+  survey.trees = {{0, 0, 0.3, false}, {5, 5, 0.4, false}};
+  EXPECT_EQ(LegendOf(survey), std::vector<std::string>{"confirmed stem"});
+  PlotInput shared = survey;
+  shared.trees.push_back({9, 1, std::nullopt, false});
+  shared.trees.push_back({3, 8, 0.2, true});
+  shared.matched = {{0, 0}};
+  shared.sensor = PlotPose{1, 1, 0};
+  EXPECT_EQ(LegendOf(shared),
+            (std::vector<std::string>{"confirmed stem", "stem, DBH unknown", "candidate stem",
+                                      "query: matched", "sensor (heading)"}));
 }
 
 TEST(MapPlotTest, SvgIsWrittenAndBadNamesAreRefused) {

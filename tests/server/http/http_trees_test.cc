@@ -111,7 +111,11 @@ TEST_F(HttpTreesTest, PortInUseIsRefusedNamingFlagAndAddress) {
   const std::string taken = page_.address();
   EXPECT_EQ(ErrorOf([&] { HttpPage second(store_, answers_, taken); }),
             "--http " + taken + ": address already in use");
-  EXPECT_EQ(ErrorOf([&] { MetricsHttpServer metrics(taken, [] { return std::string(); }); }),
+  EXPECT_EQ(ErrorOf([&] {
+              MetricsHttpServer metrics(
+                  taken, [] { return std::string(); },
+                  [] { return std::make_pair(true, std::string()); });
+            }),
             "--metrics " + taken + ": address already in use");
   // The first page still answers alone.
   EXPECT_EQ(HttpGet("127.0.0.1", PortOf(taken), "/api/maps").status, 200);

@@ -2,14 +2,18 @@
 // endpoint is scraped over HTTP, checked by `promtool check metrics`, and its counters move with
 // the calls; every RPC writes one structured log line with its request id, map, code and time.
 
+#include <arpa/inet.h>
 #include <grpcpp/generic/generic_stub.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <sstream>
@@ -247,6 +251,31 @@ TEST_F(ObservabilityTest, TheMetricsPortAnswersLivenessReadinessAndAnIndex) {
     EXPECT_NE(answer.body.find(body), std::string::npos) << path << ": " << answer.body;
   }
   EXPECT_EQ(test::HttpGet("127.0.0.1", http_->port(), "/nothing").status, 404);
+}
+
+// Connections that connect and send nothing hold a worker each until their read timeout; 50 of
+// them stalled cpp-httplib's 8 workers for ~30 s. The endpoint answers while they are held (the
+// 10 s bound only turns a stall into a failure).
+TEST_F(ObservabilityTest, HalfOpenConnectionsDoNotStallTheMetricsPort) {
+  std::vector<int> idle;
+  for (int i = 0; i < 50; ++i) {
+    const int sock = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_port = htons(static_cast<uint16_t>(http_->port()));
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ASSERT_EQ(connect(sock, reinterpret_cast<sockaddr*>(&address), sizeof(address)), 0);
+    idle.push_back(sock);
+  }
+  const auto start = std::chrono::steady_clock::now();
+  auto answer = std::async(
+      std::launch::async, [this] { return test::HttpGet("127.0.0.1", http_->port(), "/healthz"); });
+  ASSERT_EQ(answer.wait_for(std::chrono::seconds(10)), std::future_status::ready);
+  EXPECT_EQ(answer.get().status, 200);
+  std::printf(
+      "answered in %.0f ms beside 50 idle connections\n",
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+  for (const int sock : idle) close(sock);
 }
 
 // Calls a method path through a generic stub; returns the status the server (or the channel)
