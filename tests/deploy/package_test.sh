@@ -66,7 +66,7 @@ uid="$(id -u forestmapd)" || fail "no user forestmapd"
   fail "/var/lib/forestmapd is $(stat -c '%U %a' /var/lib/forestmapd), not forestmapd 700"
 dpkg-query -W -f='${Conffiles}' forestmapd | grep -q ' /etc/forestmapd/forestmapd.env ' ||
   fail "/etc/forestmapd/forestmapd.env is not a conffile"
-grep -q '^ExecStart=/usr/bin/forestmapd ' /usr/lib/systemd/system/forestmapd.service ||
+grep -qE '^ExecStart=/usr/bin/forestmapd( |$)' /usr/lib/systemd/system/forestmapd.service ||
   fail "the installed unit does not start /usr/bin/forestmapd"
 output="$(systemd-analyze verify forestmapd.service 2>&1 || echo "systemd-analyze verify failed")"
 [ -z "$output" ] || fail "installed unit: $output"
