@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "client/cli/cli_context.h"
+#include "forestmap_version.h"
 
 namespace forestmap::client {
 namespace {
@@ -109,6 +110,8 @@ void AddGlobalOptions(CLI::App& app, CliContext& context) {
         return out;
       });
   AddSecurityOptions(app, context);
+  app.set_version_flag("--version", VersionLine(app.get_name()),
+                       "Print the version, git commit and build type");
 }
 
 int RunCommandLine(CLI::App& app, CliContext& context, int argc, char** argv) {

@@ -10,6 +10,7 @@
 #include <system_error>
 #include <vector>
 
+#include "forestmap_version.h"
 #include "server/app/map_index_cache.h"
 #include "server/app/readiness.h"
 #include "server/app/recent_answers.h"
@@ -100,7 +101,19 @@ void AddReadinessMetric(Metrics& metrics, const Readiness& readiness) {
                    [state] { return state->state().ready ? 1.0 : 0.0; });
 }
 
+void AddBuildInfo(Metrics& metrics) {
+  const std::string labels = "version=\"" + MetricLabelValue(kVersion) + "\",commit=\"" +
+                             MetricLabelValue(kGitCommit) + "\",build_type=\"" +
+                             MetricLabelValue(kBuildType) + "\"";
+  metrics.AddGaugeSeries("forestmap_build_info",
+                         "Always 1: the version, git commit and build type of this forestmapd.",
+                         [labels] {
+                           return std::vector<Metrics::Series>{{labels, 1}};
+                         });
+}
+
 void AddProcessMetrics(Metrics& metrics) {
+  AddBuildInfo(metrics);
   const double page_bytes = static_cast<double>(sysconf(_SC_PAGESIZE));
   const double start_s =
       std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();

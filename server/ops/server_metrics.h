@@ -24,6 +24,6 @@ class Readiness;
 void AddServerMetrics(Metrics& metrics, const MapIndexCache& cache, const AnswerCounts& answers,
                       const std::string& db_path);
 void AddReadinessMetric(Metrics& metrics, const Readiness& readiness);
-void AddProcessMetrics(Metrics& metrics);
+void AddProcessMetrics(Metrics& metrics);  // and forestmap_build_info
 
 }  // namespace forestmap::server

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -97,6 +98,14 @@ TEST_F(CliTest, HelpExitsZeroForEveryCommand) {
        {"simulate", "bench-reloc", "bench-mapping", "bench-server", "bench-load", "demo-data"}) {
     EXPECT_EQ(top.out.find("\n  " + std::string(lab) + " "), std::string::npos) << lab;
   }
+}
+
+TEST_F(CliTest, VersionSaysVersionCommitAndBuildType) {
+  const Result version = Run("--version");
+  EXPECT_EQ(version.exit_code, 0);
+  EXPECT_TRUE(std::regex_search(version.out,
+                                std::regex(R"(^forestmap \d+\.\d+\.\d+ \(commit \S+, \w+\)\n$)")))
+      << version.out;
 }
 
 TEST_F(CliTest, ATypoGetsTheClosestCommandOrFlag) {

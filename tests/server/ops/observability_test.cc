@@ -226,6 +226,7 @@ TEST_F(ObservabilityTest, PromtoolAcceptsTheMetricsAndCountersMove) {
   EXPECT_EQ(SumOf(during, "forestmap_relocalizations_total{status=\""), 1);
   EXPECT_EQ(SumOf(during, "forestmap_track_frames_total{state=\""), 1);
   EXPECT_EQ(Sample(during, "forestmap_ready"), 1);
+  EXPECT_EQ(SumOf(during, "forestmap_build_info{version=\""), 1);
   EXPECT_GT(Sample(during, "process_resident_memory_bytes"), 1 << 20);
   EXPECT_GT(Sample(during, "process_open_fds"), 2);
   EXPECT_GT(Sample(during, "process_max_fds"), Sample(during, "process_open_fds"));
