@@ -1,8 +1,10 @@
 # Debian packages (CPack DEB), one per program, from the install components of
 # cmake/forestmap_install.cmake:
 #   forestmapd  /usr/bin/forestmapd, its systemd unit with a drop-in naming the package's system
-#               user, /etc/forestmapd/forestmapd.env (conffile), and maintainer scripts that make
-#               the user `forestmapd` and /var/lib/forestmapd (deploy/debian/)
+#               user, the conffiles /etc/forestmapd/forestmapd.conf (every setting, commented out;
+#               readable by the service's group) and forestmapd.env (root-only, for secrets such
+#               as a PostgreSQL URL with a password), and maintainer scripts that make the user
+#               `forestmapd` and /var/lib/forestmapd (deploy/debian/)
 #   forestmap   /usr/bin/forestmap, the client CLI
 # Their Depends come from the binaries (dpkg-shlibdeps, in dpkg-dev). Build them with
 # `bash deploy/package.sh`, or `cpack --config BUILD/CPackConfig.cmake` after a build.
@@ -15,9 +17,12 @@ if(FORESTMAP_BUILD_SERVER)
   set(debian ${PROJECT_SOURCE_DIR}/deploy/debian)
   install(FILES ${debian}/forestmapd.env DESTINATION /etc/forestmapd
     PERMISSIONS OWNER_READ OWNER_WRITE COMPONENT forestmapd EXCLUDE_FROM_ALL)
+  install(FILES ${PROJECT_SOURCE_DIR}/deploy/forestmapd.conf DESTINATION /etc/forestmapd
+    PERMISSIONS OWNER_READ OWNER_WRITE GROUP_READ COMPONENT forestmapd EXCLUDE_FROM_ALL)
   install(FILES ${debian}/forestmapd-user.conf
     DESTINATION lib/systemd/system/forestmapd.service.d COMPONENT forestmapd EXCLUDE_FROM_ALL)
-  file(WRITE ${PROJECT_BINARY_DIR}/debian/conffiles "/etc/forestmapd/forestmapd.env\n")
+  file(WRITE ${PROJECT_BINARY_DIR}/debian/conffiles
+    "/etc/forestmapd/forestmapd.conf\n/etc/forestmapd/forestmapd.env\n")
   set(CPACK_DEBIAN_FORESTMAPD_PACKAGE_CONTROL_EXTRA ${debian}/postinst ${debian}/prerm
     ${debian}/postrm ${PROJECT_BINARY_DIR}/debian/conffiles)
   set(CPACK_DEBIAN_FORESTMAPD_PACKAGE_DEPENDS "adduser")  # + dpkg-shlibdeps' list
@@ -26,7 +31,7 @@ if(FORESTMAP_BUILD_SERVER)
     "ForestMap map server (forestmapd)\n"
     "Serves forest tree maps over gRPC: map versions, uploads from drones and relocalization of\n"
     "a scan's trees in a map; SQLite or PostgreSQL storage. A systemd service listening on\n"
-    "127.0.0.1:50051, configured in /etc/forestmapd/forestmapd.env.")
+    "127.0.0.1:50051, configured in /etc/forestmapd/forestmapd.conf.")
 endif()
 if(FORESTMAP_BUILD_CLIENT)
   list(APPEND FORESTMAP_PACKAGES forestmap)

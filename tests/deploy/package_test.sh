@@ -64,8 +64,12 @@ uid="$(id -u forestmapd)" || fail "no user forestmapd"
 [ "$uid" -lt 1000 ] || fail "forestmapd is not a system user (uid $uid)"
 [ "$(stat -c '%U %a' /var/lib/forestmapd)" = "forestmapd 700" ] ||
   fail "/var/lib/forestmapd is $(stat -c '%U %a' /var/lib/forestmapd), not forestmapd 700"
-dpkg-query -W -f='${Conffiles}' forestmapd | grep -q ' /etc/forestmapd/forestmapd.env ' ||
-  fail "/etc/forestmapd/forestmapd.env is not a conffile"
+for conffile in /etc/forestmapd/forestmapd.env /etc/forestmapd/forestmapd.conf; do
+  dpkg-query -W -f='${Conffiles}' forestmapd | grep -q " $conffile " ||
+    fail "$conffile is not a conffile"
+done
+[ "$(stat -c %G:%a /etc/forestmapd/forestmapd.conf)" = forestmapd:640 ] ||
+  fail "/etc/forestmapd/forestmapd.conf is not readable by the service's group only"
 grep -qE '^ExecStart=/usr/bin/forestmapd( |$)' /usr/lib/systemd/system/forestmapd.service ||
   fail "the installed unit does not start /usr/bin/forestmapd"
 output="$(systemd-analyze verify forestmapd.service 2>&1 || echo "systemd-analyze verify failed")"
