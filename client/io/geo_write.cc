@@ -51,27 +51,29 @@ bool IsInteger(const std::string& text) {
   return errno == 0 && end == text.c_str() + text.size() && std::to_string(value) == text;
 }
 
-// A number whose text reads back the same from a Real field of every format written (FormatReal's
-// 15 digits; a shapefile's fixed decimals), so that a column has one type in all of them: "1e-7"
-// is text everywhere, not Real in a GeoPackage and String in a shapefile.
+// A number every format can hold in a Real field: 15 significant digits at most (GDAL's GeoJSON
+// writer keeps no more) and below a shapefile's 8 digits before the point.
 bool IsReal(const std::string& text) {
   if (text.empty()) return false;
   char* end = nullptr;
   const double value = std::strtod(text.c_str(), &end);
-  // 15 significant digits at most: GDAL's GeoJSON writer keeps no more.
   char shortest[40];
   std::snprintf(shortest, sizeof(shortest), "%.15g", value);
-  if (end != text.c_str() + text.size() || !std::isfinite(value) || shortest != text ||
-      std::strtod(shortest, nullptr) != value) {
-    return false;
-  }
+  return end == text.c_str() + text.size() && std::isfinite(value) && shortest == text &&
+         std::strtod(shortest, nullptr) == value && std::fabs(value) < kShapefileRealLimit;
+}
+
+// Whether a shapefile's 15 fixed decimals hold `text` (a Real) as written: 4.29e-16 becomes 0.
+bool ShapefileHolds(const std::string& text) {
+  const double value = std::strtod(text.c_str(), nullptr);
   char fixed[64];
   std::snprintf(fixed, sizeof(fixed), "%.15f", value);
-  return std::fabs(value) < kShapefileRealLimit && std::strtod(fixed, nullptr) == value;
+  return std::strtod(fixed, nullptr) == value;
 }
 
 // Integer64 when every value of the attribute is an integer, Real when every one is a number
-// (IsReal), else String (and String when no row has a value); the same in every format.
+// (IsReal), else String (and String when no row has a value): the same in every format, so a
+// column has one type in all of them.
 OGRFieldType AttributeType(const std::vector<MapTreeRow>& rows, const std::string& name) {
   bool integer = true, real = true, any = false;
   for (const MapTreeRow& row : rows) {
@@ -175,8 +177,18 @@ std::vector<std::string> WriteLayer(GDALDataset& dataset, const std::vector<MapT
                                     const LayerSpec& spec, const std::string& path,
                                     const GeoWriteProgress& progress) {
   std::vector<Column> columns;
+  std::vector<std::string> rounded;  // shapefile Real columns with values it cannot hold
   for (const ExportedAttribute& attribute : ExportedAttributes(rows, kGeoReserved)) {
     columns.push_back({attribute, AttributeType(rows, attribute.name)});
+    if (spec.format != TreeFormat::kShapefile || columns.back().type != OFTReal) continue;
+    for (const MapTreeRow& row : rows) {
+      const auto it = row.attributes.find(attribute.name);
+      if (it != row.attributes.end() && !ShapefileHolds(it->second)) {
+        rounded.push_back(path + ": field '" + attribute.column + "': a shapefile keeps 15 " +
+                          "decimals, so " + it->second + " (and any like it) is rounded");
+        break;
+      }
+    }
   }
   const char* shapefile_options[] = {"ENCODING=UTF-8", nullptr};  // and a .cpg saying so
   // GeoJSON in WGS 84 is written as RFC 7946 (longitude, latitude; no 2008 "crs" member), which
@@ -191,6 +203,7 @@ std::vector<std::string> WriteLayer(GDALDataset& dataset, const std::vector<MapT
   OGRLayer* layer = dataset.CreateLayer(spec.name.c_str(), spec.srs, wkbPoint, options);
   if (!layer) throw CsvError(path + ": cannot create a layer: " + LastGdalError());
   std::vector<std::string> warnings = CreateFields(*layer, columns, path);
+  warnings.insert(warnings.end(), rounded.begin(), rounded.end());
   // One transaction (GeoPackage): thousands of features commit at once.
   const bool transaction = dataset.StartTransaction() == OGRERR_NONE;
   for (size_t i = 0; i < rows.size(); ++i) {
