@@ -178,13 +178,13 @@ void Grid(cairo_t* cr, const View& view, const std::array<double, 4>& box) {
 
 // Circles of round DBHs drawn as the stems are (to scale, at least min_stem_px), under the
 // legend: what a stem's size means at this scale.
-double DbhKey(cairo_t* cr, const View& view, const PlotInput& input, const PlotOptions& o, double x,
-              double y) {
+void DbhKey(cairo_t* cr, const View& view, const PlotInput& input, const PlotOptions& o, double x,
+            double y) {
   std::vector<double> dbh;
   for (const PlotTree& tree : input.trees) {
     if (tree.dbh) dbh.push_back(*tree.dbh);
   }
-  if (dbh.empty()) return y;
+  if (dbh.empty()) return;
   std::sort(dbh.begin(), dbh.end());
   SetColour(cr, kInk);
   Text(cr, x - 6, y, "DBH key (to scale):", 10);
@@ -208,7 +208,6 @@ double DbhKey(cairo_t* cr, const View& view, const PlotInput& input, const PlotO
     Text(cr, x + 12 + std::max(0.0, r - 6), y, label, 11);
     y += std::max(18.0, 2 * r + 6);
   }
-  return y;
 }
 
 void Furniture(cairo_t* cr, const View& view, double width_px, double height_px,

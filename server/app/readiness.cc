@@ -132,7 +132,7 @@ bool Readiness::WarmPreloaded(const std::vector<storage::MapInfo>& maps, std::st
     SetMap(name, warm);
   }
   // Maps no longer preloaded (deleted, or beyond the cache's size now) stop answering SERVING.
-  for (const std::string& name : std::vector<std::string>(published_maps_)) {
+  for (const std::string& name : published_maps_) {
     if (std::find(names.begin(), names.end(), name) == names.end()) SetMap(name, false);
   }
   published_maps_ = names;

@@ -399,6 +399,7 @@ int Serve(const Config& config, const CLI::App& app, int argc, const char* const
   forestmap::server::AddServerMetrics(metrics, service.index_cache(), service.answer_counts(),
                                       config.db);
   forestmap::server::AddProcessMetrics(metrics);
+  forestmap::server::AddBuildInfo(metrics);
   Listeners listeners;
   try {
     listeners = StartListeners(config, *store, service, metrics, *tokens, tls.get());

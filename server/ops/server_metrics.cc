@@ -113,7 +113,6 @@ void AddBuildInfo(Metrics& metrics) {
 }
 
 void AddProcessMetrics(Metrics& metrics) {
-  AddBuildInfo(metrics);
   const double page_bytes = static_cast<double>(sysconf(_SC_PAGESIZE));
   const double start_s =
       std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();

@@ -24,6 +24,7 @@ class Readiness;
 void AddServerMetrics(Metrics& metrics, const MapIndexCache& cache, const AnswerCounts& answers,
                       const std::string& db_path);
 void AddReadinessMetric(Metrics& metrics, const Readiness& readiness);
-void AddProcessMetrics(Metrics& metrics);  // and forestmap_build_info
+void AddProcessMetrics(Metrics& metrics);
+void AddBuildInfo(Metrics& metrics);
 
 }  // namespace forestmap::server

@@ -58,6 +58,7 @@ class ObservabilityTest : public ::testing::Test {
     AddServerMetrics(metrics_, service_.index_cache(), service_.answer_counts(),
                      (dir_ / "maps.db").string());
     AddProcessMetrics(metrics_);
+    AddBuildInfo(metrics_);
     ReadinessOptions readiness;
     readiness.preload_all = true;
     readiness.interval = std::chrono::milliseconds(20);
