@@ -3,6 +3,8 @@
 // Eigen (through http_page.h) before httplib.h: httplib pulls in <resolv.h>, whose `_res` macro
 // breaks Eigen's headers when they come after it.
 #include "server/http/http_trees.h"
+#include "server/http/ogc_features.h"
+#include "server/http/page_auth.h"
 // clang-format off
 #include <httplib.h>
 // clang-format on
@@ -34,67 +36,6 @@ Json MapJson(const storage::MapInfo& info) {
 
 void Reply(httplib::Response& response, const Json& body) {
   response.set_content(body.dump(), "application/json");
-}
-
-// Who asks (see http_page.h): `open` without tokens, else the caller's valid token.
-struct PageCaller {
-  bool open = true;
-  std::optional<storage::TokenRecord> token;
-  bool CanRead(std::string_view map) const {
-    return open || (token && token->Allows(storage::Role::kRead, map));
-  }
-};
-
-constexpr std::string_view kTokenCookie = "forestmap_token";
-
-// The token `request` carries: its Authorization header ("Bearer <token>"), else its cookie
-// (set by the page, below), else ?token= (a browser's first visit).
-std::string RequestToken(const httplib::Request& request) {
-  const std::string header = request.get_header_value("Authorization");
-  if (!header.empty()) return std::string(storage::BearerSecret(header));
-  // Cookie: name=value; name2=value2
-  const std::string cookies = request.get_header_value("Cookie");
-  for (size_t at = 0; at < cookies.size();) {
-    const size_t end = std::min(cookies.find(';', at), cookies.size());
-    std::string_view pair = std::string_view(cookies).substr(at, end - at);
-    while (!pair.empty() && pair.front() == ' ') pair.remove_prefix(1);
-    if (pair.starts_with(kTokenCookie) && pair.substr(kTokenCookie.size()).starts_with('=')) {
-      return std::string(pair.substr(kTokenCookie.size() + 1));
-    }
-    at = end + 1;
-  }
-  return request.get_param_value("token");
-}
-
-// The caller of `request`, or nullopt after answering 401 (tokens in force, no valid token).
-std::optional<PageCaller> Authenticate(storage::TokenStore* tokens, const httplib::Request& request,
-                                       httplib::Response& response) {
-  PageCaller caller;
-  if (tokens == nullptr || !tokens->AnyToken()) return caller;
-  caller.open = false;
-  const std::string secret = RequestToken(request);
-  if (!secret.empty()) caller.token = tokens->Find(secret);
-  if (caller.token) return caller;
-  response.status = 401;
-  response.set_header("WWW-Authenticate", "Bearer");
-  response.set_content(Json{{"error", secret.empty() ? "this server requires a token: send "
-                                                       "'Authorization: Bearer <token>' or open "
-                                                       "the page as /?token=<token>"
-                                                     : "unknown, revoked or expired token"}}
-                           .dump(),
-                       "application/json");
-  return std::nullopt;
-}
-
-// Answers 403 unless `caller` may read map `map`.
-bool MayRead(const PageCaller& caller, const std::string& map, httplib::Response& response) {
-  if (caller.CanRead(map)) return true;
-  response.status = 403;
-  response.set_content(Json{{"error", "token " + std::to_string(caller.token->id) +
-                                          " may not read map '" + map + "'"}}
-                           .dump(),
-                       "application/json");
-  return false;
 }
 
 // Runs `body`, turning a store error (unknown map, ...) into a 404 with its message.
@@ -229,6 +170,7 @@ std::unique_ptr<httplib::Server> PageRoutes(storage::MapStore& store, const Rece
     const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
     if (caller) Reply(response, AnswersJson(answers, *caller));
   });
+  AddOgcFeatureRoutes(http, store, tokens, "http");
   return server;
 }
 

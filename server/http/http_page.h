@@ -2,19 +2,17 @@
 // forestmapd --http ADDR: a read-only web page (cpp-httplib) showing the maps, their versions,
 // a map's trees with pan and zoom, and the last relocalizations. Nothing on it writes.
 //
-// Tokens: once the server has a token (storage/token_store.h, deny by default as for
-// the RPCs), every route needs a valid one with read access, sent as `Authorization: Bearer
-// <secret>` (the scheme in any case), or by a browser as the cookie `forestmap_token`, which the
-// page sets on a first visit to /?token=<secret> before it reloads itself without the token in
-// its address (HttpOnly, SameSite=Strict); ?token= is also read on any route. None, unknown,
-// revoked or expired -> 401, a map the token may not read -> 403; /api/maps and
-// /api/relocalizations list only the maps the token can read.
+// Tokens as server/http/page_auth.h says: once the server has a token, every route needs a valid
+// one with read access; /api/maps and /api/relocalizations list only the maps it can read. A
+// browser's first visit to /?token=<secret> moves the token into the cookie `forestmap_token`
+// (HttpOnly, SameSite=Strict) and reloads the page without it in its address.
 //
 // Routes: GET /                        the page (server/http/http_page_html.cc)
 //         GET /api/maps                [{name, trees, version, crs, extent}]
 //         GET /api/maps/NAME/trees     {trees: [[x, y, dbh|null, confirmed], ...]} (current)
 //         GET /api/maps/NAME/versions  [{version, kind, source, trees, time_ms}]
 //         GET /api/relocalizations     the last answers, newest first
+//         GET /ogc/...                 OGC API - Features (server/http/ogc_features.h)
 
 #include <string>
 

@@ -33,8 +33,8 @@ import sys
 import tempfile
 
 # Packages of the build list that own no file CMake finds: the compilers, CMake itself, the
-# pkg-config that pkg_check_modules runs, and what cpack runs (dpkg-shlibdeps, file).
-BUILD_TOOLS = {"build-essential", "cmake", "pkg-config", "dpkg-dev", "file"}
+# pkg-config that pkg_check_modules runs, the linker, and what cpack runs (dpkg-shlibdeps, file).
+BUILD_TOOLS = {"build-essential", "cmake", "pkg-config", "dpkg-dev", "file", "lld"}
 # The PATH docker gives a container's processes.
 DOCKER_PATH = "/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin"
 # Cache entries of the configure that are not found dependencies.

@@ -3,11 +3,14 @@
 // the address (before, cpp-httplib's SO_REUSEPORT let a second server share the port and take
 // half of its requests); the web page's tree route keeps the server's memory bounded on a
 // 300,000-tree map (before, every request kept ~85 MB in the arena of an HTTP thread); `--help`
-// and the usage block of docs/operations.md list every flag; the names "." and ".." are refused.
+// and the usage block of docs/operations.md list every flag; the names "." and ".." are refused;
+// OGC API - Features serves a surveyed map to GDAL (ogrinfo, ogr2ogr) in WGS 84 as cs2cs moves it,
+// behind tokens, and pages a huge map in bounded memory.
 
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <regex>
@@ -18,6 +21,7 @@
 #include "daemon_process.h"
 #include "storage/sqlite/store.h"
 #include "tests/server/http_get.h"
+#include "tests/shared_data.h"
 
 namespace forestmap {
 namespace {
@@ -186,6 +190,141 @@ TEST_F(DaemonHttpTest, DotNamesAreRefused) {
   }
   const CommandResult list = Run(test::ClientCommand(daemon_.address(), "map list"));
   EXPECT_EQ(list.out, "NAME  TREES  VERSION  CRS  EXTENT\n");
+}
+
+// The PRF025 field survey (EPSG:2959) as a GIS user reaches it through GDAL's OAPIF driver.
+TEST_F(DaemonHttpTest, OgcApiFeaturesServesASurveyToGdal) {
+  const std::string survey = FORESTMAP_SHARED_DATA "/survey_vs_lidar/PRF025/PRF025_Field.csv";
+  if (!fs::exists(survey)) FORESTMAP_SKIP_WITHOUT_DATA() << "missing " << survey;
+  const auto token = [&](const std::string& map, const std::string& role) {
+    const CommandResult created =
+        Run("'" FORESTMAPD_PATH "' token create --db '" + (dir_ / "first.db").string() +
+            "' --map '" + map + "' --role " + role);
+    std::string secret = created.out;
+    while (!secret.empty() && secret.back() == '\n') secret.pop_back();
+    return secret;
+  };
+  const std::string reader = token("prf", "read"), admin = token("*", "admin");
+  ASSERT_FALSE(reader.empty());
+  const int port = ServeWithPage();
+  ASSERT_GT(port, 0);
+  ASSERT_EQ(Run(test::ClientCommand(daemon_.address(),
+                                    "map create prf --crs EPSG:2959 --trees '" + survey +
+                                        "' --columns x=Field_Xpj,y=Field_Ypj,dbh=DBH,id=Tree "
+                                        "--dbh-unit cm",
+                                    "FORESTMAP_TOKEN=" + admin))
+                .exit_code,
+            0);
+  const std::string source = "OAPIF:http://127.0.0.1:" + std::to_string(port) + "/ogc";
+  const std::string with_token = "GDAL_HTTP_HEADERS='Authorization: Bearer " + reader + "' ";
+
+  // Without a token GDAL gets 401; with the read token it sees the map in WGS 84.
+  EXPECT_NE(Run("ogrinfo -ro -so '" + source + "' prf").exit_code, 0);
+  const CommandResult info = Run(with_token + "ogrinfo -ro -so '" + source + "' prf");
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_NE(info.out.find("Feature Count: 62"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("ID[\"EPSG\",4326]"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("survey_Status: String"), std::string::npos) << info.out;
+
+  // ogr2ogr pages it (7 trees a page) into a GeoPackage: every tree, where cs2cs puts it.
+  const std::string gpkg = (dir_ / "prf.gpkg").string();
+  const CommandResult copy =
+      Run(with_token + "ogr2ogr -f GPKG '" + gpkg + "' '" + source + "' prf -oo PAGE_SIZE=7");
+  ASSERT_EQ(copy.exit_code, 0) << copy.err;
+  const CommandResult tree1 = Run("ogrinfo -ro -q '" + gpkg + "' prf -where 'tree_id = 1'");
+  EXPECT_NE(tree1.out.find("dbh_m (Real) = 0.149"), std::string::npos) << tree1.out;
+  const CommandResult count = Run("ogrinfo -ro -so '" + gpkg + "' prf");
+  EXPECT_NE(count.out.find("Feature Count: 62"), std::string::npos) << count.out;
+  // Tree 1 of the survey: Field_Xpj 312030.0203, Field_Ypj 5096043.185.
+  const CommandResult expected =
+      Run("echo '312030.0203 5096043.185' | cs2cs -f %.7f EPSG:2959 OGC:CRS84");
+  double lon = 0, lat = 0;
+  ASSERT_EQ(std::sscanf(expected.out.c_str(), "%lf %lf", &lon, &lat), 2) << expected.out;
+  char point[64];
+  std::snprintf(point, sizeof(point), "POINT (%.7f %.7f)", lon, lat);
+  const CommandResult rounded = Run("ogrinfo -ro -q '" + gpkg + "' prf -where 'tree_id = 1' " +
+                                    "-dialect sqlite -sql \"SELECT printf('POINT (%.7f %.7f)', " +
+                                    "ST_X(geom), ST_Y(geom)) AS p FROM prf WHERE tree_id = 1\"");
+  EXPECT_NE(rounded.out.find(point), std::string::npos) << rounded.out << " vs " << point;
+
+  // The storage CRS on request; a bbox in it selects exactly the trees inside.
+  const std::string items = "/ogc/collections/prf/items";
+  const test::HttpAnswer projected =
+      test::HttpGet("127.0.0.1", port,
+                    items + "?limit=100&crs=http://www.opengis.net/def/crs/EPSG/0/2959", reader);
+  ASSERT_EQ(projected.status, 200) << projected.body;
+  const nlohmann::json all = nlohmann::json::parse(projected.body)["features"];
+  ASSERT_EQ(all.size(), 62u);
+  EXPECT_EQ(all[0]["geometry"]["coordinates"][0].get<double>(), 312030.0203);
+  const double x0 = 312025, y0 = 5096040, x1 = 312040, y1 = 5096060;
+  int inside = 0;
+  for (const nlohmann::json& feature : all) {
+    const double x = feature["geometry"]["coordinates"][0],
+                 y = feature["geometry"]["coordinates"][1];
+    inside += x >= x0 && x <= x1 && y >= y0 && y <= y1;
+  }
+  ASSERT_GT(inside, 0);
+  ASSERT_LT(inside, 62);
+  const test::HttpAnswer boxed = test::HttpGet(
+      "127.0.0.1", port,
+      items +
+          "?limit=100&bbox=312025,5096040,312040,5096060&bbox-crs=http://www.opengis.net/def/"
+          "crs/EPSG/0/2959",
+      reader);
+  EXPECT_EQ(nlohmann::json::parse(boxed.body)["numberReturned"], inside) << boxed.body;
+
+  // Malformed requests: 400 with the reason; an unknown map 404, another map's 403.
+  for (const std::string bad : {"?limit=0", "?limit=x", "?bbox=1,2,3", "?bbox=3,0,1,1",
+                                "?crs=EPSG:4326", "?colour=red", "?bbox=nan,0,1,1"}) {
+    const test::HttpAnswer answer = test::HttpGet("127.0.0.1", port, items + bad, reader);
+    EXPECT_EQ(answer.status, 400) << bad << ": " << answer.body;
+    EXPECT_NE(answer.body.find("InvalidParameterValue"), std::string::npos) << answer.body;
+  }
+  EXPECT_EQ(test::HttpGet("127.0.0.1", port, "/ogc/collections/prf/items/99999", reader).status,
+            404);
+  EXPECT_EQ(test::HttpGet("127.0.0.1", port, "/ogc/collections/nosuch/items", admin).status, 404);
+  EXPECT_EQ(test::HttpGet("127.0.0.1", port, "/ogc/collections/other/items", reader).status, 403);
+}
+
+TEST_F(DaemonHttpTest, OgcItemsPageAHugeMapInBoundedMemory) {
+  std::vector<storage::TreeRecord> trees(kHugeMapTrees);
+  for (int i = 0; i < kHugeMapTrees; ++i) {
+    trees[i].x = (i % 550) * 5.5;
+    trees[i].y = (i / 550) * 5.5;
+  }
+  {
+    storage::SqliteMapStore store((dir_ / "first.db").string());
+    store.CreateMap("huge", "", "");
+    store.WriteTrees("huge", trees, storage::WriteMode::kReplace);
+  }
+  const int port = ServeWithPage();
+  ASSERT_GT(port, 0);
+  const int pid = std::stoi(ReadFile(dir_ / "pid"));
+  const int64_t before = RssMib(pid);
+  std::string next = "/ogc/collections/huge/items?limit=10000";
+  int64_t seen = 0, last_id = 0;
+  int pages = 0;
+  while (!next.empty()) {
+    const test::HttpAnswer answer = test::HttpGet("127.0.0.1", port, next);
+    ASSERT_EQ(answer.status, 200) << next << ": " << answer.body;
+    const nlohmann::json page = nlohmann::json::parse(answer.body);
+    for (const nlohmann::json& feature : page["features"]) {
+      ASSERT_GT(feature["id"].get<int64_t>(), last_id);  // increasing: nothing twice
+      last_id = feature["id"];
+      ++seen;
+    }
+    next.clear();
+    for (const nlohmann::json& link : page["links"]) {  // the next page, as a client follows it
+      const std::string href = link["href"];
+      if (link["rel"] == "next") next = href.substr(href.find("/ogc"));
+    }
+    ++pages;
+  }
+  EXPECT_EQ(seen, kHugeMapTrees);
+  EXPECT_EQ(pages, kHugeMapTrees / 10'000 + 1);
+  const int64_t growth = RssMib(pid) - before;
+  RecordProperty("rss_growth_mib", std::to_string(growth));
+  EXPECT_LE(growth, kRssGrowthBoundMib) << "RSS " << before << " MiB before, +" << growth;
 }
 
 }  // namespace
