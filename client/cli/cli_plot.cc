@@ -2,10 +2,13 @@
 // relocalization answer or a tracked path drawn on it.
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -26,8 +29,39 @@ struct PlotCommandOptions {
   std::string query_file;       // the answer's query trees (sensor frame)
   double match_distance = 0.5;  // m, a query tree this near a map tree counts as matched
   std::vector<double> window;   // min_x,min_y,max_x,max_y
+  std::string colour_by;        // an attribute column: stems coloured by its values
   PlotOptions plot;
 };
+
+// Labels on more stems than this are unreadable: a crowded picture gets none, and says why.
+constexpr size_t kMaxLabels = 1'500;
+
+// A tree of a file or a map as drawn: its id as label, the `colour_by` column as its category.
+PlotTree PlotTreeOf(const MapTreeRow& row, bool candidate, const std::string& colour_by) {
+  PlotTree tree{row.x, row.y, row.dbh, candidate};
+  if (row.id) tree.label = std::to_string(*row.id);
+  if (row.text_id) tree.label = *row.text_id;
+  if (!colour_by.empty()) {
+    const auto value = row.attributes.find(colour_by);
+    if (value != row.attributes.end()) tree.category = value->second;
+  }
+  return tree;
+}
+
+// Refuses a --color-by column that no tree has, naming the columns there are.
+void CheckColourColumn(const std::string& column, const std::vector<MapTreeRow>& rows) {
+  if (column.empty()) return;
+  std::set<std::string> columns;
+  for (const MapTreeRow& row : rows) {
+    for (const auto& [name, value] : row.attributes) columns.insert(name);
+    columns.insert(row.null_attributes.begin(), row.null_attributes.end());
+  }
+  if (columns.count(column)) return;
+  std::string known;
+  for (const std::string& name : columns) known += (known.empty() ? "" : ", ") + name;
+  throw CommandError("--color-by " + column + ": no tree has that column (" +
+                     (known.empty() ? "the trees have no attributes" : "they have " + known) + ")");
+}
 
 // "EPSG:n (name)" or the CRS's name, short enough for the picture's corner; "" for none.
 std::string CrsLabel(const std::string& crs) {
@@ -43,7 +77,10 @@ void LoadTrees(const PlotCommandOptions& o, const CliContext& context, PlotInput
     // Drawn in metres: a file in degrees or feet is drawn in its UTM zone.
     const std::string crs = ReprojectTrees(file.rows, o.trees_file, file.crs,
                                            InMetres(file.crs) ? "" : "utm", *context.err);
-    for (const MapTreeRow& row : file.rows) input.trees.push_back({row.x, row.y, row.dbh, false});
+    CheckColourColumn(o.colour_by, file.rows);
+    for (const MapTreeRow& row : file.rows) {
+      input.trees.push_back(PlotTreeOf(row, false, o.colour_by));
+    }
     input.title = o.trees_file + ": " + std::to_string(input.trees.size()) + " trees";
     input.crs = CrsLabel(crs);
     return;
@@ -51,9 +88,10 @@ void LoadTrees(const PlotCommandOptions& o, const CliContext& context, PlotInput
   ForestMapClient client = context.Connect();
   const v1::Map map = client.GetMap(o.map);
   const ExportedTrees exported = client.ExportTrees(o.map);
+  CheckColourColumn(o.colour_by, exported.trees);
   for (size_t i = 0; i < exported.trees.size(); ++i) {
-    const MapTreeRow& row = exported.trees[i];
-    input.trees.push_back({row.x, row.y, row.dbh, !exported.states[i].confirmed});
+    input.trees.push_back(
+        PlotTreeOf(exported.trees[i], !exported.states[i].confirmed, o.colour_by));
   }
   input.title = "map '" + o.map + "': " + std::to_string(input.trees.size()) + " trees, version " +
                 std::to_string(exported.map_version);
@@ -61,7 +99,9 @@ void LoadTrees(const PlotCommandOptions& o, const CliContext& context, PlotInput
 }
 
 // Localized answers in order: a path; the last one is the sensor drawn.
-void LoadAnswers(const std::string& path, PlotInput& input, Eigen::Isometry3d& map_from_sensor) {
+// The last localized answer's inliers (query trees the server matched), when it states them.
+void LoadAnswers(const std::string& path, PlotInput& input, Eigen::Isometry3d& map_from_sensor,
+                 std::optional<int>& inliers) {
   std::ifstream in(path);
   if (!in) throw CommandError(path + ": cannot read the answers");
   std::string line;
@@ -83,6 +123,10 @@ void LoadAnswers(const std::string& path, PlotInput& input, Eigen::Isometry3d& m
                   answer["yaw_deg"].get<double>() * M_PI / 180.0};
     input.path.emplace_back(pose.x, pose.y);
     input.sensor = pose;
+    inliers.reset();
+    if (answer.contains("inliers") && answer["inliers"].is_number_integer()) {
+      inliers = answer["inliers"].get<int>();
+    }
     // The full 3-D pose places a tilted sensor's query trees (yaw alone would not).
     map_from_sensor = Eigen::Isometry3d::Identity();
     map_from_sensor.translation() = Eigen::Vector3d(pose.x, pose.y, answer.value("z", 0.0));
@@ -94,8 +138,11 @@ void LoadAnswers(const std::string& path, PlotInput& input, Eigen::Isometry3d& m
   if (input.path.size() == 1) input.path.clear();  // one answer: the sensor alone
 }
 
+// Places the query trees with the answer's pose, and warns when they do not lie on the map where
+// the answer says: fewer matched than half the server's inliers (or, without them, than half the
+// query) means the query is another frame's, or the answer another map's.
 void PlaceQuery(const PlotCommandOptions& o, const Eigen::Isometry3d& map_from_sensor,
-                PlotInput& input) {
+                std::optional<int> inliers, PlotInput& input, std::ostream& err) {
   if (!input.sensor) throw CommandError("--query needs a localized answer (--answer)");
   for (const DetectedTreeRow& row : ReadDetectedTreesCsv(o.query_file)) {
     const Eigen::Vector3d& q = row.tree.position;
@@ -107,6 +154,13 @@ void PlaceQuery(const PlotCommandOptions& o, const Eigen::Isometry3d& map_from_s
     }
     (matched ? input.matched : input.unmatched).push_back(p);
   }
+  const size_t matched = input.matched.size(), query = matched + input.unmatched.size();
+  const size_t expected = inliers ? static_cast<size_t>(std::max(*inliers, 0)) : query;
+  if (2 * matched < expected) {
+    err << "plot: warning: " << matched << " of the " << query << " query trees lie on a map tree"
+        << (inliers ? " where the answer matched " + std::to_string(*inliers) : std::string())
+        << ": the answer and the query (or the map) do not belong together" << std::endl;
+  }
 }
 
 void Run(PlotCommandOptions o, const CliContext& context) {
@@ -115,14 +169,27 @@ void Run(PlotCommandOptions o, const CliContext& context) {
   }
   PlotInput input;
   LoadTrees(o, context, input);
+  input.category_name = o.colour_by;
   Eigen::Isometry3d map_from_sensor = Eigen::Isometry3d::Identity();
-  if (!o.answer_file.empty()) LoadAnswers(o.answer_file, input, map_from_sensor);
-  if (!o.query_file.empty()) PlaceQuery(o, map_from_sensor, input);
+  std::optional<int> inliers;
+  if (!o.answer_file.empty()) LoadAnswers(o.answer_file, input, map_from_sensor, inliers);
+  if (!o.query_file.empty()) PlaceQuery(o, map_from_sensor, inliers, input, *context.err);
   if (!o.window.empty()) {
     if (o.window.size() != 4 || o.window[2] <= o.window[0] || o.window[3] <= o.window[1]) {
       throw CommandError("--window: give MIN_X,MIN_Y,MAX_X,MAX_Y with MIN < MAX");
     }
     o.plot.window = Eigen::Vector4d(o.window[0], o.window[1], o.window[2], o.window[3]);
+  }
+  if (o.plot.labels) {
+    const size_t shown = std::count_if(input.trees.begin(), input.trees.end(), [&](const auto& t) {
+      return o.window.empty() ||
+             (t.x >= o.window[0] && t.x <= o.window[2] && t.y >= o.window[1] && t.y <= o.window[3]);
+    });
+    if (shown > kMaxLabels) {
+      o.plot.labels = false;
+      *context.err << "plot: warning: no labels: " << shown << " trees in the picture (at most "
+                   << kMaxLabels << " are labelled; draw a --window)" << std::endl;
+    }
   }
   try {
     WritePlot(o.out, input, o.plot);
@@ -155,6 +222,11 @@ void AddPlotCommand(CLI::App& app, CliContext& context) {
       ->check(CLI::Range(100, 10000));
   sub->add_option("--window", o->window, "Only MIN_X,MIN_Y,MAX_X,MAX_Y (m, map frame)")
       ->delimiter(',');
+  sub->add_flag("--labels", o->plot.labels,
+                "Each tree's id beside its stem (up to 1,500 trees in the picture)");
+  sub->add_option("--color-by", o->colour_by,
+                  "An attribute column (e.g. a species code): stems coloured by its value, the 8 "
+                  "most frequent values each their own colour, the rest grey");
   sub->callback([o, &context] { context.run = [o, &context] { Run(*o, context); }; });
 }
 

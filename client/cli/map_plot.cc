@@ -8,9 +8,11 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace forestmap::client {
@@ -28,6 +30,38 @@ constexpr Rgb kMatched{0.10, 0.35, 0.85};
 constexpr Rgb kUnmatched{0.85, 0.10, 0.10};
 constexpr Rgb kInk{0.10, 0.10, 0.10};
 constexpr Rgb kGrid{0.72, 0.74, 0.70};
+constexpr Rgb kOther{0.55, 0.55, 0.55};
+// Okabe and Ito's colours, told apart with every common colour-vision deficiency.
+constexpr std::array<Rgb, kMaxCategories> kCategoryColours = {{{0.90, 0.62, 0.00},
+                                                               {0.34, 0.71, 0.91},
+                                                               {0.00, 0.62, 0.45},
+                                                               {0.94, 0.89, 0.26},
+                                                               {0.00, 0.45, 0.70},
+                                                               {0.84, 0.37, 0.00},
+                                                               {0.80, 0.47, 0.65},
+                                                               {0.00, 0.00, 0.00}}};
+
+std::string CategoryText(const std::string& category) {
+  return category.empty() ? "unknown" : category;
+}
+
+// The colour of each tree: its category's, or the confirmed green without categories.
+class StemColours {
+ public:
+  explicit StemColours(const PlotInput& input)
+      : coloured_(input.category_name.empty() ? std::vector<std::string>{}
+                                              : ColouredCategories(input)),
+        categories_(!input.category_name.empty()) {}
+  Rgb Of(const PlotTree& tree) const {
+    if (!categories_) return tree.candidate ? kCandidate : kConfirmed;
+    const auto at = std::find(coloured_.begin(), coloured_.end(), CategoryText(tree.category));
+    return at == coloured_.end() ? kOther : kCategoryColours[at - coloured_.begin()];
+  }
+
+ private:
+  std::vector<std::string> coloured_;
+  bool categories_;
+};
 
 // World (m) to picture (px): y up in the world, down in the picture.
 struct View {
@@ -50,18 +84,23 @@ void Text(cairo_t* cr, double x, double y, const std::string& text, double size)
 }
 
 void Stems(cairo_t* cr, const View& view, const PlotInput& input, const PlotOptions& o) {
+  const StemColours colours(input);
   for (const PlotTree& tree : input.trees) {
     const Eigen::Vector2d p = view(tree.x, tree.y);
     const double diameter = tree.dbh.value_or(o.unknown_dbh);
     const double r = std::max(o.min_stem_px, 0.5 * diameter * view.scale);
     cairo_new_sub_path(cr);
     cairo_arc(cr, p.x(), p.y(), r, 0, 2 * M_PI);
-    SetColour(cr, tree.candidate ? kCandidate : kConfirmed);
+    SetColour(cr, colours.Of(tree));
     if (tree.dbh && !tree.candidate) {
       cairo_fill(cr);
     } else {
       cairo_set_line_width(cr, 1.2);
       cairo_stroke(cr);
+    }
+    if (o.labels && !tree.label.empty()) {
+      SetColour(cr, kInk, 0.8);
+      Text(cr, p.x() + r + 1, p.y() - 1, tree.label, 8);
     }
   }
 }
@@ -124,14 +163,33 @@ std::vector<LegendEntry> LegendEntries(const PlotInput& input) {
     return std::any_of(input.trees.begin(), input.trees.end(), predicate);
   };
   std::vector<LegendEntry> entries;
-  if (any([](const PlotTree& t) { return !t.candidate && t.dbh; })) {
-    entries.push_back({kConfirmed, true, "confirmed stem"});
-  }
-  if (any([](const PlotTree& t) { return !t.candidate && !t.dbh; })) {
-    entries.push_back({kConfirmed, false, "stem, DBH unknown"});
-  }
-  if (any([](const PlotTree& t) { return t.candidate; })) {
-    entries.push_back({kCandidate, false, "candidate stem"});
+  if (!input.category_name.empty()) {  // a line per colour, then what an outline means
+    const std::vector<std::string> coloured = ColouredCategories(input);
+    for (size_t i = 0; i < coloured.size(); ++i) {
+      entries.push_back({kCategoryColours[i], true, input.category_name + ": " + coloured[i]});
+    }
+    if (any([&](const PlotTree& t) {
+          return std::find(coloured.begin(), coloured.end(), CategoryText(t.category)) ==
+                 coloured.end();
+        })) {
+      entries.push_back({kOther, true, input.category_name + ": other"});
+    }
+    if (any([](const PlotTree& t) { return !t.candidate && !t.dbh; })) {
+      entries.push_back({kInk, false, "outline: DBH unknown"});
+    }
+    if (any([](const PlotTree& t) { return t.candidate; })) {
+      entries.push_back({kInk, false, "outline: candidate"});
+    }
+  } else {
+    if (any([](const PlotTree& t) { return !t.candidate && t.dbh; })) {
+      entries.push_back({kConfirmed, true, "confirmed stem"});
+    }
+    if (any([](const PlotTree& t) { return !t.candidate && !t.dbh; })) {
+      entries.push_back({kConfirmed, false, "stem, DBH unknown"});
+    }
+    if (any([](const PlotTree& t) { return t.candidate; })) {
+      entries.push_back({kCandidate, false, "candidate stem"});
+    }
   }
   if (!input.matched.empty()) entries.push_back({kMatched, true, "query: matched"});
   if (!input.unmatched.empty()) entries.push_back({kUnmatched, true, "query: unmatched"});
@@ -263,6 +321,19 @@ std::array<double, 4> Extent(const PlotInput& input, const PlotOptions& o) {
 }
 
 }  // namespace
+
+std::vector<std::string> ColouredCategories(const PlotInput& input) {
+  std::map<std::string, size_t> counts;
+  for (const PlotTree& tree : input.trees) ++counts[CategoryText(tree.category)];
+  std::vector<std::pair<std::string, size_t>> ranked(counts.begin(), counts.end());
+  std::stable_sort(ranked.begin(), ranked.end(),
+                   [](const auto& a, const auto& b) { return a.second > b.second; });
+  std::vector<std::string> coloured;
+  for (size_t i = 0; i < ranked.size() && i < kMaxCategories; ++i) {
+    coloured.push_back(ranked[i].first);
+  }
+  return coloured;
+}
 
 std::vector<std::string> LegendOf(const PlotInput& input) {
   std::vector<std::string> lines;

@@ -112,6 +112,42 @@ TEST_F(CliTest, VersionSaysVersionCommitAndBuildType) {
   EXPECT_EQ(version.out.substr(version.out.find(')') + 1), "\n") << version.out;
 }
 
+TEST_F(CliTest, PlotColoursByAColumnLabelsTreesAndWarnsOfAQueryThatIsNotTheAnswers) {
+  const fs::path trees = Write("trees.csv",
+                               "id,x,y,dbh,species\n1,0,0,0.3,oak\n2,10,0,0.4,ash\n3,0,10,0.2,oak\n"
+                               "4,10,10,0.5,elm\n5,5,5,0.3,oak\n");
+  const std::string picture = (dir_ / "p.png").string();
+  const Result coloured = Run("plot --trees '" + trees.string() + "' --out '" + picture +
+                              "' --color-by species --labels");
+  EXPECT_EQ(coloured.exit_code, 0) << coloured.err;
+  EXPECT_TRUE(fs::exists(picture));
+  const Result unknown =
+      Run("plot --trees '" + trees.string() + "' --out '" + picture + "' --color-by colour");
+  EXPECT_EQ(unknown.exit_code, 1);
+  EXPECT_NE(unknown.err.find("--color-by colour: no tree has that column (they have species)"),
+            std::string::npos)
+      << unknown.err;
+
+  // The answer put the sensor at (5, 5) facing +x and matched 3 trees: a query of this frame lies
+  // on the map; another frame's does not, and the picture says so.
+  const fs::path answer =
+      Write("answer.json", R"({"status":"localized","x":5,"y":5,"z":0,"yaw_deg":0,"inliers":3})"
+                           "\n");
+  const fs::path ours = Write("ours.csv", "x,y,z,dbh\n-5,-5,0,0.3\n5,-5,0,0.4\n-5,5,0,0.2\n");
+  const fs::path other = Write("other.csv", "x,y,z,dbh\n-2,-3,0,0.3\n3,-1,0,0.4\n-1,2,0,0.2\n");
+  const std::string drawn = "plot --trees '" + trees.string() + "' --out '" + picture +
+                            "' --answer '" + answer.string() + "' --query ";
+  const Result matching = Run(drawn + "'" + ours.string() + "'");
+  EXPECT_EQ(matching.exit_code, 0) << matching.err;
+  EXPECT_EQ(matching.err.find("warning"), std::string::npos) << matching.err;
+  const Result mismatched = Run(drawn + "'" + other.string() + "'");
+  EXPECT_EQ(mismatched.exit_code, 0) << mismatched.err;
+  EXPECT_NE(mismatched.err.find("plot: warning: 0 of the 3 query trees lie on a map tree where "
+                                "the answer matched 3"),
+            std::string::npos)
+      << mismatched.err;
+}
+
 TEST_F(CliTest, ATypoGetsTheClosestCommandOrFlag) {
   const Result command = Run("map craete x");
   EXPECT_EQ(command.exit_code, 2);

@@ -1,5 +1,5 @@
 // Pictures of maps: stems land where they are, to scale, in both formats, over a grid of round
-// coordinates; the legend lists only what is drawn.
+// coordinates; the legend lists only what is drawn; categories colour the stems.
 #include "client/cli/map_plot.h"
 
 #include <cairo.h>
@@ -81,6 +81,42 @@ TEST(MapPlotTest, TheLegendListsOnlyWhatIsDrawn) {
   EXPECT_EQ(LegendOf(shared),
             (std::vector<std::string>{"confirmed stem", "stem, DBH unknown", "candidate stem",
                                       "query: matched", "sensor (heading)"}));
+}
+
+TEST(MapPlotTest, CategoriesColourTheStemsMostFrequentFirstAndTheRestGrey) {
+  PlotInput input;
+  input.category_name = "species";
+  input.trees = {{0, 0, 1.0, false, "1", "oak"},
+                 {20, 0, 1.0, false, "2", "ash"},
+                 {0, 20, 1.0, false, "3", "oak"},
+                 {20, 20, 1.0, true, "4", ""}};
+  EXPECT_EQ(LegendOf(input), (std::vector<std::string>{"species: oak", "species: ash",
+                                                       "species: unknown", "outline: candidate"}));
+  for (int i = 0; i < 9; ++i) {  // nine more kinds, one tree each: two of them do not get a colour
+    input.trees.push_back({40.0 + i, 0, 0.5, false, "", "kind" + std::to_string(i)});
+  }
+  const std::vector<std::string> legend = LegendOf(input);
+  ASSERT_EQ(legend.size(), kMaxCategories + 2) << legend.size();
+  EXPECT_EQ(legend[kMaxCategories], "species: other");
+
+  // The most frequent category's stem is drawn in the first colour (Okabe-Ito orange, E69E00).
+  const fs::path path = fs::temp_directory_path() / ("kinds_" + std::to_string(getpid()) + ".png");
+  input.trees.resize(4);
+  PlotOptions options;
+  options.size_px = 240;  // 24 m -> 10 px per m, tree (0, 0) at px (20, 44 + 220)
+  options.labels = true;
+  WritePlot(path.string(), input, options);
+  cairo_surface_t* image = cairo_image_surface_create_from_png(path.c_str());
+  ASSERT_EQ(cairo_surface_status(image), CAIRO_STATUS_SUCCESS);
+  EXPECT_EQ(Pixel(image, 20, 264), 0xE69E00u) << std::hex << Pixel(image, 20, 264);
+  // Its label "1" is ink to the right of the stem (5 px radius), where the ground was.
+  bool ink = false;
+  for (int x = 26; x < 34; ++x) {
+    for (int y = 255; y < 264; ++y) ink = ink || Pixel(image, x, y) < 0x808080;
+  }
+  EXPECT_TRUE(ink);
+  cairo_surface_destroy(image);
+  fs::remove(path);
 }
 
 TEST(MapPlotTest, SvgIsWrittenAndBadNamesAreRefused) {
