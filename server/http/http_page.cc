@@ -10,11 +10,15 @@
 // clang-format on
 
 #include <algorithm>
+#include <deque>
 #include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <stdexcept>
 #include <string_view>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 namespace forestmap::server {
@@ -117,6 +121,31 @@ Json AnswersJson(const RecentAnswers& answers, const PageCaller& caller) {
   return list;
 }
 
+// The densities of the last few map versions the page asked for (a version never changes).
+class DensityCache {
+ public:
+  std::shared_ptr<const TreeDensity> Of(storage::MapStore& store, const storage::MapInfo& info) {
+    const Key key{info.name, info.version, info.created_unix_ms};
+    {
+      const std::lock_guard lock(mutex_);
+      for (const auto& [k, density] : kept_) {
+        if (k == key) return density;
+      }
+    }
+    auto density = std::make_shared<const TreeDensity>(DensityOf(store, info));
+    const std::lock_guard lock(mutex_);
+    kept_.emplace_back(key, density);
+    if (kept_.size() > kKept) kept_.pop_front();
+    return density;
+  }
+
+ private:
+  using Key = std::tuple<std::string, int64_t, int64_t>;  // name, version, created_unix_ms
+  static constexpr size_t kKept = 8;                      // 256 KiB each at most
+  std::mutex mutex_;
+  std::deque<std::pair<Key, std::shared_ptr<const TreeDensity>>> kept_;
+};
+
 std::unique_ptr<httplib::Server> PageRoutes(storage::MapStore& store, const RecentAnswers& answers,
                                             storage::TokenStore* tokens) {
   auto server = std::make_unique<httplib::Server>();
@@ -153,9 +182,34 @@ std::unique_ptr<httplib::Server> PageRoutes(storage::MapStore& store, const Rece
            [&store, tokens](const Request& request, Response& response) {
              const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
              if (!caller || !MayRead(*caller, request.matches[1], response)) return;
+             std::optional<storage::Extent> box;
+             try {
+               if (request.has_param("bbox"))
+                 box = ParseBox("bbox", request.get_param_value("bbox"));
+             } catch (const std::invalid_argument& e) {
+               response.status = 400;
+               return Reply(response, Json{{"error", e.what()}});
+             }
              Guarded(response, [&] {
                const storage::MapInfo info = store.GetMap(request.matches[1]);
-               ReplyTreesStreamed(response, store, info, MapJson(info).dump());
+               ReplyTreesStreamed(response, store, info, MapJson(info).dump(), box);
+             });
+           });
+  auto densities = std::make_shared<DensityCache>();
+  http.Get(R"(/api/maps/([A-Za-z0-9_.\-]+)/density)",
+           [&store, tokens, densities](const Request& request, Response& response) {
+             const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
+             if (!caller || !MayRead(*caller, request.matches[1], response)) return;
+             Guarded(response, [&] {
+               const storage::MapInfo info = store.GetMap(request.matches[1]);
+               const std::shared_ptr<const TreeDensity> d = densities->Of(store, info);
+               Reply(response, Json{{"map", MapJson(info)},
+                                    {"min_x", d->min_x},
+                                    {"min_y", d->min_y},
+                                    {"cell_m", d->cell_m},
+                                    {"columns", d->columns},
+                                    {"rows", d->rows},
+                                    {"counts", d->counts}});
              });
            });
   http.Get(R"(/api/maps/([A-Za-z0-9_.\-]+)/versions)",

@@ -9,7 +9,9 @@
 //
 // Routes: GET /                        the page (server/http/http_page_html.cc)
 //         GET /api/maps                [{name, trees, version, crs, extent}]
-//         GET /api/maps/NAME/trees     {trees: [[x, y, dbh|null, confirmed], ...]} (current)
+//         GET /api/maps/NAME/trees     {trees: [[x, y, dbh|null, confirmed, id], ...]} (current;
+//                                      ?bbox=MIN_X,MIN_Y,MAX_X,MAX_Y: those inside)
+//         GET /api/maps/NAME/density   trees per cell of a 256-cell grid (server/http/http_trees.h)
 //         GET /api/maps/NAME/versions  [{version, kind, source, trees, time_ms}]
 //         GET /api/relocalizations     the last answers, newest first
 //         GET /ogc/...                 OGC API - Features (server/http/ogc_features.h)

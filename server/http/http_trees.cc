@@ -4,9 +4,12 @@
 #include <httplib.h>
 // clang-format on
 
+#include <algorithm>
+#include <array>
 #include <charconv>
 #include <cmath>
 #include <memory>
+#include <stdexcept>
 #include <utility>
 #include <vector>
 
@@ -37,14 +40,16 @@ void AppendTree(std::string& out, const storage::TreeRecord& tree) {
   } else {
     out += "null";
   }
-  out += tree.status == storage::TreeStatus::kConfirmed ? ",true]" : ",false]";
+  out += tree.status == storage::TreeStatus::kConfirmed ? ",true," : ",false,";
+  out += std::to_string(*tree.id);
+  out += ']';
 }
 
 // Where a streamed answer is: what it reads next. Lives as long as the response.
 struct TreeStream {
   TreeStream(storage::MapStore& store, const storage::MapInfo& info, std::string json,
-             int64_t page_trees)
-      : pages(store, info, page_trees), map_json(std::move(json)) {}
+             std::optional<storage::Extent> box, int64_t page_trees)
+      : pages(store, info, page_trees, std::move(box)), map_json(std::move(json)) {}
 
   TreePages pages;
   std::string map_json;
@@ -80,11 +85,57 @@ struct TreeStream {
 
 void ReplyTreesStreamed(httplib::Response& response, storage::MapStore& store,
                         const storage::MapInfo& info, const std::string& map_json,
-                        int64_t page_trees) {
-  auto stream = std::make_shared<TreeStream>(store, info, map_json, page_trees);
+                        std::optional<storage::Extent> box, int64_t page_trees) {
+  auto stream = std::make_shared<TreeStream>(store, info, map_json, std::move(box), page_trees);
   response.set_chunked_content_provider(
       "application/json",
       [stream](size_t /*offset*/, httplib::DataSink& sink) { return stream->WriteNext(sink); });
+}
+
+storage::Extent ParseBox(const std::string& name, const std::string& text) {
+  std::array<double, 4> v{};
+  const char* at = text.data();
+  const char* const end = text.data() + text.size();
+  for (size_t i = 0; i < v.size(); ++i) {
+    const auto [next, error] = std::from_chars(at, end, v[i]);
+    const bool last = i + 1 == v.size();
+    if (error != std::errc() || !std::isfinite(v[i]) || (last ? next != end : *next != ',')) {
+      throw std::invalid_argument(name + "=" + text + ": give minx,miny,maxx,maxy (4 numbers)");
+    }
+    at = next + 1;
+  }
+  if (v[0] > v[2] || v[1] > v[3]) {
+    throw std::invalid_argument(name + "=" + text + ": the minimum is above the maximum");
+  }
+  return {v[0], v[1], v[2], v[3]};
+}
+
+TreeDensity DensityOf(storage::MapStore& store, const storage::MapInfo& info) {
+  TreeDensity density;
+  if (!info.extent) return density;
+  const storage::Extent& e = *info.extent;
+  density.min_x = e.min_x;
+  density.min_y = e.min_y;
+  density.cell_m = std::max(std::max(e.max_x - e.min_x, e.max_y - e.min_y) / kDensityCells, 1e-3);
+  const auto cells = [&](double length) {
+    return std::clamp(static_cast<int>(std::floor(length / density.cell_m)) + 1, 1,
+                      kDensityCells + 1);
+  };
+  density.columns = cells(e.max_x - e.min_x);
+  density.rows = cells(e.max_y - e.min_y);
+  density.counts.assign(static_cast<size_t>(density.columns) * density.rows, 0);
+  constexpr int64_t kPage = 50'000;
+  TreePages pages(store, info, kPage);
+  while (!pages.done()) {
+    for (const storage::TreeRecord& tree : pages.Next()) {
+      const int column = std::clamp(static_cast<int>((tree.x - density.min_x) / density.cell_m), 0,
+                                    density.columns - 1);
+      const int row = std::clamp(static_cast<int>((tree.y - density.min_y) / density.cell_m), 0,
+                                 density.rows - 1);
+      ++density.counts[static_cast<size_t>(row) * density.columns + column];
+    }
+  }
+  return density;
 }
 
 }  // namespace forestmap::server

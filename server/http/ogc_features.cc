@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "geo/crs.h"
+#include "server/http/http_trees.h"
 #include "server/http/ogc_documents.h"
 #include "server/http/page_auth.h"
 #include "storage/staged_writes.h"
@@ -141,7 +142,7 @@ template <typename Body>
 void Answer(Response& response, Body body) {
   try {
     body();
-  } catch (const BadParameter& e) {
+  } catch (const std::invalid_argument& e) {  // BadParameter, ParseBox
     response.status = 400;
     Reply(response, Json{{"code", "InvalidParameterValue"}, {"description", e.what()}});
   } catch (const std::exception& e) {
@@ -158,24 +159,6 @@ int64_t ParseInteger(const std::string& name, const std::string& text, int64_t m
                        " to " + std::to_string(max));
   }
   return value;
-}
-
-storage::Extent ParseBbox(const std::string& text) {
-  std::array<double, 4> v{};
-  const char* at = text.data();
-  const char* const end = text.data() + text.size();
-  for (size_t i = 0; i < v.size(); ++i) {
-    const auto [next, error] = std::from_chars(at, end, v[i]);
-    const bool last = i + 1 == v.size();
-    if (error != std::errc() || !std::isfinite(v[i]) || (last ? next != end : *next != ',')) {
-      throw BadParameter("bbox=" + text + ": give minx,miny,maxx,maxy (4 numbers)");
-    }
-    at = next + 1;
-  }
-  if (v[0] > v[2] || v[1] > v[3]) {
-    throw BadParameter("bbox=" + text + ": the minimum is above the maximum");
-  }
-  return {v[0], v[1], v[2], v[3]};
 }
 
 // Whether `uri` (a crs or bbox-crs value) names CRS84 (true) or the storage CRS (false).
@@ -239,7 +222,7 @@ ItemsQuery ParseItems(const Request& request, const MapCrs& crs) {
   }
   if (request.has_param("crs"))
     query.out_crs84 = IsCrs84(crs, "crs", request.get_param_value("crs"));
-  if (request.has_param("bbox")) query.bbox = ParseBbox(request.get_param_value("bbox"));
+  if (request.has_param("bbox")) query.bbox = ParseBox("bbox", request.get_param_value("bbox"));
   if (request.has_param("bbox-crs")) {
     query.bbox_crs84 = IsCrs84(crs, "bbox-crs", request.get_param_value("bbox-crs"));
   }

@@ -1,6 +1,7 @@
 // forestmapd's read-only web page in a real browser: Debian's headless Chromium loads
 // the page from an in-process server, waits for the trees to draw (<body data-drawn="N">), and a
-// screenshot must show the stems in their colour.
+// screenshot must show the stems in their colour; a 1,000,000-tree map shows its density, and
+// its trees once the view holds few enough.
 
 #include "server/http/http_page.h"
 
@@ -8,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -35,6 +37,27 @@ std::string Chromium(const fs::path& profile) {
          "--disable-background-networking --disable-component-update --disable-sync "
          "--window-size=1100,800 --virtual-time-budget=10000 --user-data-dir='" +
          profile.string() + "' ";
+}
+
+// Pixels of `colour` (0xRRGGBB) in a PNG.
+int PixelsOf(const std::string& png, uint32_t colour) {
+  cairo_surface_t* image = cairo_image_surface_create_from_png(png.c_str());
+  if (cairo_surface_status(image) != CAIRO_STATUS_SUCCESS) {
+    cairo_surface_destroy(image);
+    return -1;
+  }
+  const int width = cairo_image_surface_get_width(image);
+  const int height = cairo_image_surface_get_height(image);
+  const int stride = cairo_image_surface_get_stride(image);
+  const unsigned char* data = cairo_image_surface_get_data(image);
+  int count = 0;
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      count += (*reinterpret_cast<const uint32_t*>(data + y * stride + 4 * x) & 0xffffff) == colour;
+    }
+  }
+  cairo_surface_destroy(image);
+  return count;
 }
 
 std::string Output(const std::string& command) {
@@ -68,21 +91,53 @@ TEST(HttpPageTest, ChromiumDrawsTheMapsTrees) {
 
   const fs::path shot = dir / "page.png";
   Output(Chromium(dir / "p2") + "--screenshot='" + shot.string() + "' " + url + " 2>&1");
-  cairo_surface_t* image = cairo_image_surface_create_from_png(shot.c_str());
-  ASSERT_EQ(cairo_surface_status(image), CAIRO_STATUS_SUCCESS) << "no screenshot " << shot;
-  const int width = cairo_image_surface_get_width(image);
-  const int height = cairo_image_surface_get_height(image);
-  const int stride = cairo_image_surface_get_stride(image);
-  const unsigned char* data = cairo_image_surface_get_data(image);
-  int stem_pixels = 0;
-  for (int y = 0; y < height; ++y) {
-    for (int x = 0; x < width; ++x) {
-      const uint32_t pixel = *reinterpret_cast<const uint32_t*>(data + y * stride + 4 * x);
-      stem_pixels += (pixel & 0xffffff) == kStemColour;
-    }
+  EXPECT_GE(PixelsOf(shot.string(), kStemColour), kMinStemPixels) << "screenshot " << shot;
+  fs::remove_all(dir);
+}
+
+TEST(HttpPageTest, AMillionTreeMapShowsItsDensityThenTheTreesOfAViewThatHoldsFew) {
+  constexpr int kSide = 1000, kTrees = kSide * kSide;  // a 5 km square, one tree per 25 m2
+  constexpr double kSpacing = 5.0;
+  storage::SqliteMapStore store(":memory:");
+  std::vector<storage::TreeRecord> trees(kTrees);
+  for (int i = 0; i < kTrees; ++i) {
+    trees[i].x = (i % kSide) * kSpacing;
+    trees[i].y = (i / kSide) * kSpacing;
+    trees[i].dbh = 0.3;
   }
-  cairo_surface_destroy(image);
-  EXPECT_GE(stem_pixels, kMinStemPixels) << "screenshot " << shot;
+  store.CreateMap("huge", "", "");
+  store.WriteTrees("huge", trees, storage::WriteMode::kReplace);
+  ForestMapService service(store, {});
+  HttpPage page(store, service.recent_answers(), "127.0.0.1:0");
+  const fs::path dir = fs::temp_directory_path() / ("http_huge_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+
+  // The whole map: its density, drawn in the stems' green (translucent: other shades).
+  const std::string url = "'http://" + page.address() + "/#map=huge'";
+  const auto start = std::chrono::steady_clock::now();
+  const std::string dom = Output(Chromium(dir / "p1") + "--dump-dom " + url + " 2>/dev/null");
+  RecordProperty(
+      "density_page_seconds",
+      std::to_string(
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()));
+  EXPECT_NE(dom.find("data-drawn=\"0\" data-view=\"density\""), std::string::npos)
+      << dom.substr(0, 2000);
+  EXPECT_NE(dom.find("huge: 1000000 trees"), std::string::npos);
+
+  // A 200 m wide view: its trees, each drawn; a 1,100 x 800 window's canvas is about 800 px
+  // high and wide, so the view holds about 40 x 40 trees (spacing 5 m) -- far fewer than 100,000.
+  const std::string zoomed = "'http://" + page.address() + "/#map=huge&at=2500,2500,200'";
+  const std::string near = Output(Chromium(dir / "p2") + "--dump-dom " + zoomed + " 2>/dev/null");
+  const size_t at = near.find("data-drawn=\"");
+  ASSERT_NE(at, std::string::npos) << near.substr(0, 2000);
+  const int drawn = std::atoi(near.c_str() + at + 12);
+  EXPECT_GT(drawn, 30 * 30) << near.substr(0, 2000);
+  EXPECT_LT(drawn, 50 * 50) << near.substr(0, 2000);
+  EXPECT_NE(near.find("data-view=\"trees\""), std::string::npos);
+  const fs::path shot = dir / "near.png";
+  Output(Chromium(dir / "p3") + "--screenshot='" + shot.string() + "' " + zoomed + " 2>&1");
+  // Stems of 1.5 px radius (the smallest drawn): a few pixels of the exact fill colour each.
+  EXPECT_GE(PixelsOf(shot.string(), kStemColour), 2 * drawn) << "screenshot " << shot;
   fs::remove_all(dir);
 }
 
