@@ -128,10 +128,10 @@ void Reply(Response& response, const Json& body, const char* type = "application
   response.set_content(body.dump(-1, ' ', false, Json::error_handler_t::replace), type);
 }
 
-// The Content-Crs header of a feature answer: <uri>.
+// The Content-Crs header of a feature answer: <uri> (appended piece by piece: GCC 12 warns,
+// -Wrestrict, about "<" + uri + ">").
 void SetContentCrs(Response& response, const std::string& uri) {
-  std::string value =
-      "<";  // appended, not '"<" + uri + ">"', which GCC 12 warns about (-Wrestrict)
+  std::string value = "<";
   value += uri;
   value += '>';
   response.set_header("Content-Crs", value);
