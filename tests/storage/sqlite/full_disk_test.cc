@@ -2,8 +2,8 @@
 // --max-db-mb) or on a file system with no space left used to fail DeleteMap and PruneVersions as
 // kFull too (nothing could free room), and could not be opened again. Here: delete and prune
 // succeed on a full database and free room for later writes, and a full database opens, serves
-// reads and fails writes as kFull, with the size limit and, where the test may mount one (root),
-// on a real full tmpfs.
+// reads and fails writes as kFull, with the size limit and on a real full tmpfs (mounted in a
+// private mount namespace of a child process: the test runs as root, as CI does).
 
 #include <gtest/gtest.h>
 #include <sys/mount.h>
