@@ -261,6 +261,10 @@ class MapStore {
   // differs) or the version pruned since the first page. The default reads the whole version.
   virtual std::vector<TreeRecord> ReadTreesPage(const std::string& name,
                                                 const TreePageQuery& query);
+  // What the store could not do when it opened, for the server to log as a warning (a full disk
+  // skipped a start-up write: reads are served, writes that need room fail as kFull); "" when
+  // it opened whole.
+  virtual std::string OpenWarning() const { return {}; }
 };
 
 // Valid map names: 1..128 characters of [A-Za-z0-9_.-]. Returns an error message or "".

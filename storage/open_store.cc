@@ -29,6 +29,7 @@ std::unique_ptr<MapStore> OpenMapStore(const std::string& db, int64_t max_db_mib
   }
   SqliteMapStoreOptions options;
   options.max_db_mib = max_db_mib;
+  options.reserve_mib = kServerReserveMib;
   return std::make_unique<SqliteMapStore>(db, options);
 }
 

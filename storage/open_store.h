@@ -20,7 +20,10 @@ std::string DescribeDatabase(const std::string& db);
 
 // Opens the store a `--db` value names: PostgresMapStore for a postgresql:// URI, else
 // SqliteMapStore on the file path (":memory:" too), limited to `max_db_mib` MiB (0: no limit;
-// SQLite only, kInvalidArgument for PostgreSQL). Throws StorageError.
+// SQLite only, kInvalidArgument for PostgreSQL), keeping kServerReserveMib MiB of room reserved
+// for deletes, prunes and a start on a full disk (SqliteMapStoreOptions::reserve_mib). Throws
+// StorageError.
+inline constexpr int64_t kServerReserveMib = 64;
 std::unique_ptr<MapStore> OpenMapStore(const std::string& db, int64_t max_db_mib = 0);
 
 }  // namespace forestmap::storage

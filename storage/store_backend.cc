@@ -50,4 +50,17 @@ void CommitWrite(StoreSession& session, StoreTransaction& transaction, const Map
   transaction.Commit();
 }
 
+void FreeRoom(StoreBackend& backend, const StoreBackend::Body& body) {
+  try {
+    backend.WithFreeingWriter(body);
+  } catch (const StorageError& e) {
+    const WriteRequest* request = CurrentWriteRequest();
+    if (e.code() != Code::kFull || request == nullptr || request->id.empty()) throw;
+    WriteRequest unrecorded = *request;
+    unrecorded.id.clear();
+    const WriteRequestScope scope(unrecorded);
+    backend.WithFreeingWriter(body);
+  }
+}
+
 }  // namespace forestmap::storage

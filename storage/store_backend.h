@@ -177,6 +177,11 @@ class StoreBackend {
   virtual void WithReader(const Body& body) = 0;
   // Runs `body` on the connection for writing (SQLite: the one writer, under its mutex).
   virtual void WithWriter(const Body& body) = 0;
+  // WithWriter for a write that frees room (delete, prune): it may use room the backend reserves
+  // so that a full disk can be freed.
+  virtual void WithFreeingWriter(const Body& body) { WithWriter(body); }
+  // What the backend could not do when it opened (MapStore::OpenWarning); "" when nothing.
+  virtual std::string OpenWarning() const { return {}; }
   // An upload staged in the database (storage/staged_upload.h).
   virtual std::unique_ptr<TreeUpload> BeginUpload(const std::string& name,
                                                   const UploadPlan& plan) = 0;
@@ -193,5 +198,10 @@ VersionRecord RequireVersion(StoreSession& session, const MapRow& map, int64_t v
 // Commits a write transaction, honouring the thread's WriteRequest (storage/write_request.h):
 // stores its answer under its id, refuses a passed deadline. `info`: the map after the write.
 void CommitWrite(StoreSession& session, StoreTransaction& transaction, const MapInfo& info);
+// Runs a write that frees room (delete, prune) with backend.WithFreeingWriter. When the disk is
+// still full and the thread's WriteRequest has an id, runs it once more without storing its
+// answer (the write needs no new room, the answer's row may: PostgreSQL reuses a deleted row's
+// room only after VACUUM): a retry with that id is then applied again, not answered from the log.
+void FreeRoom(StoreBackend& backend, const StoreBackend::Body& body);
 
 }  // namespace forestmap::storage

@@ -146,7 +146,7 @@ PruneResult VersionedMapStore::PruneVersions(const std::string& name, int64_t ke
                        "keep is " + std::to_string(keep) + "; at least the current version stays");
   }
   PruneResult result;
-  backend_->WithWriter([&](StoreSession& session) {
+  FreeRoom(*backend_, [&](StoreSession& session) {
     StoreTransaction transaction(session, TransactionKind::kWrite);
     const MapRow map = LockMap(session, name);
     result.info = map.info;

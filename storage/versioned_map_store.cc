@@ -122,7 +122,7 @@ MapInfo VersionedMapStore::GetMap(const std::string& name) {
 
 void VersionedMapStore::DeleteMap(const std::string& name) {
   internal::CheckName(name);
-  backend_->WithWriter([&](StoreSession& session) {
+  FreeRoom(*backend_, [&](StoreSession& session) {
     StoreTransaction transaction(session, TransactionKind::kWrite);
     const MapRow map = LockMap(session, name);
     session.DeleteMap(map);

@@ -49,6 +49,7 @@ class VersionedMapStore : public MapStore {
   // One short read transaction per page, through the index of current or closed rows.
   std::vector<TreeRecord> ReadTreesPage(const std::string& name,
                                         const TreePageQuery& query) override;
+  std::string OpenWarning() const override { return backend_->OpenWarning(); }
 
  private:
   std::unique_ptr<StoreBackend> backend_;

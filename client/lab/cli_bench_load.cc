@@ -2,7 +2,8 @@
 // threads, each with its own channel, loop over four kinds of call chosen at random by weight:
 //   relocalize  one frame of --frames in the shared map NAME (no prior);
 //   track       a Track session of --track-frames consecutive frames with odometry from --poses;
-//   observe     --observe-frames frames with their poses into the client's own map;
+//   observe     --observe-frames frames with their poses into the client's own map (or all into
+//               the map --observe-into);
 //   upload      a replace upload of the client's --upload-trees trees into its own map.
 // Per-client maps (PREFIX-c<k>) are created before the clock starts (trees of --trees nearest
 // the client's stretch of the route) and deleted afterwards. Reports, per kind, calls, failures
@@ -54,6 +55,7 @@ struct LoadBenchOptions {
   double warmup_s = -1;               // s excluded from the RSS range (<0: a quarter of the run)
   double pause_ms = 0;                // ms each client waits between calls
   std::string prefix = "bench-load";  // per-client maps are PREFIX-c<k>
+  std::string observe_map;            // set: every client observes into this map, not its own
   bool keep_maps = false;             // leave the per-client maps (e.g. on a throwaway database)
 };
 
@@ -176,7 +178,8 @@ void Observe(Client& c, ForestMapClient& rpc, const Input& input, const LoadBenc
   }
   ObserveOptions options;
   options.source = o.prefix + "-c" + std::to_string(c.index);
-  Measure(c.stats[kObserve], [&] { rpc.Observe(c.own_map, frames, options); });
+  const std::string& map = o.observe_map.empty() ? c.own_map : o.observe_map;
+  Measure(c.stats[kObserve], [&] { rpc.Observe(map, frames, options); });
 }
 
 void OneCall(Client& c, ForestMapClient& rpc, const Input& input, const LoadBenchOptions& o,
@@ -427,6 +430,8 @@ void AddBenchLoadCommand(CLI::App& app, CliContext& context) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--prefix", o->prefix, "Per-client maps are PREFIX-c<k>")->capture_default_str();
+  cmd->add_option("--observe-into", o->observe_map,
+                  "Every client observes into this one map (default: each into its own)");
   cmd->add_flag("--keep-maps", o->keep_maps,
                 "Leave the per-client maps afterwards (deleting maps with long histories is slow)");
   cmd->callback([o, &context] { context.run = [o, &context] { Run(*o, context); }; });

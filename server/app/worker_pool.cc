@@ -1,5 +1,10 @@
 #include "server/app/worker_pool.h"
 
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <exception>
 #include <stdexcept>
 #include <string>
@@ -7,9 +12,11 @@
 
 namespace forestmap::server {
 
-WorkerPool::WorkerPool(int threads, size_t max_queued, FaultReport report)
+WorkerPool::WorkerPool(int threads, size_t max_queued, FaultReport report, int nice)
     : max_queued_(max_queued), report_(std::move(report)) {
   if (threads < 1) throw std::invalid_argument("WorkerPool needs at least 1 thread");
+  if (nice < 0 || nice > 19) throw std::invalid_argument("WorkerPool needs 0 <= nice <= 19");
+  nice_ = std::min(19, getpriority(PRIO_PROCESS, 0) + nice);  // Linux: this thread's
   if (max_queued < 1) throw std::invalid_argument("WorkerPool needs max_queued >= 1");
   if (!report_) throw std::invalid_argument("WorkerPool needs a report for jobs that throw");
   threads_.reserve(threads);
@@ -36,6 +43,11 @@ bool WorkerPool::TrySubmit(std::function<void()> job) {
 }
 
 void WorkerPool::Run() {
+  // Linux: PRIO_PROCESS with a thread id sets that thread's nice value alone. Raising it needs no
+  // privilege; a failure leaves the thread at the process's priority.
+  if (nice_ != getpriority(PRIO_PROCESS, 0)) {
+    setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), nice_);
+  }
   for (;;) {
     std::function<void()> job;
     {

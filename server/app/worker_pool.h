@@ -20,10 +20,12 @@ namespace forestmap::server {
 
 class WorkerPool {
  public:
-  // Throws std::invalid_argument unless threads >= 1, max_queued >= 1 and `report` is set.
-  // `report` gets what a job that threw was thrown (a job must not throw; one that does is a bug,
-  // and the pool goes on).
-  WorkerPool(int threads, size_t max_queued, FaultReport report);
+  // Throws std::invalid_argument unless threads >= 1, max_queued >= 1, 0 <= nice <= 19 and
+  // `report` is set. `report` gets what a job that threw was thrown (a job must not throw; one
+  // that does is a bug, and the pool goes on). `nice`: the pool's threads run that much nicer
+  // than the thread that made the pool (Linux schedules threads apart: under a full CPU a thread
+  // of nice 10 gets about a tenth of what one of nice 0 gets; alone it runs at full speed).
+  WorkerPool(int threads, size_t max_queued, FaultReport report, int nice = 0);
   // Runs the jobs still queued, then joins the threads.
   ~WorkerPool();
   WorkerPool(const WorkerPool&) = delete;
@@ -38,6 +40,7 @@ class WorkerPool {
 
   size_t max_queued_;
   FaultReport report_;
+  int nice_;  // the threads' nice value (absolute)
   std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<std::function<void()>> queue_;

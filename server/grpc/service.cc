@@ -55,6 +55,9 @@ void ServiceOptions::Check() const {
   Require(worker_threads >= 1, "ServiceOptions.worker_threads must be >= 1");
   Require(admin_threads >= 1, "ServiceOptions.admin_threads must be >= 1");
   Require(max_queued_requests >= 1, "ServiceOptions.max_queued_requests must be >= 1");
+  Require(write_threads >= 1, "ServiceOptions.write_threads must be >= 1");
+  Require(max_queued_writes >= 1, "ServiceOptions.max_queued_writes must be >= 1");
+  Require(write_nice >= 0 && write_nice <= 19, "ServiceOptions.write_nice must be in [0, 19]");
   index_cache.Check();
   relocalizer.Check();
   Require(observe.max_frames >= 1, "ServiceOptions.observe.max_frames must be >= 1");
@@ -75,7 +78,9 @@ ForestMapService::ForestMapService(storage::MapStore& store, ServiceOptions opti
       idle_streams_(options_.streams, options_.authorizer),
       retention_(store, options_.keep_versions, LogFault),
       admin_pool_(options_.admin_threads, options_.max_queued_requests, LogFault),
-      work_pool_(options_.worker_threads, options_.max_queued_requests, LogFault) {}
+      work_pool_(options_.worker_threads, options_.max_queued_requests, LogFault),
+      write_pool_(options_.write_threads, options_.max_queued_writes, LogFault,
+                  options_.write_nice) {}
 
 grpc::ServerUnaryReactor* ForestMapService::CreateMap(grpc::CallbackServerContext* context,
                                                       const v1::CreateMapRequest* request,
@@ -129,16 +134,16 @@ grpc::ServerUnaryReactor* ForestMapService::DeleteMap(grpc::CallbackServerContex
 
 grpc::ServerReadReactor<grpc::ByteBuffer>* ForestMapService::UploadTrees(
     grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
-  return new UploadTreesReactor(
-      {store_, options_, admin_pool_, work_pool_, stream_limits_, idle_streams_, retention_},
-      context, response);
+  return new UploadTreesReactor({store_, options_, admin_pool_, work_pool_, write_pool_,
+                                 stream_limits_, idle_streams_, retention_},
+                                context, response);
 }
 
 grpc::ServerWriteReactor<v1::ExportTreesResponse>* ForestMapService::ExportTrees(
     grpc::CallbackServerContext* context, const v1::ExportTreesRequest* request) {
-  return new ExportTreesReactor(
-      {store_, options_, admin_pool_, work_pool_, stream_limits_, idle_streams_, retention_},
-      context, request);
+  return new ExportTreesReactor({store_, options_, admin_pool_, work_pool_, write_pool_,
+                                 stream_limits_, idle_streams_, retention_},
+                                context, request);
 }
 
 grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerContext* context,
@@ -175,7 +180,7 @@ grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse>* ForestMapService::
 grpc::ServerUnaryReactor* ForestMapService::Observe(grpc::CallbackServerContext* context,
                                                     const v1::ObserveRequest* request,
                                                     v1::ObserveResponse* response) {
-  return AnswerOn(work_pool_, context, "Observe", [this, context, request, response] {
+  return AnswerOn(write_pool_, context, "Observe", [this, context, request, response] {
     const Caller caller = Authorize(options_.authorizer, *context, "Observe", request->name());
     RunObserve(context, caller, *request, *response);
     retention_.AfterWrite(request->name());
@@ -194,7 +199,7 @@ grpc::ServerUnaryReactor* ForestMapService::ListVersions(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* ForestMapService::RestoreVersion(grpc::CallbackServerContext* context,
                                                            const v1::RestoreVersionRequest* request,
                                                            v1::RestoreVersionResponse* response) {
-  return AnswerOn(work_pool_, context, "RestoreVersion", [this, context, request, response] {
+  return AnswerOn(write_pool_, context, "RestoreVersion", [this, context, request, response] {
     const Caller caller =
         Authorize(options_.authorizer, *context, "RestoreVersion", request->name());
     Validate(*request);
@@ -213,7 +218,7 @@ grpc::ServerUnaryReactor* ForestMapService::RestoreVersion(grpc::CallbackServerC
 grpc::ServerUnaryReactor* ForestMapService::RemoveSource(grpc::CallbackServerContext* context,
                                                          const v1::RemoveSourceRequest* request,
                                                          v1::RemoveSourceResponse* response) {
-  return AnswerOn(work_pool_, context, "RemoveSource", [this, context, request, response] {
+  return AnswerOn(write_pool_, context, "RemoveSource", [this, context, request, response] {
     const Caller caller = Authorize(options_.authorizer, *context, "RemoveSource", request->name());
     RunRemoveSource(context, caller, *request, *response);
     retention_.AfterWrite(request->name());
@@ -223,7 +228,7 @@ grpc::ServerUnaryReactor* ForestMapService::RemoveSource(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* ForestMapService::PruneVersions(grpc::CallbackServerContext* context,
                                                           const v1::PruneVersionsRequest* request,
                                                           v1::PruneVersionsResponse* response) {
-  return AnswerOn(work_pool_, context, "PruneVersions", [this, context, request, response] {
+  return AnswerOn(write_pool_, context, "PruneVersions", [this, context, request, response] {
     const Caller caller =
         Authorize(options_.authorizer, *context, "PruneVersions", request->name());
     RunPrune(context, caller, *request, *response);

@@ -3,7 +3,8 @@
 // (server/app: index cache, shared-map writes, exactly-once, retention) or storage / algorithms
 // -> convert back -> finish. Every outcome is a grpc::Status built in server/grpc/status.cc; no
 // exception crosses an RPC. Handlers never block gRPC's threads: everything that touches the
-// store or the relocalizer runs on the service's thread pools (server/app/worker_pool.h).
+// store or the relocalizer runs on the service's thread pools (server/app/worker_pool.h): reads,
+// map writes and map metadata each on their own, so no kind of call waits for another's threads.
 //
 // Every RPC first checks the caller's token (server/grpc/authorize.h): UNAUTHENTICATED,
 // PERMISSION_DENIED.
@@ -30,7 +31,8 @@
 //                before it takes a place; CANCELLED when it waits longer than
 //                streams.idle_timeout for its client, or when its token is revoked
 //                (server/grpc/stream_limits.h)
-//   any RPC      RESOURCE_EXHAUSTED "server busy" when max_queued_requests calls are waiting;
+//   any RPC      RESOURCE_EXHAUSTED "server busy" when its pool's queue is full (max_queued_writes
+//                for the map writes, max_queued_requests for the others);
 //                INVALID_ARGUMENT for a request message that cannot be decoded
 //                (server/grpc/decode_guard.h); RESOURCE_EXHAUSTED "database full",
 //                FAILED_PRECONDITION "database read-only", DATA_LOSS, UNAVAILABLE for faults of the
@@ -84,12 +86,23 @@ struct ServiceOptions {
   int export_chunk_trees = 5'000;        // trees per ExportTrees message, at most
   int64_t export_chunk_bytes = 1 << 20;  // bytes per ExportTrees message, about (below the
                                          // clients' default 4 MiB receive limit)
-  // Threads for work that may take long or wait: Relocalize (index builds, waits for another
-  // call's build), UploadTrees commits, ExportTrees reads. Waiting calls hold a thread, so
-  // this is more than the core count; CPU use is bounded by the cores anyway.
+  // Reads and writes are admitted apart, so that writes waiting for the database's write lock
+  // never hold the threads reads need. Threads for reads that may take long or wait: Relocalize
+  // and Track (index builds, waits for another call's build), ExportTrees pages. Waiting calls
+  // hold a thread, so this is more than the core count; CPU use is bounded by the cores anyway.
   int worker_threads = 16;
+  int max_queued_requests = 1'000;  // per read and admin pool; more -> RESOURCE_EXHAUSTED "busy"
+  // Threads for the map writes: Observe, RestoreVersion, RemoveSource, PruneVersions, an upload's
+  // staging and commit. SQLite serializes writes (one writer), PostgreSQL per map, so a few
+  // threads keep the database busy; the others wait in the queue, holding no thread.
+  int write_threads = 4;
+  // Writes waiting for a write thread; more -> RESOURCE_EXHAUSTED "busy" (a queue this long
+  // already waits seconds for SQLite's one writer).
+  int max_queued_writes = 64;
+  // The write threads run this much nicer than the others (0..19): when reads keep the CPU
+  // full, writes get a small share of it (about a tenth at 10), and all of it when it is free.
+  int write_nice = 10;
   int admin_threads = 4;             // threads for map metadata RPCs and upload map checks
-  int max_queued_requests = 1'000;   // per thread pool; more -> RESOURCE_EXHAUSTED "busy"
   MapIndexCacheOptions index_cache;  // relocalization indexes kept in memory
   algorithms::RelocalizerOptions relocalizer;
   // Track sessions; their relocalizer options are `relocalizer` above.
@@ -181,7 +194,8 @@ class ForestMapService final
   RetentionPolicy retention_;  // --keep-versions, after every write (unary and upload)
   // Declared last: destroyed (drained and joined) first, while what their jobs use is alive.
   WorkerPool admin_pool_;
-  WorkerPool work_pool_;
+  WorkerPool work_pool_;   // reads
+  WorkerPool write_pool_;  // map writes (ServiceOptions::write_threads)
 };
 
 }  // namespace forestmap::server

@@ -35,7 +35,8 @@ struct StreamDeps {
   storage::MapStore& store;
   const ServiceOptions& options;
   WorkerPool& admin_pool;  // the first message's checks (map exists, replayed request id)
-  WorkerPool& work_pool;   // staging, commits and export pages
+  WorkerPool& work_pool;   // reads: export pages
+  WorkerPool& write_pool;  // writes: an upload's staging and commit
   StreamLimits& limits;    // a stream over its limit is RESOURCE_EXHAUSTED before anything else
   IdleStreams& idle;       // streams waiting too long for their client are cancelled
   const RetentionPolicy& retention;  // after a committed upload

@@ -64,8 +64,8 @@ void UploadTreesReactor::OnReadDone(bool ok) {
       End(cancelled);
       return;
     }
-    const bool queued =
-        deps_.work_pool.TrySubmit([this] { End(RunGuarded("UploadTrees", [this] { Commit(); })); });
+    const bool queued = deps_.write_pool.TrySubmit(
+        [this] { End(RunGuarded("UploadTrees", [this] { Commit(); })); });
     if (!queued) End(ServerBusy("UploadTrees"));
     return;
   }
@@ -92,7 +92,7 @@ void UploadTreesReactor::OnReadDone(bool ok) {
     return;
   }
   if (static_cast<int64_t>(chunk_.size()) >= deps_.options.upload_stage_trees) {
-    ThenReadNext(deps_.work_pool, [this] { StageChunk(); });
+    ThenReadNext(deps_.write_pool, [this] { StageChunk(); });
     return;
   }
   Read();

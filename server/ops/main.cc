@@ -380,6 +380,8 @@ int Serve(const Config& config, const CLI::App& app, int argc, const char* const
       "--db: cannot open database " + shown_db,
       [&] { return forestmap::storage::OpenMapStore(config.db, config.max_db_mb); });
   if (!store) return forestmap::server::kExitFailure;
+  if (const std::string warning = store->OpenWarning(); !warning.empty())
+    Log(LogLevel::kWarn, warning);
   const size_t map_count = store->ListMaps().size();
   // Tokens live in the same database (table access_tokens), SQLite file or PostgreSQL.
   const auto tokens = OpenOrLog<forestmap::storage::TokenStore>(

@@ -36,6 +36,26 @@ void RefuseReadOnlyDatabase(Database& db);
 // PRAGMA max_page_count for a size limit of `max_mib` MiB (0: none) on this connection.
 void LimitDatabaseSize(Database& db, int64_t max_mib);
 
+// ---- Room for the writes that free room (reserve.cc) ----
+
+// A file at `path` of `bytes` allocated blocks on the database's file system: when the disk is
+// full, giving it back lets a delete, a prune or the start-up writes grow the WAL (every write,
+// even one that frees pages, appends its pages to the WAL first). Not thread-safe (the writer's
+// mutex guards it).
+class ReservedRoom {
+ public:
+  ReservedRoom(std::string path, int64_t bytes);
+  // Allocates the file's blocks (when it has fewer); false when the file system has no room for
+  // all of them (the file keeps what it got) or `bytes` is 0.
+  bool Hold();
+  // Removes the file; true when it held room, which the file system has now.
+  bool Release();
+
+ private:
+  std::string path_;
+  int64_t bytes_;
+};
+
 // ---- Rows ----
 
 // A row of a statement as storage/rows.h reads it.
@@ -100,12 +120,30 @@ class Backend final : public StoreBackend {
   Backend(const std::string& path, const SqliteMapStoreOptions& options);
   void WithReader(const Body& body) override;
   void WithWriter(const Body& body) override;
+  // WithWriter, with WithRoom. After it, a checkpoint gives the WAL back to the file system for
+  // later writes, and the room is reserved again when the file system has it.
+  void WithFreeingWriter(const Body& body) override;
+  std::string OpenWarning() const override { return open_warning_; }
   std::unique_ptr<TreeUpload> BeginUpload(const std::string& name, const UploadPlan& plan) override;
   // The writer connection, for the short transactions of an upload.
   void WithWriterDatabase(const std::function<void(Database&)>& body);
 
  private:
+  // The writes of opening the database: the migration (refused when it has no room even with the
+  // reserve), then the removal of abandoned uploads and the write probe, which a full disk skips
+  // with a warning (open_warning_) so that the store still serves reads.
+  void OpenWrites(const std::string& path);
+  // Runs `step`; when it fails as kFull, runs it again after a checkpoint (which truncates the
+  // WAL), and once more after giving back the reserved room.
+  void WithRoom(const std::function<void()>& step);
+  void AddOpenWarning(const std::string& warning);
+  // A TRUNCATE checkpoint of the writer (waiting for readers up to the busy timeout); true when
+  // it completed.
+  bool Checkpoint();
+
   SqliteMapStoreOptions options_;
+  ReservedRoom reserve_;
+  std::string open_warning_;
   std::mutex writer_mutex_;
   std::unique_ptr<Database> writer_;
   std::unique_ptr<ConnectionPool<Database>> readers_;  // null for ":memory:"

@@ -21,9 +21,14 @@ struct SqliteMapStoreOptions {
   // MiB the database file may grow to (PRAGMA max_page_count; 0: no limit). A write that needs
   // more fails with kFull, like a full disk. A file already larger cannot grow further.
   int64_t max_db_mib = 0;
+  // MiB of room kept on the database's file system in the file "<path>-reserve" (allocated
+  // blocks; 0: none): when the disk is full, DeleteMap, PruneVersions and the writes of opening
+  // the database give it back and use it, so a full disk can be freed and the store opened.
+  // Reserved again after such a write, or at the next open, when the file system has the room.
+  int64_t reserve_mib = 0;
 
   // Throws StorageError(kInvalidArgument) naming the field for a negative timeout, fewer than
-  // one reader, a cache smaller than 1 MiB or a negative size limit.
+  // one reader, a cache smaller than 1 MiB or a negative size limit or reserve.
   void Check() const;
 };
 
@@ -58,7 +63,10 @@ class SqliteMapStore final : public VersionedMapStore {
   // Opens (creating if missing) the database at `path` and migrates its schema to
   // kSchemaVersion. ":memory:" gives a private in-memory database. Throws StorageError;
   // kReadOnly, naming the cause, for a database this process cannot write (read-only file,
-  // directory or file system): a server that could only fail its writes refuses to start.
+  // directory or file system): a server that could only fail its writes refuses to start. A full
+  // disk (or size limit) opens all the same when only the removal of abandoned uploads or the
+  // write probe found no room (OpenWarning() says so; writes then fail as kFull); a migration
+  // without room throws kFull.
   explicit SqliteMapStore(const std::string& path, const SqliteMapStoreOptions& options = {});
 };
 

@@ -6,7 +6,9 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 
+#include <algorithm>
 #include <future>
 #include <mutex>
 #include <stdexcept>
@@ -82,6 +84,24 @@ TEST_F(WorkerPoolTest, NonsenseOptionsAreRefused) {
   EXPECT_THROW(WorkerPool(0, 1, Report()), std::invalid_argument);
   EXPECT_THROW(WorkerPool(1, 0, Report()), std::invalid_argument);
   EXPECT_THROW(WorkerPool(1, 1, FaultReport()), std::invalid_argument);
+  EXPECT_THROW(WorkerPool(1, 1, Report(), -1), std::invalid_argument);
+  EXPECT_THROW(WorkerPool(1, 1, Report(), 20), std::invalid_argument);
+}
+
+// The service's write pool runs nicer than its read pool, so that under a full CPU writes take
+// a small share of it and reads keep their throughput; the caller's own priority is unchanged.
+TEST_F(WorkerPoolTest, ANicePoolsThreadsRunNicerThanItsMaker) {
+  const int mine = getpriority(PRIO_PROCESS, 0);
+  const auto nice_of_a_job = [&](WorkerPool& pool) {
+    std::promise<int> seen;
+    EXPECT_TRUE(pool.TrySubmit([&seen] { seen.set_value(getpriority(PRIO_PROCESS, 0)); }));
+    return seen.get_future().get();
+  };
+  WorkerPool nicer(2, 10, Report(), 10);
+  WorkerPool plain(2, 10, Report());
+  EXPECT_EQ(nice_of_a_job(nicer), std::min(19, mine + 10));
+  EXPECT_EQ(nice_of_a_job(plain), mine);
+  EXPECT_EQ(getpriority(PRIO_PROCESS, 0), mine);
 }
 
 }  // namespace

@@ -1,6 +1,8 @@
 // Issue 15 on PostgreSQL: a full disk (SQLSTATE 53100, disk_full) is a kFull StorageError, which
 // the server answers RESOURCE_EXHAUSTED "database full ..." (server/status.cc), for direct writes
-// and for staged uploads alike; nothing of the failed write is kept and reads go on. The fault
+// and for staged uploads alike; nothing of the failed write is kept and reads go on, a store opens
+// on the full disk, and a delete and a prune succeed on it (they used to fail storing their
+// request ids' answers). The fault
 // is real: the test database's tables live in a tablespace on a 3 MiB tmpfs that the writes
 // fill, so PostgreSQL itself gets ENOSPC extending a table file (its WAL stays on the big disk).
 // Mounting a tmpfs needs root (CI runs the tests as root; the cluster then runs as `nobody`) with
@@ -15,6 +17,7 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -22,6 +25,7 @@
 #include "storage/postgres/connection.h"
 #include "storage/postgres/store.h"
 #include "storage/staged_writes.h"
+#include "storage/write_request.h"
 #include "tests/pg_fixture.h"
 
 namespace forestmap::storage {
@@ -149,6 +153,29 @@ TEST(PostgresDiskFull, AFullDiskIsResourceExhaustedAndKeepsThePreviousVersion) {
     }
     EXPECT_THROW(store.GetMap("second"), StorageError);  // no half-created map
     EXPECT_EQ(store.GetMap("plot").tree_count, written);
+    // A server started on the full disk opens its store (the schema is current: nothing to
+    // write) and serves reads.
+    EXPECT_EQ(PostgresMapStore(database.url()).GetMap("plot").tree_count, written);
+
+    // The full disk can be freed: a prune and a delete, with request ids as the server sends
+    // them, succeed on the full tablespace (their answers, which need room, are not stored).
+    // PostgreSQL reuses the deleted rows' room after VACUUM (autovacuum), which itself needs a
+    // few pages for the tables' visibility maps: this tablespace has none left.
+    const auto with_request_id = [](const std::string& id, const std::function<void()>& write) {
+      WriteRequest request;
+      request.id = id;
+      request.rpc = "Write";
+      request.encode = [](const MapInfo& map) { return map.name + std::string(64, 'x'); };
+      const WriteRequestScope scope(request);
+      write();
+    };
+    with_request_id("prune-on-full", [&] {
+      EXPECT_EQ(store.PruneVersions("plot", 1).versions_removed, written / kTreesPerWrite);
+    });
+    with_request_id("delete-on-full", [&] { store.DeleteMap("plot"); });
+    EXPECT_THROW(store.GetMap("plot"), StorageError);
+    EXPECT_EQ(store.FindRequest("delete-on-full"), std::nullopt);
+    EXPECT_EQ(store.ListMaps().size(), 0u);
   }  // the database is dropped, then the tablespace and the tmpfs
 }
 
