@@ -2,6 +2,7 @@
 
 // Eigen (through http_page.h) before httplib.h: httplib pulls in <resolv.h>, whose `_res` macro
 // breaks Eigen's headers when they come after it.
+#include "server/http/http_route.h"
 #include "server/http/http_trees.h"
 // clang-format off
 #include <httplib.h>
@@ -45,34 +46,15 @@ struct PageCaller {
   }
 };
 
-constexpr std::string_view kTokenCookie = "forestmap_token";
-
-// The token `request` carries: its Authorization header ("Bearer <token>"), else its cookie
-// (set by the page, below), else ?token= (a browser's first visit).
-std::string RequestToken(const httplib::Request& request) {
-  const std::string header = request.get_header_value("Authorization");
-  if (!header.empty()) return std::string(storage::BearerSecret(header));
-  // Cookie: name=value; name2=value2
-  const std::string cookies = request.get_header_value("Cookie");
-  for (size_t at = 0; at < cookies.size();) {
-    const size_t end = std::min(cookies.find(';', at), cookies.size());
-    std::string_view pair = std::string_view(cookies).substr(at, end - at);
-    while (!pair.empty() && pair.front() == ' ') pair.remove_prefix(1);
-    if (pair.starts_with(kTokenCookie) && pair.substr(kTokenCookie.size()).starts_with('=')) {
-      return std::string(pair.substr(kTokenCookie.size() + 1));
-    }
-    at = end + 1;
-  }
-  return request.get_param_value("token");
-}
-
 // The caller of `request`, or nullopt after answering 401 (tokens in force, no valid token).
-std::optional<PageCaller> Authenticate(storage::TokenStore* tokens, const httplib::Request& request,
+std::optional<PageCaller> Authenticate(storage::TokenStore* tokens, const PageRequest& request,
                                        httplib::Response& response) {
   PageCaller caller;
   if (tokens == nullptr || !tokens->AnyToken()) return caller;
   caller.open = false;
-  const std::string secret = RequestToken(request);
+  const std::string secret = request.authorization.empty()
+                                 ? request.token
+                                 : std::string(storage::BearerSecret(request.authorization));
   if (!secret.empty()) caller.token = tokens->Find(secret);
   if (caller.token) return caller;
   response.status = 401;
@@ -176,66 +158,74 @@ Json AnswersJson(const RecentAnswers& answers, const PageCaller& caller) {
   return list;
 }
 
-std::unique_ptr<httplib::Server> PageRoutes(storage::MapStore& store, const RecentAnswers& answers,
-                                            storage::TokenStore* tokens) {
-  auto server = std::make_unique<httplib::Server>();
-  httplib::Server& http = *server;
-  using httplib::Request;
-  using httplib::Response;
-  http.Get("/", [tokens](const Request& request, Response& response) {
-    const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
-    if (!caller) return;
-    if (caller->token && request.has_param("token")) {
-      // A browser's first visit, /?token=...: the token moves into a cookie that scripts cannot
-      // read and other sites cannot send, and the page reloads without it in its address (and
-      // so in the history); the fragment (#map=...) stays.
-      response.set_header("Set-Cookie", std::string(kTokenCookie) + "=" +
-                                            request.get_param_value("token") +
-                                            "; Path=/; HttpOnly; SameSite=Strict");
-      response.set_redirect("/", 303);
-      return;
-    }
-    response.set_content(kHttpPageHtml, "text/html; charset=utf-8");
-  });
-  http.Get("/api/maps", [&store, tokens](const Request& request, Response& response) {
-    const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
-    if (!caller) return;
-    Guarded(response, [&] {
-      Json maps = Json::array();
-      for (const storage::MapInfo& info : store.ListMaps()) {
-        if (caller->CanRead(info.name)) maps.push_back(MapJson(info));
+// Answers `request` (read by ReadPageRequest) for `caller`; `secure`: over HTTPS.
+void Answer(storage::MapStore& store, const RecentAnswers& answers, const PageRequest& request,
+            const PageCaller& caller, bool secure, httplib::Response& response) {
+  switch (request.route) {
+    case PageRoute::kPage:
+      if (caller.token && request.has_token_param) {
+        // A browser's first visit, /?token=...: the token moves into a cookie that scripts
+        // cannot read and other sites cannot send, and the page reloads without it in its
+        // address (and so in the history); the fragment (#map=...) stays. Only the token that
+        // was checked becomes the cookie.
+        if (request.token_in_query) {
+          response.set_header("Set-Cookie", std::string(kTokenCookie) + "=" + request.token +
+                                                "; Path=/; HttpOnly; SameSite=Strict" +
+                                                (secure ? "; Secure" : ""));
+        }
+        response.set_redirect("/", 303);
+        return;
       }
-      Reply(response, maps);
-    });
+      response.set_content(kHttpPageHtml, "text/html; charset=utf-8");
+      return;
+    case PageRoute::kMaps:
+      Guarded(response, [&] {
+        Json maps = Json::array();
+        for (const storage::MapInfo& info : store.ListMaps()) {
+          if (caller.CanRead(info.name)) maps.push_back(MapJson(info));
+        }
+        Reply(response, maps);
+      });
+      return;
+    case PageRoute::kTrees:
+      if (!MayRead(caller, request.map, response)) return;
+      Guarded(response, [&] {
+        const storage::MapInfo info = store.GetMap(request.map);
+        ReplyTreesStreamed(response, store, info, MapJson(info).dump());
+      });
+      return;
+    case PageRoute::kVersions:
+      if (!MayRead(caller, request.map, response)) return;
+      Guarded(response, [&] { Reply(response, VersionsJson(store.ListVersions(request.map, 0))); });
+      return;
+    case PageRoute::kRelocalizations:
+      Reply(response, AnswersJson(answers, caller));
+      return;
+    case PageRoute::kNotFound:
+      break;
+  }
+  response.status = 404;
+  Reply(response, Json{{"error", "no such page"}});
+}
+
+void AddPageRoutes(httplib::Server& http, storage::MapStore& store, const RecentAnswers& answers,
+                   storage::TokenStore* tokens, bool secure) {
+  // Every GET path to one handler: the route is RoutePage's (http_route.h). [\s\S]: any byte,
+  // newlines of a decoded path included.
+  http.Get(R"([\s\S]*)", [&store, &answers, tokens, secure](const httplib::Request& request,
+                                                            httplib::Response& response) {
+    const PageRequest read = ReadPageRequest(request);
+    const std::optional<PageCaller> caller = Authenticate(tokens, read, response);
+    if (caller) Answer(store, answers, read, *caller, secure, response);
   });
-  http.Get(R"(/api/maps/([A-Za-z0-9_.\-]+)/trees)",
-           [&store, tokens](const Request& request, Response& response) {
-             const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
-             if (!caller || !MayRead(*caller, request.matches[1], response)) return;
-             Guarded(response, [&] {
-               const storage::MapInfo info = store.GetMap(request.matches[1]);
-               ReplyTreesStreamed(response, store, info, MapJson(info).dump());
-             });
-           });
-  http.Get(R"(/api/maps/([A-Za-z0-9_.\-]+)/versions)",
-           [&store, tokens](const Request& request, Response& response) {
-             const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
-             if (!caller || !MayRead(*caller, request.matches[1], response)) return;
-             Guarded(response, [&] {
-               Reply(response, VersionsJson(store.ListVersions(request.matches[1], 0)));
-             });
-           });
-  http.Get("/api/relocalizations", [&answers, tokens](const Request& request, Response& response) {
-    const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
-    if (caller) Reply(response, AnswersJson(answers, *caller));
-  });
-  return server;
 }
 
 }  // namespace
 
 HttpPage::HttpPage(storage::MapStore& store, const RecentAnswers& answers,
-                   const std::string& address, storage::TokenStore* tokens)
-    : listener_(PageRoutes(store, answers, tokens), "--http", address) {}
+                   const std::string& address, storage::TokenStore* tokens, const HttpsSetup& https)
+    : listener_("--http", address, https, [&](httplib::Server& http) {
+        AddPageRoutes(http, store, answers, tokens, static_cast<bool>(https));
+      }) {}
 
 }  // namespace forestmap::server

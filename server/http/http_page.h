@@ -6,9 +6,13 @@
 // the RPCs), every route needs a valid one with read access, sent as `Authorization: Bearer
 // <secret>` (the scheme in any case), or by a browser as the cookie `forestmap_token`, which the
 // page sets on a first visit to /?token=<secret> before it reloads itself without the token in
-// its address (HttpOnly, SameSite=Strict); ?token= is also read on any route. None, unknown,
-// revoked or expired -> 401, a map the token may not read -> 403; /api/maps and
-// /api/relocalizations list only the maps the token can read.
+// its address (HttpOnly, SameSite=Strict, and Secure over HTTPS); ?token= is also read on any
+// route (before the cookie). None, unknown, revoked or expired -> 401, a map the token may not
+// read -> 403; /api/maps and /api/relocalizations list only the maps the token can read. How a
+// request is read and routed: server/http/http_route.h.
+//
+// With an HttpsSetup (forestmapd's --tls-cert: the gRPC port's certificate and client
+// verification) the page is HTTPS only.
 //
 // Routes: GET /                        the page (server/http/http_page_html.cc)
 //         GET /api/maps                [{name, trees, version, crs, extent}]
@@ -27,13 +31,14 @@ namespace forestmap::server {
 
 class HttpPage {
  public:
-  // Binds `address` ("host:port", port 0: any) and serves on its own thread until destroyed.
-  // Throws std::runtime_error when the address cannot be bound. `store`, `answers` and `tokens`
-  // (the server's token store; null: open) must outlive the page.
+  // Binds `address` ("host:port", port 0: any) and serves on its own thread until destroyed
+  // (HTTPS with `https`). Throws std::runtime_error when the address cannot be bound. `store`,
+  // `answers` and `tokens` (the server's token store; null: open) must outlive the page.
   HttpPage(storage::MapStore& store, const RecentAnswers& answers, const std::string& address,
-           storage::TokenStore* tokens = nullptr);
+           storage::TokenStore* tokens = nullptr, const HttpsSetup& https = {});
 
   const std::string& address() const { return listener_.address(); }  // host:port bound
+  std::string url() const { return listener_.url(); }                 // http(s)://host:port
 
  private:
   HttpListener listener_;
