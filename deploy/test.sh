@@ -39,7 +39,8 @@ cmake --build build-asan -j"$(nproc)" --target unit_tests
 ctest --test-dir build-asan -L unit -E MillionTree --output-on-failure -j"$(nproc)" --timeout 1200
 
 echo "test: libFuzzer targets, 30 s each (build-fuzz, clang; see tests/fuzz/run.sh)"
-# Only the fuzz targets and what they link (client/io, the protos, server/grpc/validation.cc).
+# Only the fuzz targets and what they link (client/io, the protos, server/grpc/validation.cc,
+# server/http's routes and server/ops/metrics.cc).
 cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang \
   -DCMAKE_CXX_COMPILER=clang++ -DFORESTMAP_FUZZ=ON -DFORESTMAP_BUILD_TESTS=OFF >/dev/null
 cmake --build build-fuzz -j"$(nproc)" --target fuzz_targets

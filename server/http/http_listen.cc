@@ -13,6 +13,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "server/http/handshake_deadline.h"
+
 namespace forestmap::server {
 namespace {
 
@@ -23,6 +25,8 @@ constexpr auto kStopPoll = std::chrono::milliseconds(5);  // while waiting for t
 // page and /metrics for 30 s. Many workers and a short first-byte timeout keep them answering.
 constexpr int kHttpWorkers = 64;
 constexpr int kReadTimeoutS = 2;
+// A whole TLS handshake, however its client drips its bytes.
+constexpr auto kHandshakeLimit = std::chrono::seconds(5);
 
 struct HostPort {
   std::string host;  // without the brackets of an IPv6 literal
@@ -97,9 +101,17 @@ std::string BoundHttpAddress(const std::string& address, int port) {
   return address.substr(0, address.rfind(':')) + ":" + std::to_string(port);
 }
 
-HttpListener::HttpListener(std::unique_ptr<httplib::Server> http, const std::string& flag,
-                           const std::string& address)
-    : http_(std::move(http)) {
+HttpListener::HttpListener(const std::string& flag, const std::string& address,
+                           const HttpsSetup& https, const Routes& routes) {
+  if (https) {
+    deadline_ = std::make_unique<HandshakeDeadline>(kHandshakeLimit);
+    http_ = std::make_unique<httplib::SSLServer>(
+        [&https, this](SSL_CTX& ctx) { return https(ctx) && deadline_->Install(ctx); });
+    if (!http_->is_valid()) throw std::runtime_error(flag + " " + address + ": cannot set up TLS");
+  } else {
+    http_ = std::make_unique<httplib::Server>();
+  }
+  routes(*http_);
   port_ = BindHttpListener(*http_, flag, address);
   address_ = BoundHttpAddress(address, port_);
   thread_ = std::thread([this] {

@@ -4,9 +4,13 @@
 // forestmapd bind a port already in use and silently take part of its connections; the sockets
 // bound here only get SO_REUSEADDR (restart after TIME_WAIT), so a port in use is an error. Each
 // listener has 64 workers and a 2 s read timeout, so idle or half-open connections cannot stall
-// it.
+// it. With an HttpsSetup it serves HTTPS only (cpp-httplib on OpenSSL), and a TLS handshake
+// still running after 5 s is ended (server/http/handshake_deadline.h).
+
+#include <openssl/types.h>
 
 #include <atomic>
+#include <functional>
 #include <memory>
 #include <string>
 #include <thread>
@@ -16,6 +20,12 @@ class Server;
 }  // namespace httplib
 
 namespace forestmap::server {
+
+class HandshakeDeadline;
+
+// How a listener serves HTTPS: sets up OpenSSL's context of its connections (certificate, key,
+// client verification: TlsCredentials::SetUpHttps), false when it cannot. Empty: plain HTTP.
+using HttpsSetup = std::function<bool(SSL_CTX&)>;
 
 // Binds `http` to `address` ("host:port" or "[v6]:port"; port 0: any free one) and returns the
 // bound port. `flag` names the option in errors ("--http"). Throws std::runtime_error naming
@@ -28,17 +38,23 @@ std::string BoundHttpAddress(const std::string& address, int port);
 // An HTTP server bound with BindHttpListener and served on its own thread until destroyed.
 class HttpListener {
  public:
-  // Binds `http` (its routes added) to `address`; throws as BindHttpListener.
-  HttpListener(std::unique_ptr<httplib::Server> http, const std::string& flag,
-               const std::string& address);
+  using Routes = std::function<void(httplib::Server&)>;
+
+  // A server (HTTPS with `https`) with the routes `routes` adds, bound to `address`; throws as
+  // BindHttpListener, or naming `flag` when `https` fails.
+  HttpListener(const std::string& flag, const std::string& address, const HttpsSetup& https,
+               const Routes& routes);
   ~HttpListener();  // stops serving and joins the thread
   HttpListener(const HttpListener&) = delete;
   HttpListener& operator=(const HttpListener&) = delete;
 
   int port() const { return port_; }
   const std::string& address() const { return address_; }  // host:port actually bound
+  bool https() const { return deadline_ != nullptr; }
+  std::string url() const { return (https() ? "https://" : "http://") + address_; }
 
  private:
+  std::unique_ptr<HandshakeDeadline> deadline_;  // with HTTPS; outlives the server's handshakes
   std::unique_ptr<httplib::Server> http_;
   int port_ = 0;
   std::string address_;

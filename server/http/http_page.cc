@@ -2,6 +2,7 @@
 
 // Eigen (through http_page.h) before httplib.h: httplib pulls in <resolv.h>, whose `_res` macro
 // breaks Eigen's headers when they come after it.
+#include "server/http/http_route.h"
 #include "server/http/http_trees.h"
 #include "server/http/ogc_features.h"
 #include "server/http/page_auth.h"
@@ -146,92 +147,102 @@ class DensityCache {
   std::deque<std::pair<Key, std::shared_ptr<const TreeDensity>>> kept_;
 };
 
-std::unique_ptr<httplib::Server> PageRoutes(storage::MapStore& store, const RecentAnswers& answers,
-                                            storage::TokenStore* tokens) {
-  auto server = std::make_unique<httplib::Server>();
-  httplib::Server& http = *server;
-  using httplib::Request;
-  using httplib::Response;
-  http.Get("/", [tokens](const Request& request, Response& response) {
-    const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
-    if (!caller) return;
-    if (caller->token && request.has_param("token")) {
-      // A browser's first visit, /?token=...: the token moves into a cookie that scripts cannot
-      // read and other sites cannot send, and the page reloads without it in its address (and
-      // so in the history); the fragment (#map=...) stays.
-      response.set_header("Set-Cookie", std::string(kTokenCookie) + "=" +
-                                            request.get_param_value("token") +
-                                            "; Path=/; HttpOnly; SameSite=Strict");
-      response.set_redirect("/", 303);
+// Answers `request` (read by ReadPageRequest) for `caller`; `secure`: over HTTPS.
+void Answer(storage::MapStore& store, const RecentAnswers& answers, DensityCache& densities,
+            const httplib::Request& http_request, const PageRequest& request,
+            const PageCaller& caller, bool secure, httplib::Response& response) {
+  switch (request.route) {
+    case PageRoute::kPage:
+      if (caller.token && request.has_token_param) {
+        // A browser's first visit, /?token=...: the token moves into a cookie that scripts
+        // cannot read and other sites cannot send, and the page reloads without it in its
+        // address (and so in the history); the fragment (#map=...) stays. Only the token that
+        // was checked becomes the cookie.
+        if (request.token_in_query) {
+          response.set_header("Set-Cookie", std::string(kTokenCookie) + "=" + request.token +
+                                                "; Path=/; HttpOnly; SameSite=Strict" +
+                                                (secure ? "; Secure" : ""));
+        }
+        response.set_redirect("/", 303);
+        return;
+      }
+      response.set_content(kHttpPageHtml, "text/html; charset=utf-8");
+      return;
+    case PageRoute::kMaps:
+      Guarded(response, [&] {
+        Json maps = Json::array();
+        for (const storage::MapInfo& info : store.ListMaps()) {
+          if (caller.CanRead(info.name)) maps.push_back(MapJson(info));
+        }
+        Reply(response, maps);
+      });
+      return;
+    case PageRoute::kTrees: {
+      if (!MayRead(caller, request.map, response)) return;
+      std::optional<storage::Extent> box;
+      try {
+        if (http_request.has_param("bbox")) {
+          box = ParseBox("bbox", http_request.get_param_value("bbox"));
+        }
+      } catch (const std::invalid_argument& e) {
+        response.status = 400;
+        return Reply(response, Json{{"error", e.what()}});
+      }
+      Guarded(response, [&] {
+        const storage::MapInfo info = store.GetMap(request.map);
+        ReplyTreesStreamed(response, store, info, MapJson(info).dump(), box);
+      });
       return;
     }
-    response.set_content(kHttpPageHtml, "text/html; charset=utf-8");
-  });
-  http.Get("/api/maps", [&store, tokens](const Request& request, Response& response) {
-    const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
-    if (!caller) return;
-    Guarded(response, [&] {
-      Json maps = Json::array();
-      for (const storage::MapInfo& info : store.ListMaps()) {
-        if (caller->CanRead(info.name)) maps.push_back(MapJson(info));
-      }
-      Reply(response, maps);
-    });
-  });
-  http.Get(R"(/api/maps/([A-Za-z0-9_.\-]+)/trees)",
-           [&store, tokens](const Request& request, Response& response) {
-             const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
-             if (!caller || !MayRead(*caller, request.matches[1], response)) return;
-             std::optional<storage::Extent> box;
-             try {
-               if (request.has_param("bbox"))
-                 box = ParseBox("bbox", request.get_param_value("bbox"));
-             } catch (const std::invalid_argument& e) {
-               response.status = 400;
-               return Reply(response, Json{{"error", e.what()}});
-             }
-             Guarded(response, [&] {
-               const storage::MapInfo info = store.GetMap(request.matches[1]);
-               ReplyTreesStreamed(response, store, info, MapJson(info).dump(), box);
-             });
-           });
+    case PageRoute::kDensity:
+      if (!MayRead(caller, request.map, response)) return;
+      Guarded(response, [&] {
+        const storage::MapInfo info = store.GetMap(request.map);
+        const std::shared_ptr<const TreeDensity> d = densities.Of(store, info);
+        Reply(response, Json{{"map", MapJson(info)},
+                             {"min_x", d->min_x},
+                             {"min_y", d->min_y},
+                             {"cell_m", d->cell_m},
+                             {"columns", d->columns},
+                             {"rows", d->rows},
+                             {"counts", d->counts}});
+      });
+      return;
+    case PageRoute::kVersions:
+      if (!MayRead(caller, request.map, response)) return;
+      Guarded(response, [&] { Reply(response, VersionsJson(store.ListVersions(request.map, 0))); });
+      return;
+    case PageRoute::kRelocalizations:
+      Reply(response, AnswersJson(answers, caller));
+      return;
+    case PageRoute::kNotFound:
+      break;
+  }
+  response.status = 404;
+  Reply(response, Json{{"error", "no such page"}});
+}
+
+void AddPageRoutes(httplib::Server& http, storage::MapStore& store, const RecentAnswers& answers,
+                   storage::TokenStore* tokens, bool secure) {
+  // OGC API - Features under /ogc first: cpp-httplib takes the first route that matches.
+  AddOgcFeatureRoutes(http, store, tokens, secure ? "https" : "http");
+  // Every other GET path to one handler: the route is RoutePage's (http_route.h). [\s\S]: any
+  // byte, newlines of a decoded path included.
   auto densities = std::make_shared<DensityCache>();
-  http.Get(R"(/api/maps/([A-Za-z0-9_.\-]+)/density)",
-           [&store, tokens, densities](const Request& request, Response& response) {
-             const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
-             if (!caller || !MayRead(*caller, request.matches[1], response)) return;
-             Guarded(response, [&] {
-               const storage::MapInfo info = store.GetMap(request.matches[1]);
-               const std::shared_ptr<const TreeDensity> d = densities->Of(store, info);
-               Reply(response, Json{{"map", MapJson(info)},
-                                    {"min_x", d->min_x},
-                                    {"min_y", d->min_y},
-                                    {"cell_m", d->cell_m},
-                                    {"columns", d->columns},
-                                    {"rows", d->rows},
-                                    {"counts", d->counts}});
-             });
-           });
-  http.Get(R"(/api/maps/([A-Za-z0-9_.\-]+)/versions)",
-           [&store, tokens](const Request& request, Response& response) {
-             const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
-             if (!caller || !MayRead(*caller, request.matches[1], response)) return;
-             Guarded(response, [&] {
-               Reply(response, VersionsJson(store.ListVersions(request.matches[1], 0)));
-             });
-           });
-  http.Get("/api/relocalizations", [&answers, tokens](const Request& request, Response& response) {
-    const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
-    if (caller) Reply(response, AnswersJson(answers, *caller));
+  http.Get(R"([\s\S]*)", [&store, &answers, tokens, secure, densities](
+                             const httplib::Request& request, httplib::Response& response) {
+    const PageRequest read = ReadPageRequest(request);
+    const std::optional<PageCaller> caller = Authenticate(tokens, read, response);
+    if (caller) Answer(store, answers, *densities, request, read, *caller, secure, response);
   });
-  AddOgcFeatureRoutes(http, store, tokens, "http");
-  return server;
 }
 
 }  // namespace
 
 HttpPage::HttpPage(storage::MapStore& store, const RecentAnswers& answers,
-                   const std::string& address, storage::TokenStore* tokens)
-    : listener_(PageRoutes(store, answers, tokens), "--http", address) {}
+                   const std::string& address, storage::TokenStore* tokens, const HttpsSetup& https)
+    : listener_("--http", address, https, [&](httplib::Server& http) {
+        AddPageRoutes(http, store, answers, tokens, static_cast<bool>(https));
+      }) {}
 
 }  // namespace forestmap::server

@@ -4,8 +4,9 @@
 //   GET /healthz  200 "ok" while the process serves (liveness)
 //   GET /readyz   200 "ready", or 503 with the reason (readiness: server/app/readiness.h)
 //   GET /         the list of these
-// anything else 404. Plain HTTP on its own port (cpp-httplib), so bind it to loopback or a
-// monitoring network.
+// anything else 404. On its own port (cpp-httplib): plain HTTP, so bound to loopback or a
+// monitoring network, or HTTPS with an HttpsSetup (forestmapd's --metrics-tls: the gRPC port's
+// certificate and client verification).
 // Thread-safety: the constructor starts a thread that serves until the destructor stops it.
 
 #include <functional>
@@ -23,14 +24,20 @@ class MetricsHttpServer {
   using Ready = std::function<std::pair<bool, std::string>()>;
 
   // Binds `address` ("host:port"; port 0 picks a free one) and serves `render()` on /metrics and
-  // `ready()` on /readyz. Throws std::runtime_error when the address cannot be bound or is
-  // malformed. Destroying it stops serving and joins the thread.
-  MetricsHttpServer(const std::string& address, Render render, Ready ready);
+  // `ready()` on /readyz (HTTPS with `https`). Throws std::runtime_error when the address cannot
+  // be bound or is malformed. Destroying it stops serving and joins the thread.
+  MetricsHttpServer(const std::string& address, Render render, Ready ready,
+                    const HttpsSetup& https = {});
 
   int port() const { return listener_.port(); }
+  std::string url() const { return listener_.url(); }  // http(s)://host:port
 
  private:
   HttpListener listener_;
 };
+
+// The routes above, added to `http` (also driven by tests/fuzz/fuzz_http_routes.cc).
+void AddMetricsRoutes(httplib::Server& http, MetricsHttpServer::Render render,
+                      MetricsHttpServer::Ready ready);
 
 }  // namespace forestmap::server

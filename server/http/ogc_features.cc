@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "geo/crs.h"
+#include "server/http/http_route.h"
 #include "server/http/http_trees.h"
 #include "server/http/ogc_documents.h"
 #include "server/http/page_auth.h"
@@ -345,7 +346,7 @@ void ReplyItem(const Request& request, Response& response, storage::MapStore& st
 void AddOgcFeatureRoutes(httplib::Server& http, storage::MapStore& store,
                          storage::TokenStore* tokens, const std::string& scheme) {
   const auto landing = [tokens, scheme](const Request& request, Response& response) {
-    if (!Authenticate(tokens, request, response)) return;
+    if (!Authenticate(tokens, ReadPageRequest(request), response)) return;
     const std::string base = BaseUrl(request, scheme);
     Reply(response,
           Json{{"title", "ForestMap"},
@@ -360,12 +361,12 @@ void AddOgcFeatureRoutes(httplib::Server& http, storage::MapStore& store,
   http.Get("/ogc", landing);
   http.Get("/ogc/", landing);
   http.Get("/ogc/api", [tokens, scheme](const Request& request, Response& response) {
-    if (!Authenticate(tokens, request, response)) return;
+    if (!Authenticate(tokens, ReadPageRequest(request), response)) return;
     Reply(response, OgcOpenApi(BaseUrl(request, scheme)),
           "application/vnd.oai.openapi+json;version=3.0");
   });
   http.Get("/ogc/conformance", [tokens](const Request& request, Response& response) {
-    if (!Authenticate(tokens, request, response)) return;
+    if (!Authenticate(tokens, ReadPageRequest(request), response)) return;
     Reply(response, Json{{"conformsTo",
                           {"http://www.opengis.net/spec/ogcapi-features-1/1.0/conf/core",
                            "http://www.opengis.net/spec/ogcapi-features-1/1.0/conf/geojson",
@@ -373,7 +374,8 @@ void AddOgcFeatureRoutes(httplib::Server& http, storage::MapStore& store,
   });
   http.Get("/ogc/collections", [&store, tokens, scheme](const Request& request,
                                                         Response& response) {
-    const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
+    const std::optional<PageCaller> caller =
+        Authenticate(tokens, ReadPageRequest(request), response);
     if (!caller) return;
     Answer(response, [&] {
       const std::string base = BaseUrl(request, scheme);
@@ -389,7 +391,8 @@ void AddOgcFeatureRoutes(httplib::Server& http, storage::MapStore& store,
   // NAME as in storage::ValidateMapName.
   const auto map_route = [&store, tokens, scheme](auto reply) {
     return [&store, tokens, scheme, reply](const Request& request, Response& response) {
-      const std::optional<PageCaller> caller = Authenticate(tokens, request, response);
+      const std::optional<PageCaller> caller =
+          Authenticate(tokens, ReadPageRequest(request), response);
       if (!caller || !MayRead(*caller, request.matches[1], response)) return;
       Answer(response, [&] {
         reply(request, response, store.GetMap(request.matches[1]), BaseUrl(request, scheme));

@@ -4,41 +4,20 @@
 #include <httplib.h>
 // clang-format on
 
-#include <algorithm>
 #include <nlohmann/json.hpp>
 
 namespace forestmap::server {
-namespace {
 
 using Json = nlohmann::json;
 
-// The token `request` carries: its Authorization header ("Bearer <token>"), else its cookie
-// (set by the page, below), else ?token= (a browser's first visit).
-std::string RequestToken(const httplib::Request& request) {
-  const std::string header = request.get_header_value("Authorization");
-  if (!header.empty()) return std::string(storage::BearerSecret(header));
-  // Cookie: name=value; name2=value2
-  const std::string cookies = request.get_header_value("Cookie");
-  for (size_t at = 0; at < cookies.size();) {
-    const size_t end = std::min(cookies.find(';', at), cookies.size());
-    std::string_view pair = std::string_view(cookies).substr(at, end - at);
-    while (!pair.empty() && pair.front() == ' ') pair.remove_prefix(1);
-    if (pair.starts_with(kTokenCookie) && pair.substr(kTokenCookie.size()).starts_with('=')) {
-      return std::string(pair.substr(kTokenCookie.size() + 1));
-    }
-    at = end + 1;
-  }
-  return request.get_param_value("token");
-}
-
-}  // namespace
-
-std::optional<PageCaller> Authenticate(storage::TokenStore* tokens, const httplib::Request& request,
+std::optional<PageCaller> Authenticate(storage::TokenStore* tokens, const PageRequest& request,
                                        httplib::Response& response) {
   PageCaller caller;
   if (tokens == nullptr || !tokens->AnyToken()) return caller;
   caller.open = false;
-  const std::string secret = RequestToken(request);
+  const std::string secret = request.authorization.empty()
+                                 ? request.token
+                                 : std::string(storage::BearerSecret(request.authorization));
   if (!secret.empty()) caller.token = tokens->Find(secret);
   if (caller.token) return caller;
   response.status = 401;

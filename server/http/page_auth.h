@@ -1,23 +1,21 @@
 #pragma once
 // Who asks the web port (the page and OGC API - Features, server/http/http_page.h): once the
-// server has a token, every route needs a valid one with read access, sent as `Authorization:
-// Bearer <secret>` (the scheme in any case), as the cookie `forestmap_token` (set by the page), or
-// as ?token=. None, unknown, revoked or expired -> 401; a map the token may not read -> 403.
+// server has a token, every route needs a valid one with read access, read from the request as
+// server/http/http_route.h says (Authorization: Bearer, else ?token=, else the page's cookie).
+// None, unknown, revoked or expired -> 401; a map the token may not read -> 403.
 
 #include <optional>
 #include <string>
 #include <string_view>
 
+#include "server/http/http_route.h"
 #include "storage/token_store.h"
 
 namespace httplib {
-struct Request;
 struct Response;
 }  // namespace httplib
 
 namespace forestmap::server {
-
-inline constexpr std::string_view kTokenCookie = "forestmap_token";
 
 // `open` without tokens, else the caller's valid token.
 struct PageCaller {
@@ -30,7 +28,7 @@ struct PageCaller {
 
 // The caller of `request`, or nullopt after answering 401 (tokens in force, no valid token).
 // `tokens` null: open.
-std::optional<PageCaller> Authenticate(storage::TokenStore* tokens, const httplib::Request& request,
+std::optional<PageCaller> Authenticate(storage::TokenStore* tokens, const PageRequest& request,
                                        httplib::Response& response);
 
 // Answers 403 unless `caller` may read map `map`.

@@ -174,12 +174,17 @@ void AddBackupCommand(CLI::App& app, const std::string& server_db, std::function
 }
 
 bool WarnIfExposed(const std::string& listen_address, bool tls, bool tokens, Listener listener) {
+  const bool web = listener == Listener::kWebPage, metrics = listener == Listener::kMetrics;
+  if (metrics) tokens = true;  // nothing on it takes tokens
   if (IsLoopback(listen_address) || (tls && tokens)) return false;
-  const bool web = listener == Listener::kWebPage;
   std::string missing;
   if (!tls) {
     missing = web ? "WITHOUT TLS (the web page is plain HTTP: tokens and maps cross the network "
-                    "in clear; keep --http on loopback behind a TLS proxy)"
+                    "in clear; --tls-cert/--tls-key serve it over HTTPS)"
+              : metrics
+                  ? "WITHOUT TLS (the metrics port is plain HTTP: anyone who reaches it reads "
+                    "the metrics and the readiness; keep it on a monitoring network, or "
+                    "--metrics-tls)"
                   : "WITHOUT TLS (tokens and maps cross the network in clear; "
                     "--tls-cert/--tls-key)";
   }
@@ -192,9 +197,21 @@ bool WarnIfExposed(const std::string& listen_address, bool tls, bool tokens, Lis
   }
   // Error level: shown whatever --log-level says.
   Log(LogLevel::kError,
-      std::string("WARNING: ") + (web ? "web page " : "") + "listening beyond loopback " + missing,
+      std::string("WARNING: ") +
+          (web       ? "web page "
+           : metrics ? "metrics port "
+                     : "") +
+          "listening beyond loopback " + missing,
       {{"listen", listen_address}});
   return true;
+}
+
+void AnnounceHttpListener(const std::string& address, const std::string& url, bool tokens,
+                          Listener listener) {
+  const bool metrics = listener == Listener::kMetrics;
+  Log(LogLevel::kInfo,
+      (metrics ? "metrics on " : "web page on ") + url + (metrics ? "/metrics" : "/"));
+  WarnIfExposed(address, url.starts_with("https://"), tokens, listener);
 }
 
 }  // namespace forestmap::server

@@ -20,12 +20,19 @@ void AddTokenCommands(CLI::App& app, const std::string& server_db, std::function
 void AddBackupCommand(CLI::App& app, const std::string& server_db, std::function<int()>& run,
                       std::ostream& out);
 
-// Which listener WarnIfExposed looks at: the gRPC port, or the read-only web page (plain HTTP).
-enum class Listener { kGrpc, kWebPage };
+// Which listener WarnIfExposed looks at: the gRPC port, the read-only web page, or the metrics
+// port (which takes no tokens).
+enum class Listener { kGrpc, kWebPage, kMetrics };
 
-// Logs a warning, loud and at startup, for a listener beyond loopback without TLS or without
-// tokens. Returns true when it warned.
+// Logs a warning, loud and at startup, for a listener beyond loopback without TLS or (but the
+// metrics port) without tokens. Returns true when it warned.
 bool WarnIfExposed(const std::string& listen_address, bool tls, bool tokens,
                    Listener listener = Listener::kGrpc);
+
+// For the web page or the metrics port, configured as `address` and serving at `url`
+// ("https://host:port"): the line saying where ("web page on https://host:port/"), and
+// WarnIfExposed's warning.
+void AnnounceHttpListener(const std::string& address, const std::string& url, bool tokens,
+                          Listener listener);
 
 }  // namespace forestmap::server

@@ -66,8 +66,9 @@ struct Config {
   forestmap::server::TlsFiles tls;  // --tls-cert, --tls-key, --tls-client-ca
   std::string log_format = "text";
   std::string log_level = "info";
-  std::string metrics;    // host:port of the Prometheus endpoint; empty: none
-  int64_t max_db_mb = 0;  // MiB the SQLite database may grow to; 0: no limit
+  std::string metrics;       // host:port of the Prometheus endpoint; empty: none
+  bool metrics_tls = false;  // --metrics-tls: the metrics port with the TLS of --tls-cert
+  int64_t max_db_mb = 0;     // MiB the SQLite database may grow to; 0: no limit
   forestmap::server::StreamLimitOptions streams;  // --max-streams, --max-streams-per-client
   double stream_idle_timeout_s = 30;              // --stream-idle-timeout-s
   std::string preload;  // --preload all|NAME,...: indexes built at start and after writes
@@ -81,12 +82,6 @@ sigset_t BlockSignals() {
   for (const int signal_number : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&signals, signal_number);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   return signals;
-}
-
-// Where `db` is, as logged: a PostgreSQL URI may hold a password, so only host, port and
-// database are shown.
-std::string ShownDatabase(const std::string& db) {
-  return forestmap::storage::DescribeDatabase(db);
 }
 
 // Runs `open`; when it throws, reports `failure: <what>` as a start-up failure, returns null.
@@ -141,7 +136,12 @@ Listeners StartListeners(const Config& config, forestmap::storage::MapStore& sto
   server_options.max_receive_message_bytes = config.max_message_mb << 20;
   server_options.metrics = &metrics;
   server_options.serving_at_start = false;  // until the readiness' first round says otherwise
+  forestmap::server::HttpsSetup https;  // the web page's, and the metrics port's with --metrics-tls
   if (tls != nullptr) server_options.credentials = tls->credentials();
+  if (tls != nullptr) https = [tls](SSL_CTX& ctx) { return tls->SetUpHttps(ctx); };
+  if (config.metrics_tls && tls == nullptr) {
+    throw std::runtime_error("--metrics-tls needs --tls-cert and --tls-key");
+  }
   Listeners listeners;
   try {
     listeners.server =
@@ -151,7 +151,7 @@ Listeners StartListeners(const Config& config, forestmap::storage::MapStore& sto
   }
   if (!config.http.empty()) {
     listeners.page = std::make_unique<forestmap::server::HttpPage>(store, service.recent_answers(),
-                                                                   config.http, &tokens);
+                                                                   config.http, &tokens, https);
   }
   // The readiness starts last (it logs), so that a listener failing to start is the only line;
   // until then /readyz answers "starting".
@@ -164,7 +164,8 @@ Listeners StartListeners(const Config& config, forestmap::storage::MapStore& sto
           if (started == nullptr) return std::make_pair(false, std::string("starting"));
           const auto state = started->state();
           return std::make_pair(state.ready, state.reason);
-        });
+        },
+        config.metrics_tls ? https : forestmap::server::HttpsSetup());
   }
   listeners.readiness = StartReadiness(config, store, service, *listeners.server);
   *readiness = listeners.readiness.get();
@@ -174,17 +175,15 @@ Listeners StartListeners(const Config& config, forestmap::storage::MapStore& sto
 
 // The warnings and lines of the listeners, once all of them started.
 void AnnounceListeners(const Config& config, const Listeners& listeners, bool tls, bool tokens) {
+  using forestmap::server::Listener;
   forestmap::server::WarnIfExposed(config.listen, tls, tokens);
   if (listeners.page) {
-    forestmap::server::LogLine("web page on http://" + listeners.page->address() + "/");
-    forestmap::server::WarnIfExposed(config.http, /*tls=*/false, tokens,
-                                     forestmap::server::Listener::kWebPage);
+    forestmap::server::AnnounceHttpListener(config.http, listeners.page->url(), tokens,
+                                            Listener::kWebPage);
   }
   if (listeners.metrics_http) {
-    forestmap::server::LogLine(
-        "metrics on http://" +
-        forestmap::server::BoundHttpAddress(config.metrics, listeners.metrics_http->port()) +
-        "/metrics");
+    forestmap::server::AnnounceHttpListener(config.metrics, listeners.metrics_http->url(), tokens,
+                                            Listener::kMetrics);
   }
 }
 
@@ -225,6 +224,9 @@ void AddServeOptions(CLI::App& app, Config& config) {
       ->capture_default_str();
   app.add_option("--metrics", config.metrics,
                  "serve Prometheus metrics on http://HOST:PORT/metrics (port 0: any)");
+  app.add_flag("--metrics-tls", config.metrics_tls,
+               "serve --metrics over HTTPS with the TLS of --tls-cert, --tls-key and "
+               "--tls-client-ca (default: plain HTTP, for a loopback or monitoring network)");
   app.add_option("--max-streams", config.streams.max_streams,
                  "open UploadTrees + ExportTrees streams in all; more are RESOURCE_EXHAUSTED")
       ->check(CLI::PositiveNumber)
@@ -265,7 +267,7 @@ std::unique_ptr<CLI::App> MakeApp(Config& config, std::function<int()>* offline)
       "[--max-streams-per-client N]\n"
       "                  [--stream-idle-timeout-s S] [--tls-cert F --tls-key F [--tls-client-ca "
       "F]]\n"
-      "                  [--metrics ADDR] [--log-format text|json] "
+      "                  [--metrics ADDR [--metrics-tls]] [--log-format text|json] "
       "[--log-level debug|info|warn|error] "
       "[--max-db-mb N] [--preload all|NAME,...]\n"
       "                  [--config FILE] [--version] [--help]\n"
@@ -375,7 +377,8 @@ int Serve(const Config& config, const CLI::App& app, int argc, const char* const
       return StartupFailure(e.what());  // names --tls-cert, --tls-key or --tls-client-ca
     }
   }
-  const std::string shown_db = ShownDatabase(config.db);
+  // A PostgreSQL URI may hold a password: only host, port and database are shown.
+  const std::string shown_db = forestmap::storage::DescribeDatabase(config.db);
   const auto store = OpenOrLog<forestmap::storage::MapStore>(
       "--db: cannot open database " + shown_db,
       [&] { return forestmap::storage::OpenMapStore(config.db, config.max_db_mb); });

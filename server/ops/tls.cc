@@ -4,10 +4,12 @@
 #include <grpc/grpc_security.h>
 #include <openssl/err.h>
 #include <openssl/pem.h>
+#include <openssl/ssl.h>
 #include <openssl/x509.h>
 
 #include <ctime>
 #include <fstream>
+#include <memory>
 #include <mutex>
 #include <sstream>
 #include <stdexcept>
@@ -52,16 +54,60 @@ std::string Description(X509* certificate) {
   return name + " (not after " + expiry + ")";
 }
 
+// The files of one Reload parsed for OpenSSL, as the HTTPS listeners serve them.
+struct HttpsIdentity {
+  Certificate leaf;
+  STACK_OF(X509) * chain = sk_X509_new_null();  // the certificates after the first
+  Key key;
+  X509_STORE* client_ca = nullptr;           // with --tls-client-ca: what verifies a client
+  STACK_OF(X509_NAME) * ca_names = nullptr;  // and the names the server asks for
+  HttpsIdentity() = default;
+  HttpsIdentity(const HttpsIdentity&) = delete;
+  HttpsIdentity& operator=(const HttpsIdentity&) = delete;
+  ~HttpsIdentity() {
+    sk_X509_pop_free(chain, X509_free);
+    X509_STORE_free(client_ca);
+    sk_X509_NAME_pop_free(ca_names, X509_NAME_free);
+  }
+};
+
 // The PEM texts of `files`, checked: the key belongs to the (first) certificate.
 struct Pem {
   std::string cert, key, client_ca, description;
+  std::shared_ptr<const HttpsIdentity> https;
 };
+
+std::shared_ptr<const HttpsIdentity> ParseIdentity(const Pem& pem, const TlsFiles& files) {
+  auto identity = std::make_shared<HttpsIdentity>();
+  const Bio certificates = MemoryBio(pem.cert);
+  identity->leaf.reset(PEM_read_bio_X509(certificates.get(), nullptr, nullptr, nullptr));
+  while (X509* next = PEM_read_bio_X509(certificates.get(), nullptr, nullptr, nullptr)) {
+    sk_X509_push(identity->chain, next);
+  }
+  identity->key.reset(PEM_read_bio_PrivateKey(MemoryBio(pem.key).get(), nullptr, nullptr, nullptr));
+  if (!pem.client_ca.empty()) {
+    identity->client_ca = X509_STORE_new();
+    identity->ca_names = sk_X509_NAME_new_null();
+    const Bio authorities = MemoryBio(pem.client_ca);
+    while (X509* ca = PEM_read_bio_X509(authorities.get(), nullptr, nullptr, nullptr)) {
+      X509_STORE_add_cert(identity->client_ca, ca);
+      sk_X509_NAME_push(identity->ca_names, X509_NAME_dup(X509_get_subject_name(ca)));
+      X509_free(ca);
+    }
+    if (sk_X509_NAME_num(identity->ca_names) == 0) {
+      ERR_clear_error();
+      throw std::runtime_error("--tls-client-ca: " + files.client_ca + " holds no certificate");
+    }
+  }
+  ERR_clear_error();  // the end of each PEM text reads as an error
+  return identity;
+}
 
 Pem ReadTlsFiles(const TlsFiles& files) {
   if (files.cert.empty() || files.key.empty()) {
     throw std::runtime_error("TLS needs both --tls-cert and --tls-key");
   }
-  Pem pem{ReadPem(files.cert, "--tls-cert"), ReadPem(files.key, "--tls-key"), "", ""};
+  Pem pem{ReadPem(files.cert, "--tls-cert"), ReadPem(files.key, "--tls-key"), "", "", nullptr};
   if (!files.client_ca.empty()) pem.client_ca = ReadPem(files.client_ca, "--tls-client-ca");
   const Certificate certificate(
       PEM_read_bio_X509(MemoryBio(pem.cert).get(), nullptr, nullptr, nullptr));
@@ -75,6 +121,7 @@ Pem ReadTlsFiles(const TlsFiles& files) {
                              files.cert);
   }
   pem.description = Description(certificate.get());
+  pem.https = ParseIdentity(pem, files);
   return pem;
 }
 
@@ -113,6 +160,7 @@ struct TlsCredentials::State {
   std::mutex mutex;
   grpc_ssl_server_certificate_config* next = nullptr;  // for the next handshake; guarded
   std::string description;                             // guarded
+  std::shared_ptr<const HttpsIdentity> https;          // of HTTPS handshakes; guarded
   State() { grpc_init(); }
   ~State() {
     if (next != nullptr) grpc_ssl_server_certificate_config_destroy(next);
@@ -130,6 +178,25 @@ struct TlsCredentials::State {
     *config = std::exchange(state->next, nullptr);  // gRPC owns it now
     return GRPC_SSL_CERTIFICATE_CONFIG_RELOAD_NEW;
   }
+
+  // OpenSSL's certificate callback: called in each HTTPS handshake, from the listener's threads,
+  // before the server's certificate and the client's verification are chosen.
+  static int ServeIdentity(SSL* ssl, void* user_data) {
+    State* state = static_cast<State*>(user_data);
+    std::shared_ptr<const HttpsIdentity> identity;
+    {
+      const std::lock_guard lock(state->mutex);
+      identity = state->https;
+    }
+    if (SSL_use_certificate(ssl, identity->leaf.get()) != 1 ||
+        SSL_use_PrivateKey(ssl, identity->key.get()) != 1 ||
+        SSL_set1_chain(ssl, identity->chain) != 1) {
+      return 0;
+    }
+    if (identity->client_ca == nullptr) return 1;
+    SSL_set_client_CA_list(ssl, SSL_dup_CA_list(identity->ca_names));
+    return SSL_set1_verify_cert_store(ssl, identity->client_ca) == 1 ? 1 : 0;
+  }
 };
 
 TlsCredentials::TlsCredentials(const TlsFiles& files) : state_(std::make_unique<State>()) {
@@ -137,6 +204,7 @@ TlsCredentials::TlsCredentials(const TlsFiles& files) : state_(std::make_unique<
   state_->client_ca = !pem.client_ca.empty();
   state_->next = CertificateConfig(pem);
   state_->description = pem.description;
+  state_->https = pem.https;
   grpc_ssl_server_credentials_options* options =
       grpc_ssl_server_credentials_create_options_using_config_fetcher(
           state_->client_ca ? GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY
@@ -161,12 +229,23 @@ std::string TlsCredentials::Reload(const TlsFiles& files) {
   if (state_->next != nullptr) grpc_ssl_server_certificate_config_destroy(state_->next);
   state_->next = config;
   state_->description = pem.description;
+  state_->https = pem.https;
   return pem.description;
 }
 
 std::string TlsCredentials::Describe() const {
   const std::lock_guard lock(state_->mutex);
   return state_->description;
+}
+
+bool TlsCredentials::SetUpHttps(SSL_CTX& ctx) const {
+  if (SSL_CTX_set_min_proto_version(&ctx, TLS1_2_VERSION) != 1) return false;
+  SSL_CTX_set_options(&ctx, SSL_OP_NO_RENEGOTIATION | SSL_OP_NO_COMPRESSION);
+  if (state_->client_ca) {
+    SSL_CTX_set_verify(&ctx, SSL_VERIFY_PEER | SSL_VERIFY_FAIL_IF_NO_PEER_CERT, nullptr);
+  }
+  SSL_CTX_set_cert_cb(&ctx, &State::ServeIdentity, state_.get());
+  return true;
 }
 
 bool IsLoopback(const std::string& address) {

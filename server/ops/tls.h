@@ -1,9 +1,11 @@
 #pragma once
 // TLS for forestmapd (--tls-cert, --tls-key, --tls-client-ca): gRPC server credentials from PEM
-// files, which Reload() reads again while the server runs (forestmapd's SIGHUP): connections
-// made after it get the new certificate, open ones keep theirs.
+// files, and the same certificate for its HTTPS listeners (--http, --metrics with --metrics-tls),
+// which Reload() reads again while the server runs (forestmapd's SIGHUP): connections made after
+// it get the new certificate, open ones keep theirs.
 
 #include <grpcpp/security/server_credentials.h>
+#include <openssl/types.h>
 
 #include <memory>
 #include <string>
@@ -42,6 +44,12 @@ class TlsCredentials {
 
   // The description of the certificate in use, as Reload returns it.
   std::string Describe() const;
+
+  // Sets up OpenSSL's context of an HTTPS listener (server/http/http_listen.h) to serve what gRPC
+  // serves: each handshake gets the certificate chain and key of the last Reload (TLS 1.2 or
+  // later, no renegotiation), and with --tls-client-ca a client must present a certificate
+  // signed by it or the handshake fails. This object must outlive every listener set up with it.
+  bool SetUpHttps(SSL_CTX& ctx) const;
 
  private:
   struct State;

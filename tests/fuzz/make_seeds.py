@@ -169,8 +169,39 @@ def validation(c, proto_dir):
             write(c, t, f"{kind:02d}_{type(message).__name__}.bin", bytes([kind]) + message.SerializeToString())
 
 
+def http_routes(c):
+    t = "fuzz_http_routes"
+    token = "fmt_" + "0123456789abcdef" * 4
+    write(c, t, "page.txt", "GET / HTTP/1.1\r\nHost: forest\r\n\r\n")
+    write(c, t, "first_visit.txt", f"GET /?token={token} HTTP/1.1\r\nHost: forest\r\n\r\n")
+    write(c, t, "trees_bearer.txt", "GET /api/maps/plot-1/trees HTTP/1.1\r\nHost: forest\r\n"
+          f"Authorization: Bearer {token}\r\n\r\n")
+    write(c, t, "versions_cookie.txt", "GET /api/maps/plot_2.v1/versions HTTP/1.1\r\nHost: forest\r\n"
+          f"Cookie: theme=dark; forestmap_token={token}\r\n\r\n")
+    write(c, t, "keep_alive.txt", "GET /api/maps HTTP/1.1\r\nHost: forest\r\n\r\n"
+          "HEAD /api/relocalizations?token=x%0d%0ay HTTP/1.1\r\nHost: forest\r\n\r\n"
+          "GET /metrics HTTP/1.1\r\nHost: forest\r\nConnection: close\r\n\r\n")
+    write(c, t, "metrics.txt", "GET /metrics HTTP/1.1\r\n\r\nGET /readyz HTTP/1.1\r\n\r\n"
+          "GET /healthz HTTP/1.1\r\n\r\nGET /x%22%7D%201%0Afake%2042 HTTP/1.1\r\n\r\n")
+    write(c, t, "post_body.txt", "POST /api/maps HTTP/1.1\r\nContent-Length: 5\r\n\r\nhello")
+    write(c, t, "chunked.txt", "POST /metrics HTTP/1.1\r\nTransfer-Encoding: chunked\r\n\r\n"
+          "5\r\nhello\r\n0\r\n\r\n")
+    write(c, t, "range.txt", "GET / HTTP/1.1\r\nRange: bytes=0-10,20-\r\n\r\n")
+
+
+def metrics(c):
+    t = "fuzz_metrics"
+    write(c, t, "known.bin", b"CreateMap\0Relocalize\0grpc.health.v1.Health/Check\0unknown")
+    write(c, t, "forged.bin", b'/x"} 1\nfake_metric 42\n#\0\\\\"\0\xff\xfe\x01\x7f')
+    write(c, t, "values.bin", struct.pack("<d", float("nan")) + b"\0" + struct.pack("<d", float("inf"))
+          + b"\0" + struct.pack("<d", 1e-310) + b"\0" + struct.pack("<d", 2.5e-3))
+    write(c, t, "long.bin", b"A" * 300 + b"\0" + "é".encode() * 100)
+
+
 def main():
     corpus = sys.argv[1]
+    http_routes(corpus)
+    metrics(corpus)
     tree_csv(corpus)
     pcd(corpus)
     ply(corpus)

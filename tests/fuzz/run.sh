@@ -16,7 +16,8 @@ seconds="${2:-30}"
 jobs="${3:-1}"
 shift $(($# < 3 ? $# : 3))
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(fuzz_tree_csv fuzz_pcd fuzz_ply fuzz_las fuzz_text_scan fuzz_validation)
+[ ${#targets[@]} -gt 0 ] || targets=(fuzz_tree_csv fuzz_pcd fuzz_ply fuzz_las fuzz_text_scan fuzz_validation \
+  fuzz_http_routes fuzz_metrics)
 out="${FUZZ_OUT:-$(mktemp -d /tmp/forestmap-fuzz.XXXXXX)}"
 mkdir -p "$out"
 

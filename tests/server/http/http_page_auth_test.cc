@@ -105,6 +105,28 @@ TEST_F(HttpPageAuthTest, OpenWithoutTokensClosedOnceOneExists) {
   EXPECT_EQ(Get("/api/maps", "", {{"Cookie", "forestmap_tokenx=" + reader}}).status, 401);
 }
 
+// Only the token that was checked becomes the cookie: one sent in the header opens the page, and
+// ?token= beside it (anything, even a header of its own: %0d%0a) sets nothing. A first visit's
+// ?token= wins over an older cookie (a revoked token's), so that a new token can be opened.
+TEST_F(HttpPageAuthTest, TheFirstVisitCookieIsTheCheckedToken) {
+  const std::string reader = tokens_->Create("plot-*", storage::Role::kRead).secret;
+  const storage::NewToken revoked = tokens_->Create("*", storage::Role::kAdmin);
+  tokens_->Revoke(revoked.record.id);
+  const test::HttpAnswer forged = Get("/?token=x%0d%0aSet-Cookie:%20a=b", reader);
+  EXPECT_EQ(forged.status, 303);
+  EXPECT_EQ(forged.location, "/");
+  EXPECT_EQ(forged.set_cookie, "");
+  const test::HttpAnswer renewed =
+      Get("/?token=" + reader, "", {{"Cookie", "forestmap_token=" + revoked.secret}});
+  EXPECT_EQ(renewed.status, 303);
+  EXPECT_EQ(renewed.set_cookie,
+            "forestmap_token=" + reader + "; Path=/; HttpOnly; SameSite=Strict");
+  // Unknown paths answer 404 once the caller is known (401 before: nothing to probe).
+  EXPECT_EQ(Get("/api/nothing").status, 401);
+  EXPECT_EQ(Get("/api/nothing", reader).status, 404);
+  EXPECT_EQ(Get("/api/maps/plot-1/nothing", reader).status, 404);
+}
+
 TEST_F(HttpPageAuthTest, TheBearerSchemeIsReadInAnyCase) {
   const std::string reader = tokens_->Create("plot-*", storage::Role::kRead).secret;
   for (const char* scheme : {"Bearer", "bearer", "BEARER"}) {

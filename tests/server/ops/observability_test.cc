@@ -422,9 +422,16 @@ TEST(ExposedListener, WarnsBeyondLoopbackWithoutTlsOrTokens) {
   EXPECT_TRUE(WarnIfExposed("0.0.0.0:50051", false, false));
   EXPECT_TRUE(WarnIfExposed("0.0.0.0:50051", true, false));
   EXPECT_FALSE(WarnIfExposed("0.0.0.0:50051", true, true));
+  EXPECT_FALSE(WarnIfExposed("0.0.0.0:8080", true, true, Listener::kWebPage));  // HTTPS
+  EXPECT_FALSE(WarnIfExposed("127.0.0.1:9464", false, false, Listener::kMetrics));
+  EXPECT_FALSE(WarnIfExposed("0.0.0.0:9464", true, false, Listener::kMetrics));  // no tokens on it
+  EXPECT_TRUE(WarnIfExposed("0.0.0.0:9464", false, true, Listener::kMetrics));
   const std::string log = ::testing::internal::GetCapturedStderr();
   EXPECT_NE(log.find("WITHOUT TLS"), std::string::npos) << log;
   EXPECT_NE(log.find("WITHOUT TOKENS"), std::string::npos) << log;
+  EXPECT_NE(log.find("WARNING: metrics port listening beyond loopback WITHOUT TLS"),
+            std::string::npos)
+      << log;
 }
 
 }  // namespace
