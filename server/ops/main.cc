@@ -95,8 +95,7 @@ std::unique_ptr<T> OpenOrLog(const std::string& failure, const Open& open) {
   }
 }
 
-// The gRPC server, its readiness, the optional web page and Prometheus endpoint (destroyed in
-// reverse order).
+// The gRPC server, its readiness, the web page and metrics port (destroyed in reverse order).
 struct Listeners {
   std::unique_ptr<forestmap::server::ServerRunner> server;
   std::unique_ptr<forestmap::server::Readiness> readiness;
@@ -153,8 +152,7 @@ Listeners StartListeners(const Config& config, forestmap::storage::MapStore& sto
     listeners.page = std::make_unique<forestmap::server::HttpPage>(store, service.recent_answers(),
                                                                    config.http, &tokens, https);
   }
-  // The readiness starts last (it logs), so that a listener failing to start is the only line;
-  // until then /readyz answers "starting".
+  // Readiness last (it logs): a failing listener is the only line; /readyz says "starting".
   auto readiness = std::make_shared<std::atomic<const forestmap::server::Readiness*>>(nullptr);
   if (!config.metrics.empty()) {
     listeners.metrics_http = std::make_unique<forestmap::server::MetricsHttpServer>(
