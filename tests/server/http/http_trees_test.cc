@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <random>
@@ -83,9 +84,12 @@ TEST_F(HttpTreesTest, StreamsEveryTreeExactlyAcrossPageBoundaries) {
     EXPECT_EQ(body["map"]["name"], name);
     EXPECT_EQ(body["map"]["trees"], size);
     ASSERT_EQ(body["trees"].size(), truth.size()) << name;
+    int64_t last_id = INT64_MIN;
     for (int i = 0; i < size; ++i) {
       const Json& tree = body["trees"][i];
-      ASSERT_EQ(tree.size(), 4u);
+      ASSERT_EQ(tree.size(), 5u);
+      EXPECT_GT(tree[4].get<int64_t>(), last_id) << name << " tree " << i;  // ids, increasing
+      last_id = tree[4].get<int64_t>();
       EXPECT_EQ(tree[0].get<double>(), truth[i].x) << name << " tree " << i;  // bit for bit
       EXPECT_EQ(tree[1].get<double>(), truth[i].y) << name << " tree " << i;
       if (truth[i].dbh) {
@@ -95,7 +99,19 @@ TEST_F(HttpTreesTest, StreamsEveryTreeExactlyAcrossPageBoundaries) {
       }
       EXPECT_EQ(tree[3].get<bool>(), truth[i].status == storage::TreeStatus::kConfirmed);
     }
+    // ?bbox=: exactly the trees inside (edges included), also across page boundaries.
+    const double x0 = -1000, y0 = -2000, x1 = 2500, y1 = 1500;
+    const auto inside = std::count_if(truth.begin(), truth.end(), [&](const auto& t) {
+      return t.x >= x0 && t.x <= x1 && t.y >= y0 && t.y <= y1;
+    });
+    const test::HttpAnswer boxed =
+        HttpGet("127.0.0.1", PortOf(page_.address()),
+                "/api/maps/" + name + "/trees?bbox=-1000,-2000,2500,1500");
+    ASSERT_EQ(boxed.status, 200) << boxed.body;
+    EXPECT_EQ(Json::parse(boxed.body)["trees"].size(), static_cast<size_t>(inside)) << name;
   }
+  EXPECT_EQ(HttpGet("127.0.0.1", PortOf(page_.address()), "/api/maps/plot0/trees?bbox=1,2").status,
+            400);
 }
 
 TEST_F(HttpTreesTest, UnknownMapIs404) {
