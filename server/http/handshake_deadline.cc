@@ -87,10 +87,13 @@ void HandshakeDeadline::Run() {
     if (handshakes_.empty()) {
       changed_.wait(lock);
     } else {
-      const auto first = std::min_element(
-          handshakes_.begin(), handshakes_.end(),
-          [](const auto& a, const auto& b) { return a.second.deadline < b.second.deadline; });
-      changed_.wait_until(lock, first->second.deadline);
+      // A copy: waiting releases the lock, and Forget may erase the entry meanwhile.
+      const Clock::time_point next =
+          std::min_element(
+              handshakes_.begin(), handshakes_.end(),
+              [](const auto& a, const auto& b) { return a.second.deadline < b.second.deadline; })
+              ->second.deadline;
+      changed_.wait_until(lock, next);
     }
     const Clock::time_point now = Clock::now();
     for (auto it = handshakes_.begin(); it != handshakes_.end();) {
