@@ -88,6 +88,20 @@ class DaemonHttpTest : public ::testing::Test {
     return match.empty() ? 0 : std::stoi(match[1].str());
   }
 
+  // Map "huge" of kHugeMapTrees trees on a 5.5 m grid in the first server's database.
+  std::vector<storage::TreeRecord> WriteHugeMap() {
+    std::vector<storage::TreeRecord> trees(kHugeMapTrees);
+    for (int i = 0; i < kHugeMapTrees; ++i) {
+      trees[i].x = (i % 550) * 5.5;
+      trees[i].y = (i / 550) * 5.5;
+      trees[i].dbh = 0.1 + (i % 60) * 0.01;
+    }
+    storage::SqliteMapStore store((dir_ / "first.db").string());
+    store.CreateMap("huge", "", "");
+    store.WriteTrees("huge", trees, storage::WriteMode::kReplace);
+    return trees;
+  }
+
   fs::path dir_;
   test::DaemonProcess daemon_;
 };
@@ -120,17 +134,7 @@ TEST_F(DaemonHttpTest, MalformedHttpAddressIsAStartUpError) {
 }
 
 TEST_F(DaemonHttpTest, TreeRequestsOnAHugeMapKeepMemoryBounded) {
-  std::vector<storage::TreeRecord> trees(kHugeMapTrees);
-  for (int i = 0; i < kHugeMapTrees; ++i) {
-    trees[i].x = (i % 550) * 5.5;
-    trees[i].y = (i / 550) * 5.5;
-    trees[i].dbh = 0.1 + (i % 60) * 0.01;
-  }
-  {
-    storage::SqliteMapStore store((dir_ / "first.db").string());
-    store.CreateMap("huge", "", "");
-    store.WriteTrees("huge", trees, storage::WriteMode::kReplace);
-  }
+  const std::vector<storage::TreeRecord> trees = WriteHugeMap();
   const int port = ServeWithPage();
   ASSERT_GT(port, 0);
   const int pid = std::stoi(ReadFile(dir_ / "pid"));
@@ -287,16 +291,7 @@ TEST_F(DaemonHttpTest, OgcApiFeaturesServesASurveyToGdal) {
 }
 
 TEST_F(DaemonHttpTest, OgcItemsPageAHugeMapInBoundedMemory) {
-  std::vector<storage::TreeRecord> trees(kHugeMapTrees);
-  for (int i = 0; i < kHugeMapTrees; ++i) {
-    trees[i].x = (i % 550) * 5.5;
-    trees[i].y = (i / 550) * 5.5;
-  }
-  {
-    storage::SqliteMapStore store((dir_ / "first.db").string());
-    store.CreateMap("huge", "", "");
-    store.WriteTrees("huge", trees, storage::WriteMode::kReplace);
-  }
+  WriteHugeMap();
   const int port = ServeWithPage();
   ASSERT_GT(port, 0);
   const int pid = std::stoi(ReadFile(dir_ / "pid"));
