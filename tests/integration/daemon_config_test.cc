@@ -20,6 +20,7 @@
 
 #include "daemon_process.h"
 #include "grpc/health/v1/health.grpc.pb.h"
+#include "tests/tls_certificate.h"
 
 namespace forestmap {
 namespace {
@@ -92,11 +93,9 @@ class DaemonConfigTest : public ::testing::Test {
 
   // A self-signed certificate NAME.crt (for 127.0.0.1 and localhost) with its key NAME.key.
   void MakeCertificate(const std::string& name) {
-    const std::string command =
-        "openssl req -x509 -newkey rsa:2048 -nodes -days 1 -subj '/CN=" + name +
-        "' -addext 'subjectAltName=IP:127.0.0.1,DNS:localhost' -keyout '" + File(name + ".key") +
-        "' -out '" + File(name + ".crt") + "' 2>/dev/null";
-    ASSERT_EQ(std::system(command.c_str()), 0) << command;
+    ASSERT_EQ(test::MakeSelfSignedCertificate(dir_, name, "/CN=" + name,
+                                              "subjectAltName=IP:127.0.0.1,DNS:localhost"),
+              "");
   }
   // True when a new TLS connection trusting only `ca` gets SERVING from the gRPC health service.
   bool Serving(const std::string& ca) const {

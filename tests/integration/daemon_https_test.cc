@@ -17,6 +17,7 @@
 #include "daemon_process.h"
 #include "storage/sqlite/store.h"
 #include "tests/server/http_get.h"
+#include "tests/tls_certificate.h"
 
 namespace forestmap {
 namespace {
@@ -55,10 +56,7 @@ class DaemonHttpsTest : public ::testing::Test {
   }
   void MakeCertificate(const std::string& name, const std::string& subject,
                        const std::string& extension) {
-    const CommandResult made = Run("openssl req -x509 -newkey rsa:2048 -nodes -days 1 -subj '" +
-                                   subject + "' -addext '" + extension + "' -keyout '" +
-                                   File(name + ".key") + "' -out '" + File(name + ".crt") + "'");
-    ASSERT_EQ(made.exit_code, 0) << made.err;
+    ASSERT_EQ(test::MakeSelfSignedCertificate(dir_, name, subject, extension), "");
   }
   // forestmapd on maps.db with TLS, client certificates, `flags`; the log's text (a new log for
   // each start: the last one's "serving on" must not be read as this one's).

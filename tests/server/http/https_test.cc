@@ -29,6 +29,7 @@
 #include "storage/sqlite/store.h"
 #include "storage/token_store.h"
 #include "tests/server/http_get.h"
+#include "tests/tls_certificate.h"
 
 namespace forestmap::server {
 namespace {
@@ -79,11 +80,7 @@ class HttpsTest : public ::testing::Test {
   // A self-signed certificate NAME.crt with key NAME.key (valid one day).
   static void MakeCertificate(const std::string& name, const std::string& subject,
                               const std::string& extension) {
-    const std::string command = "openssl req -x509 -newkey rsa:2048 -nodes -days 1 -subj '" +
-                                subject + "' -addext '" + extension + "' -keyout " +
-                                File(name + ".key") + " -out " + File(name + ".crt") +
-                                " 2>/dev/null";
-    ASSERT_EQ(std::system(command.c_str()), 0) << command;
+    ASSERT_EQ(test::MakeSelfSignedCertificate(*dir_, name, subject, extension), "");
   }
   static std::string File(const std::string& name) { return (*dir_ / name).string(); }
 
