@@ -265,8 +265,11 @@ void ReplyItems(const Request& request, Response& response, storage::MapStore& s
                 const storage::MapInfo& info, const std::string& base) {
   const MapCrs crs = CrsOf(info);
   const ItemsQuery query = ParseItems(request, crs);
+  // Longitude, latitude of each tree only when the answer or the bbox is in CRS84.
   std::shared_ptr<const geo::Reprojection> to_crs84;
-  if (crs.georeferenced()) to_crs84 = ReprojectionOf(info.crs, kCrs84Proj);
+  if (query.out_crs84 || (query.bbox && query.bbox_crs84)) {
+    to_crs84 = ReprojectionOf(info.crs, kCrs84Proj);
+  }
   storage::TreePageQuery page_query;
   page_query.version = query.version.value_or(info.version);
   page_query.created_unix_ms = info.created_unix_ms;
