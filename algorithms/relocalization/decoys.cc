@@ -17,36 +17,68 @@ constexpr double kMinHitShare = 0.5;    // a decoy must hit this share of the po
 // pattern by its residuals, not its inlier count.
 constexpr double kTightGateShare = 0.7;
 // A stand counts as regular when poses aligned to its pattern hit this many times as often as
-// random ones (a grid: 3-20 times; a natural forest: about once).
+// random ones (a grid: 3-20 times; a natural forest: about once) ...
 constexpr double kRegularFactor = 1.5;
+// ... and that many hits at the best of the kTurns headings would come from a random forest
+// with at most this probability: a sparse view's decoys make a few hundred tries at chances of
+// 1-2%, and the best of kTurns small Poisson counts is no pattern; a grid's shifted copies land
+// on trees again and again.
+constexpr double kRegularFalseAlarm = 1e-3;
 
-// Hits of a pose on the occupancy grid among the `count` nearest query trees, stopping once
-// `needed` is out of reach.
-int Hits(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose, size_t count,
-         int needed) {
+// Per heading: hits of the decoys' query trees (beyond their anchors) and query trees tried.
+struct TurnHits {
+  std::vector<int> hits = std::vector<int>(kTurns, 0);
+  std::vector<int> tries = std::vector<int>(kTurns, 0);
+  void Add(int turn, int decoy_hits, size_t nearest) {
+    hits[turn] += decoy_hits;
+    tries[turn] += static_cast<int>(nearest) - 1;
+  }
+};
+
+// Hits of a pose on the occupancy grid among the `count` nearest query trees.
+int Hits(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose, size_t count) {
   int hits = 0;
-  const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
   for (size_t i = 0; i < count; ++i) {
-    const Eigen::Vector2d& p = q.xy[i];
-    hits += m.occupancy->Near(c * p.x() - s * p.y() + pose.translation.x(),
-                              s * p.x() + c * p.y() + pose.translation.y());
-    if (hits + static_cast<int>(count - i - 1) < needed) return hits;
+    const Eigen::Vector2d p = pose(q.xy[i]);
+    hits += m.occupancy->Near(p.x(), p.y());
   }
   return hits;
 }
 
-// Adds to `turn_hits`, per heading, the mean hits of the decoys that put `anchor`'s query tree
-// on each map tree around its match (the pose itself excluded).
+// The hits of a decoy that puts `anchor`'s query tree on another map tree: all of them, and
+// those that say something of the pattern: beyond the anchor itself and beyond a query tree
+// landing on the anchor's own match (turned half a circle about the midpoint of two matched
+// trees, a decoy swaps them whatever the stand: sparse natural stands looked five times as
+// regular as they are).
+struct DecoyHits {
+  int all = 0;
+  int pattern = 0;
+};
+DecoyHits HitsOfDecoy(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& decoy,
+                      const Association& anchor, size_t count) {
+  const Eigen::Vector2d own = m.Xy(anchor.map);
+  const double r2 = m.occupancy->radius() * m.occupancy->radius();
+  DecoyHits hits;
+  for (size_t i = 0; i < count; ++i) {
+    const Eigen::Vector2d p = decoy(q.xy[i]);
+    if (!m.occupancy->Near(p.x(), p.y())) continue;
+    ++hits.all;
+    hits.pattern += i != anchor.query && (p - own).squaredNorm() > r2;
+  }
+  return hits;
+}
+
+// Adds to `turn_hits`, per heading, the hits of the decoys that put `anchor`'s query tree on
+// each map tree around its match (the pose itself excluded).
 void AddTurnHits(const MapIndexImpl& m, const LevelledQuery& q, const Rigid2& pose,
-                 const Association& anchor, size_t nearest, std::vector<double>* turn_hits) {
+                 const Association& anchor, size_t nearest, TurnHits* turn_hits) {
   const auto around = m.positions->Knn(m.positions->point(anchor.map), kNeighbours + 1);
   for (const auto& [j, d2] : around) {
     for (int turn = 0; turn < kTurns; ++turn) {
       if (j == anchor.map && turn == 0) continue;
       Rigid2 decoy{WrapAngle(pose.yaw + turn * 2 * M_PI / kTurns), {0, 0}};
       decoy.translation = m.Xy(j) - decoy(q.xy[anchor.query]);
-      const int hits = Hits(m, q, decoy, nearest, 0);
-      (*turn_hits)[turn] += (hits - 1.0) / (turn == 0 ? around.size() - 1 : around.size());
+      turn_hits->Add(turn, HitsOfDecoy(m, q, decoy, anchor, nearest).pattern, nearest);
     }
   }
 }
@@ -78,7 +110,7 @@ DecoyTest TestDecoys(const MapIndexImpl& m, const LevelledQuery& q, const Hypoth
   Score(m, q, options, &scored, test.gate, nearest);
   test.pose_score = scored.score;
   const int needed =
-      std::max(3, static_cast<int>(std::ceil(kMinHitShare * Hits(m, q, pose.pose, nearest, 0))));
+      std::max(3, static_cast<int>(std::ceil(kMinHitShare * Hits(m, q, pose.pose, nearest))));
   const std::vector<Association> anchors =
       Associate(m, q, pose.pose, options, options.inlier_distance, nearest);
   if (anchors.empty() || nearest < 2) return test;
@@ -86,7 +118,7 @@ DecoyTest TestDecoys(const MapIndexImpl& m, const LevelledQuery& q, const Hypoth
   // every heading; the hits of each (its anchor excluded) give the pattern's chance level.
   const Eigen::Vector2d query_xy = q.xy[anchors[0].query];
   const auto around = m.positions->Knn(m.positions->point(anchors[0].map), kNeighbours + 1);
-  std::vector<double> turn_hits(kTurns, 0.0);
+  TurnHits turn_hits;
   std::unordered_set<uint64_t> tried;
   for (const auto& [j, d2] : around) {
     for (int turn = 0; turn < kTurns; ++turn) {
@@ -95,9 +127,9 @@ DecoyTest TestDecoys(const MapIndexImpl& m, const LevelledQuery& q, const Hypoth
       decoy.pose.yaw = WrapAngle(pose.pose.yaw + turn * 2 * M_PI / kTurns);
       decoy.pose.translation = m.Xy(j) - Rigid2{decoy.pose.yaw, {0, 0}}(query_xy);
       ++test.candidates;
-      const int hits = Hits(m, q, decoy.pose, nearest, 0);
-      turn_hits[turn] += (hits - 1.0) / (turn == 0 ? around.size() - 1 : around.size());
-      if (hits < needed) continue;
+      const DecoyHits hits = HitsOfDecoy(m, q, decoy.pose, anchors[0], nearest);
+      turn_hits.Add(turn, hits.pattern, nearest);
+      if (hits.all < needed) continue;
       Polish(m, q, options, &decoy, nearest);
       if (!Apart(decoy.pose, pose.pose, options) ||
           !tried.insert(Cell(decoy.pose, options.inlier_distance)).second) {
@@ -113,8 +145,15 @@ DecoyTest TestDecoys(const MapIndexImpl& m, const LevelledQuery& q, const Hypoth
   for (size_t a = 1; a < pattern_anchors; ++a) {
     AddTurnHits(m, q, pose.pose, anchors[a], nearest, &turn_hits);
   }
-  test.pattern_rate = std::max(0.0, *std::max_element(turn_hits.begin(), turn_hits.end())) /
-                      static_cast<double>(pattern_anchors * (nearest - 1));
+  for (int turn = 0; turn < kTurns; ++turn) {
+    if (turn_hits.tries[turn] == 0) continue;
+    const double rate = static_cast<double>(turn_hits.hits[turn]) / turn_hits.tries[turn];
+    if (test.pattern_tries == 0 || rate > test.pattern_rate) {
+      test.pattern_rate = rate;
+      test.pattern_hits = turn_hits.hits[turn];
+      test.pattern_tries = turn_hits.tries[turn];
+    }
+  }
   test.passed = test.pose_score >= options.decoy_ratio * test.best.score;
   return test;
 }
@@ -133,7 +172,11 @@ PoseBelief Assess(const MapIndexImpl& m, const LevelledQuery& q, const Hypothesi
   const double regularity =
       random_near > 0 ? belief.decoys.pattern_rate * nearest / random_near : 1.0;
   const double random_chance = ChanceInliers(m, q, pose.pose);
-  belief.regular = regularity > kRegularFactor;
+  const double random_hits =
+      belief.decoys.pattern_tries * random_near / std::max<size_t>(nearest, 1);
+  belief.regular =
+      regularity > kRegularFactor &&
+      kTurns * PoissonTail(belief.decoys.pattern_hits, random_hits) <= kRegularFalseAlarm;
   belief.chance = belief.regular ? regularity * random_chance : random_chance;
   belief.tight = belief.decoys.gate <= kTightGateShare * options.inlier_distance;
   const double scale = belief.regular ? regularity : 1.0;

@@ -8,7 +8,7 @@ namespace forestmap::algorithms {
 
 OccupancyGrid::OccupancyGrid(const std::vector<Eigen::Vector2d>& points, double radius,
                              double resolution, const CoveredShare& covered_share)
-    : inverse_resolution_(1.0 / resolution) {
+    : inverse_resolution_(1.0 / resolution), radius_(radius) {
   if (!(radius > 0 && resolution > 0 && resolution <= radius)) {
     throw std::invalid_argument("OccupancyGrid: need 0 < resolution <= radius");
   }

@@ -50,6 +50,7 @@ class OccupancyGrid {
     return tile < 0 ? 0.0 : tiles_[tile].chance;
   }
 
+  double radius() const { return radius_; }
   size_t MemoryBytes() const { return tiles_.capacity() * sizeof(Tile) + directory_.MemoryBytes(); }
 
  private:
@@ -65,6 +66,7 @@ class OccupancyGrid {
   int32_t Find(uint64_t key) const { return directory_.Find(key); }
 
   double inverse_resolution_ = 1;
+  double radius_ = 0;
   double occupied_fraction_ = 0;
   std::vector<Tile> tiles_;
   TileDirectory directory_;

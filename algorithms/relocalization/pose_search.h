@@ -101,6 +101,10 @@ struct DecoyTest {
   // Share of the query trees a decoy puts within the occupancy radius of a map tree, at the
   // decoys' best heading (the chance level of a pose aligned to the local pattern).
   double pattern_rate = 0;
+  // At that heading: the query trees the decoys put near a map tree (each decoy's anchor
+  // excluded) and the query trees tried: the evidence behind pattern_rate.
+  int pattern_hits = 0;
+  int pattern_tries = 0;
   int candidates = 0;  // decoy poses tried
   bool passed = true;  // pose_score >= options.decoy_ratio x best decoy score
 };

@@ -8,6 +8,7 @@
 #include <filesystem>
 
 #include "algorithms/evaluation/reloc_evaluation.h"
+#include "algorithms/relocalization/decoys.h"
 #include "algorithms/relocalization/pose_covariance.h"
 #include "algorithms/relocalization/relocalizer.h"
 #include "algorithms/relocalization/significance.h"
@@ -108,6 +109,47 @@ TEST(RelocalizerDecision, SparseForeignStandsAreNeverLocalized) {
   EXPECT_EQ(own.correct, own.localized);
   EXPECT_EQ(RunViews(a, index_b, 150, 9).localized, 0);
   EXPECT_EQ(RunViews(b, index_a, 150, 10).localized, 0);
+}
+
+// The exact query of the map trees within 15 m of `truth` (kd coordinates), nearest first.
+LevelledQuery ExactView(const std::vector<MapTree>& map, const MapIndexImpl& m,
+                        const Rigid2& truth) {
+  LevelledQuery q;
+  for (const MapTree& t : map) {
+    const Eigen::Vector2d local = t.position.head<2>() - m.origin - truth.translation;
+    if (local.norm() <= 15.0) q.xy.push_back(Rigid2{-truth.yaw, {0, 0}}(local));
+  }
+  std::sort(q.xy.begin(), q.xy.end(),
+            [](const auto& x, const auto& y) { return x.norm() < y.norm(); });
+  q.z.assign(q.xy.size(), 0.0);
+  q.dbh.assign(q.xy.size(), 0.0);
+  return q;
+}
+
+// How many of `count` true poses in `map` Assess calls a regular stand.
+int RegularAt(const std::vector<MapTree>& map, int count, unsigned seed) {
+  const MapIndex index(map);
+  const MapIndexImpl& m = index.impl();
+  const RelocalizerOptions options;
+  int regular = 0;
+  for (const Eigen::Vector3d& pose : SamplePoses(map, count, 20.0, seed, 8, 15.0)) {
+    Hypothesis truth;
+    truth.pose = Rigid2{pose.z(), pose.head<2>() - m.origin};
+    const LevelledQuery q = ExactView(map, m, truth.pose);
+    Refine(m, q, options, &truth);
+    regular += Assess(m, q, truth, {1000, SearchArea(m, std::nullopt)}, options).regular;
+  }
+  return regular;
+}
+
+// The chance level of a pose rises only where the stand is regular. A decoy turned half a circle
+// about the midpoint of two matched trees swaps them in any stand: counted, it made sparse natural
+// stands (8-15 trees a view) look five times as regular as random and their true poses
+// insignificant. A plantation's shifted grid lands on trees again and again.
+TEST(RelocalizerDecision, OnlyARegularStandRaisesTheChanceLevel) {
+  EXPECT_EQ(RegularAt(Forest(31, 300, 0.015), 30, 32), 0);
+  EXPECT_EQ(RegularAt(Forest(33, 200, 0.05), 30, 34), 0);
+  EXPECT_EQ(RegularAt(GeneratePlantation(Grid(4, 0.2, 0.1, 1)), 30, 35), 30);
 }
 
 // The significance test against truth: the true pose of a view is significant; the same query
