@@ -20,8 +20,7 @@ BoundaryRing RingOf(const nlohmann::json& points) {
   if (!points.is_array()) throw std::invalid_argument("a ring is not an array");
   ring.reserve(points.size());
   for (const nlohmann::json& point : points) {
-    if (!point.is_array() || point.size() != 2 || !point[0].is_number() ||
-        !point[1].is_number()) {
+    if (!point.is_array() || point.size() != 2 || !point[0].is_number() || !point[1].is_number()) {
       throw std::invalid_argument("a vertex is not [x, y]");
     }
     ring.push_back({point[0].get<double>(), point[1].get<double>()});
@@ -48,8 +47,7 @@ void CheckBoundary(const std::string& map_name, const Boundary& boundary) {
       }
       for (const BoundaryPoint& point : ring) {
         if (!std::isfinite(point.x) || !std::isfinite(point.y)) {
-          throw StorageError(Code::kInvalidArgument, "map '" + map_name + "': " +
-                                                         RingName(p, r) +
+          throw StorageError(Code::kInvalidArgument, "map '" + map_name + "': " + RingName(p, r) +
                                                          " has a vertex that is not finite");
         }
       }

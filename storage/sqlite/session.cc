@@ -67,8 +67,8 @@ void Session::DeleteMap(const MapRow& map) {
   for (const char* sql :
        {"DELETE FROM tree_blocks WHERE min_map <= ?1 AND max_map >= ?1 AND map_id = ?1",
         "DELETE FROM trees WHERE map_id = ?1", "DELETE FROM observations WHERE map_id = ?1",
-        "DELETE FROM map_versions WHERE map_id = ?1", "DELETE FROM map_boundaries WHERE map_id = ?1",
-        "DELETE FROM maps WHERE id = ?1"}) {
+        "DELETE FROM map_versions WHERE map_id = ?1",
+        "DELETE FROM map_boundaries WHERE map_id = ?1", "DELETE FROM maps WHERE id = ?1"}) {
     Statement(db_, sql, map.id).Run();
   }
 }

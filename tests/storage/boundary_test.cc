@@ -68,8 +68,8 @@ TEST_P(BoundaryTest, AMapWithoutOneHasNone) {
 }
 
 TEST_P(BoundaryTest, VersionsKeepTheirOwnAndAnUploadWithoutOneKeepsIt) {
-  store_.CreateMap("m", "", "");                                          // 1
-  EXPECT_EQ(Upload(store_, "m", {Tree(1, 5, 5)}, Square()).version, 2);   // trees + boundary
+  store_.CreateMap("m", "", "");                                             // 1
+  EXPECT_EQ(Upload(store_, "m", {Tree(1, 5, 5)}, Square()).version, 2);      // trees + boundary
   EXPECT_EQ(Upload(store_, "m", {Tree(2, 6, 6)}, std::nullopt).version, 3);  // keeps it
   EXPECT_EQ(store_.ReadMap("m").boundary, Square());
   // A changed boundary alone is a new version; the same one again is none.
@@ -80,7 +80,7 @@ TEST_P(BoundaryTest, VersionsKeepTheirOwnAndAnUploadWithoutOneKeepsIt) {
   EXPECT_EQ(Upload(store_, "m", {}, Boundary{}).version, 5);
   EXPECT_TRUE(store_.ReadMap("m").boundary.empty());
   // A replace keeps it too when it gives none.
-  Upload(store_, "m", {}, Square());                                              // 6
+  Upload(store_, "m", {}, Square());                                        // 6
   Upload(store_, "m", {Tree(7, 1, 1)}, std::nullopt, WriteMode::kReplace);  // 7
   EXPECT_EQ(store_.ReadMap("m").boundary, Square());
 
@@ -96,10 +96,10 @@ TEST_P(BoundaryTest, VersionsKeepTheirOwnAndAnUploadWithoutOneKeepsIt) {
 }
 
 TEST_P(BoundaryTest, RestorePruneAndDeleteFollowTheVersions) {
-  store_.CreateMap("m", "", "");                           // 1
-  Upload(store_, "m", {Tree(1, 5, 5)}, Triangle());        // 2
-  Upload(store_, "m", {Tree(2, 6, 6)}, Square());          // 3
-  Upload(store_, "m", {Tree(3, 7, 7)}, std::nullopt);      // 4
+  store_.CreateMap("m", "", "");                       // 1
+  Upload(store_, "m", {Tree(1, 5, 5)}, Triangle());    // 2
+  Upload(store_, "m", {Tree(2, 6, 6)}, Square());      // 3
+  Upload(store_, "m", {Tree(3, 7, 7)}, std::nullopt);  // 4
   EXPECT_EQ(store_.RestoreVersion("m", 2).version, 5);
   EXPECT_EQ(store_.ReadMap("m").boundary, Triangle());
   EXPECT_EQ(store_.ReadMapVersion("m", 4).boundary, Square());
@@ -136,8 +136,8 @@ TEST_P(BoundaryTest, AnInvalidBoundaryIsRefusedBeforeAnythingIsWritten) {
     const double angle = 2 * M_PI * static_cast<double>(i) / (kMaxBoundaryVertices + 1);
     huge.outer.push_back({std::cos(angle), std::sin(angle)});
   }
-  ExpectError([&] { Upload(store_, "m", {Tree(1, 1, 1)}, Boundary{huge}); },
-              Code::kInvalidArgument, "at most 100000");
+  ExpectError([&] { Upload(store_, "m", {Tree(1, 1, 1)}, Boundary{huge}); }, Code::kInvalidArgument,
+              "at most 100000");
   EXPECT_EQ(store_.GetMap("m").version, 1);
   EXPECT_EQ(store_.GetMap("m").tree_count, 0);
 }
