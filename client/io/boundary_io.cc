@@ -72,28 +72,14 @@ OGRLayer& ChooseLayer(GDALDataset& dataset, const std::string& name, const std::
   return *found;
 }
 
-// The layer's CRS as WKT; none for GeoPackage's undefined SRS, and for GeoJSON's default WGS 84
-// when the coordinates are no longitudes and latitudes (a local grid without a crs member).
-std::string DeclaredCrs(GDALDataset& dataset, OGRLayer& layer,
-                        const std::vector<Polygon>& polygons) {
-  const OGRSpatialReference* srs = layer.GetSpatialRef();
-  if (!srs) return "";
-  const std::string driver = dataset.GetDriver() ? dataset.GetDriver()->GetDescription() : "";
-  const std::string name = srs->GetName() ? srs->GetName() : "";
-  if (driver == "GPKG" && name.rfind("Undefined ", 0) == 0) return "";
-  if (driver == "GeoJSON" && srs->IsGeographic()) {
-    for (const Polygon& polygon : polygons) {
-      for (const Eigen::Vector2d& p : polygon.outer) {
-        if (std::fabs(p.x()) > 180 || std::fabs(p.y()) > 90) return "";
-      }
+// Whether every vertex could be a longitude and latitude (RFC 7946's WGS 84).
+bool InLongitudeLatitude(const std::vector<Polygon>& polygons) {
+  for (const Polygon& polygon : polygons) {
+    for (const Eigen::Vector2d& p : polygon.outer) {
+      if (std::fabs(p.x()) > 180 || std::fabs(p.y()) > 90) return false;
     }
   }
-  char* wkt = nullptr;
-  const char* options[] = {"FORMAT=WKT2_2019", nullptr};
-  srs->exportToWkt(&wkt, options);
-  std::string text = wkt ? wkt : "";
-  CPLFree(wkt);
-  return text;
+  return true;
 }
 
 BoundaryFile ReadGisBoundary(const std::string& path, const std::string& layer_name) {
@@ -125,7 +111,8 @@ BoundaryFile ReadGisBoundary(const std::string& path, const std::string& layer_n
     }
   }
   if (file.polygons.empty()) throw CsvError(path + ": no polygon");
-  file.crs_wkt = DeclaredCrs(*dataset, layer, file.polygons);
+  file.crs_wkt =
+      geo_internal::DeclaredLayerCrs(*dataset, layer, path, InLongitudeLatitude(file.polygons));
   return file;
 }
 

@@ -69,4 +69,11 @@ std::vector<std::string> WriteGeoFile(const std::string& path, TreeFormat format
                                       const std::string& crs, const std::string& layer,
                                       const LayerWriter& write_layer);
 
+// The CRS a layer declares, as WKT: none for GeoPackage's "Undefined geographic/Cartesian SRS"
+// (srs_id 0, -1), for a GeoJSON file whose crs member is null, and for one without a crs member
+// whose coordinates are not `in_longitude_latitude` (RFC 7946's WGS 84 is GDAL's default then; a
+// local grid is no WGS 84).
+std::string DeclaredLayerCrs(GDALDataset& dataset, OGRLayer& layer, const std::string& path,
+                             bool in_longitude_latitude);
+
 }  // namespace forestmap::client::geo_internal

@@ -65,7 +65,10 @@ class BoundaryCliTest : public ::testing::Test {
   fs::path dir_;
 };
 
-const char* kSquareWithHole = R"({"type": "FeatureCollection", "features": [{"type": "Feature",
+// A local grid: `"crs": null` says so (without it, coordinates this small read as RFC 7946's
+// longitudes and latitudes).
+const char* kSquareWithHole = R"({"type": "FeatureCollection", "crs": null,
+  "features": [{"type": "Feature",
   "properties": {}, "geometry": {"type": "Polygon", "coordinates": [
   [[-5,-5],[50,-5],[50,50],[-5,50],[-5,-5]], [[20,20],[20,24],[24,24],[24,20],[20,20]]]}}]})";
 
@@ -77,8 +80,7 @@ TEST_F(BoundaryCliTest, CreateUploadKeepReplaceAndExportBesideTheTrees) {
   ASSERT_EQ(created.exit_code, 0) << created.err;
   client::ExportedTrees exported = client_.ExportTrees("plot");
   ASSERT_EQ(exported.boundary.size(), 1u);
-  EXPECT_EQ(exported.boundary[0].outer,
-            (algorithms::Ring{{-5, -5}, {50, -5}, {50, 50}, {-5, 50}}));
+  EXPECT_EQ(exported.boundary[0].outer, (algorithms::Ring{{-5, -5}, {50, -5}, {50, 50}, {-5, 50}}));
   ASSERT_EQ(exported.boundary[0].holes.size(), 1u);
   const int64_t created_version = client_.GetMap("plot").version();
 
@@ -116,7 +118,8 @@ TEST_F(BoundaryCliTest, CreateUploadKeepReplaceAndExportBesideTheTrees) {
   // GeoJSON holds one layer a file: the boundary goes to plot.boundary.geojson beside it.
   const Result to_json = Cli("map export plot --out '" + (dir_ / "plot.geojson").string() + "'");
   ASSERT_EQ(to_json.exit_code, 0) << to_json.err;
-  const Result sibling = Shell("ogrinfo -al -q '" + (dir_ / "plot.boundary.geojson").string() + "'");
+  const Result sibling =
+      Shell("ogrinfo -al -q '" + (dir_ / "plot.boundary.geojson").string() + "'");
   EXPECT_NE(sibling.out.find("POLYGON ((-5 -5,50 -5,50 150,-5 150,-5 -5))"), std::string::npos)
       << sibling.out << sibling.err;
   // CSV has no place for it: said, the trees written.

@@ -83,6 +83,13 @@ TEST_F(BoundaryIoTest, GeoJsonInALocalGridHasNoCrs) {
   // No crs member: RFC 7946's WGS 84, which coordinates in metres cannot be.
   const std::string path = Write("b.geojson", Collection(Feature(kSquareWithHole)));
   EXPECT_EQ(ReadBoundaryFile(path).crs_wkt, "");
+  // "crs": null says so even for coordinates that could be degrees; without it they are.
+  const std::string small =
+      R"({"type": "Polygon", "coordinates": [[[0,0],[10,0],[10,10],[0,10],[0,0]]]})";
+  EXPECT_EQ(
+      ReadBoundaryFile(Write("n.geojson", Collection(Feature(small), R"("crs": null, )"))).crs_wkt,
+      "");
+  EXPECT_NE(ReadBoundaryFile(Write("w.geojson", Collection(Feature(small)))).crs_wkt, "");
 }
 
 TEST_F(BoundaryIoTest, GeoPackageWrittenAndReadBackBesideOtherLayers) {
@@ -112,9 +119,7 @@ TEST_F(BoundaryIoTest, CsvRingClosedOrNot) {
   for (const std::string& path : {open, closed}) {
     const BoundaryFile file = ReadBoundaryFile(path);
     ASSERT_EQ(file.polygons.size(), 1u) << path;
-    EXPECT_EQ(file.polygons[0].outer,
-              (Ring{{0, 0}, {10, 0}, {10, 10}, {0, 10}}))
-        << path;
+    EXPECT_EQ(file.polygons[0].outer, (Ring{{0, 0}, {10, 0}, {10, 10}, {0, 10}})) << path;
     EXPECT_TRUE(file.polygons[0].holes.empty());
     EXPECT_EQ(file.crs_wkt, "");
   }
@@ -128,16 +133,14 @@ TEST_F(BoundaryIoTest, MalformedBoundariesAreRefusedSayingWhy) {
       {Write("two.csv", "x,y\n0,0\n1,0\n1,0\n0,0\n"), "2 distinct vertices"},
       {Write("line.csv", "x,y\n0,0\n1,1\n2,2\n"), "encloses no area"},
       {Write("bowtie.csv", "x,y\n0,0\n10,10\n10,0\n0,20\n"), "is not valid"},
-      {Write("open.geojson",
-             Collection(Feature(R"({"type": "Polygon", "coordinates": )"
-                                R"([[[0,0],[10,0],[10,10],[0,10]]]})"))),
+      {Write("open.geojson", Collection(Feature(R"({"type": "Polygon", "coordinates": )"
+                                                R"([[[0,0],[10,0],[10,10],[0,10]]]})"))),
        "is not closed"},
       {Write("point.geojson", Collection(Feature(R"({"type": "Point", "coordinates": [1,2]})"))),
        "feature 1: a Point, not a polygon"},
-      {Write("hole_outside.geojson",
-             Collection(Feature(R"({"type": "Polygon", "coordinates": )"
-                                R"([[[0,0],[10,0],[10,10],[0,10],[0,0]],)"
-                                R"([[20,20],[20,30],[30,30],[20,20]]]})"))),
+      {Write("hole_outside.geojson", Collection(Feature(R"({"type": "Polygon", "coordinates": )"
+                                                        R"([[[0,0],[10,0],[10,10],[0,10],[0,0]],)"
+                                                        R"([[20,20],[20,30],[30,30],[20,20]]]})"))),
        "is not valid"},
       {Write("empty.geojson", Collection("")), "no polygon"},
       {(dir_ / "missing.gpkg").string(), "no such file"},

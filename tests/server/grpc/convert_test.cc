@@ -95,7 +95,9 @@ TEST(ConvertTest, SurveyBoundaryRoundTripKeepsHolesAndBits) {
   storage::BoundaryPolygon polygon;
   polygon.outer = {{0.1, -0.2}, {100.30000000000001, 0}, {100, 1e6 + 0.5}};
   polygon.holes = {{{1, 1}, {2, 1}, {2, 2}}, {{5, 5}, {6, 5}, {6, 6}, {5, 6}}};
-  const storage::Boundary boundary = {polygon, storage::BoundaryPolygon{{{7, 7}, {8, 7}, {8, 8}}}};
+  storage::BoundaryPolygon triangle;
+  triangle.outer = {{7, 7}, {8, 7}, {8, 8}};
+  const storage::Boundary boundary = {polygon, triangle};
   const v1::SurveyBoundary message = ToProto(boundary);
   ASSERT_EQ(message.polygons_size(), 2);
   EXPECT_EQ(message.polygons(0).holes_size(), 2);
