@@ -354,7 +354,9 @@ void AddExport(CLI::App& map_app, CliContext& context) {
   CLI::App* sub =
       map_app.add_subcommand("export",
                              "Write a map's trees as CSV (id,x,y,z,dbh,<attributes>), GeoJSON, "
-                             "GeoPackage or shapefile (points with the map's CRS)");
+                             "GeoPackage or shapefile (points with the map's CRS), and its survey "
+                             "boundary beside them: a GeoPackage's layer 'boundary', else the "
+                             "file NAME.boundary.geojson / .shp next to --out");
   sub->add_option("NAME", options->name, "Map name")->required();
   sub->add_option("--out", options->out_file, "Output file (default: CSV on standard output)");
   sub->add_option("--format", options->format,

@@ -61,6 +61,14 @@ TEST_P(BoundaryTest, AnUploadStoresItExactlyWithTheTrees) {
   EXPECT_EQ(store_.ReadMapVersion("m", info.version).boundary, Square());
 }
 
+TEST_P(BoundaryTest, AMapCreatedWithABoundaryAndNoTreesHasIt) {
+  const MapInfo info = Upload(store_, "m", {}, Triangle(), WriteMode::kAppend, true);
+  EXPECT_EQ(info.tree_count, 0);
+  EXPECT_EQ(store_.ReadMap("m").boundary, Triangle());
+  EXPECT_EQ(store_.ReadBoundary("m", 0), Triangle());
+  EXPECT_TRUE(store_.ReadBoundary("m", 1).empty());  // the created version, before the upload's
+}
+
 TEST_P(BoundaryTest, AMapWithoutOneHasNone) {
   store_.CreateMap("m", "", "");
   store_.WriteTrees("m", {Tree(1, 5, 5)}, WriteMode::kAppend);
