@@ -212,6 +212,25 @@ void Answer(storage::MapStore& store, const RecentAnswers& answers, DensityCache
       if (!MayRead(caller, request.map, response)) return;
       Guarded(response, [&] { Reply(response, VersionsJson(store.ListVersions(request.map, 0))); });
       return;
+    case PageRoute::kBoundary:
+      if (!MayRead(caller, request.map, response)) return;
+      Guarded(response, [&] {
+        // The survey boundary (map frame): polygons, each its outer ring and then its holes.
+        Json polygons = Json::array();
+        for (const storage::BoundaryPolygon& polygon : store.ReadBoundary(request.map, 0)) {
+          Json rings = Json::array();
+          for (size_t r = 0; r <= polygon.holes.size(); ++r) {
+            Json ring = Json::array();
+            for (const storage::BoundaryPoint& p : r == 0 ? polygon.outer : polygon.holes[r - 1]) {
+              ring.push_back({p.x, p.y});
+            }
+            rings.push_back(std::move(ring));
+          }
+          polygons.push_back(std::move(rings));
+        }
+        Reply(response, Json{{"polygons", polygons}});
+      });
+      return;
     case PageRoute::kRelocalizations:
       Reply(response, AnswersJson(answers, caller));
       return;
