@@ -281,8 +281,30 @@ int64_t TreesToExport(ForestMapClient& client, const v1::Map& map, int64_t versi
   return 0;
 }
 
+constexpr int64_t kExportChunk = 5000;  // trees per message the server sends, at most
+
+// The trees of map `name` to `out_file` (not standard output) in `format`, with CRS `crs`.
+void WriteExportFile(const std::string& out_file, TreeFormat format,
+                     const std::vector<MapTreeRow>& trees, const std::string& crs,
+                     const std::string& name, std::ostream& err) {
+  if (format == TreeFormat::kCsv) {
+    ReplaceFile(out_file,
+                [&](const std::string& temporary) { WriteMapTreesCsv(temporary, trees); });
+    // The CRS as WKT beside the CSV, as GIS tools keep it (map create --trees reads it back);
+    // for a map without one, an old .prj is removed.
+    WriteCrsSidecar(out_file, crs);
+    return;
+  }
+  // A GeoPackage takes the map as its layer (others stay); other formats are replaced.
+  const auto written = ProgressTo(err, "writing " + out_file, std::ssize(trees), kExportChunk);
+  for (const std::string& warning : WriteGeoTrees(
+           out_file, format, trees, crs, name,
+           written ? [&written](int64_t done, int64_t) { written(done); } : GeoWriteProgress())) {
+    err << "forestmap: warning: " << warning << std::endl;
+  }
+}
+
 void RunExport(const ExportOptions& options, const CliContext& context) {
-  constexpr int64_t kExportChunk = 5000;  // trees per message the server sends, at most
   const bool to_stdout = options.out_file.empty() || options.out_file == "-";
   if (to_stdout && !options.format.empty() && options.format != "csv") {
     throw CommandError("--format " + options.format + " needs --out FILE");
@@ -323,22 +345,7 @@ void RunExport(const ExportOptions& options, const CliContext& context) {
     if (!*context.out) throw CommandError("writing to standard output failed");
     return;
   }
-  if (format == TreeFormat::kCsv) {
-    ReplaceFile(out_file,
-                [&](const std::string& temporary) { WriteMapTreesCsv(temporary, exported.trees); });
-    // The CRS as WKT beside the CSV, as GIS tools keep it (map create --trees reads it back);
-    // for a map without one, an old .prj is removed.
-    WriteCrsSidecar(out_file, crs);
-  } else {
-    // A GeoPackage takes the map as its layer (others stay); other formats are replaced.
-    const auto written =
-        ProgressTo(*context.err, "writing " + out_file, std::ssize(exported.trees), kExportChunk);
-    for (const std::string& warning : WriteGeoTrees(
-             out_file, format, exported.trees, crs, options.name,
-             written ? [&written](int64_t done, int64_t) { written(done); } : GeoWriteProgress())) {
-      *context.err << "forestmap: warning: " << warning << std::endl;
-    }
-  }
+  WriteExportFile(out_file, format, exported.trees, crs, options.name, *context.err);
   *context.err << "exported " << exported.trees.size() << " trees of map '" << options.name
                << "' (version " << exported.map_version << ") to " << out_file;
   if (format == TreeFormat::kGeoPackage) *context.err << " (layer '" << options.name << "')";
