@@ -178,10 +178,29 @@ class TreeUpload;      // storage/staged_writes.h
 struct UploadPlan;     // storage/staged_writes.h
 struct TreePageQuery;  // storage/staged_writes.h
 
-// A consistent snapshot of a map: its info and all its trees (sorted by id), read together.
+// A map's survey boundary: what its survey covered, polygons with holes in the map frame (m).
+// A ring lists its vertices once (the first not repeated at the end), in either orientation.
+// Stored with the trees and versioned with them; empty: the map has none.
+struct BoundaryPoint {
+  double x = 0, y = 0;  // m
+  bool operator==(const BoundaryPoint&) const = default;
+};
+using BoundaryRing = std::vector<BoundaryPoint>;
+struct BoundaryPolygon {
+  BoundaryRing outer;
+  std::vector<BoundaryRing> holes;
+  bool operator==(const BoundaryPolygon&) const = default;
+};
+using Boundary = std::vector<BoundaryPolygon>;
+// Vertices a boundary may have, all rings together.
+inline constexpr size_t kMaxBoundaryVertices = 100000;
+
+// A consistent snapshot of a map: its info, all its trees (sorted by id) and its boundary, read
+// together.
 struct MapSnapshot {
   MapInfo info;
   std::vector<TreeRecord> trees;
+  Boundary boundary;
 };
 
 enum class WriteMode {
@@ -228,6 +247,9 @@ class MapStore {
   // extent of that version; created_unix_ms of the map, updated_unix_ms of that version).
   // kNotFound for a version that never existed or predates the history (kMigrated).
   virtual MapSnapshot ReadMapVersion(const std::string& name, int64_t version) = 0;
+  // The survey boundary of a version (0 = current; empty when it has none), kNotFound as above.
+  // The default reads the whole version.
+  virtual Boundary ReadBoundary(const std::string& name, int64_t version);
   // The history, oldest first; `limit` > 0 keeps the newest `limit` entries.
   virtual std::vector<VersionRecord> ListVersions(const std::string& name, int64_t limit) = 0;
   // A new version whose trees and observations equal those of `version` (kNotFound as above).

@@ -1,8 +1,15 @@
 #include "storage/staged_upload.h"
 
+#include "storage/boundary_json.h"
+
 namespace forestmap::storage {
 
 using Code = StorageError::Code;
+
+StagedUpload::StagedUpload(std::string name, UploadPlan plan)
+    : name_(std::move(name)), plan_(std::move(plan)), chunks_(name_, plan_.mode) {
+  if (plan_.boundary) internal::CheckBoundary(name_, *plan_.boundary);
+}
 
 void StagedUpload::Append(const std::vector<TreeRecord>& trees) {
   if (done_) throw StorageError(Code::kInternal, "upload to '" + name_ + "' already finished");
@@ -25,7 +32,9 @@ MapInfo StagedUpload::Commit() {
       StoreTransaction transaction(session, TransactionKind::kWrite);
       MapRow map = Target(session);
       const bool replace = plan_.mode == WriteMode::kReplace;
-      const bool changes = chunks_.staged() > 0 || (replace && map.info.tree_count > 0);
+      const std::optional<std::string> boundary = NewBoundary(session, map);
+      const bool changes =
+          chunks_.staged() > 0 || (replace && map.info.tree_count > 0) || boundary.has_value();
       if (changes) {
         const int64_t version = map.info.version + 1;
         // A created map has no old rows: its current rows are the upload's.
@@ -35,6 +44,7 @@ MapInfo StagedUpload::Commit() {
         const VersionRecord record = chunks_.Apply(map.info, closed);
         session.UpdateMap(map);
         session.InsertVersion(map.id, record);
+        if (boundary) session.InsertBoundary(map.id, map.info.version, *boundary);
       }
       Forget(session);
       if (changes || plan_.create_map) {
@@ -51,6 +61,13 @@ MapInfo StagedUpload::Commit() {
   done_ = true;
   Finished();
   return result;
+}
+
+std::optional<std::string> StagedUpload::NewBoundary(StoreSession& session, const MapRow& map) {
+  if (!plan_.boundary) return std::nullopt;
+  std::string encoded = internal::EncodeBoundary(*plan_.boundary);
+  if (encoded == session.BoundaryAt(map.id, map.info.version)) return std::nullopt;
+  return encoded;
 }
 
 void StagedUpload::Discard() noexcept {

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -23,8 +24,8 @@ class StagedUpload : public TreeUpload {
   int64_t staged() const final { return chunks_.staged(); }
 
  protected:
-  StagedUpload(std::string name, UploadPlan plan)
-      : name_(std::move(name)), plan_(std::move(plan)), chunks_(name_, plan_.mode) {}
+  // kInvalidArgument for an invalid plan.boundary (storage/boundary_json.h).
+  StagedUpload(std::string name, UploadPlan plan);
 
   // Ends an upload that is not over (committed or aborted): Abort(). Also for the backend's
   // destructor.
@@ -54,6 +55,9 @@ class StagedUpload : public TreeUpload {
   virtual void Finished() noexcept {}
 
  private:
+  // In the commit: the encoded plan.boundary when it differs from the map's current one.
+  std::optional<std::string> NewBoundary(StoreSession& session, const MapRow& map);
+
   std::string name_;
   UploadPlan plan_;
   internal::UploadChunks chunks_;

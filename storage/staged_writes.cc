@@ -45,6 +45,10 @@ bool Inside(const TreeRecord& tree, const Extent& box) {
 
 std::unique_ptr<TreeUpload> MemoryUpload(MapStore& store, const std::string& name,
                                          const UploadPlan& plan) {
+  if (plan.boundary) {
+    throw StorageError(Code::kInvalidArgument,
+                       "map '" + name + "': this store keeps no survey boundaries");
+  }
   if (plan.create_map) {
     try {
       store.GetMap(name);
@@ -56,6 +60,10 @@ std::unique_ptr<TreeUpload> MemoryUpload(MapStore& store, const std::string& nam
     store.GetMap(name);  // kNotFound before the client sends its trees
   }
   return std::make_unique<InMemoryUpload>(store, name, plan);
+}
+
+Boundary MapStore::ReadBoundary(const std::string& name, int64_t version) {
+  return ReadMapVersion(name, version).boundary;
 }
 
 std::vector<TreeRecord> PageOfSnapshot(MapStore& store, const std::string& name,

@@ -20,6 +20,9 @@ struct UploadPlan {
   bool create_map = false;
   std::string description;  // of the created map
   std::string crs;          // of the created map (canonical form, as for CreateMap)
+  // Set: the map's survey boundary from the new version on (an empty one removes it); a changed
+  // boundary alone makes a new version. Unset: the map keeps its boundary.
+  std::optional<Boundary> boundary;
 };
 
 // An upload of any size in bounded memory. Append stages trees in the database in its own short

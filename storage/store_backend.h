@@ -92,8 +92,16 @@ class StoreSession {
   virtual std::optional<int64_t> OldestVersion(int64_t map_id) = 0;
   // Version numbers, newest first; limit > 0 keeps the first `limit`.
   virtual std::vector<int64_t> NewestVersions(int64_t map_id, int64_t limit) = 0;
-  // Deletes the history before `first_kept` and the rows only it held.
+  // Deletes the history before `first_kept` and the rows only it held (boundary rows too, but
+  // the one in force at `first_kept`).
   virtual PrunedRows PruneBefore(int64_t map_id, int64_t first_kept) = 0;
+
+  // ---- Survey boundary (storage/boundary_json.h): one row per version that set it ----
+  // The encoded boundary of `version`: the row of the newest version at or before it; "" when
+  // there is none (or that row removed it).
+  virtual std::string BoundaryAt(int64_t map_id, int64_t version) = 0;
+  // The boundary from `version` on ("" removes it).
+  virtual void InsertBoundary(int64_t map_id, int64_t version, const std::string& encoded) = 0;
 
   // ---- Trees (results by id) ----
   virtual std::vector<TreeRecord> CurrentTrees(const MapRow& map) = 0;

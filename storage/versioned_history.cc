@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "storage/boundary_json.h"
 #include "storage/checks.h"
 #include "storage/store_steps.h"
 #include "storage/versioned_map_store.h"
@@ -90,15 +91,36 @@ MapSnapshot VersionedMapStore::ReadMapVersion(const std::string& name, int64_t v
     snapshot.info = map.info;
     if (version == 0 || version == map.info.version) {
       snapshot.trees = session.CurrentTrees(map);
+      snapshot.boundary =
+          internal::DecodeBoundary(name, session.BoundaryAt(map.id, map.info.version));
       transaction.Commit();
       return;
     }
     const VersionRecord record = RequireVersion(session, map, version);
     snapshot.trees = session.TreesAtVersion(map, version);
+    snapshot.boundary = internal::DecodeBoundary(name, session.BoundaryAt(map.id, version));
     transaction.Commit();
     snapshot.info = InfoAtVersion(map.info, record, snapshot.trees);
   });
   return snapshot;
+}
+
+Boundary VersionedMapStore::ReadBoundary(const std::string& name, int64_t version) {
+  internal::CheckName(name);
+  CheckVersionNumber(name, version);
+  std::string encoded;
+  backend_->WithReader([&](StoreSession& session) {
+    StoreTransaction transaction(session, TransactionKind::kRead);
+    const MapRow map = RequireMap(session, name);
+    if (version == 0 || version == map.info.version) {
+      encoded = session.BoundaryAt(map.id, map.info.version);
+    } else {
+      RequireVersion(session, map, version);
+      encoded = session.BoundaryAt(map.id, version);
+    }
+    transaction.Commit();
+  });
+  return internal::DecodeBoundary(name, encoded);
 }
 
 std::vector<VersionRecord> VersionedMapStore::ListVersions(const std::string& name, int64_t limit) {
@@ -130,6 +152,10 @@ MapInfo VersionedMapStore::RestoreVersion(const std::string& name, int64_t versi
     VersionRecord record;
     RestoreTrees(session, map, version, next, record);
     RestoreObservations(session, map, version, next, record);
+    const std::string boundary = session.BoundaryAt(map.id, version);
+    if (boundary != session.BoundaryAt(map.id, map.info.version)) {
+      session.InsertBoundary(map.id, next, boundary);
+    }
     StampRestore(map.info, record, old, session.ScanExtent(map.id));
     session.UpdateMap(map);
     session.InsertVersion(map.id, record);

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "algorithms/mapping/map_builder.h"
+#include "client/cli/cli_boundary.h"
 #include "client/cli/cli_commands.h"
 #include "client/cli/cli_format.h"
 #include "client/cli/cli_tree_crs.h"
@@ -33,22 +34,25 @@ struct CreateOptions {
   std::string columns;   // --columns x=HEADER,... (io/tree_columns.h)
   std::string dbh_unit;  // --dbh-unit m|cm|mm; empty: from the header, else m
   std::string layer;     // --layer: a GIS file's layer; empty: the only one with points
+  std::string boundary_file, boundary_layer;  // --boundary, --boundary-layer
 };
 
 // Creates the map with `rows` (from `source`) in one upload stream: the server creates the map
 // in the transaction that commits its trees, so a failed or killed upload leaves no map.
 void CreateWithTrees(const CreateOptions& options, const std::vector<MapTreeRow>& rows,
-                     const std::string& source, const CliContext& context) {
+                     const std::string& source, const CliContext& context,
+                     const std::optional<Boundary>& boundary = std::nullopt) {
   ForestMapClient client = context.Connect();
   v1::Map map;
-  if (rows.empty()) {
+  if (rows.empty() && !boundary) {
     map = client.CreateMap(options.name, options.description, options.crs);
   } else {
     try {
       map = client
                 .CreateMapWithTrees(options.name, options.description, options.crs, rows,
                                     UploadProgressTo(*context.err, std::ssize(rows),
-                                                     ClientOptions().upload_chunk_trees))
+                                                     ClientOptions().upload_chunk_trees),
+                                    boundary)
                 .map();
     } catch (const std::exception& upload_error) {
       throw CommandError("creating map '" + options.name + "' with the trees of " + source +
@@ -77,7 +81,11 @@ void RunCreate(CreateOptions options, const CliContext& context) {
     *context.err << "forestmap: warning: " << options.trees_file
                  << " has no trees; the map is empty" << std::endl;
   }
-  CreateWithTrees(options, rows, options.trees_file, context);
+  const std::optional<Boundary> boundary = BoundaryForMap(
+      options.boundary_file, options.boundary_layer, options.name, options.crs, *context.err);
+  CreateWithTrees(options, rows,
+                  options.trees_file.empty() ? options.boundary_file : options.trees_file, context,
+                  boundary);
 }
 
 void AddCreate(CLI::App& map_app, CliContext& context) {
@@ -97,6 +105,7 @@ void AddCreate(CLI::App& map_app, CliContext& context) {
                   "WKT or PROJ string, in metres");
   AddToCrsOption(*sub, options->to_crs);
   sub->add_option("--description", options->description, "Free text");
+  AddBoundaryOptions(*sub, options->boundary_file, options->boundary_layer);
   sub->callback(
       [options, &context] { context.run = [options, &context] { RunCreate(*options, context); }; });
 }
@@ -272,8 +281,30 @@ int64_t TreesToExport(ForestMapClient& client, const v1::Map& map, int64_t versi
   return 0;
 }
 
+constexpr int64_t kExportChunk = 5000;  // trees per message the server sends, at most
+
+// The trees of map `name` to `out_file` (not standard output) in `format`, with CRS `crs`.
+void WriteExportFile(const std::string& out_file, TreeFormat format,
+                     const std::vector<MapTreeRow>& trees, const std::string& crs,
+                     const std::string& name, std::ostream& err) {
+  if (format == TreeFormat::kCsv) {
+    ReplaceFile(out_file,
+                [&](const std::string& temporary) { WriteMapTreesCsv(temporary, trees); });
+    // The CRS as WKT beside the CSV, as GIS tools keep it (map create --trees reads it back);
+    // for a map without one, an old .prj is removed.
+    WriteCrsSidecar(out_file, crs);
+    return;
+  }
+  // A GeoPackage takes the map as its layer (others stay); other formats are replaced.
+  const auto written = ProgressTo(err, "writing " + out_file, std::ssize(trees), kExportChunk);
+  for (const std::string& warning : WriteGeoTrees(
+           out_file, format, trees, crs, name,
+           written ? [&written](int64_t done, int64_t) { written(done); } : GeoWriteProgress())) {
+    err << "forestmap: warning: " << warning << std::endl;
+  }
+}
+
 void RunExport(const ExportOptions& options, const CliContext& context) {
-  constexpr int64_t kExportChunk = 5000;  // trees per message the server sends, at most
   const bool to_stdout = options.out_file.empty() || options.out_file == "-";
   if (to_stdout && !options.format.empty() && options.format != "csv") {
     throw CommandError("--format " + options.format + " needs --out FILE");
@@ -302,31 +333,26 @@ void RunExport(const ExportOptions& options, const CliContext& context) {
   AddStateColumns(exported);
   const std::string crs =
       options.to_crs.empty() ? map.crs() : ReprojectExport(exported.trees, map, options.to_crs);
+  if (!exported.boundary.empty() && format == TreeFormat::kCsv) {
+    *context.err << "forestmap: warning: map '" << options.name
+                 << "' has a survey boundary, which a CSV cannot hold: export to .gpkg or "
+                    ".geojson to keep it"
+                 << std::endl;
+  }
   if (to_stdout) {
     WriteMapTreesCsv(*context.out, exported.trees);
     context.out->flush();
     if (!*context.out) throw CommandError("writing to standard output failed");
     return;
   }
-  if (format == TreeFormat::kCsv) {
-    ReplaceFile(out_file,
-                [&](const std::string& temporary) { WriteMapTreesCsv(temporary, exported.trees); });
-    // The CRS as WKT beside the CSV, as GIS tools keep it (map create --trees reads it back);
-    // for a map without one, an old .prj is removed.
-    WriteCrsSidecar(out_file, crs);
-  } else {
-    // A GeoPackage takes the map as its layer (others stay); other formats are replaced.
-    const auto written =
-        ProgressTo(*context.err, "writing " + out_file, std::ssize(exported.trees), kExportChunk);
-    for (const std::string& warning : WriteGeoTrees(
-             out_file, format, exported.trees, crs, options.name,
-             written ? [&written](int64_t done, int64_t) { written(done); } : GeoWriteProgress())) {
-      *context.err << "forestmap: warning: " << warning << std::endl;
-    }
-  }
+  WriteExportFile(out_file, format, exported.trees, crs, options.name, *context.err);
   *context.err << "exported " << exported.trees.size() << " trees of map '" << options.name
                << "' (version " << exported.map_version << ") to " << out_file;
   if (format == TreeFormat::kGeoPackage) *context.err << " (layer '" << options.name << "')";
+  if (!exported.boundary.empty() && format != TreeFormat::kCsv) {
+    *context.err << ", "
+                 << ExportBoundary(exported.boundary, out_file, format, map, options.to_crs, crs);
+  }
   *context.err << std::endl;
 }
 
@@ -335,7 +361,9 @@ void AddExport(CLI::App& map_app, CliContext& context) {
   CLI::App* sub =
       map_app.add_subcommand("export",
                              "Write a map's trees as CSV (id,x,y,z,dbh,<attributes>), GeoJSON, "
-                             "GeoPackage or shapefile (points with the map's CRS)");
+                             "GeoPackage or shapefile (points with the map's CRS), and its survey "
+                             "boundary beside them: a GeoPackage's layer 'boundary', else the "
+                             "file NAME.boundary.geojson / .shp next to --out");
   sub->add_option("NAME", options->name, "Map name")->required();
   sub->add_option("--out", options->out_file, "Output file (default: CSV on standard output)");
   sub->add_option("--format", options->format,

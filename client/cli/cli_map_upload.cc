@@ -2,9 +2,11 @@
 // one upload stream (the server applies it in one transaction: all or nothing).
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "client/cli/cli_boundary.h"
 #include "client/cli/cli_commands.h"
 #include "client/cli/cli_format.h"
 #include "client/cli/cli_tree_crs.h"
@@ -22,6 +24,7 @@ struct UploadOptions {
   std::string dbh_unit;  // --dbh-unit m|cm|mm
   std::string layer;     // --layer: a GIS file's layer; empty: the only one with points
   bool replace = false;
+  std::string boundary_file, boundary_layer;  // --boundary, --boundary-layer
 };
 
 // The trees into the map's CRS: reprojected when they are in another, refused when they are in
@@ -45,31 +48,49 @@ void PlaceInMap(std::vector<MapTreeRow>& rows, const UploadOptions& options,
 }
 
 void RunUpload(const UploadOptions& options, const CliContext& context) {
-  // Read and check the file before writing anything.
-  TreeFile file = ReadTreeFile(
-      options.trees_file, TreeFileOptionsFrom(options.columns, options.dbh_unit, options.layer));
+  if (options.trees_file.empty() && options.boundary_file.empty()) {
+    throw CommandError("give --trees FILE, --boundary FILE or both");
+  }
+  if (options.trees_file.empty() && options.replace) {
+    throw CommandError("--replace replaces the map's trees by those of --trees FILE");
+  }
+  // Read and check the files before writing anything.
+  TreeFile file;
+  if (!options.trees_file.empty()) {
+    file = ReadTreeFile(options.trees_file,
+                        TreeFileOptionsFrom(options.columns, options.dbh_unit, options.layer));
+  }
   ForestMapClient client = context.Connect();
   const v1::Map map = client.GetMap(options.name);
-  try {
-    PlaceInMap(file.rows, options, CrsOfTrees(options.trees_file, options.crs, file.crs), map.crs(),
-               *context.err);
-  } catch (const geo::CrsError& e) {
-    throw CommandError(options.trees_file + ": " + e.what());
+  if (!options.trees_file.empty()) {
+    try {
+      PlaceInMap(file.rows, options, CrsOfTrees(options.trees_file, options.crs, file.crs),
+                 map.crs(), *context.err);
+    } catch (const geo::CrsError& e) {
+      throw CommandError(options.trees_file + ": " + e.what());
+    }
+    CheckTreePlacement(file.rows, options.trees_file, map.crs(), *context.err);
   }
-  CheckTreePlacement(file.rows, options.trees_file, map.crs(), *context.err);
+  // Without --boundary the map keeps the one it has.
+  const std::optional<Boundary> boundary = BoundaryForMap(
+      options.boundary_file, options.boundary_layer, options.name, map.crs(), *context.err);
+  const std::string what = options.trees_file.empty() ? "the boundary of " + options.boundary_file
+                                                      : "the trees of " + options.trees_file;
   v1::UploadTreesResponse response;
   try {
     response = client.UploadTrees(
         options.name, file.rows, options.replace,
-        UploadProgressTo(*context.err, std::ssize(file.rows), ClientOptions().upload_chunk_trees));
+        UploadProgressTo(*context.err, std::ssize(file.rows), ClientOptions().upload_chunk_trees),
+        boundary);
   } catch (const std::exception& upload_error) {
-    throw CommandError("uploading the trees of " + options.trees_file + " to map '" + options.name +
+    throw CommandError("uploading " + what + " to map '" + options.name +
                        "' failed: " + upload_error.what() + "; the map is unchanged");
   }
   *context.out << (options.replace ? "replaced the trees of" : "appended to") << " map '"
                << options.name << "': " << response.trees_received() << " trees uploaded, "
-               << response.map().tree_count() << " trees, version " << response.map().version()
-               << std::endl;
+               << response.map().tree_count() << " trees, version " << response.map().version();
+  if (boundary) *context.out << ", survey boundary of " << boundary->size() << " polygons";
+  *context.out << std::endl;
 }
 
 }  // namespace
@@ -79,12 +100,12 @@ void AddMapUploadCommand(CLI::App& map_app, CliContext& context) {
   CLI::App* sub = map_app.add_subcommand(
       "upload",
       "Add the trees of a file to an existing map (or --replace its trees) as one new version: "
-      "CSV or .gpkg / .geojson / .shp points, reprojected into the map's CRS when theirs differs");
+      "CSV or .gpkg / .geojson / .shp points, reprojected into the map's CRS when theirs "
+      "differs; with --boundary, the map's survey boundary too (or alone)");
   sub->add_option("NAME", options->name, "Map name")->required();
   sub->add_option("--trees", options->trees_file,
                   "The trees: CSV (columns x,y (m) required; z, dbh (m), id optional; other "
-                  "columns are kept as attributes), or .gpkg / .geojson / .shp points")
-      ->required();
+                  "columns are kept as attributes), or .gpkg / .geojson / .shp points");
   AddTreeFileOptions(*sub, options->columns, options->dbh_unit, &options->layer);
   sub->add_option("--crs", options->crs,
                   "CRS of the trees (EPSG code, WKT or PROJ string) when the file declares none; "
@@ -92,6 +113,7 @@ void AddMapUploadCommand(CLI::App& map_app, CliContext& context) {
   sub->add_flag("--replace", options->replace,
                 "Replace the map's trees by the file's (default: append; trees without an id get "
                 "new ones)");
+  AddBoundaryOptions(*sub, options->boundary_file, options->boundary_layer);
   sub->callback(
       [options, &context] { context.run = [options, &context] { RunUpload(*options, context); }; });
 }

@@ -95,6 +95,7 @@ void LoadTrees(const PlotCommandOptions& o, const CliContext& context, PlotInput
   }
   input.title = "map '" + o.map + "': " + std::to_string(input.trees.size()) + " trees, version " +
                 std::to_string(exported.map_version);
+  input.boundary = exported.boundary;
   input.crs = CrsLabel(map.crs());
 }
 

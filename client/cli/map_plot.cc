@@ -31,6 +31,7 @@ constexpr Rgb kUnmatched{0.85, 0.10, 0.10};
 constexpr Rgb kInk{0.10, 0.10, 0.10};
 constexpr Rgb kGrid{0.72, 0.74, 0.70};
 constexpr Rgb kOther{0.55, 0.55, 0.55};
+constexpr Rgb kBoundary{0.35, 0.25, 0.60};
 // Okabe and Ito's colours, told apart with every common colour-vision deficiency.
 constexpr std::array<Rgb, kMaxCategories> kCategoryColours = {{{0.90, 0.62, 0.00},
                                                                {0.34, 0.71, 0.91},
@@ -103,6 +104,29 @@ void Stems(cairo_t* cr, const View& view, const PlotInput& input, const PlotOpti
       Text(cr, p.x() + r + 1, p.y() - 1, tree.label, 8);
     }
   }
+}
+
+// Every ring of the boundary (outer rings and holes alike), dashed.
+void BoundaryOutline(cairo_t* cr, const View& view, const PlotInput& input) {
+  if (input.boundary.empty()) return;
+  const auto ring_path = [&](const algorithms::Ring& ring) {
+    for (size_t i = 0; i < ring.size(); ++i) {
+      const Eigen::Vector2d p = view(ring[i].x(), ring[i].y());
+      i == 0 ? cairo_move_to(cr, p.x(), p.y()) : cairo_line_to(cr, p.x(), p.y());
+    }
+    cairo_close_path(cr);
+  };
+  cairo_new_path(cr);
+  for (const algorithms::Polygon& polygon : input.boundary) {
+    ring_path(polygon.outer);
+    for (const algorithms::Ring& hole : polygon.holes) ring_path(hole);
+  }
+  const double dashes[] = {8, 3};
+  cairo_set_dash(cr, dashes, 2, 0);
+  cairo_set_line_width(cr, 1.8);
+  SetColour(cr, kBoundary);
+  cairo_stroke(cr);
+  cairo_set_dash(cr, nullptr, 0, 0);
 }
 
 void Cross(cairo_t* cr, const Eigen::Vector2d& p, double r) {
@@ -193,6 +217,7 @@ std::vector<LegendEntry> LegendEntries(const PlotInput& input) {
   }
   if (!input.matched.empty()) entries.push_back({kMatched, true, "query: matched"});
   if (!input.unmatched.empty()) entries.push_back({kUnmatched, true, "query: unmatched"});
+  if (!input.boundary.empty()) entries.push_back({kBoundary, false, "survey boundary"});
   if (input.path.size() > 1) entries.push_back({kMatched, false, "tracked path"});
   if (input.sensor) entries.push_back({kInk, true, "sensor (heading)"});
   return entries;
@@ -315,6 +340,9 @@ std::array<double, 4> Extent(const PlotInput& input, const PlotOptions& o) {
   };
   for (const PlotTree& t : input.trees) add(t.x, t.y);
   for (const Eigen::Vector2d& p : input.path) add(p.x(), p.y());
+  for (const algorithms::Polygon& polygon : input.boundary) {
+    for (const Eigen::Vector2d& p : polygon.outer) add(p.x(), p.y());
+  }
   if (input.sensor) add(input.sensor->x, input.sensor->y);
   if (!std::isfinite(box[0])) box = {0, 0, 1, 1};
   return {box[0] - o.margin_m, box[1] - o.margin_m, box[2] + o.margin_m, box[3] + o.margin_m};
@@ -375,6 +403,7 @@ void WritePlot(const std::string& path, const PlotInput& input, const PlotOption
   cairo_fill_preserve(cr);
   cairo_clip(cr);  // trees outside a --window stay outside
   Grid(cr, view, box);
+  BoundaryOutline(cr, view, input);
   Stems(cr, view, input, o);
   Answer(cr, view, input);
   cairo_reset_clip(cr);

@@ -2,13 +2,16 @@
 // Pictures of a map (cairo, the one file that includes it): stems to scale by DBH, candidate
 // and confirmed trees told apart, optionally coloured by a category (species) and labelled, a grid
 // with its coordinates in the map's CRS, a scale bar, a north arrow, the CRS, a DBH key and a
-// legend of what is drawn; optionally one relocalization answer (sensor pose, range, matched and
-// unmatched query trees) or a tracked path. SVG or PNG by the output's extension.
+// legend of what is drawn; the map's survey boundary as a dashed outline; optionally one
+// relocalization answer (sensor pose, range, matched and unmatched query trees) or a tracked path.
+// SVG or PNG by the output's extension.
 
 #include <Eigen/Core>
 #include <optional>
 #include <string>
 #include <vector>
+
+#include "algorithms/core/polygon.h"
 
 namespace forestmap::client {
 
@@ -34,9 +37,10 @@ struct PlotInput {
   std::string category_name;       // what PlotTree::category is (e.g. "species"); empty: no colours
   std::optional<PlotPose> sensor;  // one relocalization answer
   double sensor_range = 0;         // m, drawn as a circle around the sensor (0: none)
-  std::vector<Eigen::Vector2d> matched;    // query trees on a map tree (map frame)
-  std::vector<Eigen::Vector2d> unmatched;  // query trees on none
-  std::vector<Eigen::Vector2d> path;       // a tracked path (map frame)
+  std::vector<Eigen::Vector2d> matched;       // query trees on a map tree (map frame)
+  std::vector<Eigen::Vector2d> unmatched;     // query trees on none
+  std::vector<Eigen::Vector2d> path;          // a tracked path (map frame)
+  std::vector<algorithms::Polygon> boundary;  // the map's survey boundary, drawn as an outline
 };
 
 struct PlotOptions {

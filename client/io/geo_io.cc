@@ -241,18 +241,7 @@ bool InLongitudeLatitude(const std::vector<MapTreeRow>& rows) {
 // grid is no WGS 84).
 std::string DeclaredCrs(GDALDataset& dataset, OGRLayer& layer, const std::string& path,
                         const std::vector<MapTreeRow>& rows) {
-  const OGRSpatialReference* srs = layer.GetSpatialRef();
-  if (!srs) return "";
-  const std::string driver = dataset.GetDriver() ? dataset.GetDriver()->GetDescription() : "";
-  const std::string name = srs->GetName() ? srs->GetName() : "";
-  if (driver == "GPKG" && name.rfind("Undefined ", 0) == 0) return "";
-  if (driver == "GeoJSON") {
-    const CrsMember member = GeoJsonCrsMember(path);
-    if (member == CrsMember::kNull || (member == CrsMember::kNone && !InLongitudeLatitude(rows))) {
-      return "";
-    }
-  }
-  return LayerCrs(layer);
+  return geo_internal::DeclaredLayerCrs(dataset, layer, path, InLongitudeLatitude(rows));
 }
 
 // A shapefile's attributes are in its .dbf: without it GDAL reads positions only.
@@ -266,6 +255,26 @@ void CheckShapefileParts(const std::string& path) {
 }
 
 }  // namespace
+
+namespace geo_internal {
+
+std::string DeclaredLayerCrs(GDALDataset& dataset, OGRLayer& layer, const std::string& path,
+                             bool in_longitude_latitude) {
+  const OGRSpatialReference* srs = layer.GetSpatialRef();
+  if (!srs) return "";
+  const std::string driver = dataset.GetDriver() ? dataset.GetDriver()->GetDescription() : "";
+  const std::string name = srs->GetName() ? srs->GetName() : "";
+  if (driver == "GPKG" && name.rfind("Undefined ", 0) == 0) return "";
+  if (driver == "GeoJSON") {
+    const CrsMember member = GeoJsonCrsMember(path);
+    if (member == CrsMember::kNull || (member == CrsMember::kNone && !in_longitude_latitude)) {
+      return "";
+    }
+  }
+  return LayerCrs(layer);
+}
+
+}  // namespace geo_internal
 
 TreeFormat ParseTreeFormat(const std::string& name) {
   if (name == "csv") return TreeFormat::kCsv;

@@ -7,9 +7,13 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <vector>
+
+#include "client/io/geo_io.h"
 
 namespace forestmap::client::geo_internal {
 
@@ -44,5 +48,32 @@ inline std::string FormatReal(double value) {
   if (std::strtod(text, nullptr) != value) std::snprintf(text, sizeof(text), "%.17g", value);
   return text;
 }
+
+// A layer to create: its name, the file's format and its CRS (null: none).
+struct LayerSpec {
+  std::string name;
+  TreeFormat format;
+  OGRSpatialReference* srs;  // GDAL 3.6 takes it non-const
+};
+
+// Creates the layer with the format's options (shapefiles: UTF-8; GeoJSON in WGS 84: RFC 7946).
+OGRLayer& CreateLayer(GDALDataset& dataset, const LayerSpec& spec, OGRwkbGeometryType type,
+                      const std::string& path);
+
+// Writes the GIS file `path` as WriteGeoTrees does (geo_io.h: a temporary file renamed into place,
+// a GeoPackage's other layers kept, no CRS said as such), its layer written by `write_layer`,
+// which returns warnings for the user.
+using LayerWriter =
+    std::function<std::vector<std::string>(GDALDataset& dataset, const LayerSpec& spec)>;
+std::vector<std::string> WriteGeoFile(const std::string& path, TreeFormat format,
+                                      const std::string& crs, const std::string& layer,
+                                      const LayerWriter& write_layer);
+
+// The CRS a layer declares, as WKT: none for GeoPackage's "Undefined geographic/Cartesian SRS"
+// (srs_id 0, -1), for a GeoJSON file whose crs member is null, and for one without a crs member
+// whose coordinates are not `in_longitude_latitude` (RFC 7946's WGS 84 is GDAL's default then; a
+// local grid is no WGS 84).
+std::string DeclaredLayerCrs(GDALDataset& dataset, OGRLayer& layer, const std::string& path,
+                             bool in_longitude_latitude);
 
 }  // namespace forestmap::client::geo_internal

@@ -20,6 +20,7 @@ using geo_internal::DatasetPtr;
 using geo_internal::FeaturePtr;
 using geo_internal::FormatReal;
 using geo_internal::LastGdalError;
+using geo_internal::LayerSpec;
 
 constexpr int kTreeFieldCount = 5;  // id, x, y, z, dbh; attribute i is field kTreeFieldCount + i
 // A shapefile's Real field is written "%24.15f": 15 decimals, 8 digits before the point.
@@ -167,12 +168,6 @@ std::unique_ptr<OGRSpatialReference> SpatialReference(const std::string& crs, Tr
   return srs;
 }
 
-struct LayerSpec {
-  std::string name;
-  TreeFormat format;
-  OGRSpatialReference* srs;  // GDAL 3.6 takes it non-const
-};
-
 std::vector<std::string> WriteLayer(GDALDataset& dataset, const std::vector<MapTreeRow>& rows,
                                     const LayerSpec& spec, const std::string& path,
                                     const GeoWriteProgress& progress) {
@@ -190,18 +185,7 @@ std::vector<std::string> WriteLayer(GDALDataset& dataset, const std::vector<MapT
       }
     }
   }
-  const char* shapefile_options[] = {"ENCODING=UTF-8", nullptr};  // and a .cpg saying so
-  // GeoJSON in WGS 84 is written as RFC 7946 (longitude, latitude; no 2008 "crs" member), which
-  // web tools expect.
-  const char* rfc7946_options[] = {"RFC7946=YES", nullptr};
-  const bool wgs84 = spec.srs != nullptr && spec.srs->GetAuthorityName(nullptr) != nullptr &&
-                     std::string(spec.srs->GetAuthorityName(nullptr)) == "EPSG" &&
-                     std::string(spec.srs->GetAuthorityCode(nullptr)) == "4326";
-  char** options = nullptr;
-  if (spec.format == TreeFormat::kShapefile) options = const_cast<char**>(shapefile_options);
-  if (spec.format == TreeFormat::kGeoJson && wgs84) options = const_cast<char**>(rfc7946_options);
-  OGRLayer* layer = dataset.CreateLayer(spec.name.c_str(), spec.srs, wkbPoint, options);
-  if (!layer) throw CsvError(path + ": cannot create a layer: " + LastGdalError());
+  OGRLayer* layer = &geo_internal::CreateLayer(dataset, spec, wkbPoint, path);
   std::vector<std::string> warnings = CreateFields(*layer, columns, path);
   warnings.insert(warnings.end(), rounded.begin(), rounded.end());
   // One transaction (GeoPackage): thousands of features commit at once.
@@ -286,10 +270,29 @@ void PlaceShapefile(const std::string& temporary, const std::string& path) {
 
 }  // namespace
 
-std::vector<std::string> WriteGeoTrees(const std::string& path, TreeFormat format,
-                                       const std::vector<MapTreeRow>& rows, const std::string& crs,
-                                       const std::string& layer, const GeoWriteProgress& progress) {
-  geo_internal::RegisterGdal();
+namespace geo_internal {
+
+OGRLayer& CreateLayer(GDALDataset& dataset, const LayerSpec& spec, OGRwkbGeometryType type,
+                      const std::string& path) {
+  const char* shapefile_options[] = {"ENCODING=UTF-8", nullptr};  // and a .cpg saying so
+  // GeoJSON in WGS 84 is written as RFC 7946 (longitude, latitude; no 2008 "crs" member), which
+  // web tools expect.
+  const char* rfc7946_options[] = {"RFC7946=YES", nullptr};
+  const bool wgs84 = spec.srs != nullptr && spec.srs->GetAuthorityName(nullptr) != nullptr &&
+                     std::string(spec.srs->GetAuthorityName(nullptr)) == "EPSG" &&
+                     std::string(spec.srs->GetAuthorityCode(nullptr)) == "4326";
+  char** options = nullptr;
+  if (spec.format == TreeFormat::kShapefile) options = const_cast<char**>(shapefile_options);
+  if (spec.format == TreeFormat::kGeoJson && wgs84) options = const_cast<char**>(rfc7946_options);
+  OGRLayer* layer = dataset.CreateLayer(spec.name.c_str(), spec.srs, type, options);
+  if (!layer) throw CsvError(path + ": cannot create a layer: " + LastGdalError());
+  return *layer;
+}
+
+std::vector<std::string> WriteGeoFile(const std::string& path, TreeFormat format,
+                                      const std::string& crs, const std::string& layer,
+                                      const LayerWriter& write_layer) {
+  RegisterGdal();
   GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(DriverName(format));
   if (!driver || format == TreeFormat::kCsv) {
     throw CsvError(path + ": GDAL has no " + TreeFormatName(format) + " writer");
@@ -306,7 +309,7 @@ std::vector<std::string> WriteGeoTrees(const std::string& path, TreeFormat forma
     CPLErrorReset();
     DatasetPtr dataset = OpenForWriting(*driver, format, path, target, layer);
     const std::string name = shapefile ? fs::path(path).stem().string() : layer;
-    warnings = WriteLayer(*dataset, rows, {name, format, srs.get()}, path, progress);
+    warnings = write_layer(*dataset, LayerSpec{name, format, srs.get()});
     dataset.reset();  // closes: GeoJSON and shapefiles are complete only now
     if (CPLGetLastErrorType() == CE_Failure) throw CsvError(path + ": " + LastGdalError());
     if (format == TreeFormat::kGeoJson && crs.empty()) MarkNoCrs(temporary, path);
@@ -325,6 +328,17 @@ std::vector<std::string> WriteGeoTrees(const std::string& path, TreeFormat forma
     ReplaceFile(path, write);
   }
   return warnings;
+}
+
+}  // namespace geo_internal
+
+std::vector<std::string> WriteGeoTrees(const std::string& path, TreeFormat format,
+                                       const std::vector<MapTreeRow>& rows, const std::string& crs,
+                                       const std::string& layer, const GeoWriteProgress& progress) {
+  return geo_internal::WriteGeoFile(path, format, crs, layer,
+                                    [&](GDALDataset& dataset, const LayerSpec& spec) {
+                                      return WriteLayer(dataset, rows, spec, path, progress);
+                                    });
 }
 
 }  // namespace forestmap::client

@@ -234,23 +234,25 @@ void ForestMapClient::DeleteMap(const std::string& name) {
 
 v1::UploadTreesResponse ForestMapClient::UploadTrees(const std::string& name,
                                                      const std::vector<MapTreeRow>& rows,
-                                                     bool replace, const UploadProgress& progress) {
+                                                     bool replace, const UploadProgress& progress,
+                                                     const std::optional<Boundary>& boundary) {
   v1::UploadTreesHeader header;
   header.set_name(name);
   header.set_replace(replace);
+  if (boundary) *header.mutable_boundary() = ToProto(*boundary);
   return Upload(header, rows, progress);
 }
 
-v1::UploadTreesResponse ForestMapClient::CreateMapWithTrees(const std::string& name,
-                                                            const std::string& description,
-                                                            const std::string& crs,
-                                                            const std::vector<MapTreeRow>& rows,
-                                                            const UploadProgress& progress) {
+v1::UploadTreesResponse ForestMapClient::CreateMapWithTrees(
+    const std::string& name, const std::string& description, const std::string& crs,
+    const std::vector<MapTreeRow>& rows, const UploadProgress& progress,
+    const std::optional<Boundary>& boundary) {
   v1::UploadTreesHeader header;
   header.set_name(name);
   header.set_create_map(true);
   header.set_description(description);
   header.set_crs(crs);
+  if (boundary) *header.mutable_boundary() = ToProto(*boundary);
   return Upload(header, rows, progress);
 }
 
@@ -314,7 +316,10 @@ ExportedTrees ForestMapClient::ExportTreesOnce(const v1::ExportTreesRequest& req
   v1::ExportTreesResponse chunk;
   bool first = true;
   while (reader->Read(&chunk)) {
-    if (first) exported.map_version = chunk.map_version();
+    if (first) {
+      exported.map_version = chunk.map_version();
+      exported.boundary = FromProto(chunk.boundary());
+    }
     if (!first && chunk.map_version() != exported.map_version) {
       context->TryCancel();
       reader->Finish();

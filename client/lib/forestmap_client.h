@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "algorithms/core/geometry.h"
+#include "algorithms/core/polygon.h"
 #include "client/io/tree_csv.h"
 #include "forestmap/v1/forestmap_service.grpc.pb.h"
 #include "proto/status_code_name.h"
@@ -84,6 +85,7 @@ struct ExportedTrees {
   std::vector<MapTreeRow> trees;  // by id
   std::vector<TreeState> states;  // states[i] belongs to trees[i]
   int64_t map_version = 0;        // the one version every tree comes from (0: no chunk sent)
+  std::vector<algorithms::Polygon> boundary;  // the version's survey boundary (empty: none)
 };
 
 // One frame for Observe: the trees detected in it (sensor frame) and, when known, its pose.
@@ -135,6 +137,8 @@ class TrackSession {
 };
 
 // (trees sent so far, trees in total), called after each chunk of an upload.
+// A survey boundary: polygons with holes in the map frame (m).
+using Boundary = std::vector<algorithms::Polygon>;
 using UploadProgress = std::function<void(int64_t sent, int64_t total)>;
 using ExportProgress = std::function<void(int64_t received)>;
 
@@ -170,14 +174,17 @@ class ForestMapClient {
   void DeleteMap(const std::string& name);
 
   // Streams the rows in chunks; the server applies them in one transaction at the end.
+  // `boundary` set: the map's survey boundary from the new version on (map frame; empty removes
+  // it); unset: the map keeps its boundary.
   v1::UploadTreesResponse UploadTrees(const std::string& name, const std::vector<MapTreeRow>& rows,
-                                      bool replace, const UploadProgress& progress = {});
+                                      bool replace, const UploadProgress& progress = {},
+                                      const std::optional<Boundary>& boundary = std::nullopt);
   // Creates the map and uploads its trees in one upload stream (create_map): the map exists only
   // if the whole upload succeeds. ALREADY_EXISTS when the map exists.
-  v1::UploadTreesResponse CreateMapWithTrees(const std::string& name,
-                                             const std::string& description, const std::string& crs,
-                                             const std::vector<MapTreeRow>& rows,
-                                             const UploadProgress& progress = {});
+  v1::UploadTreesResponse CreateMapWithTrees(
+      const std::string& name, const std::string& description, const std::string& crs,
+      const std::vector<MapTreeRow>& rows, const UploadProgress& progress = {},
+      const std::optional<Boundary>& boundary = std::nullopt);
 
   // `version` 0: the current version; else an older one (see ListVersions). `progress` gets the
   // count of trees received after each message.

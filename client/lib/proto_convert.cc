@@ -35,4 +35,38 @@ v1::DetectedTree ToProto(const algorithms::DetectedTree& tree) {
   return out;
 }
 
+v1::SurveyBoundary ToProto(const std::vector<algorithms::Polygon>& polygons) {
+  const auto fill = [](const algorithms::Ring& ring, v1::Ring& out) {
+    out.mutable_vertices()->Reserve(static_cast<int>(ring.size()));
+    for (const Eigen::Vector2d& p : ring) {
+      v1::Vector2* vertex = out.add_vertices();
+      vertex->set_x(p.x());
+      vertex->set_y(p.y());
+    }
+  };
+  v1::SurveyBoundary boundary;
+  for (const algorithms::Polygon& polygon : polygons) {
+    v1::Polygon* added = boundary.add_polygons();
+    fill(polygon.outer, *added->mutable_outer());
+    for (const algorithms::Ring& hole : polygon.holes) fill(hole, *added->add_holes());
+  }
+  return boundary;
+}
+
+std::vector<algorithms::Polygon> FromProto(const v1::SurveyBoundary& boundary) {
+  const auto ring_of = [](const v1::Ring& ring) {
+    algorithms::Ring points;
+    points.reserve(static_cast<size_t>(ring.vertices_size()));
+    for (const v1::Vector2& p : ring.vertices()) points.emplace_back(p.x(), p.y());
+    return points;
+  };
+  std::vector<algorithms::Polygon> polygons;
+  for (const v1::Polygon& polygon : boundary.polygons()) {
+    algorithms::Polygon& added = polygons.emplace_back();
+    added.outer = ring_of(polygon.outer());
+    for (const v1::Ring& hole : polygon.holes()) added.holes.push_back(ring_of(hole));
+  }
+  return polygons;
+}
+
 }  // namespace forestmap::client

@@ -4,8 +4,10 @@
 // server validates what it receives) and nothing throws.
 
 #include <optional>
+#include <vector>
 
 #include "algorithms/core/geometry.h"
+#include "algorithms/core/polygon.h"
 #include "client/io/tree_csv.h"
 #include "forestmap/v1/maps.pb.h"
 #include "forestmap/v1/relocalization.pb.h"
@@ -18,6 +20,10 @@ MapTreeRow FromProto(const v1::Tree& tree);
 
 // An unknown dbh or score (NaN) and an unknown axis (zero) are left unset.
 v1::DetectedTree ToProto(const algorithms::DetectedTree& tree);
+
+// A survey boundary (map frame, m) both ways.
+v1::SurveyBoundary ToProto(const std::vector<algorithms::Polygon>& polygons);
+std::vector<algorithms::Polygon> FromProto(const v1::SurveyBoundary& boundary);
 
 using forestmap::FromProto;  // Vector3 and Pose: proto/geometry_convert.h
 using forestmap::ToProto;

@@ -135,6 +135,8 @@ MapIndexCache::Entry MapIndexCache::BuildEntry(const std::string& name) const {
     if (tree.status == storage::TreeStatus::kConfirmed) trees.push_back(ToMapTree(tree));
   }
   snapshot.trees = {};  // free the records before the index allocates its own copy
+  // The survey boundary, when the map has one, is what it covers (else derived from the trees).
+  std::vector<algorithms::Polygon> boundary = ToPolygons(snapshot.boundary);
   if (trees.empty()) throw NoTrees(name, snapshot.info.version);
   Entry entry;
   entry.version = snapshot.info.version;
@@ -149,7 +151,8 @@ MapIndexCache::Entry MapIndexCache::BuildEntry(const std::string& name) const {
       // A free-text CRS from before validation: answers stay in map coordinates.
     }
   }
-  entry.index = std::make_shared<const algorithms::MapIndex>(std::move(trees), options_.index);
+  entry.index = std::make_shared<const algorithms::MapIndex>(std::move(trees), options_.index,
+                                                             std::move(boundary));
   return entry;
 }
 

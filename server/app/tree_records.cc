@@ -73,4 +73,21 @@ storage::TreeRecord ToTreeRecord(const algorithms::TreeEstimate& tree,
   return out;
 }
 
+std::vector<algorithms::Polygon> ToPolygons(const storage::Boundary& boundary) {
+  const auto ring_of = [](const storage::BoundaryRing& ring) {
+    algorithms::Ring points;
+    points.reserve(ring.size());
+    for (const storage::BoundaryPoint& p : ring) points.emplace_back(p.x, p.y);
+    return points;
+  };
+  std::vector<algorithms::Polygon> polygons;
+  polygons.reserve(boundary.size());
+  for (const storage::BoundaryPolygon& polygon : boundary) {
+    algorithms::Polygon& out = polygons.emplace_back();
+    out.outer = ring_of(polygon.outer);
+    for (const storage::BoundaryRing& hole : polygon.holes) out.holes.push_back(ring_of(hole));
+  }
+  return polygons;
+}
+
 }  // namespace forestmap::server

@@ -5,8 +5,10 @@
 #include <map>
 #include <set>
 #include <string>
+#include <vector>
 
 #include "algorithms/core/geometry.h"
+#include "algorithms/core/polygon.h"
 #include "algorithms/merging/map_merge.h"
 #include "storage/map_store.h"
 
@@ -14,6 +16,9 @@ namespace forestmap::server {
 
 // A stored tree as the relocalizer sees it. Requires tree.id.
 algorithms::MapTree ToMapTree(const storage::TreeRecord& tree);
+
+// A stored survey boundary as the map index takes it (map frame, m; empty: none).
+std::vector<algorithms::Polygon> ToPolygons(const storage::Boundary& boundary);
 
 // Observation rows.
 algorithms::TreeObservation ToTreeObservation(const storage::ObservationRecord& record);

@@ -76,6 +76,41 @@ storage::Extent FromProto(const v1::Box2& box) {
   return storage::Extent{box.min_x(), box.min_y(), box.max_x(), box.max_y()};
 }
 
+v1::SurveyBoundary ToProto(const storage::Boundary& boundary) {
+  const auto fill = [](const storage::BoundaryRing& ring, v1::Ring& out) {
+    out.mutable_vertices()->Reserve(static_cast<int>(ring.size()));
+    for (const storage::BoundaryPoint& p : ring) {
+      v1::Vector2* vertex = out.add_vertices();
+      vertex->set_x(p.x);
+      vertex->set_y(p.y);
+    }
+  };
+  v1::SurveyBoundary out;
+  for (const storage::BoundaryPolygon& polygon : boundary) {
+    v1::Polygon* added = out.add_polygons();
+    fill(polygon.outer, *added->mutable_outer());
+    for (const storage::BoundaryRing& hole : polygon.holes) fill(hole, *added->add_holes());
+  }
+  return out;
+}
+
+storage::Boundary FromProto(const v1::SurveyBoundary& boundary) {
+  const auto ring_of = [](const v1::Ring& ring) {
+    storage::BoundaryRing points;
+    points.reserve(static_cast<size_t>(ring.vertices_size()));
+    for (const v1::Vector2& p : ring.vertices()) points.push_back({p.x(), p.y()});
+    return points;
+  };
+  storage::Boundary out;
+  out.reserve(static_cast<size_t>(boundary.polygons_size()));
+  for (const v1::Polygon& polygon : boundary.polygons()) {
+    storage::BoundaryPolygon& added = out.emplace_back();
+    added.outer = ring_of(polygon.outer());
+    for (const v1::Ring& hole : polygon.holes()) added.holes.push_back(ring_of(hole));
+  }
+  return out;
+}
+
 algorithms::DetectedTree FromProto(const v1::DetectedTree& tree) {
   algorithms::DetectedTree out;
   out.position = FromProto(tree.position());

@@ -32,6 +32,9 @@ v1::Tree ToProto(const storage::TreeRecord& tree);
 storage::TreeRecord FromProto(const v1::Tree& tree);
 v1::Box2 ToProto(const storage::Extent& extent);
 storage::Extent FromProto(const v1::Box2& box);
+// A survey boundary (map frame, m) both ways; the store checks it (storage/boundary_json.h).
+v1::SurveyBoundary ToProto(const storage::Boundary& boundary);
+storage::Boundary FromProto(const v1::SurveyBoundary& boundary);
 
 // Geometry.
 using forestmap::FromProto;  // Vector3 and Pose: proto/geometry_convert.h

@@ -32,6 +32,7 @@ void ExportTreesReactor::Start() {
   std::optional<storage::Extent> box;
   if (request.has_box()) box = FromProto(request.box());
   pages_.emplace(deps_.store, info, deps_.options.export_chunk_trees, box);
+  boundary_ = deps_.store.ReadBoundary(request.name(), version_);
 }
 
 void ExportTreesReactor::LoadPage() {
@@ -68,9 +69,13 @@ void ExportTreesReactor::WriteNext() {
   }
   response_.Clear();
   response_.set_map_version(version_);
+  if (!wrote_any_ && !boundary_.empty()) {
+    *response_.mutable_boundary() = ToProto(boundary_);
+    boundary_ = {};
+  }
   const int64_t chunk_trees = deps_.options.export_chunk_trees;
   const int64_t chunk_bytes = deps_.options.export_chunk_bytes;
-  int64_t bytes = 0;
+  int64_t bytes = static_cast<int64_t>(response_.ByteSizeLong());  // the boundary counts too
   while (next_ < page_.size() && response_.trees_size() < chunk_trees && bytes < chunk_bytes) {
     v1::Tree* tree = response_.add_trees();
     *tree = ToProto(page_[next_++]);

@@ -132,6 +132,7 @@ void UploadTreesReactor::Accept() {
     plan_.create_map = header.create_map();
     plan_.description = header.description();
     plan_.crs = header.crs();
+    if (header.has_boundary()) plan_.boundary = FromProto(header.boundary());
   }
   if (replaying_) return;  // read to know the request, not to write it again
   for (const v1::Tree& tree : trees) chunk_.push_back(FromProto(tree));

@@ -422,4 +422,29 @@ void ValidateBox(const v1::Box2& box, const std::string& path) {
   }
 }
 
+void ValidateBoundary(const v1::SurveyBoundary& boundary, const std::string& path) {
+  int64_t vertices = 0;
+  for (int p = 0; p < boundary.polygons_size(); ++p) {
+    const v1::Polygon& polygon = boundary.polygons(p);
+    for (int r = -1; r < polygon.holes_size(); ++r) {
+      const v1::Ring& ring = r < 0 ? polygon.outer() : polygon.holes(r);
+      const std::string of = Indexed(path + ".polygons", p);
+      const std::string at = r < 0 ? of + ".outer" : Indexed(of + ".holes", r);
+      if (ring.vertices_size() < 3) {
+        throw ValidationError(at, " has " + std::to_string(ring.vertices_size()) +
+                                      " vertices; a ring needs at least 3");
+      }
+      vertices += ring.vertices_size();
+      if (vertices > kMaxBoundaryVertices) {
+        throw ValidationError(path, " has over 100000 vertices; simplify it");
+      }
+      for (int i = 0; i < ring.vertices_size(); ++i) {
+        const std::string vertex = Indexed(at + ".vertices", i);
+        CheckCoordinate(ring.vertices(i).x(), kMaxHorizontalCoordinate, vertex + ".x");
+        CheckCoordinate(ring.vertices(i).y(), kMaxHorizontalCoordinate, vertex + ".y");
+      }
+    }
+  }
+}
+
 }  // namespace forestmap::server

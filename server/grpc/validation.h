@@ -95,5 +95,9 @@ void ValidateTree(const v1::Tree& tree, const std::string& path);
 void ValidateDetectedTree(const v1::DetectedTree& tree, const std::string& path);
 void ValidatePose(const v1::Pose& pose, const std::string& path);
 void ValidateBox(const v1::Box2& box, const std::string& path);
+// A survey boundary: rings of at least 3 vertices within kMaxHorizontalCoordinate, at most
+// kMaxBoundaryVertices vertices in all (the store checks the rest: storage/boundary_json.h).
+inline constexpr int64_t kMaxBoundaryVertices = 100000;
+void ValidateBoundary(const v1::SurveyBoundary& boundary, const std::string& path);
 
 }  // namespace forestmap::server

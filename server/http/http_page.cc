@@ -147,6 +147,23 @@ class DensityCache {
   std::deque<std::pair<Key, std::shared_ptr<const TreeDensity>>> kept_;
 };
 
+// A survey boundary (map frame): polygons, each its outer ring and then its holes, of [x, y].
+Json BoundaryJson(const storage::Boundary& boundary) {
+  Json polygons = Json::array();
+  for (const storage::BoundaryPolygon& polygon : boundary) {
+    Json rings = Json::array();
+    for (size_t r = 0; r <= polygon.holes.size(); ++r) {
+      Json ring = Json::array();
+      for (const storage::BoundaryPoint& p : r == 0 ? polygon.outer : polygon.holes[r - 1]) {
+        ring.push_back({p.x, p.y});
+      }
+      rings.push_back(std::move(ring));
+    }
+    polygons.push_back(std::move(rings));
+  }
+  return polygons;
+}
+
 // Answers `request` (read by ReadPageRequest) for `caller`; `secure`: over HTTPS.
 void Answer(storage::MapStore& store, const RecentAnswers& answers, DensityCache& densities,
             const httplib::Request& http_request, const PageRequest& request,
@@ -211,6 +228,12 @@ void Answer(storage::MapStore& store, const RecentAnswers& answers, DensityCache
     case PageRoute::kVersions:
       if (!MayRead(caller, request.map, response)) return;
       Guarded(response, [&] { Reply(response, VersionsJson(store.ListVersions(request.map, 0))); });
+      return;
+    case PageRoute::kBoundary:
+      if (!MayRead(caller, request.map, response)) return;
+      Guarded(response, [&] {
+        Reply(response, Json{{"polygons", BoundaryJson(store.ReadBoundary(request.map, 0))}});
+      });
       return;
     case PageRoute::kRelocalizations:
       Reply(response, AnswersJson(answers, caller));

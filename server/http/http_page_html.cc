@@ -2,7 +2,8 @@
 // nothing to build or download. The map shown is #map=NAME (default: the first map), optionally
 // &at=X,Y,WIDTH_M. When the map is drawn, <body data-drawn="N" data-view="trees|density"> says
 // how many trees and how (the browser tests wait for it); a map of over 100,000 trees shows its
-// density until the view holds fewer. A clicked tree is named in the corner.
+// density until the view holds fewer. A clicked tree is named in the corner. The map's survey
+// boundary is a dashed outline (data-boundary="N": its polygons).
 
 #include "server/http/http_page.h"
 
@@ -31,6 +32,7 @@ const canvas = document.getElementById('map'), ctx = canvas.getContext('2d');
 // server) until the view holds fewer, whose trees are then fetched for the view alone.
 const kDrawLimit = 100000;
 let trees = [], answers = [], view = null, current = null, density = null, refreshing = 0;
+let boundary = [];  // the map's survey boundary: polygons of rings of [x, y]
 // With tokens, the server's cookie (set on the first visit, /?token=...) goes with every call.
 const get = url => fetch(url, { credentials: 'same-origin' }).then(r => r.json());
 const mapUrl = (name, what) => '/api/maps/' + encodeURIComponent(name) + '/' + what;
@@ -40,6 +42,8 @@ function fit() {
                  x1 = x0 + density.columns * density.cell_m; y1 = y0 + density.rows * density.cell_m; }
   for (const t of trees) { x0 = Math.min(x0, t[0]); x1 = Math.max(x1, t[0]);
                            y0 = Math.min(y0, t[1]); y1 = Math.max(y1, t[1]); }
+  for (const polygon of boundary) for (const [x, y] of polygon[0]) {
+    x0 = Math.min(x0, x); x1 = Math.max(x1, x); y0 = Math.min(y0, y); y1 = Math.max(y1, y); }
   if (!isFinite(x0)) return;
   const s = 0.95 * Math.min(canvas.width / (x1 - x0 + 1), canvas.height / (y1 - y0 + 1));
   view = { s, cx: (x0 + x1) / 2, cy: (y0 + y1) / 2 };
@@ -74,6 +78,14 @@ function draw() {
   ctx.clearRect(0, 0, canvas.width, canvas.height);
   if (!view) return;
   if (density && !trees.length) drawDensity();
+  ctx.beginPath();
+  for (const polygon of boundary) for (const ring of polygon) ring.forEach(([x, y], i) => {
+    const [u, v] = px(x, y);
+    i ? ctx.lineTo(u, v) : ctx.moveTo(u, v);
+    if (i === ring.length - 1) ctx.closePath();
+  });
+  ctx.setLineDash([8, 3]); ctx.strokeStyle = '#593f99'; ctx.lineWidth = 1.8; ctx.stroke();
+  ctx.setLineDash([]); ctx.lineWidth = 1;
   for (const t of trees) {
     const [u, v] = px(t[0], t[1]);
     const r = Math.max(1.5, 0.5 * (t[2] === null ? 0.2 : t[2]) * view.s);
@@ -92,6 +104,7 @@ function draw() {
   // For scripts and headless browsers: what is drawn, once it is.
   document.body.dataset.drawn = trees.length;
   document.body.dataset.view = density && !trees.length ? 'density' : 'trees';
+  document.body.dataset.boundary = boundary.length;
 }
 // A large map: the trees of the view when it holds few enough, else its density.
 async function refreshTrees() {
@@ -108,6 +121,7 @@ const refreshSoon = () => { clearTimeout(refreshTimer); refreshTimer = setTimeou
 function setInfo(text) { document.getElementById('info').textContent = text; }
 async function show(map, at) {
   current = map.name; view = null; trees = []; density = null;
+  boundary = (await get(mapUrl(map.name, 'boundary'))).polygons;
   if (map.trees > kDrawLimit) density = await get(mapUrl(map.name, 'density'));
   else trees = (await get(mapUrl(map.name, 'trees'))).trees;
   setInfo(map.name + ': ' + map.trees + ' trees, version ' + map.version + (map.crs ? ', ' + map.crs : '') +

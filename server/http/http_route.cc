@@ -30,6 +30,7 @@ PageRoute RoutePage(std::string_view path, std::string* map) {
   const PageRoute route = what == "/trees"      ? PageRoute::kTrees
                           : what == "/density"  ? PageRoute::kDensity
                           : what == "/versions" ? PageRoute::kVersions
+                          : what == "/boundary" ? PageRoute::kBoundary
                                                 : PageRoute::kNotFound;
   if (route != PageRoute::kNotFound && map != nullptr) *map = std::string(name);
   return route;

@@ -20,6 +20,7 @@ enum class PageRoute {
   kTrees,            // /api/maps/NAME/trees
   kDensity,          // /api/maps/NAME/density
   kVersions,         // /api/maps/NAME/versions
+  kBoundary,         // /api/maps/NAME/boundary
   kRelocalizations,  // /api/relocalizations
   kNotFound,         // anything else: 404
 };
@@ -29,7 +30,7 @@ inline constexpr std::string_view kTokenCookie = "forestmap_token";
 
 struct PageRequest {
   PageRoute route = PageRoute::kNotFound;
-  std::string map;            // of kTrees, kDensity and kVersions: one or more of [A-Za-z0-9_.-]
+  std::string map;  // of kTrees, kDensity, kVersions and kBoundary: one or more of [A-Za-z0-9_.-]
   std::string authorization;  // the Authorization header as sent ("Bearer <token>"), if any
   // Without an Authorization header: ?token= (a browser's first visit), else the cookie.
   std::string token;
@@ -37,7 +38,7 @@ struct PageRequest {
   bool has_token_param = false;  // ?token= is in the address (the page removes it)
 };
 
-// The route of a (decoded) path; `map` gets the map name of kTrees, kDensity and kVersions.
+// The route of a (decoded) path; `map` gets the map name of the routes of one map.
 PageRoute RoutePage(std::string_view path, std::string* map);
 
 // The value of cookie `name` in a Cookie header ("a=1; b=2"); empty when absent.

@@ -112,10 +112,20 @@ constexpr const char* kStep3 = R"sql(
 ALTER TABLE request_log ADD COLUMN fingerprint TEXT NOT NULL DEFAULT '';
 )sql";
 
+// Step 4: survey boundaries (storage/boundary_json.h), as the SQLite store's schema version 10.
+constexpr const char* kStep4 = R"sql(
+CREATE TABLE map_boundaries (
+  map_id BIGINT NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
+  version BIGINT NOT NULL,
+  polygons TEXT NOT NULL,  -- JSON: the coordinates of a GeoJSON MultiPolygon, map frame
+  PRIMARY KEY (map_id, version)
+);
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4};
   return steps;
 }
 

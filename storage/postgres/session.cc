@@ -158,7 +158,29 @@ PrunedRows Session::PruneBefore(int64_t map_id, int64_t first_kept) {
           .affected();
   pruned.versions =
       conn_.Exec("DELETE FROM map_versions WHERE map_id = $1 AND version < $2", params).affected();
+  // Boundary rows before the one in force at the first kept version.
+  conn_.Exec(
+      "DELETE FROM map_boundaries WHERE map_id = $1 AND version < (SELECT MAX(version) FROM "
+      "map_boundaries WHERE map_id = $1 AND version <= $2)",
+      params);
   return pruned;
+}
+
+// ---- Survey boundary ----
+
+std::string Session::BoundaryAt(int64_t map_id, int64_t version) {
+  const Result select = conn_.Exec(
+      "SELECT polygons FROM map_boundaries WHERE map_id = $1 AND version <= $2 "
+      "ORDER BY version DESC LIMIT 1",
+      Params().Int64(map_id).Int64(version));
+  return select.rows() == 0 ? std::string() : select.Text(0, 0);
+}
+
+void Session::InsertBoundary(int64_t map_id, int64_t version, const std::string& encoded) {
+  conn_.Exec(
+      "INSERT INTO map_boundaries (map_id, version, polygons) VALUES ($1, $2, $3) "
+      "ON CONFLICT (map_id, version) DO UPDATE SET polygons = EXCLUDED.polygons",
+      Params().Int64(map_id).Int64(version).Text(encoded));
 }
 
 // ---- Request log ----

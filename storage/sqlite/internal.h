@@ -175,6 +175,9 @@ class Session final : public StoreSession {
   std::vector<int64_t> NewestVersions(int64_t map_id, int64_t limit) override;
   PrunedRows PruneBefore(int64_t map_id, int64_t first_kept) override;
 
+  std::string BoundaryAt(int64_t map_id, int64_t version) override;
+  void InsertBoundary(int64_t map_id, int64_t version, const std::string& encoded) override;
+
   std::vector<TreeRecord> CurrentTrees(const MapRow& map) override;
   std::vector<TreeRecord> TreesAtVersion(const MapRow& map, int64_t version) override;
   std::vector<TreeRecord> TreesInBox(const MapRow& map, const Extent& box) override;

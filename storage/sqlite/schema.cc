@@ -222,11 +222,23 @@ ALTER TABLE access_tokens ADD COLUMN expires_unix_ms INTEGER;
 PRAGMA user_version = 9;
 )sql";
 
+// Version 10: survey boundaries (storage/boundary_json.h). A row holds the map's boundary from
+// `version` on, until the next row of the map; polygons '' removed it.
+constexpr const char* kStep10 = R"sql(
+CREATE TABLE map_boundaries (
+  map_id INTEGER NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
+  version INTEGER NOT NULL,
+  polygons TEXT NOT NULL,  -- JSON: the coordinates of a GeoJSON MultiPolygon, map frame
+  PRIMARY KEY (map_id, version)
+) WITHOUT ROWID;
+PRAGMA user_version = 10;
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
   static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4, kStep5,
-                                                 kStep6, kStep7, kStep8, kStep9};
+                                                 kStep6, kStep7, kStep8, kStep9, kStep10};
   return steps;
 }
 

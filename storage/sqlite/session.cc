@@ -67,7 +67,8 @@ void Session::DeleteMap(const MapRow& map) {
   for (const char* sql :
        {"DELETE FROM tree_blocks WHERE min_map <= ?1 AND max_map >= ?1 AND map_id = ?1",
         "DELETE FROM trees WHERE map_id = ?1", "DELETE FROM observations WHERE map_id = ?1",
-        "DELETE FROM map_versions WHERE map_id = ?1", "DELETE FROM maps WHERE id = ?1"}) {
+        "DELETE FROM map_versions WHERE map_id = ?1",
+        "DELETE FROM map_boundaries WHERE map_id = ?1", "DELETE FROM maps WHERE id = ?1"}) {
     Statement(db_, sql, map.id).Run();
   }
 }
@@ -137,6 +138,12 @@ PrunedRows Session::PruneBefore(int64_t map_id, int64_t first_kept) {
       db_, "DELETE FROM observations WHERE map_id = ?1 AND valid_to <= ?2", map_id, first_kept);
   pruned.versions = DeleteBefore(db_, "DELETE FROM map_versions WHERE map_id = ?1 AND version < ?2",
                                  map_id, first_kept);
+  // Boundary rows before the one in force at the first kept version.
+  Statement(db_,
+            "DELETE FROM map_boundaries WHERE map_id = ?1 AND version < (SELECT MAX(version) "
+            "FROM map_boundaries WHERE map_id = ?1 AND version <= ?2)",
+            map_id, first_kept)
+      .Run();
   // Spatial blocks whose rows are all gone.
   Statement(db_,
             "DELETE FROM tree_blocks WHERE id IN (SELECT b.id FROM tree_blocks AS b WHERE "
@@ -145,6 +152,25 @@ PrunedRows Session::PruneBefore(int64_t map_id, int64_t first_kept) {
             map_id)
       .Run();
   return pruned;
+}
+
+// ---- Survey boundary ----
+
+std::string Session::BoundaryAt(int64_t map_id, int64_t version) {
+  Statement select(db_,
+                   "SELECT polygons FROM map_boundaries WHERE map_id = ?1 AND version <= ?2 "
+                   "ORDER BY version DESC LIMIT 1",
+                   map_id, version);
+  return select.Step() ? select.ColumnText(0) : std::string();
+}
+
+void Session::InsertBoundary(int64_t map_id, int64_t version, const std::string& encoded) {
+  Statement insert(db_,
+                   "INSERT OR REPLACE INTO map_boundaries (map_id, version, polygons) "
+                   "VALUES (?1, ?2, ?3)",
+                   map_id, version);
+  insert.BindText(3, encoded);
+  insert.Run();
 }
 
 // ---- Request log ----

@@ -101,12 +101,14 @@ void CheckPageRequest(const httplib::Request& request, const fs::PageRequest& re
       break;
     case fs::PageRoute::kTrees:
     case fs::PageRoute::kDensity:
-    case fs::PageRoute::kVersions: {
+    case fs::PageRoute::kVersions:
+    case fs::PageRoute::kBoundary: {
       Check(!read.map.empty());
       for (const char c : read.map) Check(IsNameChar(c));
-      const char* what = read.route == fs::PageRoute::kTrees     ? "/trees"
-                         : read.route == fs::PageRoute::kDensity ? "/density"
-                                                                 : "/versions";
+      const char* what = read.route == fs::PageRoute::kTrees      ? "/trees"
+                         : read.route == fs::PageRoute::kDensity  ? "/density"
+                         : read.route == fs::PageRoute::kVersions ? "/versions"
+                                                                  : "/boundary";
       Check(path == "/api/maps/" + read.map + what);
       break;
     }

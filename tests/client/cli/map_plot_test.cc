@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -67,6 +68,41 @@ TEST(MapPlotTest, GridLinesLieOnRoundCoordinatesOfTheMap) {
   EXPECT_EQ(at(41), ground);
   cairo_surface_destroy(image);
   fs::remove(path);
+}
+
+// The map's survey boundary is outlined where its rings run (holes too) and named in the legend.
+TEST(MapPlotTest, TheSurveyBoundaryIsOutlined) {
+  const fs::path path =
+      fs::temp_directory_path() / ("boundary_" + std::to_string(getpid()) + ".png");
+  PlotInput input;
+  input.trees = {{5, 5, 0.3, false}, {15, 15, 0.3, false}};
+  algorithms::Polygon square;
+  square.outer = {{0, 0}, {20, 0}, {20, 20}, {0, 20}};
+  square.holes = {{{8, 8}, {12, 8}, {12, 12}, {8, 12}}};
+  input.boundary = {square};
+  PlotOptions options;
+  options.size_px = 240;  // 24 m (the boundary + 2 x 2 m margin) -> 10 px per m
+  WritePlot(path.string(), input, options);
+  cairo_surface_t* image = cairo_image_surface_create_from_png(path.c_str());
+  ASSERT_EQ(cairo_surface_status(image), CAIRO_STATUS_SUCCESS);
+  constexpr int kTop = 44;
+  const auto px = [](double x) { return static_cast<int>(std::lround(20 + 10 * x)); };
+  const auto py = [](double y) { return static_cast<int>(std::lround(kTop + 220 - 10 * y)); };
+  // Violet ink: more blue than green, more red than green.
+  const auto violet = [](uint32_t c) {
+    const int r = (c >> 16) & 0xff, g = (c >> 8) & 0xff, b = c & 0xff;
+    return b > 0x70 && b > g + 0x30 && r > g;
+  };
+  // Somewhere along each dashed ring (outer left edge, hole's left edge) the ink is violet.
+  for (const double edge : {0.0, 8.0}) {
+    int inked = 0;
+    for (double y = 9; y <= 11; y += 0.1) inked += violet(Pixel(image, px(edge), py(y)));
+    EXPECT_GT(inked, 0) << "edge x = " << edge;
+  }
+  for (double y = 9; y <= 11; y += 0.1) EXPECT_FALSE(violet(Pixel(image, px(4), py(y))));
+  cairo_surface_destroy(image);
+  fs::remove(path);
+  EXPECT_EQ(LegendOf(input), (std::vector<std::string>{"confirmed stem", "survey boundary"}));
 }
 
 TEST(MapPlotTest, TheLegendListsOnlyWhatIsDrawn) {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <vector>
 
 namespace forestmap::client {
 namespace {
@@ -25,6 +26,17 @@ TEST(ProtoConvertTest, MapTreeRoundTrip) {
   EXPECT_FALSE(tree.has_z());
   EXPECT_FALSE(tree.has_dbh());
   EXPECT_EQ(FromProto(tree), sparse);
+}
+
+TEST(ProtoConvertTest, SurveyBoundaryRoundTrip) {
+  algorithms::Polygon polygon;
+  polygon.outer = {{0.1, -0.2}, {100.30000000000001, 0}, {100, 1e6 + 0.5}};
+  polygon.holes = {{{1, 1}, {2, 1}, {2, 2}}};
+  const std::vector<algorithms::Polygon> back =
+      FromProto(ToProto(std::vector<algorithms::Polygon>{polygon, polygon}));
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back[1].outer, polygon.outer);
+  EXPECT_EQ(back[1].holes, polygon.holes);
 }
 
 TEST(ProtoConvertTest, DetectedTreeLeavesUnknownsUnset) {

@@ -8,11 +8,13 @@
 #include <future>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <thread>
 
 #include "server/app/errors.h"
 #include "storage/sqlite/store.h"
+#include "storage/staged_writes.h"
 #include "tests/server/gated_store.h"
 
 namespace forestmap::server {
@@ -175,6 +177,46 @@ TEST_F(MapIndexCacheTest, WaitersGetTheErrorOfAFailedBuild) {
   // The failed build left no stale state: a new map of that name gets a fresh build.
   AddMap("doomed", 7);
   EXPECT_EQ(cache.Get("doomed").index->size(), 7u);
+}
+
+}  // namespace
+}  // namespace forestmap::server
+
+namespace forestmap::server {
+namespace {
+
+// The survey boundary stored with a map is what its index says the map covers, instead of the
+// area derived from the trees: ground far from any tree but inside the boundary counts as mapped
+// (a drone's tree there that the map lacks is evidence against a pose), ground outside it does
+// not; a later upload without a boundary keeps it, one that removes it brings the derived back.
+TEST_F(MapIndexCacheTest, TheIndexCoversTheStoredBoundary) {
+  AddMap("plot", 40);  // trees along a line: their own coverage is little more than their discs
+  MapIndexCache cache(store_);
+  const MapIndexCache::Entry derived = cache.Get("plot");
+  EXPECT_TRUE(derived.index->coverage_derived());
+  EXPECT_LT(derived.index->coverage_area(), 1000.0);
+
+  storage::BoundaryPolygon square;
+  square.outer = {{-50, -50}, {200, -50}, {200, 150}, {-50, 150}};
+  const auto upload = [&](std::optional<storage::Boundary> boundary) {
+    storage::UploadPlan plan;
+    plan.boundary = std::move(boundary);
+    auto writing = store_.BeginUpload("plot", plan);
+    writing->Commit();
+  };
+  upload(storage::Boundary{square});
+  const MapIndexCache::Entry bounded = cache.Get("plot");
+  EXPECT_EQ(bounded.version, derived.version + 1);  // the boundary alone made a version
+  EXPECT_FALSE(bounded.index->coverage_derived());
+  ASSERT_EQ(bounded.index->coverage().size(), 1u);
+  EXPECT_EQ(bounded.index->coverage()[0].outer.size(), 4u);
+  EXPECT_EQ(bounded.index->coverage()[0].outer[2], Eigen::Vector2d(200, 150));
+  EXPECT_NEAR(bounded.index->coverage_area(), 250.0 * 200.0, 250.0 * 200.0 * 0.01);
+
+  store_.WriteTrees("plot", Trees(2, 10), storage::WriteMode::kAppend);  // keeps the boundary
+  EXPECT_FALSE(cache.Get("plot").index->coverage_derived());
+  upload(storage::Boundary{});  // removes it
+  EXPECT_TRUE(cache.Get("plot").index->coverage_derived());
 }
 
 }  // namespace

@@ -91,6 +91,21 @@ TEST(ConvertTest, BoxRoundTrip) {
   EXPECT_EQ(back.max_y, extent.max_y);
 }
 
+TEST(ConvertTest, SurveyBoundaryRoundTripKeepsHolesAndBits) {
+  storage::BoundaryPolygon polygon;
+  polygon.outer = {{0.1, -0.2}, {100.30000000000001, 0}, {100, 1e6 + 0.5}};
+  polygon.holes = {{{1, 1}, {2, 1}, {2, 2}}, {{5, 5}, {6, 5}, {6, 6}, {5, 6}}};
+  storage::BoundaryPolygon triangle;
+  triangle.outer = {{7, 7}, {8, 7}, {8, 8}};
+  const storage::Boundary boundary = {polygon, triangle};
+  const v1::SurveyBoundary message = ToProto(boundary);
+  ASSERT_EQ(message.polygons_size(), 2);
+  EXPECT_EQ(message.polygons(0).holes_size(), 2);
+  EXPECT_EQ(message.polygons(0).outer().vertices(2).y(), 1e6 + 0.5);
+  EXPECT_EQ(FromProto(message), boundary);
+  EXPECT_TRUE(FromProto(v1::SurveyBoundary()).empty());
+}
+
 TEST(ConvertTest, DetectedTreeAbsentFieldsBecomeUnknown) {
   v1::DetectedTree bare;
   bare.mutable_position()->set_x(1);

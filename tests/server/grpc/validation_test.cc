@@ -83,6 +83,45 @@ v1::TrackRequest TrackHeader(const std::string& name) {
   return message;
 }
 
+TEST(ValidationTest, UploadHeaderBoundary) {
+  const auto accept = [](const v1::SurveyBoundary& boundary) {
+    v1::UploadTreesRequest header = Header("m");
+    *header.mutable_header()->mutable_boundary() = boundary;
+    UploadValidator validator(1000);
+    validator.Accept(header);
+  };
+  const auto ring = [](v1::Ring* out, int vertices, double x0) {
+    for (int i = 0; i < vertices; ++i) {
+      v1::Vector2* v = out->add_vertices();
+      v->set_x(x0 + std::cos(i));
+      v->set_y(std::sin(i));
+    }
+  };
+  v1::SurveyBoundary good;
+  ring(good.add_polygons()->mutable_outer(), 4, 0);
+  ring(good.mutable_polygons(0)->add_holes(), 3, 0);
+  EXPECT_NO_THROW(accept(good));
+  EXPECT_NO_THROW(accept(v1::SurveyBoundary()));  // removes the map's boundary
+
+  v1::SurveyBoundary short_hole = good;
+  short_hole.mutable_polygons(0)->mutable_holes(0)->mutable_vertices()->RemoveLast();
+  EXPECT_THAT(
+      ErrorOf<ValidationError>([&] { accept(short_hole); }),
+      HasSubstr("header.boundary.polygons[0].holes[0] has 2 vertices; a ring needs at least 3"));
+  v1::SurveyBoundary far = good;
+  far.mutable_polygons(0)->mutable_outer()->mutable_vertices(1)->set_y(2e7);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { accept(far); }),
+              HasSubstr("header.boundary.polygons[0].outer.vertices[1].y is"));
+  v1::SurveyBoundary nan = good;
+  nan.mutable_polygons(0)->mutable_outer()->mutable_vertices(2)->set_x(kNaN);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { accept(nan); }),
+              HasSubstr("header.boundary.polygons[0].outer.vertices[2].x is NaN"));
+  v1::SurveyBoundary huge;
+  ring(huge.add_polygons()->mutable_outer(), 100001, 0);
+  EXPECT_THAT(ErrorOf<ValidationError>([&] { accept(huge); }),
+              HasSubstr("header.boundary has over 100000 vertices"));
+}
+
 TEST(ValidationTest, MapNames) {
   v1::GetMapRequest ok;
   ok.set_name("Plot_7.v2-b");

@@ -12,6 +12,7 @@
 #include "server/app/recent_answers.h"
 #include "server/http/http_page.h"
 #include "storage/sqlite/store.h"
+#include "storage/staged_writes.h"
 #include "tests/server/http_get.h"
 
 namespace forestmap::server {
@@ -58,6 +59,21 @@ TEST_F(HttpApiTest, VersionsCarryTheirKindAndTreeCount) {
   EXPECT_EQ(versions[2]["trees"], 3);
   EXPECT_EQ(versions[2]["source"], "");
   EXPECT_TRUE(versions[2]["time_ms"].is_number_integer());
+}
+
+TEST_F(HttpApiTest, BoundaryIsTheMapsPolygonsOuterRingFirst) {
+  EXPECT_EQ(GetJson("/api/maps/plot/boundary")["polygons"], Json::array());  // none yet
+  storage::UploadPlan plan;
+  storage::BoundaryPolygon polygon;
+  polygon.outer = {{0, 0}, {10.5, 0}, {10.5, 10}};
+  polygon.holes = {{{2, 1}, {3, 1}, {3, 2}}};
+  plan.boundary = storage::Boundary{polygon};
+  store_.BeginUpload("plot", plan)->Commit();
+  const Json polygons = GetJson("/api/maps/plot/boundary")["polygons"];
+  ASSERT_EQ(polygons.size(), 1u);
+  ASSERT_EQ(polygons[0].size(), 2u);  // the outer ring, one hole
+  EXPECT_EQ(polygons[0][0], Json::parse("[[0, 0], [10.5, 0], [10.5, 10]]"));
+  EXPECT_EQ(polygons[0][1][2], Json::parse("[3, 2]"));
 }
 
 TEST_F(HttpApiTest, RelocalizationsNewestFirstWithAPositionOnlyWhenLocalized) {

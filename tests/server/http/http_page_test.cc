@@ -9,12 +9,14 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <Eigen/Geometry>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <vector>
 
 #include "client/io/tree_csv.h"
 #include "client/lib/forestmap_client.h"
@@ -29,8 +31,9 @@ namespace fs = std::filesystem;
 
 const std::string kField =
     std::string(FORESTMAP_SHARED_DATA) + "/survey_vs_lidar/PRF025/PRF025_Field.csv";
-constexpr uint32_t kStemColour = 0x216b33;  // the page's confirmed-stem fill
-constexpr int kMinStemPixels = 62 * 4;      // 62 stems of at least a 1.5 px radius
+constexpr uint32_t kStemColour = 0x216b33;      // the page's confirmed-stem fill
+constexpr int kMinStemPixels = 62 * 4;          // 62 stems of at least a 1.5 px radius
+constexpr uint32_t kBoundaryColour = 0x593f99;  // the page's survey boundary outline
 
 std::string Chromium(const fs::path& profile) {
   return "chromium --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
@@ -80,7 +83,16 @@ TEST(HttpPageTest, ChromiumDrawsTheMapsTrees) {
   options.columns = client::ParseColumnMapping("x=Field_Xpj,y=Field_Ypj,dbh=DBH,id=Tree");
   options.dbh_unit = client::DbhUnit::kCentimetre;
   client.CreateMap("prf025", "", "EPSG:2959");
-  client.UploadTrees("prf025", client::ReadMapTreesCsv(kField, options), false, {});
+  const std::vector<client::MapTreeRow> rows = client::ReadMapTreesCsv(kField, options);
+  // The survey boundary: the trees' box and 2 m around it, outlined on the page.
+  Eigen::AlignedBox2d box;
+  for (const client::MapTreeRow& row : rows) box.extend(Eigen::Vector2d(row.x, row.y));
+  algorithms::Polygon boundary;
+  boundary.outer = {box.min() - Eigen::Vector2d(2, 2),
+                    {box.max().x() + 2, box.min().y() - 2},
+                    box.max() + Eigen::Vector2d(2, 2),
+                    {box.min().x() - 2, box.max().y() + 2}};
+  client.UploadTrees("prf025", rows, false, {}, client::Boundary{boundary});
 
   const fs::path dir = fs::temp_directory_path() / ("http_page_" + std::to_string(getpid()));
   fs::create_directories(dir);
@@ -88,10 +100,12 @@ TEST(HttpPageTest, ChromiumDrawsTheMapsTrees) {
   const std::string dom = Output(Chromium(dir / "p1") + "--dump-dom " + url + " 2>/dev/null");
   EXPECT_NE(dom.find("data-drawn=\"62\""), std::string::npos) << dom.substr(0, 2000);
   EXPECT_NE(dom.find("prf025: 62 trees"), std::string::npos);
+  EXPECT_NE(dom.find("data-boundary=\"1\""), std::string::npos) << dom.substr(0, 2000);
 
   const fs::path shot = dir / "page.png";
   Output(Chromium(dir / "p2") + "--screenshot='" + shot.string() + "' " + url + " 2>&1");
   EXPECT_GE(PixelsOf(shot.string(), kStemColour), kMinStemPixels) << "screenshot " << shot;
+  EXPECT_GE(PixelsOf(shot.string(), kBoundaryColour), 100) << "screenshot " << shot;
   fs::remove_all(dir);
 }
 
