@@ -78,7 +78,10 @@ class Authorizer;
 struct Caller;
 
 struct ServiceOptions {
-  int max_query_trees = 20'000;           // trees per Relocalize request
+  int max_query_trees = 20'000;  // trees per Relocalize request
+  // Maps one Relocalize question over a set (RelocalizeRequest.maps) may search, after the prior
+  // left out the far ones; each is a full search, its index held while the question runs.
+  int max_query_maps = kDefaultMaxQueryMaps;
   int64_t max_upload_trees = 20'000'000;  // trees per UploadTrees stream (staged in the database)
   // Trees an upload stages per transaction: the most of an upload held in memory (count).
   int upload_stage_trees = 10'000;

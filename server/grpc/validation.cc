@@ -8,6 +8,7 @@
 #include <tuple>
 
 #include "server/grpc/legacy_layout.h"
+#include "server/grpc/map_set.h"
 #include "storage/map_store.h"
 
 namespace forestmap::server {
@@ -275,8 +276,12 @@ void Validate(const v1::RemoveSourceRequest& request) {
   ValidateSource(request.source(), "source");
 }
 
-void Validate(const v1::RelocalizeRequest& request, int max_query_trees) {
-  ValidateMapName(request.name(), "name");
+void Validate(const v1::RelocalizeRequest& request, int max_query_trees, int max_query_maps) {
+  if (request.has_maps()) {
+    ValidateMapSet(request, max_query_maps);
+  } else {
+    ValidateMapName(request.name(), "name");
+  }
   const int n = request.trees_size();  // fewer than 3: answered NOT_FOUND (TOO_FEW_TREES)
   if (n > max_query_trees) {
     throw LimitError("trees: " + std::to_string(n) + " trees exceed the limit of " +

@@ -53,7 +53,9 @@ void Validate(const v1::CreateMapRequest& request);
 void Validate(const v1::GetMapRequest& request);
 void Validate(const v1::DeleteMapRequest& request);
 void Validate(const v1::ExportTreesRequest& request);
-void Validate(const v1::RelocalizeRequest& request, int max_query_trees);
+// With `maps` set (a question over many maps), the set as ValidateMapSet (server/grpc/map_set.h).
+void Validate(const v1::RelocalizeRequest& request, int max_query_trees,
+              int max_query_maps = kDefaultMaxQueryMaps);
 // A prior: x and y, or the deprecated pose of release 0.1.0 (not both); radius_m > 0.
 void ValidatePrior(const v1::PriorPose& prior, const std::string& path);
 
