@@ -1,6 +1,7 @@
 // `forestmap relocalize NAME --trees FILE [--prior X,Y,RADIUS_M]`,
 // `forestmap relocalize NAME --scan SCAN [--prior ...]` (trunks detected here, on the client) and
-// `forestmap relocalize NAME --frames FILE`.
+// `forestmap relocalize NAME --frames FILE`; instead of NAME a set of maps, `--maps A,B,C`,
+// `--maps-matching GLOB` or `--all-maps` (the answer names the map found in).
 
 #include <algorithm>
 #include <cstdio>
@@ -21,7 +22,7 @@ namespace {
 constexpr int kProgressEveryFrames = 50;
 
 struct RelocalizeOptions {
-  std::string map;
+  MapSelection maps;  // NAME, or --maps / --maps-matching / --all-maps
   std::string trees_file;
   std::string frames_file;
   std::string scan_file;
@@ -51,7 +52,7 @@ void RunSingle(const RelocalizeOptions& options, const CliContext& context) {
                        " frames; use --frames to relocalize each frame");
   }
   PrintLine(context,
-            context.Connect().Relocalize(options.map, trees, options.prior, options.gravity), {});
+            context.Connect().Relocalize(options.maps, trees, options.prior, options.gravity), {});
 }
 
 // Detects the trunks of one scan here, then asks the server: what the drone's thin client does.
@@ -63,7 +64,7 @@ void RunScan(const RelocalizeOptions& options, const CliContext& context) {
                << " points, " << scan.trees.size() << " trees detected in " << ms << " ms"
                << std::endl;
   PrintLine(context,
-            context.Connect().Relocalize(options.map, scan.trees, options.prior, options.gravity),
+            context.Connect().Relocalize(options.maps, scan.trees, options.prior, options.gravity),
             {});
 }
 
@@ -100,7 +101,7 @@ void RunFrames(const RelocalizeOptions& options, const CliContext& context) {
   for (size_t i = 0; i < frames.size(); ++i) {
     const Frame& frame = frames[i];
     try {
-      const v1::RelocalizeResponse response = client.Relocalize(options.map, frame.trees);
+      const v1::RelocalizeResponse response = client.Relocalize(options.maps, frame.trees);
       counts.Add(response);
       PrintLine(context, response, frame.frame);
     } catch (const RpcError& error) {
@@ -154,7 +155,21 @@ void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
   CLI::App* sub = app.add_subcommand(
       "relocalize",
       "Find the sensor pose in a map from the trees it detected; prints one JSON line per query");
-  sub->add_option("NAME", options->map, "Map name")->required();
+  CLI::Option* name = sub->add_option("NAME", options->maps.name, "Map name");
+  CLI::Option* names =
+      sub->add_option("--maps", options->maps.names,
+                      "Instead of NAME: search these maps (A,B,C) in one question; the answer "
+                      "names the map the sensor is in (\"map\")")
+          ->delimiter(',');
+  CLI::Option* pattern = sub->add_option(
+      "--maps-matching", options->maps.name_pattern,
+      "Instead of NAME: search the maps whose name matches this glob ('district-*') among those "
+      "the token may read");
+  CLI::Option* all = sub->add_flag("--all-maps", options->maps.all_readable,
+                                   "Instead of NAME: search every map the token may read");
+  for (CLI::Option* set : {names, pattern, all}) set->excludes(name);
+  names->excludes(pattern)->excludes(all);
+  pattern->excludes(all);
   CLI::Option* trees = sub->add_option(
       "--trees", options->trees_file,
       "CSV of the trees detected in one scan, sensor frame: x,y (m) required; z, dbh (m), score, "
@@ -183,22 +198,26 @@ void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
   scan->excludes(trees);
   scan->excludes(frames);
   prior->excludes(frames);
-  sub->callback([options, trees, frames, scan, prior, gravity, &context] {
-    if (trees->count() + frames->count() + scan->count() == 0) {
-      throw CLI::RequiredError("--trees FILE, --scan SCAN or --frames FILE");
-    }
-    if (prior->count() > 0) options->prior = PriorFlag(options->prior_text);
-    if (gravity->count() > 0) options->gravity = GravityFlag(options->gravity_values);
-    context.run = [options, &context] {
-      if (!options->scan_file.empty()) {
-        RunScan(*options, context);
-      } else if (options->frames_file.empty()) {
-        RunSingle(*options, context);
-      } else {
-        RunFrames(*options, context);
-      }
-    };
-  });
+  sub->callback(
+      [options, name, names, pattern, all, trees, frames, scan, prior, gravity, &context] {
+        if (name->count() + names->count() + pattern->count() + all->count() == 0) {
+          throw CLI::RequiredError("NAME, --maps, --maps-matching or --all-maps");
+        }
+        if (trees->count() + frames->count() + scan->count() == 0) {
+          throw CLI::RequiredError("--trees FILE, --scan SCAN or --frames FILE");
+        }
+        if (prior->count() > 0) options->prior = PriorFlag(options->prior_text);
+        if (gravity->count() > 0) options->gravity = GravityFlag(options->gravity_values);
+        context.run = [options, &context] {
+          if (!options->scan_file.empty()) {
+            RunScan(*options, context);
+          } else if (options->frames_file.empty()) {
+            RunSingle(*options, context);
+          } else {
+            RunFrames(*options, context);
+          }
+        };
+      });
 }
 
 }  // namespace forestmap::client

@@ -337,8 +337,21 @@ ExportedTrees ForestMapClient::ExportTreesOnce(const v1::ExportTreesRequest& req
 v1::RelocalizeResponse ForestMapClient::Relocalize(
     const std::string& name, const std::vector<algorithms::DetectedTree>& trees,
     const std::optional<PriorPosition>& prior, const std::optional<Eigen::Vector3d>& gravity) {
+  MapSelection one;
+  one.name = name;
+  return Relocalize(one, trees, prior, gravity);
+}
+
+v1::RelocalizeResponse ForestMapClient::Relocalize(
+    const MapSelection& maps, const std::vector<algorithms::DetectedTree>& trees,
+    const std::optional<PriorPosition>& prior, const std::optional<Eigen::Vector3d>& gravity) {
   v1::RelocalizeRequest request;
-  request.set_name(name);
+  request.set_name(maps.name);
+  if (!maps.names.empty() || !maps.name_pattern.empty() || maps.all_readable) {
+    for (const std::string& name : maps.names) request.mutable_maps()->add_names(name);
+    request.mutable_maps()->set_name_pattern(maps.name_pattern);
+    request.mutable_maps()->set_all_readable(maps.all_readable);
+  }
   request.mutable_trees()->Reserve(static_cast<int>(trees.size()));
   for (const algorithms::DetectedTree& tree : trees) *request.add_trees() = ToProto(tree);
   if (prior) {

@@ -67,6 +67,16 @@ struct PriorPosition {
   double radius_m = 10;  // m, the sensor is within this distance of (x, y)
 };
 
+// The maps a Relocalize searches: one map by `name`, or a set (relocalization.proto MapSet):
+// the maps `names`, those matching `name_pattern` (a glob, "district-*"), or `all_readable`
+// maps. The answer's map_name says which map the sensor was found in.
+struct MapSelection {
+  std::string name;
+  std::vector<std::string> names;
+  std::string name_pattern;
+  bool all_readable = false;
+};
+
 // An axis-aligned box in the map frame (m).
 struct Box2 {
   double min_x = 0, min_y = 0, max_x = 0, max_y = 0;
@@ -198,6 +208,11 @@ class ForestMapClient {
 
   // `gravity`: direction of gravity (down) in the sensor frame, when known.
   v1::RelocalizeResponse Relocalize(const std::string& name,
+                                    const std::vector<algorithms::DetectedTree>& trees,
+                                    const std::optional<PriorPosition>& prior = {},
+                                    const std::optional<Eigen::Vector3d>& gravity = {});
+  // The same over a set of maps (or one map, `maps.name`).
+  v1::RelocalizeResponse Relocalize(const MapSelection& maps,
                                     const std::vector<algorithms::DetectedTree>& trees,
                                     const std::optional<PriorPosition>& prior = {},
                                     const std::optional<Eigen::Vector3d>& gravity = {});
