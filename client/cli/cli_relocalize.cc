@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <set>
@@ -150,26 +151,36 @@ Eigen::Vector3d GravityFlag(const std::vector<double>& values) {
 
 }  // namespace
 
+std::function<void()> AddMapSelection(CLI::App& command, MapSelection& maps) {
+  CLI::Option* name = command.add_option("NAME", maps.name, "Map name");
+  CLI::Option* names =
+      command
+          .add_option("--maps", maps.names,
+                      "Instead of NAME: these maps (A,B,C), in one question; each answer names "
+                      "the map the sensor is in (\"map\")")
+          ->delimiter(',');
+  CLI::Option* pattern = command.add_option(
+      "--maps-matching", maps.name_pattern,
+      "Instead of NAME: the maps whose name matches this glob ('district-*') among those the "
+      "token may read");
+  CLI::Option* all = command.add_flag("--all-maps", maps.all_readable,
+                                      "Instead of NAME: every map the token may read");
+  for (CLI::Option* set : {names, pattern, all}) set->excludes(name);
+  names->excludes(pattern)->excludes(all);
+  pattern->excludes(all);
+  return [name, names, pattern, all] {
+    if (name->count() + names->count() + pattern->count() + all->count() == 0) {
+      throw CLI::RequiredError("NAME, --maps, --maps-matching or --all-maps");
+    }
+  };
+}
+
 void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
   auto options = std::make_shared<RelocalizeOptions>();
   CLI::App* sub = app.add_subcommand(
       "relocalize",
       "Find the sensor pose in a map from the trees it detected; prints one JSON line per query");
-  CLI::Option* name = sub->add_option("NAME", options->maps.name, "Map name");
-  CLI::Option* names =
-      sub->add_option("--maps", options->maps.names,
-                      "Instead of NAME: search these maps (A,B,C) in one question; the answer "
-                      "names the map the sensor is in (\"map\")")
-          ->delimiter(',');
-  CLI::Option* pattern = sub->add_option(
-      "--maps-matching", options->maps.name_pattern,
-      "Instead of NAME: search the maps whose name matches this glob ('district-*') among those "
-      "the token may read");
-  CLI::Option* all = sub->add_flag("--all-maps", options->maps.all_readable,
-                                   "Instead of NAME: search every map the token may read");
-  for (CLI::Option* set : {names, pattern, all}) set->excludes(name);
-  names->excludes(pattern)->excludes(all);
-  pattern->excludes(all);
+  const std::function<void()> check_maps = AddMapSelection(*sub, options->maps);
   CLI::Option* trees = sub->add_option(
       "--trees", options->trees_file,
       "CSV of the trees detected in one scan, sensor frame: x,y (m) required; z, dbh (m), score, "
@@ -198,26 +209,23 @@ void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
   scan->excludes(trees);
   scan->excludes(frames);
   prior->excludes(frames);
-  sub->callback(
-      [options, name, names, pattern, all, trees, frames, scan, prior, gravity, &context] {
-        if (name->count() + names->count() + pattern->count() + all->count() == 0) {
-          throw CLI::RequiredError("NAME, --maps, --maps-matching or --all-maps");
-        }
-        if (trees->count() + frames->count() + scan->count() == 0) {
-          throw CLI::RequiredError("--trees FILE, --scan SCAN or --frames FILE");
-        }
-        if (prior->count() > 0) options->prior = PriorFlag(options->prior_text);
-        if (gravity->count() > 0) options->gravity = GravityFlag(options->gravity_values);
-        context.run = [options, &context] {
-          if (!options->scan_file.empty()) {
-            RunScan(*options, context);
-          } else if (options->frames_file.empty()) {
-            RunSingle(*options, context);
-          } else {
-            RunFrames(*options, context);
-          }
-        };
-      });
+  sub->callback([options, check_maps, trees, frames, scan, prior, gravity, &context] {
+    check_maps();
+    if (trees->count() + frames->count() + scan->count() == 0) {
+      throw CLI::RequiredError("--trees FILE, --scan SCAN or --frames FILE");
+    }
+    if (prior->count() > 0) options->prior = PriorFlag(options->prior_text);
+    if (gravity->count() > 0) options->gravity = GravityFlag(options->gravity_values);
+    context.run = [options, &context] {
+      if (!options->scan_file.empty()) {
+        RunScan(*options, context);
+      } else if (options->frames_file.empty()) {
+        RunSingle(*options, context);
+      } else {
+        RunFrames(*options, context);
+      }
+    };
+  });
 }
 
 }  // namespace forestmap::client

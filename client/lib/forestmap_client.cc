@@ -334,6 +334,14 @@ ExportedTrees ForestMapClient::ExportTreesOnce(const v1::ExportTreesRequest& req
   return exported;
 }
 
+void SetMaps(const MapSelection& maps, std::string* name, v1::MapSet* set) {
+  *name = maps.name;
+  if (maps.names.empty() && maps.name_pattern.empty() && !maps.all_readable) return;
+  for (const std::string& map : maps.names) set->add_names(map);
+  set->set_name_pattern(maps.name_pattern);
+  set->set_all_readable(maps.all_readable);
+}
+
 v1::RelocalizeResponse ForestMapClient::Relocalize(
     const std::string& name, const std::vector<algorithms::DetectedTree>& trees,
     const std::optional<PriorPosition>& prior, const std::optional<Eigen::Vector3d>& gravity) {
@@ -346,12 +354,7 @@ v1::RelocalizeResponse ForestMapClient::Relocalize(
     const MapSelection& maps, const std::vector<algorithms::DetectedTree>& trees,
     const std::optional<PriorPosition>& prior, const std::optional<Eigen::Vector3d>& gravity) {
   v1::RelocalizeRequest request;
-  request.set_name(maps.name);
-  if (!maps.names.empty() || !maps.name_pattern.empty() || maps.all_readable) {
-    for (const std::string& name : maps.names) request.mutable_maps()->add_names(name);
-    request.mutable_maps()->set_name_pattern(maps.name_pattern);
-    request.mutable_maps()->set_all_readable(maps.all_readable);
-  }
+  SetMaps(maps, request.mutable_name(), request.mutable_maps());
   request.mutable_trees()->Reserve(static_cast<int>(trees.size()));
   for (const algorithms::DetectedTree& tree : trees) *request.add_trees() = ToProto(tree);
   if (prior) {

@@ -76,6 +76,8 @@ struct MapSelection {
   std::string name_pattern;
   bool all_readable = false;
 };
+// Names `maps` in a request: its name, or its set into `set` (left unset for one map).
+void SetMaps(const MapSelection& maps, std::string* name, v1::MapSet* set);
 
 // An axis-aligned box in the map frame (m).
 struct Box2 {
@@ -134,11 +136,11 @@ class TrackSession {
  private:
   friend class ForestMapClient;
   TrackSession(
-      ForestMapClient& client, std::string map_name, std::unique_ptr<grpc::ClientContext> context,
+      ForestMapClient& client, v1::TrackHeader header, std::unique_ptr<grpc::ClientContext> context,
       std::unique_ptr<grpc::ClientReaderWriter<v1::TrackRequest, v1::TrackResponse>> stream);
 
   ForestMapClient* client_;
-  std::string map_name_;
+  v1::TrackHeader header_;
   std::unique_ptr<grpc::ClientContext> context_;
   std::unique_ptr<grpc::ClientReaderWriter<v1::TrackRequest, v1::TrackResponse>> stream_;
   bool first_ = true;
@@ -205,6 +207,9 @@ class ForestMapClient {
 
   // A tracking session in map `name` (no deadline: it lasts as long as the flight).
   TrackSession Track(const std::string& name);
+  // A session over a set of maps (or one, `maps.name`): it crosses from one map into the next;
+  // each answer's result().map_name() names its map.
+  TrackSession Track(const MapSelection& maps);
 
   // `gravity`: direction of gravity (down) in the sensor frame, when known.
   v1::RelocalizeResponse Relocalize(const std::string& name,

@@ -16,10 +16,12 @@ namespace forestmap::server {
 
 inline constexpr size_t kMaxNamePatternLength = 256;  // bytes of MapSet.name_pattern
 
-// The request's set: `name` empty beside it, exactly one of names (valid names, no duplicates,
-// at most `max_query_maps`: else RESOURCE_EXHAUSTED), name_pattern (1..kMaxNamePatternLength
-// bytes) or all_readable. Throws ValidationError naming the field ("maps.names[2]"), LimitError.
-void ValidateMapSet(const v1::RelocalizeRequest& request, int max_query_maps);
+// A set (RelocalizeRequest.maps, TrackHeader.maps): the message's `name` empty beside it,
+// exactly one of names (valid names, no duplicates, at most `max_query_maps`: else
+// RESOURCE_EXHAUSTED), name_pattern (1..kMaxNamePatternLength bytes) or all_readable. Throws
+// ValidationError naming the field (`prefix` + "maps.names[2]"), LimitError.
+void ValidateMapSet(const v1::MapSet& set, const std::string& name, const std::string& prefix,
+                    int max_query_maps);
 
 // The maps the set names that `caller` may read, with their MapInfo: listed names must exist
 // (storage kNotFound) and be readable (ServiceError kPermissionDenied); a pattern or

@@ -182,7 +182,7 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
 
 grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse>* ForestMapService::Track(
     grpc::CallbackServerContext* context) {
-  return new TrackReactor(index_cache_, options_, work_pool_, idle_streams_, answer_counts_,
+  return new TrackReactor(store_, index_cache_, options_, work_pool_, idle_streams_, answer_counts_,
                           context);
 }
 

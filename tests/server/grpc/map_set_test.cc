@@ -293,6 +293,82 @@ TEST_F(MapSetTest, BadSetsAreRefusedNamingTheField) {
   }
 }
 
+// A flight along y = 150 from plot a (x < 150) into plot b, 2 m a frame with odometry, tracked
+// in one session: the answers, and each frame's true pose.
+struct Flight {
+  std::vector<v1::TrackResponse> answers;
+  std::vector<algorithms::Pose3> truths;
+  grpc::Status status;
+};
+constexpr double kFlightStart = 110, kFlightStep = 2;
+constexpr int kFlightFrames = 46;  // to x = 200
+
+Flight Fly(v1::ForestMap::Stub& stub, const v1::TrackHeader& header) {
+  Flight flight;
+  auto context = test::CallContext(kCallDeadline);
+  auto stream = stub.Track(context.get());
+  v1::TrackRequest first;
+  *first.mutable_header() = header;
+  bool open = stream->Write(first);
+  for (int k = 0; open && k < kFlightFrames; ++k) {
+    algorithms::Pose3 truth;
+    const v1::RelocalizeRequest view =
+        ViewAt(District(), kFlightStart + kFlightStep * k, 150, 0.0, 100 + k, &truth);
+    v1::TrackRequest message;
+    v1::TrackFrame* frame = message.mutable_frame();
+    *frame->mutable_trees() = view.trees();
+    frame->set_frame_id(k);
+    if (k > 0) {
+      frame->mutable_odometry()->mutable_translation()->set_x(kFlightStep);
+      frame->mutable_odometry()->mutable_rotation()->set_w(1);
+    }
+    v1::TrackResponse answer;
+    open = stream->Write(message) && stream->Read(&answer);
+    if (!open) break;
+    flight.answers.push_back(answer);
+    flight.truths.push_back(truth);
+  }
+  stream->WritesDone();
+  flight.status = stream->Finish();
+  return flight;
+}
+
+TEST_F(MapSetTest, ATrackOverTheDistrictCrossesFromOnePlotMapIntoTheNext) {
+  v1::TrackHeader header;
+  header.mutable_maps()->set_name_pattern("district-*");
+  const Flight flight = Fly(*stub_, header);
+  ASSERT_TRUE(flight.status.ok()) << flight.status.error_message();
+  ASSERT_EQ(flight.answers.size(), static_cast<size_t>(kFlightFrames));
+  int with_pose = 0;
+  for (size_t k = 0; k < flight.answers.size(); ++k) {
+    const v1::TrackResponse& answer = flight.answers[k];
+    const double x = flight.truths[k].translation().x();
+    if (answer.state() == v1::TrackResponse::STATE_LOST) continue;
+    ++with_pose;
+    EXPECT_LT(HorizontalError(answer.result(), flight.truths[k]), kPoseTolerance) << "x " << x;
+    if (x < 140) {
+      EXPECT_EQ(answer.result().map_name(), "district-a") << "x " << x;
+    } else if (x > 165) {
+      EXPECT_EQ(answer.result().map_name(), "district-b") << "x " << x;
+    }
+  }
+  EXPECT_GE(with_pose, kFlightFrames - 2);
+  EXPECT_EQ(flight.answers.back().result().map_name(), "district-b");
+
+  // Tracked in plot a alone, the same flight loses its pose in plot b.
+  header.Clear();
+  header.set_name("district-a");
+  const Flight alone = Fly(*stub_, header);
+  ASSERT_TRUE(alone.status.ok()) << alone.status.error_message();
+  EXPECT_EQ(alone.answers.back().state(), v1::TrackResponse::STATE_LOST);
+  EXPECT_EQ(alone.answers.front().result().map_name(), "district-a");
+
+  header.mutable_maps()->set_all_readable(true);  // a name beside a set
+  const Flight both = Fly(*stub_, header);
+  EXPECT_EQ(both.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(both.status.error_message(), HasSubstr("header.name"));
+}
+
 class MapSetLimitTest : public MapSetTest {
  protected:
   MapSetLimitTest() : MapSetTest(2) {}
