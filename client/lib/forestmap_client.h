@@ -76,8 +76,8 @@ struct MapSelection {
   std::string name_pattern;
   bool all_readable = false;
 };
-// Names `maps` in a request: its name, or its set into `set` (left unset for one map).
-void SetMaps(const MapSelection& maps, std::string* name, v1::MapSet* set);
+// The set of `maps` for a request's `maps` field; nullopt when it names one map (`name`).
+std::optional<v1::MapSet> MapSetOf(const MapSelection& maps);
 
 // An axis-aligned box in the map frame (m).
 struct Box2 {

@@ -1,5 +1,6 @@
 // ForestMapClient::Track and its TrackSession: one Track stream for a whole flight.
 
+#include <optional>
 #include <stdexcept>
 #include <utility>
 
@@ -16,7 +17,8 @@ TrackSession ForestMapClient::Track(const std::string& name) {
 
 TrackSession ForestMapClient::Track(const MapSelection& maps) {
   v1::TrackHeader header;
-  SetMaps(maps, header.mutable_name(), header.mutable_maps());
+  header.set_name(maps.name);
+  if (std::optional<v1::MapSet> set = MapSetOf(maps)) *header.mutable_maps() = std::move(*set);
   auto context = NewContext(/*timeout=*/0);  // a session lasts as long as the flight
   auto stream = stub_->Track(context.get());
   return TrackSession(*this, std::move(header), std::move(context), std::move(stream));

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include "algorithms/core/polygon.h"
+
 namespace forestmap::server {
 namespace {
 
@@ -144,7 +146,21 @@ MapSetAnswer RelocalizeInMaps(MapIndexCache& cache, const std::vector<std::strin
       out.rival = i;
     }
   }
-  out.result = out.rival ? AcrossMaps(best, out.answers[*out.rival]) : best.result;
+  if (out.rival) {
+    out.result = AcrossMaps(best, out.answers[*out.rival]);
+    return out;
+  }
+  // Maps that agree: the one whose coverage holds the sensor's position names it.
+  const Eigen::Vector2d sensor = best.result.map_from_sensor.translation().head<2>();
+  for (size_t i = 0; i < out.answers.size(); ++i) {
+    const MapAnswer& answer = out.answers[i];
+    if (answer.result.status == RelocalizeStatus::kLocalized &&
+        algorithms::Contains(answer.entry.index->coverage(), sensor) &&
+        !algorithms::Contains(out.answers[*out.reported].entry.index->coverage(), sensor)) {
+      out.reported = i;
+    }
+  }
+  out.result = out.answers[*out.reported].result;
   return out;
 }
 

@@ -4,7 +4,8 @@
 // look-elsewhere test (RelocalizeQuery::other_search_area), and one answer from theirs.
 //
 // The answer: LOCALIZED when one map localizes the view, or several do at the same pose (maps of
-// one frame that overlap; the one with the most inliers answers); AMBIGUOUS when two maps
+// one frame that overlap, or a view across a plot boundary; the one whose coverage holds the
+// sensor's position answers, else the one with the most inliers); AMBIGUOUS when two maps
 // localize it at poses that disagree, or when a map localizes it and another is ambiguous
 // itself; AMBIGUOUS as a map answered when none localizes it and one is ambiguous; else
 // NOT_FOUND, reported as the map with the most inliers answered. Indexes come from the server's

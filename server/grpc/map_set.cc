@@ -43,14 +43,14 @@ void ValidateMapSet(const v1::MapSet& set, const std::string& name, const std::s
 }
 
 std::vector<std::string> ResolveMapSet(storage::MapStore& store, const Caller& caller,
-                                       const v1::MapSet& set,
+                                       std::string_view rpc, const v1::MapSet& set,
                                        const algorithms::RelocalizeQuery& query,
                                        const algorithms::RelocalizerOptions& options,
                                        int max_query_maps) {
   std::vector<storage::MapInfo> maps;
   if (set.names_size() > 0) {
     for (const std::string& name : set.names()) {
-      Require(caller, "Relocalize", name);
+      Require(caller, rpc, name);
       maps.push_back(store.GetMap(name));
     }
   } else {

@@ -4,6 +4,7 @@
 // (server/app/map_set_relocalize.h), and the question's answer in the API's terms.
 
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "algorithms/relocalization/relocalizer.h"
@@ -24,11 +25,11 @@ void ValidateMapSet(const v1::MapSet& set, const std::string& name, const std::s
                     int max_query_maps);
 
 // The maps the set names that `caller` may read, with their MapInfo: listed names must exist
-// (storage kNotFound) and be readable (ServiceError kPermissionDenied); a pattern or
+// (storage kNotFound) and allow `rpc` (ServiceError kPermissionDenied); a pattern or
 // all_readable takes the readable maps of the store (none: ServiceError kNotFound). Then
 // CandidateMaps narrows them for `query`; more than `max_query_maps` left: LimitError.
 std::vector<std::string> ResolveMapSet(storage::MapStore& store, const Caller& caller,
-                                       const v1::MapSet& set,
+                                       std::string_view rpc, const v1::MapSet& set,
                                        const algorithms::RelocalizeQuery& query,
                                        const algorithms::RelocalizerOptions& options,
                                        int max_query_maps);

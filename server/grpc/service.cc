@@ -160,7 +160,7 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
     if (context->IsCancelled()) return;  // the client is gone; its status is CANCELLED anyway
     const algorithms::RelocalizeQuery query = FromProto(*request);
     const std::vector<std::string> maps =
-        request->has_maps() ? ResolveMapSet(store_, caller, request->maps(), query,
+        request->has_maps() ? ResolveMapSet(store_, caller, "Relocalize", request->maps(), query,
                                             options_.relocalizer, options_.max_query_maps)
                             : std::vector<std::string>{request->name()};
     // No lock around the relocalizer: concurrent queries share the immutable indexes.

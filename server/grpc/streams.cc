@@ -110,7 +110,7 @@ bool TrackReactor::Answer() {
                                           max_query_trees_, options_.max_query_maps);
   if (first && message.maps) {
     over_set_ = true;
-    set_ = ResolveMapSet(store_, caller_, *message.maps, {}, options_.relocalizer,
+    set_ = ResolveMapSet(store_, caller_, "Track", *message.maps, {}, options_.relocalizer,
                          options_.max_query_maps);
   } else if (first) {
     map_name_ = message.map;

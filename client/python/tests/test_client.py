@@ -102,6 +102,9 @@ def test_relocalize_over_a_set_of_maps_names_the_map(wild, data_dir):
         answer = wild.relocalize(None, trees, **chosen)
         assert answer.localized and answer.map_name == "wild", chosen
         assert (answer.x, answer.y) == pytest.approx((one.x, one.y), abs=0.05)
+    tracked = list(wild.track(None, [trees, trees], maps=["wild-elsewhere", "wild"]))
+    assert [t.answer.map_name for t in tracked] == ["wild", "wild"]
+    assert tracked[0].state == "RECOVERED" and tracked[1].state == "TRACKING"
     with pytest.raises(ForestMapError) as error:
         wild.relocalize(None, trees, maps_matching="no-such-*")
     assert error.value.code == grpc.StatusCode.NOT_FOUND
