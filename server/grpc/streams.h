@@ -146,7 +146,7 @@ class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTrees
 // is relocalized over the set (server/app/map_set_relocalize.h) near the prediction (within the
 // tracking prior radius, grown per frame lost; over the whole set once global_after frames are
 // lost), and the session goes on in the map found, with a fresh tracker there. Each answer's
-// result.map_name names its map.
+// result.map_name names the map the session tracks in (empty before the first fix).
 class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse> {
  public:
   // Each frame's answer is counted in `counts` (which must outlive the stream).
