@@ -169,14 +169,16 @@ constexpr size_t kMinOuterTriangles = 20;
 class Searcher {
  public:
   Searcher(const MapIndexImpl& m, const LevelledQuery& q, const std::optional<PriorPose>& prior,
-           const Eigen::Vector2d& prior_xy, const RelocalizerOptions& options)
+           const Eigen::Vector2d& prior_xy, const RelocalizerOptions& options,
+           double other_search_area)
       : m_(m),
         q_(q),
         prior_(prior),
         prior_xy_(prior_xy),
         options_(options),
         check_(m, q, options),
-        reach_(QueryReach(q, options)) {}
+        reach_(QueryReach(q, options)),
+        other_search_area_(other_search_area) {}
 
   // The seeds whose triangles the next passes look up: query trees (indices), nearest to where
   // they are taken from first.
@@ -240,7 +242,8 @@ class Searcher {
 
   bool Believable(const Hypothesis& refined) {
     const PoseBelief belief =
-        Assess(m_, q_, refined, {result_.matches, SearchArea(m_, prior_, reach_)}, options_);
+        Assess(m_, q_, refined,
+               {result_.matches, SearchArea(m_, prior_, reach_) + other_search_area_}, options_);
     result_.tested.emplace(refined.pose, belief.decoys);
     return belief.believable();
   }
@@ -346,6 +349,7 @@ class Searcher {
   std::vector<Eigen::Vector2d> seed_xy_;  // ... and their positions
   QuickCheck check_;
   const double reach_;  // m, QueryReach: how far beyond the coverage a pose may see into it
+  const double other_search_area_;  // m^2, searched in the question's other maps
   // A hypothesis is polished and scored only with this many bitmap hits among the nearest
   // trees: this share of DecisiveInliers (a triangle's pose can be a few degrees off before
   // polish).
@@ -398,8 +402,8 @@ std::vector<Eigen::Vector2d> OuterSeedCentres(const LevelledQuery& q,
 
 PoseSearchResult SearchPoses(const MapIndexImpl& m, const LevelledQuery& q,
                              const std::optional<PriorPose>& prior, const Eigen::Vector2d& prior_xy,
-                             const RelocalizerOptions& options) {
-  Searcher search(m, q, prior, prior_xy, options);
+                             const RelocalizerOptions& options, double other_search_area) {
+  Searcher search(m, q, prior, prior_xy, options, other_search_area);
   search.Seed(SeedsAround(q, Eigen::Vector2d::Zero(), options.max_seed_trees),
               options.max_scored_hypotheses);
   // A first pass with a tight tolerance costs an eighth per triangle (the key box is a cube)

@@ -122,8 +122,9 @@ struct PoseSearchResult {
 // rejects almost every wrong one after a handful of lookups; the survivors are scored. The
 // search ends once a pose explains most nearby trees and a few more triangles found no rival,
 // or when the query's triangles run out. With a prior, poses outside its radius are skipped.
+// `other_search_area` (m^2): searched in other maps of the same question (RelocalizeQuery).
 PoseSearchResult SearchPoses(const MapIndexImpl& m, const LevelledQuery& q,
                              const std::optional<PriorPose>& prior, const Eigen::Vector2d& prior_xy,
-                             const RelocalizerOptions& options);
+                             const RelocalizerOptions& options, double other_search_area = 0);
 
 }  // namespace forestmap::algorithms

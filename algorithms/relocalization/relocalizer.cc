@@ -343,7 +343,8 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   Eigen::Vector2d prior_xy = Eigen::Vector2d::Zero();
   if (query.prior) prior_xy = query.prior->map_from_sensor.translation().head<2>() - m.origin;
 
-  const PoseSearchResult search = SearchPoses(m, q, query.prior, prior_xy, options);
+  const PoseSearchResult search =
+      SearchPoses(m, q, query.prior, prior_xy, options, query.other_search_area);
   const int verified = static_cast<int>(search.hypotheses.size());
   result.triangles = search.triangles;
   result.poses_checked = search.matches;
@@ -375,8 +376,9 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
   const bool tested = search.tested && search.tested->first.yaw == best.pose.yaw &&
                       search.tested->first.translation == best.pose.translation;
   result = Decide(m, q, query, best, rival,
-                  {search.matches, SearchArea(m, query.prior, QueryReach(q, options))}, options,
-                  tested ? &search.tested->second : nullptr);
+                  {search.matches,
+                   SearchArea(m, query.prior, QueryReach(q, options)) + query.other_search_area},
+                  options, tested ? &search.tested->second : nullptr);
   result.hypotheses = verified;
   result.triangles = search.triangles;
   result.poses_checked = search.matches;
@@ -384,6 +386,14 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
     return ExplainPriorMiss(index, query, options, std::move(result));
   }
   return result;
+}
+
+double QuerySearchArea(const MapIndex& index, const RelocalizeQuery& query,
+                       const RelocalizerOptions& options) {
+  options.Check();
+  const LevelledQuery q = Level(
+      query, LevelSensor(query.trees, query.gravity, options.leveling).level_from_sensor, options);
+  return SearchArea(index.impl(), query.prior, QueryReach(q, options));
 }
 
 RelocalizeResult RefineNear(const MapIndex& index, const RelocalizeQuery& query,

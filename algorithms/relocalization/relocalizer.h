@@ -33,6 +33,9 @@ struct RelocalizeQuery {
   std::vector<DetectedTree> trees;         // sensor frame
   std::optional<Eigen::Vector3d> gravity;  // gravity (down) in the sensor frame
   std::optional<PriorPose> prior;
+  // m^2 searched in the other maps of the same question (one question over many maps): counts
+  // in this map's look-elsewhere test (significance.h) beside its own search area. 0: one map.
+  double other_search_area = 0;
 };
 
 struct RelocalizerOptions {
@@ -164,6 +167,13 @@ RelocalizeResult Relocalize(const MapIndex& index, const RelocalizeQuery& query,
 RelocalizeResult RefineNear(const MapIndex& index, const RelocalizeQuery& query,
                             const Pose3& map_from_sensor_guess, double yaw_window = 0.0,
                             const RelocalizerOptions& options = {});
+
+// m^2, the area Relocalize(index, query, options) searches for the look-elsewhere test: the
+// positions from which the query's nearby trees see into the map's coverage, or the prior's disc
+// when smaller (other_search_area not included). What a question over many maps sums over the
+// other maps into each one's other_search_area.
+double QuerySearchArea(const MapIndex& index, const RelocalizeQuery& query,
+                       const RelocalizerOptions& options = {});
 
 const char* ToString(RelocalizeStatus status);
 const char* ToString(RelocalizeReason reason);

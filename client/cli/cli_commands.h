@@ -6,6 +6,8 @@
 // main.cc and add the file to the forestmap target. Benchmarks, the simulator and demo data are
 // forestmap-lab's (client/lab/lab_commands.h).
 
+#include <functional>
+
 #include "client/cli/cli_context.h"
 
 namespace forestmap::client {
@@ -22,5 +24,9 @@ void AddTrackCommand(CLI::App& app, CliContext& context);       // cli_track.cc
 void AddHealthCommand(CLI::App& app, CliContext& context);      // cli_health.cc
 void AddCompareCommand(CLI::App& app, CliContext& context);     // cli_compare.cc
 void AddPlotCommand(CLI::App& app, CliContext& context);        // cli_plot.cc
+
+// cli_relocalize.cc: NAME, or instead --maps A,B,C / --maps-matching GLOB / --all-maps (one of
+// them), into `maps` (relocalize, track). Returns the check to call in the command's callback.
+std::function<void()> AddMapSelection(CLI::App& command, MapSelection& maps);
 
 }  // namespace forestmap::client

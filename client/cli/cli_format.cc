@@ -78,6 +78,8 @@ nlohmann::ordered_json RelocalizeJson(const v1::RelocalizeResponse& response,
   nlohmann::ordered_json line;
   if (frame) line["frame"] = *frame;
   line["status"] = RelocalizeStatusName(response.status());
+  if (!response.map_name().empty()) line["map"] = response.map_name();
+  if (!response.rival_map_name().empty()) line["rival_map"] = response.rival_map_name();
   if (response.status() == v1::RelocalizeResponse::STATUS_LOCALIZED) {
     const v1::Pose& pose = response.map_from_sensor();
     line["x"] = pose.translation().x();

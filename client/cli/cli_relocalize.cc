@@ -1,9 +1,11 @@
 // `forestmap relocalize NAME --trees FILE [--prior X,Y,RADIUS_M]`,
 // `forestmap relocalize NAME --scan SCAN [--prior ...]` (trunks detected here, on the client) and
-// `forestmap relocalize NAME --frames FILE`.
+// `forestmap relocalize NAME --frames FILE`; instead of NAME a set of maps, `--maps A,B,C`,
+// `--maps-matching GLOB` or `--all-maps` (the answer names the map found in).
 
 #include <algorithm>
 #include <cstdio>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <set>
@@ -21,7 +23,7 @@ namespace {
 constexpr int kProgressEveryFrames = 50;
 
 struct RelocalizeOptions {
-  std::string map;
+  MapSelection maps;  // NAME, or --maps / --maps-matching / --all-maps
   std::string trees_file;
   std::string frames_file;
   std::string scan_file;
@@ -51,7 +53,7 @@ void RunSingle(const RelocalizeOptions& options, const CliContext& context) {
                        " frames; use --frames to relocalize each frame");
   }
   PrintLine(context,
-            context.Connect().Relocalize(options.map, trees, options.prior, options.gravity), {});
+            context.Connect().Relocalize(options.maps, trees, options.prior, options.gravity), {});
 }
 
 // Detects the trunks of one scan here, then asks the server: what the drone's thin client does.
@@ -63,7 +65,7 @@ void RunScan(const RelocalizeOptions& options, const CliContext& context) {
                << " points, " << scan.trees.size() << " trees detected in " << ms << " ms"
                << std::endl;
   PrintLine(context,
-            context.Connect().Relocalize(options.map, scan.trees, options.prior, options.gravity),
+            context.Connect().Relocalize(options.maps, scan.trees, options.prior, options.gravity),
             {});
 }
 
@@ -100,7 +102,7 @@ void RunFrames(const RelocalizeOptions& options, const CliContext& context) {
   for (size_t i = 0; i < frames.size(); ++i) {
     const Frame& frame = frames[i];
     try {
-      const v1::RelocalizeResponse response = client.Relocalize(options.map, frame.trees);
+      const v1::RelocalizeResponse response = client.Relocalize(options.maps, frame.trees);
       counts.Add(response);
       PrintLine(context, response, frame.frame);
     } catch (const RpcError& error) {
@@ -149,12 +151,36 @@ Eigen::Vector3d GravityFlag(const std::vector<double>& values) {
 
 }  // namespace
 
+std::function<void()> AddMapSelection(CLI::App& command, MapSelection& maps) {
+  CLI::Option* name = command.add_option("NAME", maps.name, "Map name");
+  CLI::Option* names =
+      command
+          .add_option("--maps", maps.names,
+                      "Instead of NAME: these maps (A,B,C), in one question; each answer names "
+                      "the map the sensor is in (\"map\")")
+          ->delimiter(',');
+  CLI::Option* pattern = command.add_option(
+      "--maps-matching", maps.name_pattern,
+      "Instead of NAME: the maps whose name matches this glob ('district-*') among those the "
+      "token may read");
+  CLI::Option* all = command.add_flag("--all-maps", maps.all_readable,
+                                      "Instead of NAME: every map the token may read");
+  for (CLI::Option* set : {names, pattern, all}) set->excludes(name);
+  names->excludes(pattern)->excludes(all);
+  pattern->excludes(all);
+  return [name, names, pattern, all] {
+    if (name->count() + names->count() + pattern->count() + all->count() == 0) {
+      throw CLI::RequiredError("NAME, --maps, --maps-matching or --all-maps");
+    }
+  };
+}
+
 void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
   auto options = std::make_shared<RelocalizeOptions>();
   CLI::App* sub = app.add_subcommand(
       "relocalize",
       "Find the sensor pose in a map from the trees it detected; prints one JSON line per query");
-  sub->add_option("NAME", options->map, "Map name")->required();
+  const std::function<void()> check_maps = AddMapSelection(*sub, options->maps);
   CLI::Option* trees = sub->add_option(
       "--trees", options->trees_file,
       "CSV of the trees detected in one scan, sensor frame: x,y (m) required; z, dbh (m), score, "
@@ -183,7 +209,8 @@ void AddRelocalizeCommand(CLI::App& app, CliContext& context) {
   scan->excludes(trees);
   scan->excludes(frames);
   prior->excludes(frames);
-  sub->callback([options, trees, frames, scan, prior, gravity, &context] {
+  sub->callback([options, check_maps, trees, frames, scan, prior, gravity, &context] {
+    check_maps();
     if (trees->count() + frames->count() + scan->count() == 0) {
       throw CLI::RequiredError("--trees FILE, --scan SCAN or --frames FILE");
     }

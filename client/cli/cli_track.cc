@@ -1,8 +1,11 @@
 // `forestmap track NAME --frames FILE [--odometry POSES]`: one tracking session (the Track RPC)
 // driven from a file of frames, in frame order. Prints one JSON line per frame and a summary.
+// Instead of NAME a set of maps (--maps, --maps-matching, --all-maps): the session crosses from
+// one map into the next, each line naming its map.
 
 #include <algorithm>
 #include <cstdio>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -19,7 +22,7 @@ namespace {
 constexpr int kProgressEveryFrames = 200;
 
 struct TrackOptions {
-  std::string map;
+  MapSelection maps;  // NAME, or --maps / --maps-matching / --all-maps
   std::string frames_file;
   std::string odometry_file;
 };
@@ -56,7 +59,7 @@ void Run(const TrackOptions& options, const CliContext& context) {
   OdometryFromPoses odometry(options.odometry_file);
 
   ForestMapClient client = context.Connect();
-  TrackSession session = client.Track(options.map);
+  TrackSession session = client.Track(options.maps);
   int counts[4] = {0, 0, 0, 0};  // by TrackResponse::State
   int longest_loss = 0;
   std::vector<double> server_ms;
@@ -98,7 +101,7 @@ void AddTrackCommand(CLI::App& app, CliContext& context) {
       "track",
       "Track a drone through a map frame by frame (one tracking session); prints one JSON line "
       "per frame with its state (tracking, recovered, lost)");
-  sub->add_option("NAME", options->map, "Map name")->required();
+  const std::function<void()> check_maps = AddMapSelection(*sub, options->maps);
   sub->add_option("--frames", options->frames_file,
                   "CSV of the scans' trees with a frame column (frame,x,y,...), sensor frame, "
                   "sent in file order")
@@ -108,8 +111,10 @@ void AddTrackCommand(CLI::App& app, CliContext& context) {
                   "Poses CSV (frame,timestamp,x,y,z,qx,qy,qz,qw) in any world frame: the motion "
                   "between consecutive frames is sent as odometry")
       ->check(CLI::ExistingFile);
-  sub->callback(
-      [options, &context] { context.run = [options, &context] { Run(*options, context); }; });
+  sub->callback([options, check_maps, &context] {
+    check_maps();
+    context.run = [options, &context] { Run(*options, context); };
+  });
 }
 
 }  // namespace forestmap::client

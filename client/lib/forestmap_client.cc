@@ -339,11 +339,29 @@ ExportedTrees ForestMapClient::ExportTreesOnce(const v1::ExportTreesRequest& req
   return exported;
 }
 
+std::optional<v1::MapSet> MapSetOf(const MapSelection& maps) {
+  if (maps.names.empty() && maps.name_pattern.empty() && !maps.all_readable) return std::nullopt;
+  v1::MapSet set;
+  for (const std::string& map : maps.names) set.add_names(map);
+  set.set_name_pattern(maps.name_pattern);
+  set.set_all_readable(maps.all_readable);
+  return set;
+}
+
 v1::RelocalizeResponse ForestMapClient::Relocalize(
     const std::string& name, const std::vector<algorithms::DetectedTree>& trees,
     const std::optional<PriorPosition>& prior, const std::optional<Eigen::Vector3d>& gravity) {
+  MapSelection one;
+  one.name = name;
+  return Relocalize(one, trees, prior, gravity);
+}
+
+v1::RelocalizeResponse ForestMapClient::Relocalize(
+    const MapSelection& maps, const std::vector<algorithms::DetectedTree>& trees,
+    const std::optional<PriorPosition>& prior, const std::optional<Eigen::Vector3d>& gravity) {
   v1::RelocalizeRequest request;
-  request.set_name(name);
+  request.set_name(maps.name);
+  if (std::optional<v1::MapSet> set = MapSetOf(maps)) *request.mutable_maps() = std::move(*set);
   request.mutable_trees()->Reserve(static_cast<int>(trees.size()));
   for (const algorithms::DetectedTree& tree : trees) *request.add_trees() = ToProto(tree);
   if (prior) {

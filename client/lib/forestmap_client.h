@@ -68,6 +68,18 @@ struct PriorPosition {
   double radius_m = 10;  // m, the sensor is within this distance of (x, y)
 };
 
+// The maps a Relocalize searches: one map by `name`, or a set (relocalization.proto MapSet):
+// the maps `names`, those matching `name_pattern` (a glob, "district-*"), or `all_readable`
+// maps. The answer's map_name says which map the sensor was found in.
+struct MapSelection {
+  std::string name;
+  std::vector<std::string> names;
+  std::string name_pattern;
+  bool all_readable = false;
+};
+// The set of `maps` for a request's `maps` field; nullopt when it names one map (`name`).
+std::optional<v1::MapSet> MapSetOf(const MapSelection& maps);
+
 // An axis-aligned box in the map frame (m).
 struct Box2 {
   double min_x = 0, min_y = 0, max_x = 0, max_y = 0;
@@ -126,11 +138,11 @@ class TrackSession {
  private:
   friend class ForestMapClient;
   TrackSession(
-      ForestMapClient& client, std::string map_name, std::unique_ptr<grpc::ClientContext> context,
+      ForestMapClient& client, v1::TrackHeader header, std::unique_ptr<grpc::ClientContext> context,
       std::unique_ptr<grpc::ClientReaderWriter<v1::TrackRequest, v1::TrackResponse>> stream);
 
   ForestMapClient* client_;
-  std::string map_name_;
+  v1::TrackHeader header_;
   std::unique_ptr<grpc::ClientContext> context_;
   std::unique_ptr<grpc::ClientReaderWriter<v1::TrackRequest, v1::TrackResponse>> stream_;
   bool first_ = true;
@@ -202,9 +214,17 @@ class ForestMapClient {
 
   // A tracking session in map `name` (no deadline: it lasts as long as the flight).
   TrackSession Track(const std::string& name);
+  // A session over a set of maps (or one, `maps.name`): it crosses from one map into the next;
+  // each answer's result().map_name() names its map.
+  TrackSession Track(const MapSelection& maps);
 
   // `gravity`: direction of gravity (down) in the sensor frame, when known.
   v1::RelocalizeResponse Relocalize(const std::string& name,
+                                    const std::vector<algorithms::DetectedTree>& trees,
+                                    const std::optional<PriorPosition>& prior = {},
+                                    const std::optional<Eigen::Vector3d>& gravity = {});
+  // The same over a set of maps (or one map, `maps.name`).
+  v1::RelocalizeResponse Relocalize(const MapSelection& maps,
                                     const std::vector<algorithms::DetectedTree>& trees,
                                     const std::optional<PriorPosition>& prior = {},
                                     const std::optional<Eigen::Vector3d>& gravity = {});

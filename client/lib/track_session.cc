@@ -1,5 +1,6 @@
 // ForestMapClient::Track and its TrackSession: one Track stream for a whole flight.
 
+#include <optional>
 #include <stdexcept>
 #include <utility>
 
@@ -9,16 +10,25 @@
 namespace forestmap::client {
 
 TrackSession ForestMapClient::Track(const std::string& name) {
+  MapSelection one;
+  one.name = name;
+  return Track(one);
+}
+
+TrackSession ForestMapClient::Track(const MapSelection& maps) {
+  v1::TrackHeader header;
+  header.set_name(maps.name);
+  if (std::optional<v1::MapSet> set = MapSetOf(maps)) *header.mutable_maps() = std::move(*set);
   auto context = NewContext(/*timeout=*/0);  // a session lasts as long as the flight
   auto stream = stub_->Track(context.get());
-  return TrackSession(*this, name, std::move(context), std::move(stream));
+  return TrackSession(*this, std::move(header), std::move(context), std::move(stream));
 }
 
 TrackSession::TrackSession(
-    ForestMapClient& client, std::string map_name, std::unique_ptr<grpc::ClientContext> context,
+    ForestMapClient& client, v1::TrackHeader header, std::unique_ptr<grpc::ClientContext> context,
     std::unique_ptr<grpc::ClientReaderWriter<v1::TrackRequest, v1::TrackResponse>> stream)
     : client_(&client),
-      map_name_(std::move(map_name)),
+      header_(std::move(header)),
       context_(std::move(context)),
       stream_(std::move(stream)) {}
 
@@ -30,8 +40,8 @@ TrackSession::~TrackSession() {
 
 v1::TrackResponse TrackSession::Step(const TrackFrame& frame) {
   if (!stream_) throw std::logic_error("TrackSession::Step after Finish");
-  v1::TrackRequest header;  // the first message names the map, and gets no answer
-  header.mutable_header()->set_name(map_name_);
+  v1::TrackRequest header;  // the first message names the map (or maps), and gets no answer
+  *header.mutable_header() = header_;
   v1::TrackRequest request;
   v1::TrackFrame& out = *request.mutable_frame();
   out.set_frame_id(frame.frame_id);

@@ -3,8 +3,10 @@
 #include <chrono>
 #include <optional>
 #include <stdexcept>
+#include <string>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 #include "algorithms/core/check.h"
 #include "server/app/map_crs.h"
@@ -13,6 +15,7 @@
 #include "server/grpc/convert.h"
 #include "server/grpc/geo_convert.h"
 #include "server/grpc/list_pages.h"
+#include "server/grpc/map_set.h"
 #include "server/grpc/replay.h"
 #include "server/grpc/status.h"
 #include "server/grpc/streams.h"
@@ -49,6 +52,7 @@ void LogFault(std::string_view message) { Log(LogLevel::kWarn, message); }
 
 void ServiceOptions::Check() const {
   Require(max_query_trees >= kMinQueryTrees, "ServiceOptions.max_query_trees must be >= 3");
+  Require(max_query_maps >= 1, "ServiceOptions.max_query_maps must be >= 1");
   Require(max_upload_trees >= 1, "ServiceOptions.max_upload_trees must be >= 1");
   Require(export_chunk_trees >= 1, "ServiceOptions.export_chunk_trees must be >= 1");
   Require(export_chunk_bytes >= 1, "ServiceOptions.export_chunk_bytes must be >= 1");
@@ -151,29 +155,34 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
                                                        v1::RelocalizeResponse* response) {
   const auto start = std::chrono::steady_clock::now();
   return AnswerOn(work_pool_, context, "Relocalize", [this, context, request, response, start] {
-    Authorize(options_.authorizer, *context, "Relocalize", request->name());
-    Validate(*request, options_.max_query_trees);
+    const Caller caller = Authorize(options_.authorizer, *context, "Relocalize", request->name());
+    Validate(*request, options_.max_query_trees, options_.max_query_maps);
     if (context->IsCancelled()) return;  // the client is gone; its status is CANCELLED anyway
-    // No lock around the relocalizer: concurrent queries share the immutable index.
-    const MapIndexCache::Entry entry = index_cache_.Get(request->name());
-    const algorithms::RelocalizeResult result =
-        algorithms::Relocalize(*entry.index, FromProto(*request), options_.relocalizer);
-    *response = ToProto(result);
-    response->set_map_version(entry.version);
+    const algorithms::RelocalizeQuery query = FromProto(*request);
+    const std::vector<std::string> maps =
+        request->has_maps() ? ResolveMapSet(store_, caller, "Relocalize", request->maps(), query,
+                                            options_.relocalizer, options_.max_query_maps)
+                            : std::vector<std::string>{request->name()};
+    // No lock around the relocalizer: concurrent queries share the immutable indexes.
+    const MapSetAnswer answer = RelocalizeInMaps(index_cache_, maps, query, options_.relocalizer);
+    *response = ToProto(answer);
     if (request->has_client_stamp_ns()) response->set_client_stamp_ns(request->client_stamp_ns());
     std::optional<geo::GeodeticPose> geodetic;
-    if (entry.to_wgs84) geodetic = AddGeodetic(*response, *entry.to_wgs84);
+    if (answer.reported) {
+      const MapAnswer& reported = answer.answers[*answer.reported];
+      if (reported.entry.to_wgs84) geodetic = AddGeodetic(*response, *reported.entry.to_wgs84);
+    }
     const std::chrono::duration<double, std::milli> elapsed =
         std::chrono::steady_clock::now() - start;
     response->set_server_time_ms(elapsed.count());
-    recent_answers_.Add(request->name(), result, geodetic);
-    answer_counts_.Relocalized(result);
+    recent_answers_.Add(response->map_name(), answer.result, geodetic);
+    answer_counts_.Relocalized(answer.result);
   });
 }
 
 grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse>* ForestMapService::Track(
     grpc::CallbackServerContext* context) {
-  return new TrackReactor(index_cache_, options_, work_pool_, idle_streams_, answer_counts_,
+  return new TrackReactor(store_, index_cache_, options_, work_pool_, idle_streams_, answer_counts_,
                           context);
 }
 

@@ -37,10 +37,12 @@
 //                (server/grpc/decode_guard.h); RESOURCE_EXHAUSTED "database full",
 //                FAILED_PRECONDITION "database read-only", DATA_LOSS, UNAVAILABLE for faults of the
 //                database
-//   Relocalize   INVALID_ARGUMENT (name, fewer than 3 trees, a bad tree / prior / gravity),
-//                RESOURCE_EXHAUSTED (more than max_query_trees), NOT_FOUND (map),
-//                FAILED_PRECONDITION (the map has no confirmed trees). "Not localized" is not an
-//                error: it is OK with status AMBIGUOUS or NOT_FOUND in the response.
+//   Relocalize   INVALID_ARGUMENT (name, fewer than 3 trees, a bad tree / prior / gravity, a bad
+//                map set), RESOURCE_EXHAUSTED (more than max_query_trees, or max_query_maps),
+//                NOT_FOUND (map; a set's pattern finding no readable map), PERMISSION_DENIED (a
+//                listed map the token may not read), FAILED_PRECONDITION (the map has no
+//                confirmed trees). "Not localized" is not an error: it is OK with status
+//                AMBIGUOUS or NOT_FOUND in the response. A set: server/grpc/map_set.h.
 //   Observe      INVALID_ARGUMENT (name, source, no frames, duplicate frame ids, a bad tree
 //                "frames[f].trees[i]..." / pose / gravity), RESOURCE_EXHAUSTED (observe limits),
 //                NOT_FOUND (map), ABORTED (REJECT_IF_STALE and the map is past base_version).
@@ -78,7 +80,10 @@ class Authorizer;
 struct Caller;
 
 struct ServiceOptions {
-  int max_query_trees = 20'000;           // trees per Relocalize request
+  int max_query_trees = 20'000;  // trees per Relocalize request
+  // Maps one Relocalize question over a set (RelocalizeRequest.maps) may search, after the prior
+  // left out the far ones; each is a full search, its index held while the question runs.
+  int max_query_maps = kDefaultMaxQueryMaps;
   int64_t max_upload_trees = 20'000'000;  // trees per UploadTrees stream (staged in the database)
   // Trees an upload stages per transaction: the most of an upload held in memory (count).
   int upload_stage_trees = 10'000;

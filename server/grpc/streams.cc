@@ -5,11 +5,13 @@
 #include <stdexcept>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "server/grpc/authorize.h"
 #include "server/grpc/convert.h"
 #include "server/grpc/geo_convert.h"
 #include "server/grpc/legacy_layout.h"
+#include "server/grpc/map_set.h"
 #include "server/grpc/service.h"
 #include "server/grpc/status.h"
 
@@ -27,10 +29,12 @@ algorithms::TrackingOptions SessionOptions(const ServiceOptions& options) {
 
 }  // namespace
 
-TrackReactor::TrackReactor(MapIndexCache& index_cache, const ServiceOptions& options,
-                           WorkerPool& work_pool, IdleStreams& idle, AnswerCounts& counts,
-                           grpc::CallbackServerContext* context)
-    : index_cache_(index_cache),
+TrackReactor::TrackReactor(storage::MapStore& store, MapIndexCache& index_cache,
+                           const ServiceOptions& options, WorkerPool& work_pool, IdleStreams& idle,
+                           AnswerCounts& counts, grpc::CallbackServerContext* context)
+    : store_(store),
+      options_(options),
+      index_cache_(index_cache),
       work_pool_(work_pool),
       authorizer_(options.authorizer),
       counts_(counts),
@@ -42,7 +46,7 @@ TrackReactor::TrackReactor(MapIndexCache& index_cache, const ServiceOptions& opt
   // check reads the token store: on the pool, not on gRPC's thread.
   const bool queued = work_pool_.TrySubmit([this] {
     const grpc::Status opened =
-        RunGuarded("Track", [this] { Authorize(authorizer_, *context_, "Track", ""); });
+        RunGuarded("Track", [this] { caller_ = Authorize(authorizer_, *context_, "Track", ""); });
     if (opened.ok()) {
       Read();
     } else {
@@ -97,27 +101,89 @@ void TrackReactor::OnWriteDone(bool ok) {
 
 bool TrackReactor::Answer() {
   const auto start = std::chrono::steady_clock::now();
-  if (map_name_.empty()) {
+  const bool first = map_name_.empty() && !over_set_;
+  if (first) {
     // The first message: authorized for the map it names before anything else is looked at.
     Authorize(authorizer_, *context_, "Track", FirstMessageMap(request_));
   }
-  TrackMessage message = ReadTrackMessage(request_, map_name_, max_query_trees_);
-  if (map_name_.empty()) map_name_ = message.map;
+  TrackMessage message = ReadTrackMessage(request_, over_set_ ? kSetSession : map_name_,
+                                          max_query_trees_, options_.max_query_maps);
+  if (first && message.maps) {
+    over_set_ = true;
+    set_ = ResolveMapSet(store_, caller_, "Track", *message.maps, {}, options_.relocalizer,
+                         options_.max_query_maps);
+  } else if (first) {
+    map_name_ = message.map;
+  }
   if (!message.frame) return false;  // a header: nothing to answer
   const v1::TrackFrame& frame = *message.frame;
-  const MapIndexCache::Entry entry = index_cache_.Get(map_name_);
-  const algorithms::TrackingStep step = tracker_.Step(*entry.index, FromProto(frame));
+  std::optional<MapIndexCache::Entry> entry;
+  algorithms::TrackingStep step;
+  if (over_set_) {
+    step = StepOverSet(FromProto(frame), entry);
+  } else {
+    entry = index_cache_.Get(map_name_);
+    step = tracker_.Step(*entry->index, FromProto(frame));
+  }
   counts_.Tracked(step.state);
   response_ = ToProto(step);
   response_.set_frame_id(frame.frame_id());
   v1::RelocalizeResponse& result = *response_.mutable_result();
-  result.set_map_version(entry.version);
+  if (entry) {
+    result.set_map_name(map_name_);
+    result.set_map_version(entry->version);
+  }
   if (frame.has_client_stamp_ns()) result.set_client_stamp_ns(frame.client_stamp_ns());
-  if (entry.to_wgs84) AddGeodetic(result, *entry.to_wgs84);
+  if (entry && entry->to_wgs84) AddGeodetic(result, *entry->to_wgs84);
   const std::chrono::duration<double, std::milli> elapsed =
       std::chrono::steady_clock::now() - start;
   result.set_server_time_ms(elapsed.count());
   return true;
+}
+
+algorithms::TrackingStep TrackReactor::StepOverSet(const algorithms::TrackingFrame& frame,
+                                                   std::optional<MapIndexCache::Entry>& entry) {
+  algorithms::TrackingStep step;
+  if (!map_name_.empty()) {
+    entry = index_cache_.Get(map_name_);
+    step = tracker_.Step(*entry->index, frame);
+    if (step.state != algorithms::TrackState::kLost) return step;
+  }
+  // The map of the last fix lost the pose (or there is none yet): the frame over the whole set,
+  // near the prediction while there is one and the track was lost only lately.
+  const int lost = map_name_.empty() ? set_frames_lost_ + 1 : step.frames_lost;
+  const algorithms::TrackingOptions& tracking = options_.tracking;
+  algorithms::RelocalizeQuery query = frame.query;
+  query.prior.reset();
+  if (tracker_.prediction() && lost <= tracking.global_after) {
+    query.prior = algorithms::PriorPose{
+        *tracker_.prediction(), tracking.prior_radius + tracking.radius_growth * (lost - 1)};
+  }
+  std::vector<storage::MapInfo> maps;
+  for (const std::string& name : set_) {
+    try {
+      maps.push_back(store_.GetMap(name));
+    } catch (const storage::StorageError& error) {  // deleted since the session began: skipped
+      if (error.code() != storage::StorageError::Code::kNotFound) throw;
+    }
+  }
+  const MapSetAnswer found = RelocalizeInMaps(
+      index_cache_, CandidateMaps(maps, query, options_.relocalizer), query, options_.relocalizer);
+  if (found.result.status == algorithms::RelocalizeStatus::kLocalized) {
+    // A fresh session in the map found: the frame searched there again, which seeds the tracker.
+    map_name_ = found.answers[*found.reported].map;
+    entry = found.answers[*found.reported].entry;
+    tracker_ = algorithms::Tracker(SessionOptions(options_));
+    set_frames_lost_ = 0;
+    return tracker_.Step(*entry->index, frame);
+  }
+  if (!map_name_.empty()) return step;  // lost in its map, and found in none
+  set_frames_lost_ = lost;
+  step.state = algorithms::TrackState::kLost;
+  step.method = query.prior ? algorithms::TrackMethod::kPrior : algorithms::TrackMethod::kGlobal;
+  step.result = found.result;
+  step.frames_lost = lost;
+  return step;
 }
 
 }  // namespace forestmap::server

@@ -140,11 +140,21 @@ class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTrees
 // on to a new map version as soon as there is one. A bad message, an unknown map or a map without
 // trees ends the stream with its status, the message prefixed with the frame when it is one
 // ("frame 12: frame.trees[3].position.x is NaN").
+//
+// A header naming a set of maps (TrackHeader.maps, resolved as for Relocalize: the maps with trees
+// the caller may read, at most max_query_maps) tracks across them: the session tracks in the map
+// it last found the sensor in; when that map loses the pose (or before the first fix), the frame
+// is relocalized over the set (server/app/map_set_relocalize.h) near the prediction (within the
+// tracking prior radius, grown per frame lost; over the whole set once global_after frames are
+// lost), and the session goes on in the map found, with a fresh tracker there. Each answer's
+// result.map_name names the map the session tracks in (empty before the first fix).
 class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::TrackResponse> {
  public:
   // Each frame's answer is counted in `counts` (which must outlive the stream).
-  TrackReactor(MapIndexCache& index_cache, const ServiceOptions& options, WorkerPool& work_pool,
-               IdleStreams& idle, AnswerCounts& counts, grpc::CallbackServerContext* context);
+  // `store` and `options` must outlive the stream (the service's).
+  TrackReactor(storage::MapStore& store, MapIndexCache& index_cache, const ServiceOptions& options,
+               WorkerPool& work_pool, IdleStreams& idle, AnswerCounts& counts,
+               grpc::CallbackServerContext* context);
 
   void OnReadDone(bool ok) override;
   void OnWriteDone(bool ok) override;
@@ -152,9 +162,14 @@ class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::
 
  private:
   bool Answer();  // request_ -> response_ (true), or a header read (false); throws
-  void Read();    // the next message (the stream then waits for its client)
+  // A frame of a session over a set of maps; `entry`: the index of the map it was answered in.
+  algorithms::TrackingStep StepOverSet(const algorithms::TrackingFrame& frame,
+                                       std::optional<MapIndexCache::Entry>& entry);
+  void Read();  // the next message (the stream then waits for its client)
   void End(const grpc::Status& status);
 
+  storage::MapStore& store_;
+  const ServiceOptions& options_;
   MapIndexCache& index_cache_;
   WorkerPool& work_pool_;
   const Authorizer* authorizer_;  // checked as the stream opens and on the first message
@@ -163,7 +178,11 @@ class TrackReactor final : public grpc::ServerBidiReactor<v1::TrackRequest, v1::
   std::unique_ptr<IdleStreams::Watch> watch_;
   int max_query_trees_;
   algorithms::Tracker tracker_;
-  std::string map_name_;  // from the first message
+  std::string map_name_;          // from the first message; over a set, the map of the last fix
+  Caller caller_;                 // as the stream opened
+  bool over_set_ = false;         // the header named a set of maps ...
+  std::vector<std::string> set_;  // ... these, with trees, readable by the caller
+  int set_frames_lost_ = 0;       // frames in a row without a fix before the first one
   v1::TrackRequest request_;
   v1::TrackResponse response_;
 };

@@ -8,6 +8,7 @@
 #include <tuple>
 
 #include "server/grpc/legacy_layout.h"
+#include "server/grpc/map_set.h"
 #include "storage/map_store.h"
 
 namespace forestmap::server {
@@ -275,8 +276,12 @@ void Validate(const v1::RemoveSourceRequest& request) {
   ValidateSource(request.source(), "source");
 }
 
-void Validate(const v1::RelocalizeRequest& request, int max_query_trees) {
-  ValidateMapName(request.name(), "name");
+void Validate(const v1::RelocalizeRequest& request, int max_query_trees, int max_query_maps) {
+  if (request.has_maps()) {
+    ValidateMapSet(request.maps(), request.name(), "", max_query_maps);
+  } else {
+    ValidateMapName(request.name(), "name");
+  }
   const int n = request.trees_size();  // fewer than 3: answered NOT_FOUND (TOO_FEW_TREES)
   if (n > max_query_trees) {
     throw LimitError("trees: " + std::to_string(n) + " trees exceed the limit of " +
@@ -314,7 +319,7 @@ void ValidatePrior(const v1::PriorPose& prior, const std::string& path) {
 }
 
 TrackMessage ReadTrackMessage(v1::TrackRequest& request, const std::string& session_map,
-                              int max_query_trees) {
+                              int max_query_trees, int max_query_maps) {
   if (HasLegacyFields(request) && request.part_case() != v1::TrackRequest::PART_NOT_SET) {
     throw ValidationError(request.has_header() ? "header" : "frame", kMixedLayouts);
   }
@@ -323,6 +328,11 @@ TrackMessage ReadTrackMessage(v1::TrackRequest& request, const std::string& sess
   if (request.has_header()) {
     if (!session_map.empty()) {
       throw ValidationError("header", ": only the first message of a Track stream is a header");
+    }
+    if (request.header().has_maps()) {
+      ValidateMapSet(request.header().maps(), request.header().name(), "header.", max_query_maps);
+      message.maps = request.header().maps();
+      return message;
     }
     message.map = request.header().name();
     ValidateMapName(message.map, "header.name");

@@ -53,19 +53,23 @@ void Validate(const v1::CreateMapRequest& request);
 void Validate(const v1::GetMapRequest& request);
 void Validate(const v1::DeleteMapRequest& request);
 void Validate(const v1::ExportTreesRequest& request);
-void Validate(const v1::RelocalizeRequest& request, int max_query_trees);
+// With `maps` set (a question over many maps), the set as ValidateMapSet (server/grpc/map_set.h).
+void Validate(const v1::RelocalizeRequest& request, int max_query_trees,
+              int max_query_maps = kDefaultMaxQueryMaps);
 // A prior: x and y, or the deprecated pose of release 0.1.0 (not both); radius_m > 0.
 void ValidatePrior(const v1::PriorPose& prior, const std::string& path);
 
 // One message of a Track stream, in either layout (server/grpc/legacy_layout.h), checked: a header
 // first, then frames of any number of trees up to the limit. `session_map` is the map the first
-// message named ("" while reading that one).
+// message named ("" while reading that one; kSetSession after a header naming a set of maps).
+inline constexpr const char* kSetSession = "*";  // never a map name
 struct TrackMessage {
   std::string map;                      // the map a first message names ("" on later ones)
+  std::optional<v1::MapSet> maps;       // or the set of maps a header names (ValidateMapSet)
   std::optional<v1::TrackFrame> frame;  // the frame to answer; none for a header
 };
 TrackMessage ReadTrackMessage(v1::TrackRequest& request, const std::string& session_map,
-                              int max_query_trees);
+                              int max_query_trees, int max_query_maps = kDefaultMaxQueryMaps);
 
 // Shared maps (observations.proto).
 inline constexpr size_t kMaxSourceLength = 128;         // bytes

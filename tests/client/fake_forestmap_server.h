@@ -164,7 +164,15 @@ class FakeForestMapService final : public v1::ForestMap::Service {
                           v1::RelocalizeResponse* response) override {
     std::lock_guard lock(mutex);
     last_relocalize = *request;
-    if (!maps.count(request->name())) return NotFound(request->name());
+    // A set of maps answers in its last name, or in the first map for a pattern or every map.
+    std::string name = request->name();
+    if (request->has_maps()) {
+      const v1::MapSet& set = request->maps();
+      name = set.names_size() > 0 ? set.names(set.names_size() - 1)
+                                  : (maps.empty() ? "" : maps.begin()->first);
+    }
+    if (!maps.count(name)) return NotFound(name);
+    response->set_map_name(name);
     if (request->trees_size() < 3) {  // as forestmapd: an answer, not an error
       response->set_status(v1::RelocalizeResponse::STATUS_NOT_FOUND);
       response->set_reason(v1::RelocalizeResponse::REASON_TOO_FEW_TREES);
@@ -172,7 +180,7 @@ class FakeForestMapService final : public v1::ForestMap::Service {
       return grpc::Status::OK;
     }
     response->set_server_time_ms(2.5);
-    response->set_map_version(maps[request->name()].info.version());
+    response->set_map_version(maps[name].info.version());
     if (request->trees_size() < 10) {
       response->set_status(v1::RelocalizeResponse::STATUS_NOT_FOUND);
       response->set_detail("too few trees matched");

@@ -65,10 +65,12 @@ class AsyncClient(ClientBase):
             call.gather.add(response)
         return call.gather.result()
 
-    async def track(self, name: str, frames, *, columns: Optional[Sequence[str]] = None,
-                    timeout: Optional[float] = None) -> AsyncIterator[answers.TrackAnswer]:
+    async def track(self, name: Optional[str], frames, *,
+                    columns: Optional[Sequence[str]] = None, timeout: Optional[float] = None,
+                    maps: Optional[Sequence[str]] = None, maps_matching: Optional[str] = None,
+                    all_maps: bool = False) -> AsyncIterator[answers.TrackAnswer]:
         """As Client.track; frames may also be an async iterable."""
-        pending = tracking.Pending(name, frames, columns)
+        pending = tracking.Pending(name, frames, columns, (maps, maps_matching, all_maps))
         deadline = timeout or self._connection.stream_timeout
         failures = 0
         while True:

@@ -124,6 +124,10 @@ class Answer:
     rival_map_from_sensor: Optional[np.ndarray] = None
     stamp_ns: Optional[int] = None      # the request's client stamp, echoed
     geodetic: Optional[Geodetic] = None  # when LOCALIZED on a map with a CRS
+    # The map the answer refers to (over a set of maps: the one localized in), and when two maps
+    # of a set disagree (AMBIGUOUS), the map of rival_map_from_sensor.
+    map_name: str = ""
+    rival_map_name: str = ""
 
     @property
     def localized(self) -> bool:
@@ -165,7 +169,8 @@ def answer(response: relocalization_pb2.RelocalizeResponse) -> Answer:
         geodetic=Geodetic(g.latitude_deg, g.longitude_deg, g.ellipsoidal_height_m,
                           g.true_heading_deg, g.grid_convergence_deg,
                           g.transformation_accuracy_m, g.ballpark_transformation)
-        if response.HasField("geodetic") else None)
+        if response.HasField("geodetic") else None,
+        map_name=response.map_name, rival_map_name=response.rival_map_name)
 
 
 @dataclass

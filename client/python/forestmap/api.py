@@ -118,21 +118,34 @@ class Methods:
 
     # ---- relocalization ----
 
-    def relocalize(self, name: str, trees, prior: Optional[Tuple[float, ...]] = None,
+    def relocalize(self, name: Optional[str], trees, prior: Optional[Tuple[float, ...]] = None,
                    gravity: Optional[Sequence[float]] = None, *,
                    columns: Optional[Sequence[str]] = None,
-                   stamp_ns: Optional[int] = None) -> answers.Answer:
+                   stamp_ns: Optional[int] = None, maps: Optional[Sequence[str]] = None,
+                   maps_matching: Optional[str] = None,
+                   all_maps: bool = False) -> answers.Answer:
         """Pose of the sensor in the map from the trees it detected (sensor frame, m).
 
         prior: (x, y, radius_m): the sensor is within radius_m of (x, y) in the map frame (a
         4-tuple (x, y, yaw_deg, radius_m) of older versions is read too: the yaw was never
         used). gravity: direction of gravity (down) in the sensor frame. stamp_ns: your time
-        stamp of the detections, echoed in Answer.stamp_ns."""
-        return self._run(self._relocalize(name, trees, prior, gravity, columns, stamp_ns))
+        stamp of the detections, echoed in Answer.stamp_ns.
 
-    def _relocalize(self, name, trees, prior, gravity, columns, stamp_ns):
+        Instead of one map (name None): one question over a set of maps, ``maps`` (names),
+        ``maps_matching`` (a glob, "district-*") or ``all_maps`` (every map the token may read);
+        Answer.map_name says which map the sensor was found in."""
+        return self._run(self._relocalize(name, trees, prior, gravity, columns, stamp_ns,
+                                          (maps, maps_matching, all_maps)))
+
+    def _relocalize(self, name, trees, prior, gravity, columns, stamp_ns, map_set=(None, None,
+                                                                                   False)):
         request = relocalization_pb2.RelocalizeRequest(
-            name=name, trees=inputs.detected_trees(trees, columns))
+            name=name or "", trees=inputs.detected_trees(trees, columns))
+        names, pattern, every = map_set
+        if names or pattern or every:
+            request.maps.names.extend(names or ())
+            request.maps.name_pattern = pattern or ""
+            request.maps.all_readable = bool(every)
         if prior is not None:
             x, y, radius = (prior[0], prior[1], prior[-1]) if len(prior) == 4 else prior
             request.prior.x, request.prior.y, request.prior.radius_m = x, y, radius

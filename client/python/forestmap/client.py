@@ -108,16 +108,22 @@ class Client(ClientBase):
             call.gather.add(response)
         return call.gather.result()
 
-    def track(self, name: str, frames: Iterable, *, columns: Optional[Sequence[str]] = None,
-              timeout: Optional[float] = None) -> Iterator[answers.TrackAnswer]:
+    def track(self, name: Optional[str], frames: Iterable, *,
+              columns: Optional[Sequence[str]] = None, timeout: Optional[float] = None,
+              maps: Optional[Sequence[str]] = None, maps_matching: Optional[str] = None,
+              all_maps: bool = False) -> Iterator[answers.TrackAnswer]:
         """A tracking session: yields one answer per frame, in order.
 
         frames: tracking.Frame (trees with frame_id, stamp_ns, gravity, odometry), or trees, or
         (frame_id, trees) tuples; read lazily, so a live generator works. timeout: deadline of
         the whole session (s; default stream_timeout). When the replica fails (cannot be
         reached, or stalls past the deadline) the session goes on at the next replica with the
-        frames not answered yet (a new session there: it starts by a search)."""
-        pending = tracking.Pending(name, frames, columns)
+        frames not answered yet (a new session there: it starts by a search).
+
+        Instead of one map (name None): a set, ``maps``, ``maps_matching`` or ``all_maps`` as
+        for relocalize; the session crosses from one map into the next, and each answer's
+        answer.map_name names its map."""
+        pending = tracking.Pending(name, frames, columns, (maps, maps_matching, all_maps))
         deadline = timeout or self._connection.stream_timeout
         failures = 0
         while True:

@@ -64,8 +64,14 @@ class Pending:
 
     _END = object()
 
-    def __init__(self, name: str, frames, columns):
-        self.header = tracking_pb2.TrackRequest(header=tracking_pb2.TrackHeader(name=name))
+    def __init__(self, name: Optional[str], frames, columns, map_set=(None, None, False)):
+        header = tracking_pb2.TrackHeader(name=name or "")
+        names, pattern, every = map_set  # a session over a set of maps (Client.track)
+        if names or pattern or every:
+            header.maps.names.extend(names or ())
+            header.maps.name_pattern = pattern or ""
+            header.maps.all_readable = bool(every)
+        self.header = tracking_pb2.TrackRequest(header=header)
         self.frames, self.columns = frames, columns
         self.source = None
         self.unanswered = collections.deque()

@@ -92,6 +92,25 @@ def test_relocalize_with_a_prior(wild, data_dir):
     assert not far.localized
 
 
+def test_relocalize_over_a_set_of_maps_names_the_map(wild, data_dir):
+    trees, _ = detections(data_dir, FRAME)
+    rng = np.random.default_rng(9)
+    wild.create_map("wild-elsewhere", rng.uniform(0, 300, (3000, 2)), columns=("x", "y"))
+    one = wild.relocalize("wild", trees)
+    assert one.map_name == "wild"
+    for chosen in ({"maps": ["wild-elsewhere", "wild"]}, {"maps_matching": "wild*"}):
+        answer = wild.relocalize(None, trees, **chosen)
+        assert answer.localized and answer.map_name == "wild", chosen
+        assert (answer.x, answer.y) == pytest.approx((one.x, one.y), abs=0.05)
+    tracked = list(wild.track(None, [trees, trees], maps=["wild-elsewhere", "wild"]))
+    assert [t.answer.map_name for t in tracked] == ["wild", "wild"]
+    assert tracked[0].state == "RECOVERED" and tracked[1].state == "TRACKING"
+    with pytest.raises(ForestMapError) as error:
+        wild.relocalize(None, trees, maps_matching="no-such-*")
+    assert error.value.code == grpc.StatusCode.NOT_FOUND
+    wild.delete_map("wild-elsewhere")
+
+
 def test_a_bad_tree_names_its_field_in_the_error_details(wild):
     trees = np.array([[1.0, 2.0, 0.0], [1.0, 1.0, -1.0], [3.0, 4.0, 0.0]])
     with pytest.raises(ForestMapError) as error:

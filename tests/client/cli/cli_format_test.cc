@@ -107,6 +107,19 @@ TEST(CliFormatTest, RelocalizeJsonWithoutPoseUnlessLocalized) {
   EXPECT_EQ(RelocalizeJson(response)["detail"], "best pose matches 3 trees");
 }
 
+TEST(CliFormatTest, RelocalizeJsonNamesTheMapAndAnotherMapsRival) {
+  v1::RelocalizeResponse response = Localized(0);
+  response.set_map_name("district-b");
+  nlohmann::ordered_json line = RelocalizeJson(response);
+  EXPECT_EQ(std::next(line.begin()).key(), "map");
+  EXPECT_EQ(line["map"], "district-b");
+  EXPECT_FALSE(line.contains("rival_map"));
+  response.set_status(v1::RelocalizeResponse::STATUS_AMBIGUOUS);
+  response.set_rival_map_name("district-c");
+  line = RelocalizeJson(response);
+  EXPECT_EQ(line["rival_map"], "district-c");
+}
+
 TEST(CliFormatTest, YawIsTheHeadingOfTheSensorXAxis) {
   // A sensor pitched 30 deg about its y axis, then turned 75 deg about map z.
   algorithms::Pose3 map_from_sensor = algorithms::Pose3::Identity();

@@ -359,6 +359,43 @@ TEST_F(CliTest, RelocalizePrintsOneJsonLine) {
   EXPECT_EQ(no_map.err, "forestmap: error: Relocalize: NOT_FOUND: no map named 'nope'\n");
 }
 
+TEST_F(CliTest, RelocalizeOverASetOfMapsSendsTheSetAndPrintsTheMapFoundIn) {
+  testing::FakeForestMapServer server;
+  const std::string s = "--server " + server.address() + " ";
+  ASSERT_EQ(Run(s + "map create plot-a").exit_code, 0);
+  ASSERT_EQ(Run(s + "map create plot-b").exit_code, 0);
+  const std::string trees = " --trees '" + Write("scan.csv", Scan(12)).string() + "'";
+
+  const Result listed = Run(s + "relocalize --maps plot-a,plot-b" + trees);
+  ASSERT_EQ(listed.exit_code, 0) << listed.err;
+  EXPECT_EQ(nlohmann::json::parse(listed.out)["map"], "plot-b");  // the fake's choice
+  const v1::RelocalizeRequest& sent = server.service().last_relocalize;
+  EXPECT_TRUE(sent.name().empty());
+  EXPECT_EQ(std::vector<std::string>(sent.maps().names().begin(), sent.maps().names().end()),
+            (std::vector<std::string>{"plot-a", "plot-b"}));
+
+  ASSERT_EQ(Run(s + "relocalize --maps-matching 'plot-*'" + trees).exit_code, 0);
+  EXPECT_EQ(server.service().last_relocalize.maps().name_pattern(), "plot-*");
+  EXPECT_EQ(server.service().last_relocalize.maps().names_size(), 0);
+  const Result all = Run(s + "relocalize --all-maps" + trees);
+  ASSERT_EQ(all.exit_code, 0) << all.err;
+  EXPECT_TRUE(server.service().last_relocalize.maps().all_readable());
+  EXPECT_EQ(nlohmann::json::parse(all.out)["map"], "plot-a");
+
+  const Result one = Run(s + "relocalize plot-a" + trees);  // one map: no set, its name printed
+  EXPECT_FALSE(server.service().last_relocalize.has_maps());
+  EXPECT_EQ(nlohmann::json::parse(one.out)["map"], "plot-a");
+
+  for (const auto& [bad, says] : std::vector<std::pair<std::string, std::string>>{
+           {"relocalize" + trees, "NAME, --maps, --maps-matching or --all-maps is required"},
+           {"relocalize plot-a --maps plot-b" + trees, "excludes"},
+           {"relocalize --all-maps --maps-matching 'p*'" + trees, "excludes"}}) {
+    const Result refused = Run(s + bad);
+    EXPECT_EQ(refused.exit_code, 2) << bad << ": " << refused.err;
+    EXPECT_NE(refused.err.find(says), std::string::npos) << bad << ": " << refused.err;
+  }
+}
+
 // Mapping an unknown forest: 100 real Wild_V01 frames, no poses, become a new map.
 TEST_F(CliTest, MapBuildCreatesAMapFromFramesAlone) {
   const std::string frames = std::string(FORESTMAP_SHARED_DATA) + "/sequences/Wild_V01/trees.csv";

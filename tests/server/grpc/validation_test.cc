@@ -11,6 +11,7 @@
 #include <tuple>
 
 #include "server/grpc/convert.h"
+#include "server/grpc/map_set.h"
 #include "server/grpc/upload_validator.h"
 
 namespace forestmap::server {
@@ -451,6 +452,46 @@ TEST(ValidationTest, TrackStreamHeaderThenFrames) {
   for (int i = 0; i < 11; ++i) many.mutable_frame()->add_trees()->mutable_position();
   EXPECT_EQ(ErrorOf<LimitError>([&] { ReadTrackMessage(many, "plot", 10); }),
             "frame.trees: 11 trees exceed the limit of 10 per frame");
+}
+
+TEST(ValidationTest, TrackHeaderMayNameASetOfMaps) {
+  v1::TrackRequest header;
+  header.mutable_header()->mutable_maps()->set_name_pattern("district-*");
+  const TrackMessage first = ReadTrackMessage(header, "", 100);
+  ASSERT_TRUE(first.maps);
+  EXPECT_EQ(first.maps->name_pattern(), "district-*");
+  EXPECT_TRUE(first.map.empty());
+  v1::TrackRequest frame;
+  frame.mutable_frame()->add_trees()->mutable_position();
+  EXPECT_TRUE(ReadTrackMessage(frame, kSetSession, 100).frame);
+
+  v1::TrackRequest both = header;
+  both.mutable_header()->set_name("plot");
+  EXPECT_EQ(FieldOf([&] { ReadTrackMessage(both, "", 100); }), "header.name");
+  v1::TrackRequest empty;
+  empty.mutable_header()->mutable_maps();
+  EXPECT_EQ(FieldOf([&] { ReadTrackMessage(empty, "", 100); }), "header.maps");
+  v1::TrackRequest twice;
+  twice.mutable_header()->mutable_maps()->add_names("a");
+  twice.mutable_header()->mutable_maps()->add_names("a");
+  EXPECT_EQ(FieldOf([&] { ReadTrackMessage(twice, "", 100); }), "header.maps.names[1]");
+  v1::TrackRequest many;
+  for (const char* name : {"a", "b", "c"}) many.mutable_header()->mutable_maps()->add_names(name);
+  EXPECT_EQ(ErrorOf<LimitError>([&] { ReadTrackMessage(many, "", 100, 2); }),
+            "header.maps.names: 3 maps exceed the limit of 2 per question");
+}
+
+TEST(ValidationTest, RelocalizeOverASetOfMaps) {
+  v1::RelocalizeRequest request;
+  request.mutable_maps()->set_all_readable(true);
+  EXPECT_NO_THROW(Validate(request, 100));
+  request.set_name("plot");
+  EXPECT_EQ(FieldOf([&] { Validate(request, 100); }), "name");
+  request.clear_name();
+  request.mutable_maps()->set_name_pattern(std::string(kMaxNamePatternLength + 1, '*'));
+  EXPECT_EQ(FieldOf([&] { Validate(request, 100); }), "maps");  // two ways given
+  request.mutable_maps()->set_all_readable(false);
+  EXPECT_EQ(FieldOf([&] { Validate(request, 100); }), "maps.name_pattern");
 }
 
 TEST(ValidationTest, ExportBox) {

@@ -1,0 +1,167 @@
+#include "server/app/map_set_relocalize.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "algorithms/core/polygon.h"
+
+namespace forestmap::server {
+namespace {
+
+using algorithms::RelocalizeReason;
+using algorithms::RelocalizeResult;
+using algorithms::RelocalizeStatus;
+
+double Yaw(const algorithms::Pose3& pose) {
+  return std::atan2(pose.linear()(1, 0), pose.linear()(0, 0));
+}
+
+// Whether two maps' poses are the same place (maps of one frame), by the relocalizer's own
+// measure of distinct poses.
+bool SamePlace(const algorithms::Pose3& a, const algorithms::Pose3& b,
+               const algorithms::RelocalizerOptions& options) {
+  const double apart = (a.translation().head<2>() - b.translation().head<2>()).norm();
+  const double turn = std::abs(std::remainder(Yaw(a) - Yaw(b), 2 * M_PI));
+  return apart <= options.distinct_distance && turn <= options.distinct_yaw;
+}
+
+RelocalizeResult NoMapSearched(const algorithms::RelocalizeQuery& query) {
+  RelocalizeResult result;
+  result.status = RelocalizeStatus::kNotFound;
+  if (query.prior) {
+    result.reason = RelocalizeReason::kOutsidePrior;
+    result.detail = "no map of the set reaches within the prior's radius of its position";
+  } else {
+    result.reason = RelocalizeReason::kNoMatchingConstellation;
+    result.detail = "no map of the set has confirmed trees to search";
+  }
+  return result;
+}
+
+// The question's AMBIGUOUS answer from `best`'s map, against `rival` of another map.
+RelocalizeResult AcrossMaps(const MapAnswer& best, const MapAnswer& rival) {
+  RelocalizeResult result = best.result;
+  result.status = RelocalizeStatus::kAmbiguous;
+  result.reason = RelocalizeReason::kAmbiguous;
+  result.rival_map_from_sensor = rival.result.map_from_sensor;
+  result.covariance.setZero();
+  result.confidence = 0;
+  if (rival.result.status == RelocalizeStatus::kLocalized) {
+    const double apart = (best.result.map_from_sensor.translation().head<2>() -
+                          rival.result.map_from_sensor.translation().head<2>())
+                             .norm();
+    char numbers[96];
+    std::snprintf(numbers, sizeof numbers, " (%d and %d inliers, %.1f m apart)",
+                  best.result.inliers, rival.result.inliers, apart);
+    result.detail = "the view fits maps '" + best.map + "' and '" + rival.map +
+                    "' at poses that disagree" + numbers;
+  } else {
+    result.detail = "the view fits map '" + best.map + "', and map '" + rival.map +
+                    "' in several places (" + rival.result.detail + ")";
+  }
+  return result;
+}
+
+}  // namespace
+
+double ViewRange(const algorithms::RelocalizeQuery& query,
+                 const algorithms::RelocalizerOptions& options) {
+  double range = 0;
+  for (const algorithms::DetectedTree& tree : query.trees) {
+    range = std::max(range, tree.position.norm());  // >= its horizontal range at any tilt
+  }
+  return std::min(range, options.max_query_range);
+}
+
+bool MayHoldSensor(const storage::Extent& extent, const algorithms::PriorPose& prior,
+                   double range) {
+  const double x = prior.map_from_sensor.translation().x();
+  const double y = prior.map_from_sensor.translation().y();
+  const double dx = std::max({extent.min_x - x, 0.0, x - extent.max_x});
+  const double dy = std::max({extent.min_y - y, 0.0, y - extent.max_y});
+  return std::hypot(dx, dy) <= prior.radius + range;
+}
+
+std::vector<std::string> CandidateMaps(const std::vector<storage::MapInfo>& maps,
+                                       const algorithms::RelocalizeQuery& query,
+                                       const algorithms::RelocalizerOptions& options) {
+  const double range = ViewRange(query, options);
+  std::vector<std::string> names;
+  for (const storage::MapInfo& info : maps) {
+    if (info.confirmed_count == 0 || !info.extent) continue;
+    if (query.prior && !MayHoldSensor(*info.extent, *query.prior, range)) continue;
+    names.push_back(info.name);
+  }
+  return names;
+}
+
+MapSetAnswer RelocalizeInMaps(MapIndexCache& cache, const std::vector<std::string>& maps,
+                              const algorithms::RelocalizeQuery& query,
+                              const algorithms::RelocalizerOptions& options) {
+  MapSetAnswer out;
+  if (maps.empty()) {
+    out.result = NoMapSearched(query);
+    return out;
+  }
+  double total_area = 0;
+  for (const std::string& name : maps) {
+    MapAnswer& answer = out.answers.emplace_back();
+    answer.map = name;
+    answer.entry = cache.Get(name);
+    if (maps.size() > 1) {  // one map alone: nothing to add to its own look-elsewhere test
+      answer.search_area = algorithms::QuerySearchArea(*answer.entry.index, query, options);
+    }
+    total_area += answer.search_area;
+  }
+  for (MapAnswer& answer : out.answers) {
+    algorithms::RelocalizeQuery own = query;
+    own.other_search_area = std::max(0.0, total_area - answer.search_area);
+    answer.result = algorithms::Relocalize(*answer.entry.index, own, options);
+  }
+  // The best of each status: most inliers.
+  const auto best_with = [&](RelocalizeStatus status) {
+    std::optional<size_t> best;
+    for (size_t i = 0; i < out.answers.size(); ++i) {
+      if (out.answers[i].result.status != status) continue;
+      if (!best || out.answers[i].result.inliers > out.answers[*best].result.inliers) best = i;
+    }
+    return best;
+  };
+  const std::optional<size_t> localized = best_with(RelocalizeStatus::kLocalized);
+  const std::optional<size_t> ambiguous = best_with(RelocalizeStatus::kAmbiguous);
+  if (!localized) {
+    out.reported = ambiguous ? ambiguous : best_with(RelocalizeStatus::kNotFound);
+    out.result = out.answers[*out.reported].result;
+    return out;
+  }
+  out.reported = localized;
+  const MapAnswer& best = out.answers[*localized];
+  for (size_t i = 0; i < out.answers.size() && !out.rival; ++i) {
+    const RelocalizeResult& other = out.answers[i].result;
+    if (i == *localized) continue;
+    if (other.status == RelocalizeStatus::kAmbiguous ||
+        (other.status == RelocalizeStatus::kLocalized &&
+         !SamePlace(other.map_from_sensor, best.result.map_from_sensor, options))) {
+      out.rival = i;
+    }
+  }
+  if (out.rival) {
+    out.result = AcrossMaps(best, out.answers[*out.rival]);
+    return out;
+  }
+  // Maps that agree: the one whose coverage holds the sensor's position names it.
+  const Eigen::Vector2d sensor = best.result.map_from_sensor.translation().head<2>();
+  for (size_t i = 0; i < out.answers.size(); ++i) {
+    const MapAnswer& answer = out.answers[i];
+    if (answer.result.status == RelocalizeStatus::kLocalized &&
+        algorithms::Contains(answer.entry.index->coverage(), sensor) &&
+        !algorithms::Contains(out.answers[*out.reported].entry.index->coverage(), sensor)) {
+      out.reported = i;
+    }
+  }
+  out.result = out.answers[*out.reported].result;
+  return out;
+}
+
+}  // namespace forestmap::server

@@ -1,0 +1,93 @@
+#include "server/grpc/map_set.h"
+
+#include <fnmatch.h>
+
+#include <algorithm>
+#include <set>
+
+#include "server/app/errors.h"
+#include "server/grpc/convert.h"
+#include "server/grpc/validation.h"
+
+namespace forestmap::server {
+
+void ValidateMapSet(const v1::MapSet& set, const std::string& name, const std::string& prefix,
+                    int max_query_maps) {
+  if (!name.empty()) {
+    throw ValidationError(prefix + "name", " is set beside maps; name one map, or a set in maps");
+  }
+  const int ways = (set.names_size() > 0) + !set.name_pattern().empty() + set.all_readable();
+  if (ways != 1) {
+    throw ValidationError(prefix + "maps",
+                          ways == 0 ? " is empty; give names, name_pattern or all_readable"
+                                    : " sets more than one of names, name_pattern and "
+                                      "all_readable; give one");
+  }
+  if (set.names_size() > max_query_maps) {
+    throw LimitError(prefix + "maps.names: " + std::to_string(set.names_size()) +
+                     " maps exceed the limit of " + std::to_string(max_query_maps) +
+                     " per question");
+  }
+  std::set<std::string> seen;
+  for (int i = 0; i < set.names_size(); ++i) {
+    const std::string field = Indexed(prefix + "maps.names", i);
+    ValidateMapName(set.names(i), field);
+    if (!seen.insert(set.names(i)).second) {
+      throw ValidationError(field, " names " + Quoted(set.names(i)) + " a second time");
+    }
+  }
+  if (set.name_pattern().size() > kMaxNamePatternLength) {
+    throw ValidationError(prefix + "maps.name_pattern",
+                          " is longer than " + std::to_string(kMaxNamePatternLength) + " bytes");
+  }
+}
+
+std::vector<std::string> ResolveMapSet(storage::MapStore& store, const Caller& caller,
+                                       std::string_view rpc, const v1::MapSet& set,
+                                       const algorithms::RelocalizeQuery& query,
+                                       const algorithms::RelocalizerOptions& options,
+                                       int max_query_maps) {
+  std::vector<storage::MapInfo> maps;
+  if (set.names_size() > 0) {
+    for (const std::string& name : set.names()) {
+      Require(caller, rpc, name);
+      maps.push_back(store.GetMap(name));
+    }
+  } else {
+    for (storage::MapInfo& info : store.ListMaps()) {
+      const bool named =
+          set.all_readable() || fnmatch(set.name_pattern().c_str(), info.name.c_str(), 0) == 0;
+      if (named && caller.CanRead(info.name)) maps.push_back(std::move(info));
+    }
+    if (maps.empty()) {
+      const std::string who = caller.token ? caller.Name() + " may read" : "the server holds";
+      throw ServiceError(ErrorCode::kNotFound, set.all_readable()
+                                                   ? "maps: there is no map " + who
+                                                   : "maps.name_pattern: no map " + who +
+                                                         " matches " + Quoted(set.name_pattern()));
+    }
+    std::sort(maps.begin(), maps.end(),
+              [](const auto& a, const auto& b) { return a.name < b.name; });
+  }
+  std::vector<std::string> candidates = CandidateMaps(maps, query, options);
+  if (candidates.size() > static_cast<size_t>(max_query_maps)) {
+    throw LimitError("maps: " + std::to_string(candidates.size()) +
+                     " maps with trees may hold the sensor, over the limit of " +
+                     std::to_string(max_query_maps) +
+                     " per question; name fewer maps, or give a prior to leave out the far ones");
+  }
+  return candidates;
+}
+
+v1::RelocalizeResponse ToProto(const MapSetAnswer& answer) {
+  v1::RelocalizeResponse response = ToProto(answer.result);
+  if (answer.reported) {
+    const MapAnswer& reported = answer.answers[*answer.reported];
+    response.set_map_name(reported.map);
+    response.set_map_version(reported.entry.version);
+  }
+  if (answer.rival) response.set_rival_map_name(answer.answers[*answer.rival].map);
+  return response;
+}
+
+}  // namespace forestmap::server

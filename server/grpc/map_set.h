@@ -1,0 +1,42 @@
+#pragma once
+// Relocalize over a set of maps (RelocalizeRequest.maps, relocalization.proto): the set checked,
+// resolved to the maps the caller may read, narrowed to those that may hold the sensor
+// (server/app/map_set_relocalize.h), and the question's answer in the API's terms.
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "algorithms/relocalization/relocalizer.h"
+#include "forestmap/v1/relocalization.pb.h"
+#include "server/app/map_set_relocalize.h"
+#include "server/ops/auth.h"
+#include "storage/map_store.h"
+
+namespace forestmap::server {
+
+inline constexpr size_t kMaxNamePatternLength = 256;  // bytes of MapSet.name_pattern
+
+// A set (RelocalizeRequest.maps, TrackHeader.maps): the message's `name` empty beside it,
+// exactly one of names (valid names, no duplicates, at most `max_query_maps`: else
+// RESOURCE_EXHAUSTED), name_pattern (1..kMaxNamePatternLength bytes) or all_readable. Throws
+// ValidationError naming the field (`prefix` + "maps.names[2]"), LimitError.
+void ValidateMapSet(const v1::MapSet& set, const std::string& name, const std::string& prefix,
+                    int max_query_maps);
+
+// The maps the set names that `caller` may read, with their MapInfo: listed names must exist
+// (storage kNotFound) and allow `rpc` (ServiceError kPermissionDenied); a pattern or
+// all_readable takes the readable maps of the store (none: ServiceError kNotFound). Then
+// CandidateMaps narrows them for `query`; more than `max_query_maps` left: LimitError.
+std::vector<std::string> ResolveMapSet(storage::MapStore& store, const Caller& caller,
+                                       std::string_view rpc, const v1::MapSet& set,
+                                       const algorithms::RelocalizeQuery& query,
+                                       const algorithms::RelocalizerOptions& options,
+                                       int max_query_maps);
+
+// The question's answer: the result (ToProto), and of the reported map its name, version; the
+// rival map's name when two maps disagree. (No time, stamp or geodetic pose: the caller adds
+// them.)
+v1::RelocalizeResponse ToProto(const MapSetAnswer& answer);
+
+}  // namespace forestmap::server

@@ -1,0 +1,126 @@
+// One question over many maps, in the application layer: which maps may hold the sensor, and
+// which map's answer the question gives, over plot maps cut from one generated forest in an
+// in-memory store.
+#include "server/app/map_set_relocalize.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "algorithms/simulation/view_simulator.h"
+#include "storage/sqlite/store.h"
+#include "tests/algorithms/relocalization/generated_forest.h"
+
+namespace forestmap::server {
+namespace {
+
+using algorithms::RelocalizeStatus;
+
+storage::MapInfo Info(const std::string& name, storage::Extent extent, int64_t confirmed = 10) {
+  storage::MapInfo info;
+  info.name = name;
+  info.confirmed_count = confirmed;
+  info.extent = extent;
+  return info;
+}
+
+algorithms::RelocalizeQuery QueryWithin(double max_range, std::optional<Eigen::Vector2d> prior,
+                                        double radius) {
+  algorithms::RelocalizeQuery query;
+  for (double r : {3.0, 7.0, max_range}) {
+    algorithms::DetectedTree tree;
+    tree.position = Eigen::Vector3d(0, r, 0);
+    query.trees.push_back(tree);
+  }
+  if (prior) {
+    query.prior = algorithms::PriorPose{};
+    query.prior->map_from_sensor.translation().head<2>() = *prior;
+    query.prior->radius = radius;
+  }
+  return query;
+}
+
+TEST(CandidateMaps, APriorKeepsTheMapsItsDiscGrownByTheViewMeets) {
+  const std::vector<storage::MapInfo> maps = {
+      Info("a", {0, 0, 100, 100}), Info("b", {100, 0, 200, 100}), Info("c", {300, 0, 400, 100}),
+      Info("empty", {0, 0, 100, 100}, 0)};
+  const algorithms::RelocalizerOptions options;  // max_query_range 60 m
+  // No prior: every map with confirmed trees, in order.
+  EXPECT_EQ(CandidateMaps(maps, QueryWithin(20, {}, 0), options),
+            (std::vector<std::string>{"a", "b", "c"}));
+  // At (50, 50) within 10 m, trees seen up to 20 m: b begins 50 m away, beyond 30 m.
+  EXPECT_EQ(CandidateMaps(maps, QueryWithin(20, Eigen::Vector2d(50, 50), 10), options),
+            (std::vector<std::string>{"a"}));
+  // Seen up to 45 m: b's extent is within 55 m.
+  EXPECT_EQ(CandidateMaps(maps, QueryWithin(45, Eigen::Vector2d(50, 50), 10), options),
+            (std::vector<std::string>{"a", "b"}));
+  // A tree 500 m away counts only up to max_query_range: c (250 m away) stays out.
+  EXPECT_EQ(CandidateMaps(maps, QueryWithin(500, Eigen::Vector2d(50, 50), 10), options),
+            (std::vector<std::string>{"a", "b"}));
+  EXPECT_DOUBLE_EQ(ViewRange(QueryWithin(500, {}, 0), options), options.max_query_range);
+}
+
+TEST(RelocalizeInMaps, NoMapToSearchIsNotFoundOutsideThePrior) {
+  storage::SqliteMapStore store(":memory:");
+  MapIndexCache cache(store);
+  const MapSetAnswer answer = RelocalizeInMaps(cache, {}, QueryWithin(20, Eigen::Vector2d(0, 0), 5),
+                                               algorithms::RelocalizerOptions());
+  EXPECT_EQ(answer.result.status, RelocalizeStatus::kNotFound);
+  EXPECT_EQ(answer.result.reason, algorithms::RelocalizeReason::kOutsidePrior);
+  EXPECT_FALSE(answer.reported);
+}
+
+// Plot a is the forest's x < 150, plot b its x >= 150 with every other tree (a thinner survey).
+// A sensor just inside b sees more of a's trees than of b's: both maps localize it at one pose,
+// and the question names b, the map whose coverage holds the sensor.
+TEST(RelocalizeInMaps, MapsThatAgreeAreNamedByTheOneHoldingTheSensor) {
+  const std::vector<algorithms::MapTree> forest = algorithms::testing_util::Forest(7, 300);
+  storage::SqliteMapStore store(":memory:");
+  std::vector<storage::TreeRecord> a, b;
+  for (const algorithms::MapTree& tree : forest) {
+    storage::TreeRecord record;
+    record.id = tree.id;
+    record.x = tree.position.x();
+    record.y = tree.position.y();
+    if (std::isfinite(tree.dbh)) record.dbh = tree.dbh;
+    if (tree.position.x() < 150) {
+      a.push_back(record);
+    } else if (tree.id % 2 == 0) {
+      b.push_back(record);
+    }
+  }
+  store.CreateMap("a", "", "");
+  store.WriteTrees("a", a, storage::WriteMode::kAppend);
+  store.CreateMap("b", "", "");
+  store.WriteTrees("b", b, storage::WriteMode::kAppend);
+  MapIndexCache cache(store);
+  const algorithms::ViewSimulator simulator(forest);
+  int both = 0;
+  for (unsigned seed = 0; seed < 6; ++seed) {
+    algorithms::ViewOptions view;
+    view.seed = seed;
+    view.range = 25;
+    algorithms::RelocalizeQuery query;
+    query.trees = simulator.Simulate({156, 60 + 30 * seed}, 0.5 * seed, view).trees;
+    const MapSetAnswer answer =
+        RelocalizeInMaps(cache, {"a", "b"}, query, algorithms::RelocalizerOptions());
+    ASSERT_EQ(answer.answers.size(), 2u);
+    const algorithms::RelocalizeResult& in_a = answer.answers[0].result;
+    const algorithms::RelocalizeResult& in_b = answer.answers[1].result;
+    if (in_a.status != RelocalizeStatus::kLocalized ||
+        in_b.status != RelocalizeStatus::kLocalized || in_a.inliers <= in_b.inliers) {
+      continue;  // not the case this test is about
+    }
+    ++both;
+    EXPECT_EQ(answer.result.status, RelocalizeStatus::kLocalized) << "seed " << seed;
+    ASSERT_TRUE(answer.reported);
+    EXPECT_EQ(answer.answers[*answer.reported].map, "b") << "seed " << seed;
+    EXPECT_FALSE(answer.rival);
+  }
+  EXPECT_GE(both, 2);
+}
+
+}  // namespace
+}  // namespace forestmap::server
