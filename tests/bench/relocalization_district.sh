@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Relocalization across a forest district (issue 13's bar), measured on this machine:
+# Relocalization across a forest district (docs/performance.md), measured on this machine:
 #   tests/bench/relocalization_district.sh [--quick]   (after ./deploy/build.sh; --quick: 200
 #                                                       views, a 200,000-tree mosaic, 50 views
 #                                                       per foreign pair; FORESTMAP_BIN: the
@@ -34,8 +34,10 @@ print("| %s | %d | %s | %d (%d loc., %d amb., %d n.f.) | %.2f / %.2f ms | %.2f m
 echo "| case | views | recall | wrong (outcomes) | wall p50 / p95 | CPU p95 | mean NEES (3 dof) | index |"
 echo "|---|---|---|---|---|---|---|---|"
 MAPS=$S/siplab_boreasNS.csv,$S/spatstat_longleaf.csv,$S/spatstat_urkiola.csv,$S/spatstat_waka.csv,$S/ads_Allogny.csv,$S/ads_BPoirier.csv
-row "mosaic of 6 stem maps, $MOSAIC trees" --mosaic $MAPS --mosaic-trees $MOSAIC \
-  --simulate $VIEWS --range 15 --seed 3
+for seed in 1 2 3; do
+  row "mosaic of 6 stem maps, $MOSAIC trees, seed $seed" --mosaic $MAPS --mosaic-trees $MOSAIC \
+    --simulate $VIEWS --range 15 --seed $seed
+done
 for design in 3,2.5,0.3,0.15 3,3,0.5,0.3 4,4,0.5,0.25 4,4,0.2,0.1 5,5,0.2,0.05; do
   for seed in 1 2; do
     row "plantation $design (seed $seed) vs its own map" --plantation $design \
