@@ -264,6 +264,40 @@ TEST(RelocalizerDecision, ViewsAcrossTheSurveysEdgeAreJudgedOnWhatTheMapCovers) 
   EXPECT_GE(localized, views / 2);
 }
 
+// A survey that mapped the west half of a forest and, east of it, only one tree in ten (trees
+// met on the way out): derived from its trees, the map covers the east too, and a view across
+// the edge is judged against the east trees it sees and the map lacks. With the survey's
+// boundary, those trees are neither support nor evidence: the views are found, never wrongly.
+TEST(RelocalizerDecision, ASurveyBoundaryKeepsUnsurveyedTreesOutOfTheDecision) {
+  const std::vector<MapTree> forest = Forest(23);
+  std::vector<MapTree> surveyed;
+  for (size_t i = 0; i < forest.size(); ++i) {
+    if (forest[i].position.x() < 100 || i % 10 == 0) surveyed.push_back(forest[i]);
+  }
+  const Polygon west{{{0, 0}, {100, 0}, {100, 200}, {0, 200}}, {}};
+  const MapIndex derived(surveyed), bounded(surveyed, {}, {west});
+  EXPECT_FALSE(bounded.coverage_derived());
+  ViewSimulator simulator(forest);
+  int found_derived = 0, found_bounded = 0;
+  for (int k = 0; k < 20; ++k) {
+    ViewOptions view;
+    view.seed = 700 + static_cast<unsigned>(k);
+    const SimulatedView v = simulator.Simulate(Eigen::Vector2d(102, 30 + 7 * k), 0.3 * k, view);
+    RelocalizeQuery query;
+    query.trees = v.trees;
+    for (const auto& [index, found] :
+         {std::pair{&derived, &found_derived}, {&bounded, &found_bounded}}) {
+      const RelocalizeResult r = Relocalize(*index, query);
+      if (r.status != RelocalizeStatus::kLocalized) continue;
+      const PoseError e = ComparePoses(r.map_from_sensor, v.map_from_sensor);
+      ASSERT_TRUE(e.xy < 0.5 && e.yaw < 5) << "wrong pose, view " << k;
+      ++*found;
+    }
+  }
+  EXPECT_GE(found_bounded, 15);
+  EXPECT_GE(found_bounded, found_derived + 5);
+}
+
 // A view whose best pose holds fewer than min_ratio_trees trees inside the map's coverage, the
 // rest outside it, is NOT_FOUND for kOutsideCoverage; the same few trees seen alone (a small view
 // wholly inside the map) fail for what they are (here too few inliers), not for the coverage.
