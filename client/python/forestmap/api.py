@@ -14,7 +14,7 @@ from typing import Iterable, List, Optional, Sequence, Tuple
 from forestmap import answers, geometry, inputs
 from forestmap.answers import MapInfo, Tree
 from forestmap.connection import READ, WRITE, Export, Unary, Upload
-from forestmap.exports import Gather, box_message
+from forestmap.exports import Gather, boundary_message, box_message
 from forestmap.v1 import maps_pb2, observations_pb2, relocalization_pb2
 
 
@@ -31,6 +31,10 @@ class VersionInfo:
 
 def _is_tree_list(trees) -> bool:
     return isinstance(trees, (list, tuple)) and len(trees) > 0 and isinstance(trees[0], Tree)
+
+
+def _NO_CHUNKS():  # an upload of a header alone (a boundary without trees)
+    return iter(())
 
 
 def _chunks(trees, columns, chunk):
@@ -64,30 +68,51 @@ class Methods:
     # ---- maps ----
 
     def create_map(self, name: str, trees=None, description: str = "", crs: str = "", *,
-                   columns: Optional[Sequence[str]] = None, chunk: int = 5000) -> MapInfo:
+                   columns: Optional[Sequence[str]] = None, chunk: int = 5000,
+                   boundary=None) -> MapInfo:
         """Creates the map with its trees in ONE transaction (UploadTrees with create_map): a
-        bad tree (checked here, then by the server) leaves no map behind."""
-        return self._run(self._create_map(name, trees, description, crs, columns, chunk))
+        bad tree (checked here, then by the server) leaves no map behind. boundary: the survey's
+        polygons (see upload)."""
+        return self._run(self._create_map(name, trees, description, crs, columns, chunk,
+                                          boundary))
 
-    def _create_map(self, name, trees, description, crs, columns, chunk):
-        if trees is None or (isinstance(trees, (list, tuple)) and len(trees) == 0):
+    def _create_map(self, name, trees, description, crs, columns, chunk, boundary):
+        empty = trees is None or (isinstance(trees, (list, tuple)) and len(trees) == 0)
+        if empty and boundary is None:
             return answers.map_info((yield Unary("CreateMap", maps_pb2.CreateMapRequest(
                 name=name, description=description, crs=crs), WRITE)))
         header = maps_pb2.UploadTreesHeader(name=name, create_map=True,
                                             description=description, crs=crs)
-        response = yield Upload(header, _chunks(trees, columns, chunk))
+        if boundary is not None:
+            header.boundary.CopyFrom(boundary_message(boundary))
+        response = yield Upload(header, _NO_CHUNKS if empty else _chunks(trees, columns, chunk))
         return answers.map_info(response.map)
 
     def upload(self, name: str, trees, replace: bool = False, chunk: int = 5000, *,
-               columns: Optional[Sequence[str]] = None) -> MapInfo:
+               columns: Optional[Sequence[str]] = None, boundary=None) -> MapInfo:
         """Adds trees to the map (or, with replace, makes them its only trees); one new version,
-        all or nothing. Trees: a named table, or a list of Tree."""
-        return self._run(self._upload(name, trees, replace, chunk, columns))
+        all or nothing. Trees: a named table, or a list of Tree. boundary: the survey's
+        polygons in the map frame, each an outer ring of (x, y) or an (outer, holes) pair; it
+        replaces the map's boundary in the same version (None: the map keeps its own)."""
+        return self._run(self._upload(name, trees, replace, chunk, columns, boundary))
 
-    def _upload(self, name, trees, replace, chunk, columns):
+    def _upload(self, name, trees, replace, chunk, columns, boundary):
         header = maps_pb2.UploadTreesHeader(name=name, replace=replace)
-        response = yield Upload(header, _chunks(trees, columns, chunk))
+        if boundary is not None:
+            header.boundary.CopyFrom(boundary_message(boundary))
+        response = yield Upload(header, _NO_CHUNKS if trees is None
+                                else _chunks(trees, columns, chunk))
         return answers.map_info(response.map)
+
+    def boundary(self, name: str, version: int = 0) -> List:
+        """The survey boundary of the map (or of an older version): [(outer, [holes...])], each
+        ring an (n, 2) array of x, y in the map frame; [] when the map has none."""
+        # The boundary rides on the export's first message; a box beyond every tree's
+        # coordinates (the server keeps them within 1e7 m) sends no tree.
+        request = maps_pb2.ExportTreesRequest(name=name, version=version)
+        request.box.CopyFrom(box_message((1e9, 1e9, 1e9, 1e9)))
+        gather = Gather(False)
+        return self._run(self._one(Export(request, gather), lambda _: gather.boundary))
 
     def list_maps(self, page_size: int = 0) -> List[MapInfo]:
         """Every map the caller may read, by name (page by page; 0: the server's page size)."""

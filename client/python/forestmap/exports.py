@@ -32,6 +32,7 @@ class Gather:
     def reset(self) -> None:
         self.parts: List = []
         self.version = None
+        self.boundary: List = []
 
     def add(self, response: maps_pb2.ExportTreesResponse) -> None:
         if self.version is not None and response.map_version != self.version:
@@ -39,6 +40,8 @@ class Gather:
                                  f"the server mixed map versions {self.version} and "
                                  f"{response.map_version}")
         self.version = response.map_version
+        if response.HasField("boundary"):
+            self.boundary = polygons_of(response.boundary)
         if self.as_array:
             self.parts.append(self._array(response.trees))
         else:
@@ -77,3 +80,30 @@ def box_message(box) -> geometry_pb2.Box2:
 
 
 __all__ = ["Gather", "TREE_DTYPE", "Tree", "box_message"]
+
+
+def boundary_message(polygons) -> geometry_pb2.SurveyBoundary:
+    """A survey boundary from polygons, each an outer ring (a sequence of (x, y), m, map frame)
+    or an (outer, holes) pair; rings need not repeat their first vertex."""
+    def ring(points) -> geometry_pb2.Ring:
+        xy = np.asarray(points, dtype=np.float64)
+        if xy.ndim != 2 or xy.shape[1] != 2 or len(xy) < 3 or not np.isfinite(xy).all():
+            raise ValueError("boundary: a ring is 3 or more finite (x, y) points")
+        if (xy[0] == xy[-1]).all():
+            xy = xy[:-1]
+        return geometry_pb2.Ring(vertices=[geometry_pb2.Vector2(x=x, y=y) for x, y in xy])
+
+    message = geometry_pb2.SurveyBoundary()
+    for polygon in polygons:
+        is_pair = (isinstance(polygon, tuple) and len(polygon) == 2
+                   and np.asarray(polygon[0], dtype=object).ndim == 2)
+        outer, holes = polygon if is_pair else (polygon, ())
+        message.polygons.add(outer=ring(outer), holes=[ring(h) for h in holes])
+    return message
+
+
+def polygons_of(boundary: geometry_pb2.SurveyBoundary) -> List:
+    """[(outer, [holes...])] with every ring an (n, 2) array of x, y (m, map frame)."""
+    def ring(r):
+        return np.array([(v.x, v.y) for v in r.vertices], dtype=np.float64).reshape(-1, 2)
+    return [(ring(p.outer), [ring(h) for h in p.holes]) for p in boundary.polygons]

@@ -242,3 +242,25 @@ def test_replicas_fail_over(server):
     client = Client("127.0.0.1:1," + server)
     assert isinstance(client.list_maps(), list)
     assert client.retries == 1
+
+
+def test_a_survey_boundary_round_trips_and_is_versioned(server):
+    client = Client(server)
+    outer = [(0, 0), (50, 0), (50, 40), (0, 40)]
+    hole = [(10, 10), (10, 20), (20, 20), (20, 10)]
+    trees = np.array([(5.0, 5.0), (30.0, 30.0), (45.0, 5.0)])
+    info = client.create_map("bounded", trees, columns=("x", "y"), boundary=[(outer, [hole])])
+    [(got_outer, got_holes)] = client.boundary("bounded")
+    assert got_outer.tolist() == [list(map(float, p)) for p in outer]
+    assert [h.tolist() for h in got_holes] == [[list(map(float, p)) for p in hole]]
+    assert len(client.export("bounded")) == 3  # the export still sends every tree
+    # A new boundary alone makes a version; the old version keeps its own.
+    client.upload("bounded", None, boundary=[[(0, 0), (60, 0), (60, 60), (0, 60)]])
+    assert client.get_map("bounded").version == info.version + 1
+    assert client.boundary("bounded")[0][0].shape == (4, 2)
+    assert client.boundary("bounded", version=info.version)[0][1][0].shape == (4, 2)
+    with pytest.raises(ValueError):
+        client.upload("bounded", None, boundary=[[(0, 0), (1, 1)]])
+    with pytest.raises(ValueError):
+        client.upload("bounded", None, boundary=[[(0, 0), (1, float("nan")), (1, 1)]])
+    client.delete_map("bounded")
