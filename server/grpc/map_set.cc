@@ -3,44 +3,12 @@
 #include <fnmatch.h>
 
 #include <algorithm>
-#include <set>
 
 #include "server/app/errors.h"
 #include "server/grpc/convert.h"
 #include "server/grpc/validation.h"
 
 namespace forestmap::server {
-
-void ValidateMapSet(const v1::MapSet& set, const std::string& name, const std::string& prefix,
-                    int max_query_maps) {
-  if (!name.empty()) {
-    throw ValidationError(prefix + "name", " is set beside maps; name one map, or a set in maps");
-  }
-  const int ways = (set.names_size() > 0) + !set.name_pattern().empty() + set.all_readable();
-  if (ways != 1) {
-    throw ValidationError(prefix + "maps",
-                          ways == 0 ? " is empty; give names, name_pattern or all_readable"
-                                    : " sets more than one of names, name_pattern and "
-                                      "all_readable; give one");
-  }
-  if (set.names_size() > max_query_maps) {
-    throw LimitError(prefix + "maps.names: " + std::to_string(set.names_size()) +
-                     " maps exceed the limit of " + std::to_string(max_query_maps) +
-                     " per question");
-  }
-  std::set<std::string> seen;
-  for (int i = 0; i < set.names_size(); ++i) {
-    const std::string field = Indexed(prefix + "maps.names", i);
-    ValidateMapName(set.names(i), field);
-    if (!seen.insert(set.names(i)).second) {
-      throw ValidationError(field, " names " + Quoted(set.names(i)) + " a second time");
-    }
-  }
-  if (set.name_pattern().size() > kMaxNamePatternLength) {
-    throw ValidationError(prefix + "maps.name_pattern",
-                          " is longer than " + std::to_string(kMaxNamePatternLength) + " bytes");
-  }
-}
 
 std::vector<std::string> ResolveMapSet(storage::MapStore& store, const Caller& caller,
                                        std::string_view rpc, const v1::MapSet& set,

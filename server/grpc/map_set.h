@@ -15,15 +15,6 @@
 
 namespace forestmap::server {
 
-inline constexpr size_t kMaxNamePatternLength = 256;  // bytes of MapSet.name_pattern
-
-// A set (RelocalizeRequest.maps, TrackHeader.maps): the message's `name` empty beside it,
-// exactly one of names (valid names, no duplicates, at most `max_query_maps`: else
-// RESOURCE_EXHAUSTED), name_pattern (1..kMaxNamePatternLength bytes) or all_readable. Throws
-// ValidationError naming the field (`prefix` + "maps.names[2]"), LimitError.
-void ValidateMapSet(const v1::MapSet& set, const std::string& name, const std::string& prefix,
-                    int max_query_maps);
-
 // The maps the set names that `caller` may read, with their MapInfo: listed names must exist
 // (storage kNotFound) and allow `rpc` (ServiceError kPermissionDenied); a pattern or
 // all_readable takes the readable maps of the store (none: ServiceError kNotFound). Then

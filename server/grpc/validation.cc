@@ -4,11 +4,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <set>
 #include <sstream>
 #include <tuple>
 
 #include "server/grpc/legacy_layout.h"
-#include "server/grpc/map_set.h"
 #include "server/grpc/validation_fields.h"
 #include "storage/map_store.h"
 
@@ -214,6 +214,37 @@ void Validate(const v1::RestoreVersionRequest& request) {
 void Validate(const v1::RemoveSourceRequest& request) {
   ValidateMapName(request.name(), "name");
   ValidateSource(request.source(), "source");
+}
+
+void ValidateMapSet(const v1::MapSet& set, const std::string& name, const std::string& prefix,
+                    int max_query_maps) {
+  if (!name.empty()) {
+    throw ValidationError(prefix + "name", " is set beside maps; name one map, or a set in maps");
+  }
+  const int ways = (set.names_size() > 0) + !set.name_pattern().empty() + set.all_readable();
+  if (ways != 1) {
+    throw ValidationError(prefix + "maps",
+                          ways == 0 ? " is empty; give names, name_pattern or all_readable"
+                                    : " sets more than one of names, name_pattern and "
+                                      "all_readable; give one");
+  }
+  if (set.names_size() > max_query_maps) {
+    throw LimitError(prefix + "maps.names: " + std::to_string(set.names_size()) +
+                     " maps exceed the limit of " + std::to_string(max_query_maps) +
+                     " per question");
+  }
+  std::set<std::string> seen;
+  for (int i = 0; i < set.names_size(); ++i) {
+    const std::string field = Indexed(prefix + "maps.names", i);
+    ValidateMapName(set.names(i), field);
+    if (!seen.insert(set.names(i)).second) {
+      throw ValidationError(field, " names " + Quoted(set.names(i)) + " a second time");
+    }
+  }
+  if (set.name_pattern().size() > kMaxNamePatternLength) {
+    throw ValidationError(prefix + "maps.name_pattern",
+                          " is longer than " + std::to_string(kMaxNamePatternLength) + " bytes");
+  }
 }
 
 void Validate(const v1::RelocalizeRequest& request, int max_query_trees, int max_query_maps) {

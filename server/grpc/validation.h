@@ -49,11 +49,20 @@ std::string Indexed(std::string_view field, int64_t index);
 // `field` is the path to report, e.g. "name" or "header.name".
 void ValidateMapName(const std::string& name, std::string_view field);
 
+inline constexpr size_t kMaxNamePatternLength = 256;  // bytes of MapSet.name_pattern
+
+// A set (RelocalizeRequest.maps, TrackHeader.maps): the message's `name` empty beside it,
+// exactly one of names (valid names, no duplicates, at most `max_query_maps`: else
+// RESOURCE_EXHAUSTED), name_pattern (1..kMaxNamePatternLength bytes) or all_readable. Throws
+// ValidationError naming the field (`prefix` + "maps.names[2]"), LimitError.
+void ValidateMapSet(const v1::MapSet& set, const std::string& name, const std::string& prefix,
+                    int max_query_maps);
+
 void Validate(const v1::CreateMapRequest& request);
 void Validate(const v1::GetMapRequest& request);
 void Validate(const v1::DeleteMapRequest& request);
 void Validate(const v1::ExportTreesRequest& request);
-// With `maps` set (a question over many maps), the set as ValidateMapSet (server/grpc/map_set.h).
+// With `maps` set (a question over many maps), the set as ValidateMapSet (above).
 void Validate(const v1::RelocalizeRequest& request, int max_query_trees,
               int max_query_maps = kDefaultMaxQueryMaps);
 // A prior: x and y, or the deprecated pose of release 0.1.0 (not both); radius_m > 0.
