@@ -214,6 +214,9 @@ MapIndex::MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options,
 MapIndex::~MapIndex() = default;
 size_t MapIndex::size() const { return impl_->trees.size(); }
 const std::vector<Polygon>& MapIndex::coverage() const { return impl_->coverage_outline; }
+bool MapIndex::Covers(const Eigen::Vector2d& map_xy) const {
+  return impl_->Covered(map_xy - impl_->origin);
+}
 bool MapIndex::coverage_derived() const { return impl_->coverage_derived; }
 double MapIndex::coverage_area() const { return impl_->coverage->area(); }
 const std::vector<MapTree>& MapIndex::trees() const { return impl_->trees; }

@@ -76,6 +76,8 @@ class MapIndex {
   // The boundary given, else the coverage derived from the trees (map frame), and its area (m^2,
   // of its raster).
   const std::vector<Polygon>& coverage() const;
+  // Whether the map covers `map_xy` (map frame, m): its rasterized coverage, in nanoseconds.
+  bool Covers(const Eigen::Vector2d& map_xy) const;
   bool coverage_derived() const;
   double coverage_area() const;
   const MapIndexImpl& impl() const { return *impl_; }

@@ -4,8 +4,6 @@
 #include <cmath>
 #include <cstdio>
 
-#include "algorithms/core/polygon.h"
-
 namespace forestmap::server {
 namespace {
 
@@ -155,8 +153,8 @@ MapSetAnswer RelocalizeInMaps(MapIndexCache& cache, const std::vector<std::strin
   for (size_t i = 0; i < out.answers.size(); ++i) {
     const MapAnswer& answer = out.answers[i];
     if (answer.result.status == RelocalizeStatus::kLocalized &&
-        algorithms::Contains(answer.entry.index->coverage(), sensor) &&
-        !algorithms::Contains(out.answers[*out.reported].entry.index->coverage(), sensor)) {
+        answer.entry.index->Covers(sensor) &&
+        !out.answers[*out.reported].entry.index->Covers(sensor)) {
       out.reported = i;
     }
   }

@@ -277,6 +277,8 @@ TEST(RelocalizerDecision, ASurveyBoundaryKeepsUnsurveyedTreesOutOfTheDecision) {
   const Polygon west{{{0, 0}, {100, 0}, {100, 200}, {0, 200}}, {}};
   const MapIndex derived(surveyed), bounded(surveyed, {}, {west});
   EXPECT_FALSE(bounded.coverage_derived());
+  EXPECT_TRUE(bounded.Covers({50, 100}));
+  EXPECT_FALSE(bounded.Covers({150, 100}));
   ViewSimulator simulator(forest);
   int found_derived = 0, found_bounded = 0;
   for (int k = 0; k < 20; ++k) {
