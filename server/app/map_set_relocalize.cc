@@ -112,8 +112,8 @@ MapSetAnswer RelocalizeInMaps(MapIndexCache& cache, const std::vector<std::strin
     }
     total_area += answer.search_area;
   }
+  algorithms::RelocalizeQuery own = query;  // one copy of the trees for every map
   for (MapAnswer& answer : out.answers) {
-    algorithms::RelocalizeQuery own = query;
     own.other_search_area = std::max(0.0, total_area - answer.search_area);
     answer.result = algorithms::Relocalize(*answer.entry.index, own, options);
   }
