@@ -1,7 +1,6 @@
 #include "server/app/map_union.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <stdexcept>
 #include <utility>
@@ -99,8 +98,8 @@ MapUnion BuildMapUnion(storage::MapStore& store, const std::vector<storage::MapI
         coverage.insert(coverage.end(), derived.begin(), derived.end());
       }
     }
-    out.index =
-        std::make_shared<const algorithms::MapIndex>(std::move(trees), options, std::move(coverage));
+    out.index = std::make_shared<const algorithms::MapIndex>(std::move(trees), options,
+                                                             std::move(coverage));
   } catch (const std::invalid_argument& e) {
     throw PreconditionError("the " + std::to_string(maps.size()) + " maps from \"" +
                             maps.front().name + "\" cannot be indexed together: " + e.what());
@@ -111,39 +110,94 @@ MapUnion BuildMapUnion(storage::MapStore& store, const std::vector<storage::MapI
 
 MapUnionCache::MapUnionCache(storage::MapStore& store, algorithms::MapIndexOptions options,
                              int max_entries)
-    : store_(store), options_(std::move(options)), max_entries_(std::max(1, max_entries)) {}
+    : store_(store),
+      options_(std::move(options)),
+      max_entries_(std::max(1, max_entries)),
+      refresher_([this] { Refresh(); }) {}
+
+MapUnionCache::~MapUnionCache() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_all();
+  refresher_.join();
+}
 
 std::shared_ptr<const MapUnion> MapUnionCache::Get(std::vector<storage::MapInfo> maps) {
   std::sort(maps.begin(), maps.end(), [](const auto& a, const auto& b) { return a.name < b.name; });
-  std::string key;
+  std::string key, versions;
   for (const storage::MapInfo& info : maps) {
-    key += info.name + '\0' + std::to_string(info.version) + '\0' +
-           std::to_string(info.created_unix_ms) + '\0';
+    key += info.name + '\0';
+    versions += std::to_string(info.version) + '.' + std::to_string(info.created_unix_ms) + ' ';
   }
   std::promise<std::shared_ptr<const MapUnion>> promise;
-  std::shared_future<std::shared_ptr<const MapUnion>> other;  // a ready or building union
+  std::shared_future<std::shared_ptr<const MapUnion>> first;  // another question's first build
   {
     std::lock_guard<std::mutex> lock(mutex_);
     const auto it = slots_.find(key);
     if (it != slots_.end()) {
-      lru_.splice(lru_.begin(), lru_, it->second.lru);
-      other = it->second.union_;
+      Slot& slot = it->second;
+      lru_.splice(lru_.begin(), lru_, slot.lru);
+      if (slot.ready) {
+        if (slot.ready->versions != versions && slot.queued != versions &&
+            slot.failed != versions) {
+          slot.queued = versions;  // the maps changed: answer from the last union meanwhile
+          jobs_.push_back({key, versions, maps});
+          wake_.notify_one();
+        }
+        return slot.ready;
+      }
+      first = slot.first;
     } else {
       lru_.push_front(key);
-      slots_[key] = Slot{promise.get_future().share(), lru_.begin()};
+      slots_[key] = Slot{nullptr, promise.get_future().share(), "", "", lru_.begin()};
       while (slots_.size() > max_entries_) EraseLocked(lru_.back());
     }
   }
-  if (other.valid()) return other.get();  // rethrows that build's error
+  if (first.valid()) return first.get();  // rethrows that build's error
   try {
-    auto built = std::make_shared<const MapUnion>(BuildMapUnion(store_, maps, options_));
+    auto built = std::make_shared<MapUnion>(BuildMapUnion(store_, maps, options_));
+    built->versions = versions;
     promise.set_value(built);
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto it = slots_.find(key);
+    if (it != slots_.end() && !it->second.ready) it->second.ready = built;
     return built;
   } catch (...) {
     promise.set_exception(std::current_exception());
     std::lock_guard<std::mutex> lock(mutex_);
-    EraseLocked(key);  // not remembered: the next question tries again
+    const auto it = slots_.find(key);
+    if (it != slots_.end() && !it->second.ready) EraseLocked(key);  // the next question retries
     throw;
+  }
+}
+
+void MapUnionCache::Refresh() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  for (;;) {
+    wake_.wait(lock, [this] { return stopping_ || !jobs_.empty(); });
+    if (stopping_) return;
+    Job job = std::move(jobs_.front());
+    jobs_.pop_front();
+    lock.unlock();
+    std::shared_ptr<MapUnion> built;
+    try {
+      built = std::make_shared<MapUnion>(BuildMapUnion(store_, job.maps, options_));
+      built->versions = job.versions;
+    } catch (...) {  // a map changed or went meanwhile, or cannot be indexed: questions tell
+    }
+    lock.lock();
+    const auto it = slots_.find(job.key);
+    if (it == slots_.end()) continue;  // dropped meanwhile
+    Slot& slot = it->second;
+    if (slot.queued == job.versions) slot.queued.clear();
+    if (built) {
+      slot.ready = std::move(built);
+      ++background_builds_;
+    } else {
+      slot.failed = job.versions;
+    }
   }
 }
 
@@ -151,13 +205,14 @@ size_t MapUnionCache::memory_bytes() const {
   size_t bytes = 0;
   std::lock_guard<std::mutex> lock(mutex_);
   for (const auto& [key, slot] : slots_) {
-    if (slot.union_.wait_for(std::chrono::seconds(0)) != std::future_status::ready) continue;
-    try {
-      bytes += slot.union_.get()->index->MemoryBytes();
-    } catch (...) {  // a failed build, about to be dropped
-    }
+    if (slot.ready) bytes += slot.ready->index->MemoryBytes();
   }
   return bytes;
+}
+
+int64_t MapUnionCache::background_builds() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return background_builds_;
 }
 
 void MapUnionCache::EraseLocked(const std::string& key) {

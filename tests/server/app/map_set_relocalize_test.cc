@@ -5,8 +5,10 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "algorithms/simulation/view_simulator.h"
@@ -142,6 +144,33 @@ TEST(MapUnion, ATreeTwoMapsSurveyedIsIndexedOnceUnderItsFirstMapsId) {
     EXPECT_EQ(origin.member, in_a ? 0u : 1u) << i;
     EXPECT_EQ(origin.id >= 10'000, !in_a) << i;
   }
+}
+
+// A map of the set changes: questions go on with the union of the earlier versions, without
+// waiting, until the background build of the new one is ready.
+TEST(MapUnionCache, AChangedMapIsAnsweredFromTheLastUnionWhileTheNewOneBuilds) {
+  TwoPlots plots;
+  MapUnionCache cache(plots.store, {});
+  const std::shared_ptr<const MapUnion> before = cache.Get(plots.maps);
+  EXPECT_EQ(cache.Get(plots.maps), before);  // built once
+  storage::TreeRecord added;
+  added.x = 150;
+  added.y = 310;  // outside the forest: no tree of either plot within reach
+  plots.store.WriteTrees("b", {added}, storage::WriteMode::kAppend);
+  std::vector<storage::MapInfo> changed = {plots.store.GetMap("a"), plots.store.GetMap("b")};
+  ASSERT_GT(changed[1].version, plots.maps[1].version);
+  const std::shared_ptr<const MapUnion> meanwhile = cache.Get(changed);
+  EXPECT_EQ(meanwhile->members[1].version, plots.maps[1].version);  // the last one built
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (cache.background_builds() == 0 && std::chrono::steady_clock::now() < give_up) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_EQ(cache.background_builds(), 1);
+  const std::shared_ptr<const MapUnion> after = cache.Get(changed);
+  EXPECT_EQ(after->members[1].version, changed[1].version);
+  EXPECT_EQ(after->index->size(), before->index->size() + 1);
+  EXPECT_EQ(cache.Get(changed), after);  // and no further build
+  EXPECT_EQ(cache.background_builds(), 1);
 }
 
 // A sensor on the line between the plots sees trees of both: one search, LOCALIZED at the
