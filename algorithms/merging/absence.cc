@@ -104,8 +104,10 @@ AbsenceResult ExpectTrees(std::span<const MapTree> established, std::span<const 
                                        observation, options));
     silhouettes.back().map_index = static_cast<int>(i);
   }
-  // Sightings: every detection within the gate of a map tree sees it (the gate grows with the
-  // position error the pose uncertainty causes at the tree's range).
+  // Sightings: a detection sees the nearest tree within its gate (the gate grows with the position
+  // error the pose uncertainty causes at the tree's range); one stem, one tree, as the merge
+  // associates. A neighbour in the same gate is not seen by it (a felled tree beside a standing
+  // one), and is hidden by it when the detection is nearer the sensor.
   std::vector<char> seen(n, 0);
   std::vector<double> detected_ranges;
   for (const DetectedTree& detection : observation.trees) {
@@ -119,13 +121,15 @@ AbsenceResult ExpectTrees(std::span<const MapTree> established, std::span<const 
     double best = gate;
     for (size_t i = 0; i < n; ++i) {
       const double d = (map_trees[i].position.head<2>() - map_xyz.head<2>()).norm();
-      if (d > gate) continue;
-      if (!seen[i] && i < n_established) detected_ranges.push_back(silhouettes[i].range);
-      seen[i] = 1;
       if (d <= best) {
         best = d;
         s.seen_index = static_cast<int>(i);
       }
+    }
+    if (s.seen_index >= 0) {
+      const size_t i = static_cast<size_t>(s.seen_index);
+      if (!seen[i] && i < n_established) detected_ranges.push_back(silhouettes[i].range);
+      seen[i] = 1;
     }
     silhouettes.push_back(s);
   }

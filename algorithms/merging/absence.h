@@ -3,7 +3,7 @@
 //
 // Given the map's trees near an observation, its pose (map_from_sensor, with a 1-sigma
 // uncertainty when known) and its detected trees, every map tree is classified as
-//   kSeen         a detection lies within the association gate of it;
+//   kSeen         it is the nearest tree to a detection, within the association gate;
 //   kMissed       the sensor should have seen it and did not: within the sensor's range, not
 //                 hidden by a nearer trunk, and no detection within the gate;
 //   kNotExpected  out of range (or too near its edge) or in the shadow of a nearer trunk.

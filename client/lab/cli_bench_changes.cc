@@ -11,7 +11,9 @@
 // per axis, --yaw-sigma deg), one source per pass. Each frame goes through MergedMap::Observe
 // (algorithms/merging/merged_map.h): the evidence of absence, the merge, the removals.
 // Prints the share of felled trees removed, of live trees wrongly removed, of new trees confirmed,
-// candidates left per real tree, the DBH growth error and the time per frame (text or --json).
+// candidates left per real tree, the DBH growth error, the time per frame, and how many views of
+// the future forest relocalize right and wrong on the original and on the updated map (its
+// confirmed trees, removed ones left out) (text or --json).
 
 #include <algorithm>
 #include <chrono>
@@ -22,6 +24,7 @@
 #include <set>
 
 #include "algorithms/core/kdtree.h"
+#include "algorithms/evaluation/reloc_evaluation.h"
 #include "algorithms/merging/merged_map.h"
 #include "algorithms/simulation/view_simulator.h"
 #include "client/io/tree_csv.h"
@@ -46,6 +49,8 @@ struct BenchChangesOptions {
   double pose_sigma = 0.05;  // m per axis
   double yaw_sigma = 0.2;    // deg
   unsigned seed = 1;
+  int reloc_views = 200;    // views of the future relocalized on both maps (0: none)
+  bool no_absence = false;  // merge only, as without the evidence of absence
   bool json = false;
 };
 
@@ -107,6 +112,35 @@ double Median(std::vector<double> values) {
 
 double Share(double part, double whole) { return whole > 0 ? part / whole : 0.0; }
 
+// Views of the future forest relocalized without a prior on `map`: how many are right (within
+// 0.5 m and 5 deg) and how many wrong (localized more than 1 m or 5 deg off).
+nlohmann::ordered_json RelocOn(const std::vector<MapTree>& map, const Future& future, int views,
+                               unsigned seed) {
+  const algorithms::MapIndex index(map);
+  const algorithms::ViewSimulator simulator(future.trees);
+  const std::vector<Eigen::Vector3d> poses = simulator.SamplePoses(views, 0, seed, 8, 15);
+  int correct = 0, wrong = 0;
+  for (size_t k = 0; k < poses.size(); ++k) {
+    algorithms::ViewOptions view;
+    view.seed = seed + static_cast<unsigned>(k);
+    const algorithms::SimulatedView sim =
+        simulator.Simulate(poses[k].head<2>(), poses[k].z(), view);
+    algorithms::RelocalizeQuery query;
+    query.trees = sim.trees;
+    const algorithms::RelocalizeResult result = algorithms::Relocalize(index, query);
+    if (result.status != algorithms::RelocalizeStatus::kLocalized) continue;
+    const algorithms::PoseError error =
+        algorithms::ComparePoses(result.map_from_sensor, sim.map_from_sensor);
+    correct += error.xy <= 0.5 && error.yaw <= 5;
+    wrong += error.xy > 1 || error.yaw > 5;
+  }
+  nlohmann::ordered_json report;
+  report["views"] = poses.size();
+  report["correct"] = correct;
+  report["wrong"] = wrong;
+  return report;
+}
+
 nlohmann::ordered_json Score(const std::vector<MapTree>& map, const Future& future,
                              const algorithms::MergedMap& merged, const BenchChangesOptions& o,
                              int64_t frames, double seconds) {
@@ -164,6 +198,11 @@ nlohmann::ordered_json Score(const std::vector<MapTree>& map, const Future& futu
   report["confirmed_trees"] = confirmed;
   report["dbh_growth_median_error_mm"] = 1000 * Median(growth_error);
   report["ms_per_frame"] = frames > 0 ? 1000 * seconds / static_cast<double>(frames) : 0.0;
+  if (o.reloc_views > 0) {
+    report["reloc_original_map"] = RelocOn(map, future, o.reloc_views, o.seed);
+    report["reloc_updated_map"] =
+        RelocOn(merged.ConfirmedMapTrees(), future, o.reloc_views, o.seed);
+  }
   return report;
 }
 
@@ -217,7 +256,11 @@ nlohmann::ordered_json Run(const BenchChangesOptions& o, std::ostream& err) {
         frame.pose_sigma_yaw = o.yaw_sigma * M_PI / 180;
         frame.time = frame_id;
         const auto start = std::chrono::steady_clock::now();
-        merged.Observe(frame);
+        if (!o.no_absence) {
+          merged.Observe(frame);
+        } else if (!frame.frame.trees.empty()) {
+          merged.Merge(frame.frame);
+        }
         seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       }
     }
@@ -273,6 +316,12 @@ void AddBenchChangesCommand(CLI::App& app, CliContext& context) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--seed", options->seed, "Random seed")->capture_default_str();
+  cmd->add_option("--reloc-views", options->reloc_views,
+                  "Views of the future forest relocalized on the original and the updated map")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_flag("--no-absence", options->no_absence,
+                "Merge the frames without weighing the evidence of absence (for comparison)");
   cmd->add_flag("--json", options->json, "Print one JSON object");
   cmd->callback([options, &context] {
     context.run = [options, &context] {

@@ -73,6 +73,64 @@ TEST(ExpectTrees, AStemTheMapDoesNotHaveAlsoHides) {
             Visibility::kNotExpected);
 }
 
+TEST(ExpectTrees, ACandidateHidesNothingAndTeachesNothing) {
+  // A candidate at 4 m on the bearing of a confirmed tree at 10 m: it may be a false stem, so the
+  // tree behind it is still expected; the candidate itself, in view and undetected, is missed.
+  const std::vector<MapTree> established = {Tree(1, 10, 0)};
+  const std::vector<MapTree> candidates = {Tree(2, 4, 0)};
+  const AbsenceResult result = ExpectTrees(established, {}, candidates, At({}), Stated());
+  ASSERT_EQ(result.trees.size(), 2u);
+  EXPECT_EQ(result.trees[0].id, 1);
+  EXPECT_EQ(result.trees[0].visibility, Visibility::kMissed);
+  EXPECT_EQ(result.trees[1].visibility, Visibility::kMissed);
+  // Detected candidates do not teach the range: five of them are not enough to learn one.
+  std::vector<MapTree> five;
+  std::vector<DetectedTree> detections;
+  for (int k = 0; k < 5; ++k) {
+    five.push_back(Tree(10 + k, 3.0 + k, 2.0 * k));
+    detections.push_back(Detection(3.0 + k, 2.0 * k));
+  }
+  EXPECT_EQ(ExpectTrees({}, {}, five, At(detections)).range_source, SensorModelSource::kNone);
+  EXPECT_EQ(ExpectTrees(five, {}, {}, At(detections)).range_source, SensorModelSource::kLearned);
+}
+
+TEST(ExpectTrees, TheDetectionRateIsLearnedFromTreesKnownToStand) {
+  // Twelve confirmed trees at 5 m on distinct bearings, half of them felled (not detected).
+  // Learned from all, p0 looks like half the truth; learned from the six seen standing since the
+  // survey, as the detector really is (capped).
+  std::vector<MapTree> map;
+  std::vector<DetectedTree> detections;
+  std::vector<char> standing;
+  for (int k = 0; k < 12; ++k) {
+    const double bearing = 2 * M_PI * k / 12;
+    map.push_back(Tree(k + 1, 5 * std::cos(bearing), 5 * std::sin(bearing)));
+    standing.push_back(k % 2 == 0);
+    if (k % 2 == 0) detections.push_back(Detection(5 * std::cos(bearing), 5 * std::sin(bearing)));
+  }
+  AbsenceOptions options;
+  options.range = 15;
+  const AbsenceResult all = ExpectTrees(map, {}, {}, At(detections), options);
+  const AbsenceResult known = ExpectTrees(map, standing, {}, At(detections), options);
+  const double shape = 1 - 0.5 * 5.0 / 15.0;
+  EXPECT_FALSE(all.learned_from_standing);
+  EXPECT_NEAR(all.detection_probability, 0.5 / shape, 1e-12);
+  EXPECT_TRUE(known.learned_from_standing);
+  EXPECT_DOUBLE_EQ(known.detection_probability, options.max_detection_probability);
+}
+
+TEST(ExpectTrees, ADetectionSeesOnlyTheNearestTreeInItsGate) {
+  // Two trees 0.4 m apart across the line of sight; one detection on the first: the second,
+  // standing beside it and not behind it, is missed (one stem, one tree).
+  const std::vector<MapTree> map = {Tree(1, 8, 0, 0.2), Tree(2, 8, 0.4, 0.1)};
+  const AbsenceResult result = ExpectTrees(map, At({Detection(8.02, 0, 0.2)}), Stated());
+  EXPECT_EQ(result.trees[0].visibility, Visibility::kSeen);
+  EXPECT_EQ(result.trees[1].visibility, Visibility::kMissed);
+  // The same pair along the line of sight: the detection in front hides the tree behind it.
+  const std::vector<MapTree> in_line = {Tree(1, 8, 0, 0.2), Tree(2, 8.4, 0, 0.1)};
+  EXPECT_EQ(ExpectTrees(in_line, At({Detection(8.02, 0, 0.2)}), Stated()).trees[1].visibility,
+            Visibility::kNotExpected);
+}
+
 TEST(ExpectTrees, OutOfRangeAndRangeEdgeAreNotExpected) {
   const std::vector<MapTree> map = {Tree(1, 20, 0), Tree(2, 0, 14.5), Tree(3, 0, -13)};
   const AbsenceResult result = ExpectTrees(map, At({}), Stated(15));
