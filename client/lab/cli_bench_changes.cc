@@ -14,6 +14,9 @@
 // candidates left per real tree, the DBH growth error, the time per frame, and how many views of
 // the future forest relocalize right and wrong on the original and on the updated map (its
 // confirmed trees, removed ones left out) (text or --json).
+// Same day:  --map MAP.csv --frames trees.csv --poses poses.csv [--truth-offset ...]
+//   real frames of the mapped forest, cut into sources of --source-frames frames, observed into
+//   the map: nothing changed, so every tree removed is wrong.
 
 #include <algorithm>
 #include <chrono>
@@ -49,8 +52,12 @@ struct BenchChangesOptions {
   double pose_sigma = 0.05;  // m per axis
   double yaw_sigma = 0.2;    // deg
   unsigned seed = 1;
-  int reloc_views = 200;    // views of the future relocalized on both maps (0: none)
-  bool no_absence = false;  // merge only, as without the evidence of absence
+  // Real frames of the same day (--frames, --poses): nothing changed, every removal is wrong.
+  std::string frames_path, poses_path;
+  std::vector<double> truth_offset;  // x, y, z (m), yaw (deg): map_from_world of --poses
+  int source_frames = 100;           // frames per source (a drone's share of the traversal)
+  int reloc_views = 200;             // views of the future relocalized on both maps (0: none)
+  bool no_absence = false;           // merge only, as without the evidence of absence
   bool json = false;
 };
 
@@ -206,6 +213,59 @@ nlohmann::ordered_json Score(const std::vector<MapTree>& map, const Future& futu
   return report;
 }
 
+// Real frames of the forest the map shows, the same day: every tree removed is wrong. The
+// traversal is cut into sources of `source_frames` consecutive frames (as if that many drones
+// flew it in turn), since one source alone can never remove a tree.
+nlohmann::ordered_json RunSameDay(const BenchChangesOptions& o, std::ostream& err) {
+  const std::vector<MapTree> map = ToMapTrees(ReadMapTreesCsv(o.map_path));
+  const auto poses = ReadPosesCsv(o.poses_path);
+  const std::vector<Frame> frames = ReadFramesCsv(o.frames_path);
+  algorithms::Pose3 map_from_world = algorithms::Pose3::Identity();
+  if (o.truth_offset.size() == 4) {
+    map_from_world = algorithms::PoseFromXyzYaw(o.truth_offset[0], o.truth_offset[1],
+                                                o.truth_offset[2], o.truth_offset[3] * M_PI / 180);
+  }
+  algorithms::MergedMap merged;
+  merged.AddSurvey(map);
+  int64_t observed = 0, created = 0;
+  double seconds = 0;
+  for (size_t k = 0; k < frames.size(); ++k) {
+    const auto pose = poses.find(frames[k].frame);
+    if (pose == poses.end()) continue;
+    algorithms::TimedFrame frame;
+    frame.frame.source = "drone-" + std::to_string(k / static_cast<size_t>(o.source_frames));
+    frame.frame.frame_id = frames[k].frame;
+    frame.frame.map_from_sensor = map_from_world * pose->second;
+    frame.frame.trees = frames[k].trees;
+    frame.pose_sigma_xy = o.pose_sigma;
+    frame.pose_sigma_yaw = o.yaw_sigma * M_PI / 180;
+    frame.time = static_cast<int64_t>(k);
+    const auto start = std::chrono::steady_clock::now();
+    created += static_cast<int64_t>(merged.Observe(frame).merge.new_trees.size());
+    seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    ++observed;
+    if (observed % 100 == 0) err << "bench-changes: " << observed << " frames\r";
+  }
+  err << "\n";
+  int64_t max_id = 0;
+  for (const MapTree& tree : map) max_id = std::max(max_id, tree.id);
+  int map_removed = 0;
+  for (const auto& [id, removed] : merged.removed()) map_removed += id <= max_id;
+  int candidates = 0;
+  for (const auto& tree : merged.Trees())
+    candidates += tree.status == algorithms::TreeStatus::kCandidate;
+  nlohmann::ordered_json report;
+  report["map_trees"] = map.size();
+  report["frames"] = observed;
+  report["sources"] = (frames.size() + o.source_frames - 1) / o.source_frames;
+  report["map_trees_removed"] = map_removed;
+  report["map_trees_removed_share"] = Share(map_removed, static_cast<double>(map.size()));
+  report["candidates_created"] = created;
+  report["candidates_left"] = candidates;
+  report["ms_per_frame"] = observed > 0 ? 1000 * seconds / static_cast<double>(observed) : 0.0;
+  return report;
+}
+
 nlohmann::ordered_json Run(const BenchChangesOptions& o, std::ostream& err) {
   std::vector<MapTree> map = ToMapTrees(ReadMapTreesCsv(o.map_path));
   for (MapTree& tree : map) tree.position.z() = 0;  // a 2-D survey: the sensor stands at 1.5 m
@@ -316,6 +376,20 @@ void AddBenchChangesCommand(CLI::App& app, CliContext& context) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--seed", options->seed, "Random seed")->capture_default_str();
+  cmd->add_option("--frames", options->frames_path,
+                  "Real frames CSV of the same forest the same day (with --poses): observe them "
+                  "into --map instead of a simulated future; every removal is wrong")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--poses", options->poses_path, "Ground-truth poses CSV of --frames")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--truth-offset", options->truth_offset,
+                  "X,Y,Z,YAW_DEG: map_from_world applied to --poses (session offset)")
+      ->delimiter(',')
+      ->expected(4);
+  cmd->add_option("--source-frames", options->source_frames,
+                  "With --frames: consecutive frames per source (drone)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_option("--reloc-views", options->reloc_views,
                   "Views of the future forest relocalized on the original and the updated map")
       ->check(CLI::NonNegativeNumber)
@@ -324,8 +398,13 @@ void AddBenchChangesCommand(CLI::App& app, CliContext& context) {
                 "Merge the frames without weighing the evidence of absence (for comparison)");
   cmd->add_flag("--json", options->json, "Print one JSON object");
   cmd->callback([options, &context] {
+    if (options->frames_path.empty() != options->poses_path.empty()) {
+      throw CLI::ValidationError("--frames", "needs --poses (and the reverse)");
+    }
     context.run = [options, &context] {
-      const nlohmann::ordered_json report = Run(*options, *context.err);
+      const nlohmann::ordered_json report = options->frames_path.empty()
+                                                ? Run(*options, *context.err)
+                                                : RunSameDay(*options, *context.err);
       if (options->json) {
         *context.out << report.dump() << "\n";
         return;
