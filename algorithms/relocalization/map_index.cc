@@ -211,6 +211,24 @@ MapIndex::MapIndex(std::vector<MapTree> trees, const MapIndexOptions& options,
 #endif
 }
 
+std::vector<Polygon> DerivedCoverage(const std::vector<MapTree>& trees,
+                                     const MapIndexOptions& options) {
+  options.Check();
+  CheckTreeRange(trees);
+  if (trees.empty()) return {};
+  Eigen::Vector2d origin = Eigen::Vector2d::Zero();
+  for (const MapTree& t : trees) origin += t.position.head<2>() / static_cast<double>(trees.size());
+  std::vector<Eigen::Vector2d> local(trees.size());
+  std::vector<KdTree<float, 2>::Point> xy(trees.size());
+  for (size_t i = 0; i < trees.size(); ++i) {
+    local[i] = trees[i].position.head<2>() - origin;
+    xy[i] = {static_cast<float>(local[i].x()), static_cast<float>(local[i].y())};
+  }
+  const KdTree<float, 2> kd(std::move(xy));
+  const SpacingCells spacing(kd, options.spacing_cell, 1);
+  return Translated(DeriveCoverage(local, spacing.TreeSpacing(), options.coverage), origin);
+}
+
 MapIndex::~MapIndex() = default;
 size_t MapIndex::size() const { return impl_->trees.size(); }
 const std::vector<Polygon>& MapIndex::coverage() const { return impl_->coverage_outline; }

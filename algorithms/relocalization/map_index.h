@@ -86,4 +86,10 @@ class MapIndex {
   std::unique_ptr<MapIndexImpl> impl_;
 };
 
+// The coverage a MapIndex of `trees` derives when given no boundary (coverage.h), map frame: what
+// one map of many brings to an index over their union when others bring survey boundaries.
+// Throws what the MapIndex constructor throws for the trees.
+std::vector<Polygon> DerivedCoverage(const std::vector<MapTree>& trees,
+                                     const MapIndexOptions& options = {});
+
 }  // namespace forestmap::algorithms

@@ -27,6 +27,16 @@ std::string CanonicalCrs(const std::string& crs) {
   return info.Canonical();
 }
 
+std::shared_ptr<const geo::MapToWgs84> AnswersToWgs84(const std::string& crs) {
+  if (crs.empty()) return nullptr;
+  try {
+    if (!geo::ParseCrs(crs).map_problem.empty()) return nullptr;
+    return std::make_shared<const geo::MapToWgs84>(crs);
+  } catch (const geo::CrsError&) {
+    return nullptr;
+  }
+}
+
 std::optional<geo::GeodeticPose> GeodeticPoseOf(const Eigen::Isometry3d& map_from_sensor,
                                                 const geo::MapToWgs84& to_wgs84) {
   const Eigen::Vector3d forward = map_from_sensor.linear() * Eigen::Vector3d::UnitX();

@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "server/app/errors.h"
+#include "server/app/map_crs.h"
 #include "server/app/tree_records.h"
 
 namespace forestmap::server {
@@ -30,14 +31,16 @@ PreconditionError NoTrees(const std::string& name, int64_t version) {
 }  // namespace
 
 void MapIndexCacheOptions::Check() const {
-  if (max_entries < 1) throw std::invalid_argument("MapIndexCacheOptions.max_entries must be >= 1");
+  if (max_entries < 1 || max_unions < 1) {
+    throw std::invalid_argument("MapIndexCacheOptions: max_entries and max_unions must be >= 1");
+  }
   index.Check();
 }
 
 MapIndexCache::MapIndexCache(storage::MapStore& store, MapIndexCacheOptions options)
-    : store_(store), options_(std::move(options)) {
-  options_.Check();
-}
+    : store_(store),
+      options_((options.Check(), std::move(options))),
+      unions_(store, options_.index, options_.max_unions) {}
 
 MapIndexCache::Entry MapIndexCache::Get(const std::string& name) { return GetCounted(name, true); }
 
@@ -141,16 +144,7 @@ MapIndexCache::Entry MapIndexCache::BuildEntry(const std::string& name) const {
   Entry entry;
   entry.version = snapshot.info.version;
   entry.created_unix_ms = snapshot.info.created_unix_ms;
-  if (!snapshot.info.crs.empty()) {
-    try {
-      // Not for a CRS stored before maps had to be in metres: its poses mean nothing in WGS84.
-      if (geo::ParseCrs(snapshot.info.crs).map_problem.empty()) {
-        entry.to_wgs84 = std::make_shared<const geo::MapToWgs84>(snapshot.info.crs);
-      }
-    } catch (const geo::CrsError&) {
-      // A free-text CRS from before validation: answers stay in map coordinates.
-    }
-  }
+  entry.to_wgs84 = AnswersToWgs84(snapshot.info.crs);
   entry.index = std::make_shared<const algorithms::MapIndex>(std::move(trees), options_.index,
                                                              std::move(boundary));
   return entry;
@@ -210,7 +204,7 @@ size_t MapIndexCache::size() const {
 }
 
 size_t MapIndexCache::memory_bytes() const {
-  size_t bytes = 0;
+  size_t bytes = unions_.memory_bytes();
   for (const auto& [name, map_bytes] : memory_bytes_by_map()) bytes += map_bytes;
   return bytes;
 }

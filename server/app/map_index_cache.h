@@ -25,12 +25,14 @@
 
 #include "algorithms/relocalization/relocalizer.h"
 #include "geo/crs.h"
+#include "server/app/map_union.h"
 #include "storage/map_store.h"
 
 namespace forestmap::server {
 
 struct MapIndexCacheOptions {
   int max_entries = 16;  // maps whose index stays in memory (>= 1)
+  int max_unions = 4;    // sets of maps of one frame whose union index stays (map_union.h; >= 1)
   algorithms::MapIndexOptions index;
   void Check() const;  // throws std::invalid_argument
 };
@@ -65,11 +67,15 @@ class MapIndexCache {
   // hit or a wait in stats().
   Entry Warm(const std::string& name);
 
+  // Indexes over the union of maps of one frame, built from the same store with the same options.
+  MapUnionCache& unions() { return unions_; }
+
   void Evict(const std::string& name);
   size_t max_entries() const { return static_cast<size_t>(options_.max_entries); }
   size_t size() const;
   Stats stats() const;
-  // Approximate memory of the ready indexes (algorithms::MapIndex::MemoryBytes), bytes.
+  // Approximate memory of the ready indexes (algorithms::MapIndex::MemoryBytes), the unions'
+  // included, bytes.
   size_t memory_bytes() const;
   // The same per map (ready indexes only), sorted by name.
   std::vector<std::pair<std::string, size_t>> memory_bytes_by_map() const;
@@ -125,6 +131,7 @@ class MapIndexCache {
   std::list<std::string> lru_;  // most recently used first
   uint64_t next_build_id_ = 1;
   Stats stats_;
+  MapUnionCache unions_;
 };
 
 }  // namespace forestmap::server

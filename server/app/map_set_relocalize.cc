@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <memory>
+#include <set>
 
 namespace forestmap::server {
 namespace {
@@ -61,6 +63,56 @@ RelocalizeResult AcrossMaps(const MapAnswer& best, const MapAnswer& rival) {
   return result;
 }
 
+// The searches of a question: maps grouped by CRS (a map without one alone), in the order of
+// each group's first map.
+std::vector<std::vector<storage::MapInfo>> Searches(const std::vector<storage::MapInfo>& maps) {
+  std::vector<std::vector<storage::MapInfo>> searches;
+  for (const storage::MapInfo& info : maps) {
+    const auto same_frame = std::find_if(searches.begin(), searches.end(), [&](const auto& group) {
+      return !info.crs.empty() && group.front().crs == info.crs;
+    });
+    if (same_frame == searches.end()) {
+      searches.push_back({info});
+    } else {
+      same_frame->push_back(info);
+    }
+  }
+  return searches;
+}
+
+// The search of `maps` (one frame), ready to run: the map's own index, or their union's.
+struct Search {
+  MapAnswer answer;
+  std::shared_ptr<const MapUnion> union_;  // null for one map
+};
+
+Search Prepare(MapIndexCache& cache, const std::vector<storage::MapInfo>& maps) {
+  Search search;
+  if (maps.size() == 1) {
+    search.answer.map = maps.front().name;
+    search.answer.entry = cache.Get(maps.front().name);
+    return search;
+  }
+  search.union_ = cache.unions().Get(maps);
+  search.answer.entry.index = search.union_->index;
+  search.answer.entry.to_wgs84 = search.union_->to_wgs84;
+  return search;
+}
+
+// A union's answer in its maps' terms: the map holding most of the matched trees answers, with
+// its version; each match's id and map are its own map's.
+void NameTheMaps(const MapUnion& maps, MapAnswer& answer) {
+  const MapUnion::Member& answering = maps.members[maps.MostMatched(answer.result.matches)];
+  answer.map = answering.name;
+  answer.entry.version = answering.version;
+  answer.entry.created_unix_ms = answering.created_unix_ms;
+  for (algorithms::TreeMatch& match : answer.result.matches) {
+    const MapUnion::Origin& origin = maps.origin.at(match.map_tree_id);
+    match.map_tree_id = origin.id;
+    answer.match_maps.push_back(maps.members[origin.member].name);
+  }
+}
+
 }  // namespace
 
 double ViewRange(const algorithms::RelocalizeQuery& query,
@@ -81,20 +133,36 @@ bool MayHoldSensor(const storage::Extent& extent, const algorithms::PriorPose& p
   return std::hypot(dx, dy) <= prior.radius + range;
 }
 
-std::vector<std::string> CandidateMaps(const std::vector<storage::MapInfo>& maps,
-                                       const algorithms::RelocalizeQuery& query,
-                                       const algorithms::RelocalizerOptions& options) {
+std::vector<storage::MapInfo> CandidateMaps(const std::vector<storage::MapInfo>& maps,
+                                            const algorithms::RelocalizeQuery& query,
+                                            const algorithms::RelocalizerOptions& options) {
   const double range = ViewRange(query, options);
-  std::vector<std::string> names;
+  const auto may_hold = [&](const storage::MapInfo& info) {
+    return !query.prior || MayHoldSensor(*info.extent, *query.prior, range);
+  };
+  std::set<std::string> crs_met;  // CRSs of maps the prior meets: their unions are searched
+  for (const storage::MapInfo& info : maps) {
+    if (info.confirmed_count > 0 && info.extent && !info.crs.empty() && may_hold(info)) {
+      crs_met.insert(info.crs);
+    }
+  }
+  std::vector<storage::MapInfo> candidates;
   for (const storage::MapInfo& info : maps) {
     if (info.confirmed_count == 0 || !info.extent) continue;
-    if (query.prior && !MayHoldSensor(*info.extent, *query.prior, range)) continue;
-    names.push_back(info.name);
+    if (may_hold(info) || crs_met.count(info.crs) > 0) candidates.push_back(info);
   }
-  return names;
+  return candidates;
 }
 
-MapSetAnswer RelocalizeInMaps(MapIndexCache& cache, const std::vector<std::string>& maps,
+storage::MapInfo MapNamed(const std::string& name) {
+  storage::MapInfo info;
+  info.name = name;
+  return info;
+}
+
+size_t SearchCount(const std::vector<storage::MapInfo>& maps) { return Searches(maps).size(); }
+
+MapSetAnswer RelocalizeInMaps(MapIndexCache& cache, const std::vector<storage::MapInfo>& maps,
                               const algorithms::RelocalizeQuery& query,
                               const algorithms::RelocalizerOptions& options) {
   MapSetAnswer out;
@@ -102,20 +170,24 @@ MapSetAnswer RelocalizeInMaps(MapIndexCache& cache, const std::vector<std::strin
     out.result = NoMapSearched(query);
     return out;
   }
+  const std::vector<std::vector<storage::MapInfo>> groups = Searches(maps);
+  std::vector<Search> searches;
   double total_area = 0;
-  for (const std::string& name : maps) {
-    MapAnswer& answer = out.answers.emplace_back();
-    answer.map = name;
-    answer.entry = cache.Get(name);
-    if (maps.size() > 1) {  // one map alone: nothing to add to its own look-elsewhere test
-      answer.search_area = algorithms::QuerySearchArea(*answer.entry.index, query, options);
+  for (const std::vector<storage::MapInfo>& group : groups) {
+    Search& search = searches.emplace_back(Prepare(cache, group));
+    if (groups.size() > 1) {  // one search alone: nothing to add to its own look-elsewhere test
+      search.answer.search_area =
+          algorithms::QuerySearchArea(*search.answer.entry.index, query, options);
     }
-    total_area += answer.search_area;
+    total_area += search.answer.search_area;
   }
-  algorithms::RelocalizeQuery own = query;  // one copy of the trees for every map
-  for (MapAnswer& answer : out.answers) {
+  algorithms::RelocalizeQuery own = query;  // one copy of the trees for every search
+  for (Search& search : searches) {
+    MapAnswer& answer = search.answer;
     own.other_search_area = std::max(0.0, total_area - answer.search_area);
     answer.result = algorithms::Relocalize(*answer.entry.index, own, options);
+    if (search.union_) NameTheMaps(*search.union_, answer);
+    out.answers.push_back(std::move(answer));
   }
   // The best of each status: most inliers.
   const auto best_with = [&](RelocalizeStatus status) {

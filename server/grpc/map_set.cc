@@ -10,11 +10,11 @@
 
 namespace forestmap::server {
 
-std::vector<std::string> ResolveMapSet(storage::MapStore& store, const Caller& caller,
-                                       std::string_view rpc, const v1::MapSet& set,
-                                       const algorithms::RelocalizeQuery& query,
-                                       const algorithms::RelocalizerOptions& options,
-                                       int max_query_maps) {
+std::vector<storage::MapInfo> ResolveMapSet(storage::MapStore& store, const Caller& caller,
+                                            std::string_view rpc, const v1::MapSet& set,
+                                            const algorithms::RelocalizeQuery& query,
+                                            const algorithms::RelocalizerOptions& options,
+                                            int max_maps, int max_searches) {
   std::vector<storage::MapInfo> maps;
   if (set.names_size() > 0) {
     for (const std::string& name : set.names()) {
@@ -37,12 +37,19 @@ std::vector<std::string> ResolveMapSet(storage::MapStore& store, const Caller& c
     std::sort(maps.begin(), maps.end(),
               [](const auto& a, const auto& b) { return a.name < b.name; });
   }
-  std::vector<std::string> candidates = CandidateMaps(maps, query, options);
-  if (candidates.size() > static_cast<size_t>(max_query_maps)) {
+  std::vector<storage::MapInfo> candidates = CandidateMaps(maps, query, options);
+  if (candidates.size() > static_cast<size_t>(max_maps)) {
     throw LimitError("maps: " + std::to_string(candidates.size()) +
                      " maps with trees may hold the sensor, over the limit of " +
-                     std::to_string(max_query_maps) +
+                     std::to_string(max_maps) +
                      " per question; name fewer maps, or give a prior to leave out the far ones");
+  }
+  const size_t searches = SearchCount(candidates);
+  if (searches > static_cast<size_t>(max_searches)) {
+    throw LimitError("maps: the maps that may hold the sensor need " + std::to_string(searches) +
+                     " searches (one per CRS, one per map without a CRS), over the limit of " +
+                     std::to_string(max_searches) +
+                     " per question; give the maps a common CRS, name fewer maps, or give a prior");
   }
   return candidates;
 }
@@ -55,6 +62,14 @@ v1::RelocalizeResponse ToProto(const MapSetAnswer& answer) {
     response.set_map_version(reported.entry.version);
   }
   if (answer.rival) response.set_rival_map_name(answer.answers[*answer.rival].map);
+  if (answer.reported) {
+    const MapAnswer& reported = answer.answers[*answer.reported];
+    for (size_t i = 0; i < reported.match_maps.size(); ++i) {
+      if (reported.match_maps[i] != reported.map) {
+        response.mutable_matches(static_cast<int>(i))->set_map_name(reported.match_maps[i]);
+      }
+    }
+  }
   return response;
 }
 

@@ -52,7 +52,8 @@ void LogFault(std::string_view message) { Log(LogLevel::kWarn, message); }
 
 void ServiceOptions::Check() const {
   Require(max_query_trees >= kMinQueryTrees, "ServiceOptions.max_query_trees must be >= 3");
-  Require(max_query_maps >= 1, "ServiceOptions.max_query_maps must be >= 1");
+  Require(max_query_maps >= 1 && max_query_searches >= 1,
+          "ServiceOptions.max_query_maps and max_query_searches must be >= 1");
   Require(max_upload_trees >= 1, "ServiceOptions.max_upload_trees must be >= 1");
   Require(export_chunk_trees >= 1, "ServiceOptions.export_chunk_trees must be >= 1");
   Require(export_chunk_bytes >= 1, "ServiceOptions.export_chunk_bytes must be >= 1");
@@ -159,10 +160,11 @@ grpc::ServerUnaryReactor* ForestMapService::Relocalize(grpc::CallbackServerConte
     Validate(*request, options_.max_query_trees, options_.max_query_maps);
     if (context->IsCancelled()) return;  // the client is gone; its status is CANCELLED anyway
     const algorithms::RelocalizeQuery query = FromProto(*request);
-    const std::vector<std::string> maps =
+    const std::vector<storage::MapInfo> maps =
         request->has_maps() ? ResolveMapSet(store_, caller, "Relocalize", request->maps(), query,
-                                            options_.relocalizer, options_.max_query_maps)
-                            : std::vector<std::string>{request->name()};
+                                            options_.relocalizer, options_.max_query_maps,
+                                            options_.max_query_searches)
+                            : std::vector<storage::MapInfo>{MapNamed(request->name())};
     // No lock around the relocalizer: concurrent queries share the immutable indexes.
     const MapSetAnswer answer = RelocalizeInMaps(index_cache_, maps, query, options_.relocalizer);
     *response = ToProto(answer);

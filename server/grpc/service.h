@@ -82,8 +82,9 @@ struct Caller;
 struct ServiceOptions {
   int max_query_trees = 20'000;  // trees per Relocalize request
   // Maps one Relocalize question over a set (RelocalizeRequest.maps) may search, after the prior
-  // left out the far ones; each is a full search, its index held while the question runs.
+  // left out the far ones, and the searches they make (one per CRS, one per map without).
   int max_query_maps = kDefaultMaxQueryMaps;
+  int max_query_searches = kDefaultMaxQuerySearches;
   int64_t max_upload_trees = 20'000'000;  // trees per UploadTrees stream (staged in the database)
   // Trees an upload stages per transaction: the most of an upload held in memory (count).
   int upload_stage_trees = 10'000;

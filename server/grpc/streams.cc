@@ -110,8 +110,11 @@ bool TrackReactor::Answer() {
                                           max_query_trees_, options_.max_query_maps);
   if (first && message.maps) {
     over_set_ = true;
-    set_ = ResolveMapSet(store_, caller_, "Track", *message.maps, {}, options_.relocalizer,
-                         options_.max_query_maps);
+    for (const storage::MapInfo& info :
+         ResolveMapSet(store_, caller_, "Track", *message.maps, {}, options_.relocalizer,
+                       options_.max_query_maps, options_.max_query_searches)) {
+      set_.push_back(info.name);
+    }
   } else if (first) {
     map_name_ = message.map;
   }
@@ -172,7 +175,7 @@ algorithms::TrackingStep TrackReactor::StepOverSet(const algorithms::TrackingFra
   if (found.result.status == algorithms::RelocalizeStatus::kLocalized) {
     // A fresh session in the map found: the frame searched there again, which seeds the tracker.
     map_name_ = found.answers[*found.reported].map;
-    entry = found.answers[*found.reported].entry;
+    entry = index_cache_.Get(map_name_);  // the map's own index (a union's ids are not its own)
     tracker_ = algorithms::Tracker(SessionOptions(options_));
     set_frames_lost_ = 0;
     return tracker_.Step(*entry->index, frame);

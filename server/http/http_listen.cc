@@ -13,6 +13,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "server/http/connection_gate.h"
 #include "server/http/handshake_deadline.h"
 
 namespace forestmap::server {
@@ -25,6 +26,8 @@ constexpr auto kStopPoll = std::chrono::milliseconds(5);  // while waiting for t
 // page and /metrics for 30 s. Many workers and a short first-byte timeout keep them answering.
 constexpr int kHttpWorkers = 64;
 constexpr int kReadTimeoutS = 2;
+// Connections waiting for accept() (the kernel caps it at net.core.somaxconn).
+constexpr int kAcceptBacklog = 1024;
 // A whole TLS handshake, however its client drips its bytes.
 constexpr auto kHandshakeLimit = std::chrono::seconds(5);
 
@@ -82,11 +85,15 @@ std::string BindFailure(const HostPort& where) {
 
 }  // namespace
 
+void SetConnectionTimeouts(httplib::Server& http) {
+  http.set_read_timeout(kReadTimeoutS, 0);
+  http.set_keep_alive_timeout(kReadTimeoutS);
+}
+
 int BindHttpListener(httplib::Server& http, const std::string& flag, const std::string& address) {
   const HostPort where = Parse(flag, address);
   http.new_task_queue = [] { return new httplib::ThreadPool(kHttpWorkers); };
-  http.set_read_timeout(kReadTimeoutS, 0);
-  http.set_keep_alive_timeout(kReadTimeoutS);
+  SetConnectionTimeouts(http);
   http.set_socket_options([](int sock) {
     int yes = 1;
     setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
@@ -112,18 +119,24 @@ HttpListener::HttpListener(const std::string& flag, const std::string& address,
     http_ = std::make_unique<httplib::Server>();
   }
   routes(*http_);
-  port_ = BindHttpListener(*http_, flag, address);
+  SetConnectionTimeouts(*http_);  // it serves the connections the gate accepts
+  gate_ = std::make_unique<ConnectionGate>(*http_, kConnectionsPerClient, static_cast<bool>(https));
+  port_ = BindHttpListener(*gate_, flag, address);
+  if (!gate_->WidenBacklog(kAcceptBacklog)) {
+    throw std::runtime_error(flag + " " + address + ": cannot set the listen backlog");
+  }
   address_ = BoundHttpAddress(address, port_);
   thread_ = std::thread([this] {
-    http_->listen_after_bind();
+    gate_->listen_after_bind();
     stopped_ = true;
   });
 }
 
 HttpListener::~HttpListener() {
+  gate_->Close();
   // stop() is a no-op until the listen loop runs: repeat it until the loop has ended.
   while (!stopped_) {
-    http_->stop();
+    gate_->stop();
     std::this_thread::sleep_for(kStopPoll);
   }
   thread_.join();

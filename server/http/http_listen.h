@@ -4,8 +4,10 @@
 // forestmapd bind a port already in use and silently take part of its connections; the sockets
 // bound here only get SO_REUSEADDR (restart after TIME_WAIT), so a port in use is an error. Each
 // listener has 64 workers and a 2 s read timeout, so idle or half-open connections cannot stall
-// it. With an HttpsSetup it serves HTTPS only (cpp-httplib on OpenSSL), and a TLS handshake
-// still running after 5 s is ended (server/http/handshake_deadline.h).
+// it, and serves at most kConnectionsPerClient connections of one remote address at a time: one
+// more is answered 503 at once (over HTTPS, closed), so one client cannot hold all the workers.
+// With an HttpsSetup it serves HTTPS only (cpp-httplib on OpenSSL), and a TLS handshake still
+// running after 5 s is ended (server/http/handshake_deadline.h).
 
 #include <openssl/types.h>
 
@@ -22,6 +24,10 @@ class Server;
 namespace forestmap::server {
 
 class HandshakeDeadline;
+class ConnectionGate;
+
+// Connections of one remote address (IP) an HTTP listener serves at a time.
+inline constexpr int kConnectionsPerClient = 8;
 
 // How a listener serves HTTPS: sets up OpenSSL's context of its connections (certificate, key,
 // client verification: TlsCredentials::SetUpHttps), false when it cannot. Empty: plain HTTP.
@@ -55,7 +61,8 @@ class HttpListener {
 
  private:
   std::unique_ptr<HandshakeDeadline> deadline_;  // with HTTPS; outlives the server's handshakes
-  std::unique_ptr<httplib::Server> http_;
+  std::unique_ptr<httplib::Server> http_;        // the routes; serves what gate_ lets through
+  std::unique_ptr<ConnectionGate> gate_;         // binds, accepts, limits connections per client
   int port_ = 0;
   std::string address_;
   std::atomic<bool> stopped_{false};  // the listen loop has ended

@@ -55,7 +55,9 @@ PageRequest ReadPageRequest(const httplib::Request& request) {
   read.has_token_param = request.has_param("token");
   read.authorization = request.get_header_value("Authorization");
   if (!read.authorization.empty()) return read;
-  if (read.has_token_param) read.token = request.get_param_value("token");
+  if (read.has_token_param && read.route == PageRoute::kPage) {
+    read.token = request.get_param_value("token");
+  }
   read.token_in_query = !read.token.empty();
   if (read.token.empty())
     read.token = CookieValue(request.get_header_value("Cookie"), kTokenCookie);

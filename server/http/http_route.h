@@ -32,10 +32,11 @@ struct PageRequest {
   PageRoute route = PageRoute::kNotFound;
   std::string map;  // of kTrees, kDensity, kVersions and kBoundary: one or more of [A-Za-z0-9_.-]
   std::string authorization;  // the Authorization header as sent ("Bearer <token>"), if any
-  // Without an Authorization header: ?token= (a browser's first visit), else the cookie.
+  // Without an Authorization header: on the page itself (kPage) ?token= (a browser's first
+  // visit), else the cookie. No other route reads a token from the address.
   std::string token;
-  bool token_in_query = false;   // `token` is ?token=
-  bool has_token_param = false;  // ?token= is in the address (the page removes it)
+  bool token_in_query = false;   // `token` is the page's ?token=
+  bool has_token_param = false;  // ?token= is in the address (the page removes it, others refuse)
 };
 
 // The route of a (decoded) path; `map` gets the map name of the routes of one map.

@@ -212,7 +212,7 @@ struct ItemsQuery {
 
 ItemsQuery ParseItems(const Request& request, const MapCrs& crs) {
   static const std::set<std::string> kKnown = {"limit", "bbox",    "bbox-crs", "crs",
-                                               "after", "version", "f",        "token"};
+                                               "after", "version", "f"};
   for (const auto& [name, value] : request.params) {
     if (!kKnown.contains(name)) throw BadParameter("unknown parameter " + name);
   }

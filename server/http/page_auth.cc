@@ -13,6 +13,19 @@ using Json = nlohmann::json;
 std::optional<PageCaller> Authenticate(storage::TokenStore* tokens, const PageRequest& request,
                                        httplib::Response& response) {
   PageCaller caller;
+  if (request.has_token_param && request.route != PageRoute::kPage) {
+    // Addresses end up in logs, proxies and browser histories: only the page's first visit
+    // takes a token there (and moves it into a cookie at once).
+    response.status = 400;
+    response.set_content(
+        Json{{"error",
+              "a token in the address (?token=) is refused here: send 'Authorization: Bearer "
+              "<token>', or in a browser open the page once as /?token=<token> (it keeps the "
+              "token in a cookie)"}}
+            .dump(),
+        "application/json");
+    return std::nullopt;
+  }
   if (tokens == nullptr || !tokens->AnyToken()) return caller;
   caller.open = false;
   const std::string secret = request.authorization.empty()

@@ -1,8 +1,10 @@
 #pragma once
 // Who asks the web port (the page and OGC API - Features, server/http/http_page.h): once the
 // server has a token, every route needs a valid one with read access, read from the request as
-// server/http/http_route.h says (Authorization: Bearer, else ?token=, else the page's cookie).
-// None, unknown, revoked or expired -> 401; a map the token may not read -> 403.
+// server/http/http_route.h says (Authorization: Bearer, else the page's cookie; ?token= only on
+// the page itself, whose first visit moves it into the cookie). ?token= on any other route ->
+// 400, tokens or not; none, unknown, revoked or expired -> 401; a map the token may not read ->
+// 403.
 
 #include <optional>
 #include <string>

@@ -2,7 +2,8 @@
 // on one connection (requests, keep-alive), parsed by cpp-httplib's own request parser
 // (Server::process_request on a stream in memory: no socket) and routed twice:
 //   - by the web page's reading of a request (server/http/http_route.h: route, map name, token
-//     from the header, ?token= or the cookie), whose results are checked against the request;
+//     from the header, the page's ?token= or the cookie), whose results are checked against
+//     the request;
 //   - by the metrics port's routes (server/http/metrics_http.h) over a Metrics whose method
 //     names come from the input too.
 // Every answer written must be well-formed HTTP: a status line, then "Name: value" lines without
@@ -120,7 +121,8 @@ void CheckPageRequest(const httplib::Request& request, const fs::PageRequest& re
   if (!read.authorization.empty()) {
     Check(read.token.empty() && !read.token_in_query);
   } else if (read.token_in_query) {
-    Check(!read.token.empty() && read.token == request.get_param_value("token"));
+    Check(read.route == fs::PageRoute::kPage && !read.token.empty() &&
+          read.token == request.get_param_value("token"));
   } else {
     Check(read.token == fs::CookieValue(request.get_header_value("Cookie"), fs::kTokenCookie));
   }

@@ -128,6 +128,9 @@ class Answer:
     # of a set disagree (AMBIGUOUS), the map of rival_map_from_sensor.
     map_name: str = ""
     rival_map_name: str = ""
+    # The map of each match's map_tree_id: map_name, or over maps sharing a CRS another map of
+    # the set (a view across a plot boundary).
+    match_maps: List[str] = field(default_factory=list)
 
     @property
     def localized(self) -> bool:
@@ -170,7 +173,8 @@ def answer(response: relocalization_pb2.RelocalizeResponse) -> Answer:
                           g.true_heading_deg, g.grid_convergence_deg,
                           g.transformation_accuracy_m, g.ballpark_transformation)
         if response.HasField("geodetic") else None,
-        map_name=response.map_name, rival_map_name=response.rival_map_name)
+        map_name=response.map_name, rival_map_name=response.rival_map_name,
+        match_maps=[m.map_name or response.map_name for m in response.matches])
 
 
 @dataclass

@@ -111,6 +111,23 @@ def test_relocalize_over_a_set_of_maps_names_the_map(wild, data_dir):
     wild.delete_map("wild-elsewhere")
 
 
+def test_plot_maps_of_one_crs_answer_a_view_across_them_with_each_matchs_map(wild, data_dir):
+    trees, _ = detections(data_dir, FRAME)
+    one = wild.relocalize("wild", trees)
+    assert one.localized
+    surveyed = map_array(data_dir)
+    west = surveyed["x"] < one.x  # the cut runs through the sensor
+    wild.create_map("cut-west", surveyed[west], crs="EPSG:32633")
+    wild.create_map("cut-east", surveyed[~west], crs="EPSG:32633")
+    answer = wild.relocalize(None, trees, maps_matching="cut-*")
+    assert answer.localized and answer.map_name in ("cut-west", "cut-east")
+    assert (answer.x, answer.y) == pytest.approx((one.x, one.y), abs=0.05)
+    assert set(answer.match_maps) == {"cut-west", "cut-east"}
+    assert len(answer.match_maps) == len(answer.matches)
+    for name in ("cut-west", "cut-east"):
+        wild.delete_map(name)
+
+
 def test_a_bad_tree_names_its_field_in_the_error_details(wild):
     trees = np.array([[1.0, 2.0, 0.0], [1.0, 1.0, -1.0], [3.0, 4.0, 0.0]])
     with pytest.raises(ForestMapError) as error:

@@ -47,19 +47,39 @@ TEST(CandidateMaps, APriorKeepsTheMapsItsDiscGrownByTheViewMeets) {
       Info("a", {0, 0, 100, 100}), Info("b", {100, 0, 200, 100}), Info("c", {300, 0, 400, 100}),
       Info("empty", {0, 0, 100, 100}, 0)};
   const algorithms::RelocalizerOptions options;  // max_query_range 60 m
+  const auto names = [&](const algorithms::RelocalizeQuery& query) {
+    std::vector<std::string> out;
+    for (const storage::MapInfo& info : CandidateMaps(maps, query, options)) {
+      out.push_back(info.name);
+    }
+    return out;
+  };
   // No prior: every map with confirmed trees, in order.
-  EXPECT_EQ(CandidateMaps(maps, QueryWithin(20, {}, 0), options),
-            (std::vector<std::string>{"a", "b", "c"}));
+  EXPECT_EQ(names(QueryWithin(20, {}, 0)), (std::vector<std::string>{"a", "b", "c"}));
   // At (50, 50) within 10 m, trees seen up to 20 m: b begins 50 m away, beyond 30 m.
-  EXPECT_EQ(CandidateMaps(maps, QueryWithin(20, Eigen::Vector2d(50, 50), 10), options),
-            (std::vector<std::string>{"a"}));
+  EXPECT_EQ(names(QueryWithin(20, Eigen::Vector2d(50, 50), 10)), (std::vector<std::string>{"a"}));
   // Seen up to 45 m: b's extent is within 55 m.
-  EXPECT_EQ(CandidateMaps(maps, QueryWithin(45, Eigen::Vector2d(50, 50), 10), options),
+  EXPECT_EQ(names(QueryWithin(45, Eigen::Vector2d(50, 50), 10)),
             (std::vector<std::string>{"a", "b"}));
   // A tree 500 m away counts only up to max_query_range: c (250 m away) stays out.
-  EXPECT_EQ(CandidateMaps(maps, QueryWithin(500, Eigen::Vector2d(50, 50), 10), options),
+  EXPECT_EQ(names(QueryWithin(500, Eigen::Vector2d(50, 50), 10)),
             (std::vector<std::string>{"a", "b"}));
   EXPECT_DOUBLE_EQ(ViewRange(QueryWithin(500, {}, 0), options), options.max_query_range);
+}
+
+// Maps of one CRS are one union, one index for every prior: the prior keeps all of them or none.
+TEST(CandidateMaps, APriorKeepsEveryMapOfACrsItMeetsAndNoneOfOneItDoesNot) {
+  std::vector<storage::MapInfo> maps = {Info("a", {0, 0, 100, 100}), Info("b", {100, 0, 200, 100}),
+                                        Info("c", {300, 0, 400, 100}),
+                                        Info("d", {1000, 0, 1100, 100})};
+  maps[0].crs = maps[2].crs = "EPSG:32633";
+  maps[1].crs = maps[3].crs = "EPSG:32632";
+  std::vector<std::string> names;
+  for (const storage::MapInfo& info :
+       CandidateMaps(maps, QueryWithin(20, Eigen::Vector2d(50, 50), 10), {})) {
+    names.push_back(info.name);
+  }
+  EXPECT_EQ(names, (std::vector<std::string>{"a", "c"}));
 }
 
 TEST(RelocalizeInMaps, NoMapToSearchIsNotFoundOutsideThePrior) {
@@ -70,6 +90,95 @@ TEST(RelocalizeInMaps, NoMapToSearchIsNotFoundOutsideThePrior) {
   EXPECT_EQ(answer.result.status, RelocalizeStatus::kNotFound);
   EXPECT_EQ(answer.result.reason, algorithms::RelocalizeReason::kOutsidePrior);
   EXPECT_FALSE(answer.reported);
+}
+
+TEST(SearchCount, MapsOfOneCrsAreOneSearchAndAMapWithoutACrsIsItsOwn) {
+  storage::MapInfo utm33a = MapNamed("a"), utm33b = MapNamed("b"), utm32 = MapNamed("c");
+  utm33a.crs = utm33b.crs = "EPSG:32633";
+  utm32.crs = "EPSG:32632";
+  EXPECT_EQ(SearchCount({utm33a, utm33b}), 1u);
+  EXPECT_EQ(SearchCount({utm33a, utm32, utm33b}), 2u);
+  EXPECT_EQ(SearchCount({utm33a, MapNamed("x"), MapNamed("y")}), 3u);
+}
+
+storage::TreeRecord Record(const algorithms::MapTree& tree) {
+  storage::TreeRecord record;
+  record.id = tree.id;
+  record.x = tree.position.x();
+  record.y = tree.position.y();
+  if (std::isfinite(tree.dbh)) record.dbh = tree.dbh;
+  return record;
+}
+
+// Plots of one forest in one CRS, their ids their own (plot b's are the forest's + 10,000):
+// a is x < 160, b is x >= 140; the 20 m strip between both surveyed it.
+struct TwoPlots {
+  std::vector<algorithms::MapTree> forest = algorithms::testing_util::Forest(7, 300);
+  storage::SqliteMapStore store{":memory:"};
+  std::vector<storage::MapInfo> maps;
+  TwoPlots() {
+    std::vector<storage::TreeRecord> a, b;
+    for (const algorithms::MapTree& tree : forest) {
+      if (tree.position.x() < 160) a.push_back(Record(tree));
+      if (tree.position.x() >= 140) b.push_back(Record(tree));
+      if (tree.position.x() >= 140) b.back().id = tree.id + 10'000;
+    }
+    for (const auto& [name, trees] : {std::pair{"a", &a}, std::pair{"b", &b}}) {
+      store.CreateMap(name, "", "EPSG:32633");
+      store.WriteTrees(name, *trees, storage::WriteMode::kAppend);
+      maps.push_back(store.GetMap(name));
+    }
+  }
+};
+
+TEST(MapUnion, ATreeTwoMapsSurveyedIsIndexedOnceUnderItsFirstMapsId) {
+  TwoPlots plots;
+  const MapUnion maps = BuildMapUnion(plots.store, plots.maps, {});
+  ASSERT_EQ(maps.members.size(), 2u);
+  EXPECT_EQ(maps.index->size(), plots.forest.size());
+  for (size_t i = 0; i < maps.origin.size(); ++i) {
+    const MapUnion::Origin& origin = maps.origin[i];
+    const bool in_a = maps.index->trees()[i].position.x() < 160;
+    EXPECT_EQ(origin.member, in_a ? 0u : 1u) << i;
+    EXPECT_EQ(origin.id >= 10'000, !in_a) << i;
+  }
+}
+
+// A sensor on the line between the plots sees trees of both: one search, LOCALIZED at the
+// truth, matches naming each tree's own map and id, and the map holding most of them answers.
+TEST(RelocalizeInMaps, MapsOfOneCrsAreSearchedOnceAndAViewAcrossThemMatchesBoth) {
+  TwoPlots plots;
+  MapIndexCache cache(plots.store);
+  const algorithms::ViewSimulator simulator(plots.forest);
+  int across = 0;
+  for (unsigned seed = 0; seed < 4; ++seed) {
+    algorithms::ViewOptions view;
+    view.seed = seed;
+    view.range = 25;
+    algorithms::RelocalizeQuery query;
+    const Eigen::Vector2d truth(160, 60 + 40 * seed);
+    query.trees = simulator.Simulate(truth, 0.5 * seed, view).trees;
+    const MapSetAnswer answer =
+        RelocalizeInMaps(cache, plots.maps, query, algorithms::RelocalizerOptions());
+    ASSERT_EQ(answer.answers.size(), 1u);
+    ASSERT_EQ(answer.result.status, RelocalizeStatus::kLocalized) << "seed " << seed;
+    EXPECT_LT((answer.result.map_from_sensor.translation().head<2>() - truth).norm(), 0.3);
+    const MapAnswer& reported = answer.answers[*answer.reported];
+    ASSERT_EQ(reported.match_maps.size(), answer.result.matches.size());
+    int in_a = 0, in_b = 0;
+    for (size_t i = 0; i < reported.match_maps.size(); ++i) {
+      const int64_t id = answer.result.matches[i].map_tree_id;
+      const bool b = reported.match_maps[i] == "b";
+      (b ? in_b : in_a) += 1;
+      const algorithms::MapTree& tree = plots.forest.at(b ? id - 10'000 : id);
+      EXPECT_EQ(tree.id, b ? id - 10'000 : id);
+      EXPECT_EQ(tree.position.x() >= 160, b) << "tree " << id;
+    }
+    across += in_a > 0 && in_b > 0;
+    EXPECT_EQ(reported.map, in_b > in_a ? "b" : "a");
+    EXPECT_EQ(reported.entry.version, plots.store.GetMap(reported.map).version);
+  }
+  EXPECT_GE(across, 3);
 }
 
 // Plot a is the forest's x < 150, plot b its x >= 150 with every other tree (a thinner survey).
@@ -104,8 +213,8 @@ TEST(RelocalizeInMaps, MapsThatAgreeAreNamedByTheOneHoldingTheSensor) {
     view.range = 25;
     algorithms::RelocalizeQuery query;
     query.trees = simulator.Simulate({156, 60 + 30 * seed}, 0.5 * seed, view).trees;
-    const MapSetAnswer answer =
-        RelocalizeInMaps(cache, {"a", "b"}, query, algorithms::RelocalizerOptions());
+    const MapSetAnswer answer = RelocalizeInMaps(cache, {MapNamed("a"), MapNamed("b")}, query,
+                                                 algorithms::RelocalizerOptions());
     ASSERT_EQ(answer.answers.size(), 2u);
     const algorithms::RelocalizeResult& in_a = answer.answers[0].result;
     const algorithms::RelocalizeResult& in_b = answer.answers[1].result;

@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -108,11 +109,14 @@ class MapSetTest : public ::testing::Test {
     Create("district-empty", {});
   }
 
-  void Create(const std::string& name, const std::vector<v1::Tree>& trees) {
+  void Create(const std::string& name, const std::vector<v1::Tree>& trees,
+              const std::string& crs = "") {
     auto context = test::CallContext(kCallDeadline);
     v1::UploadTreesResponse response;
     auto writer = stub_->UploadTrees(context.get(), &response);
-    bool open = writer->Write(test::UploadHeader(name, false, true));
+    v1::UploadTreesRequest header = test::UploadHeader(name, false, true);
+    header.mutable_header()->set_crs(crs);
+    bool open = writer->Write(header);
     for (size_t next = 0; open && next < trees.size();) {
       v1::UploadTreesRequest message;
       for (size_t end = std::min(trees.size(), next + 1000); next < end; ++next) {
@@ -211,6 +215,34 @@ TEST_F(MapSetTest, OverlappingMapsOfOneFrameAgreeOnThePose) {
   ASSERT_EQ(answer.status(), v1::RelocalizeResponse::STATUS_LOCALIZED) << answer.detail();
   EXPECT_THAT(answer.map_name(), ::testing::AnyOf("district-a", "overlap-ab"));
   EXPECT_LT(HorizontalError(answer, truth), kPoseTolerance);
+}
+
+// Plot maps in one CRS are one forest: a view on their boundary is found in the index of their
+// union, the answer naming one of them and each match its own map.
+TEST_F(MapSetTest, MapsOfOneCrsFindAViewOnTheirBoundaryWithEachMatchsMap) {
+  Create("utm-a", Cut(District(), 0, kPlotWidth), "EPSG:32633");
+  Create("utm-b", Cut(District(), kPlotWidth, 2 * kPlotWidth), "EPSG:32633");
+  int across = 0;
+  for (unsigned k = 0; k < 4; ++k) {
+    algorithms::Pose3 truth;
+    v1::RelocalizeRequest request =
+        ViewAt(District(), kPlotWidth, 60 + 50 * k, 0.7 * k, 40 + k, &truth);
+    request.mutable_maps()->set_name_pattern("utm-*");
+    v1::RelocalizeResponse answer;
+    const grpc::Status status = Relocalize(request, &answer);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+    ASSERT_EQ(answer.status(), v1::RelocalizeResponse::STATUS_LOCALIZED) << answer.detail();
+    EXPECT_LT(HorizontalError(answer, truth), kPoseTolerance);
+    EXPECT_THAT(answer.map_name(), ::testing::AnyOf("utm-a", "utm-b"));
+    EXPECT_TRUE(answer.has_geodetic());
+    std::set<std::string> maps;
+    for (const v1::TreeMatch& match : answer.matches()) {
+      EXPECT_NE(match.map_name(), answer.map_name());  // named only when another map's
+      maps.insert(match.map_name().empty() ? answer.map_name() : match.map_name());
+    }
+    across += maps.size() == 2;
+  }
+  EXPECT_GE(across, 3);
 }
 
 TEST_F(MapSetTest, APriorLeavesOutTheMapsItCannotMeetWithoutBuildingTheirIndexes) {

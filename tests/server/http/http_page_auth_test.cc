@@ -1,6 +1,7 @@
 // forestmapd --http once showed every map to anyone, tokens or not. Now, once a token exists,
 // every route needs one with read access on the map (Authorization: Bearer, or for a browser a
-// cookie the page sets from /?token=): checked route by route over HTTP, and in Debian's headless
+// cookie the page sets from /?token=; no other route takes a token in its address): checked
+// route by route over HTTP, and in Debian's headless
 // Chromium opening /?token=... and drawing the map's trees.
 
 #include <gtest/gtest.h>
@@ -10,6 +11,7 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "server/app/recent_answers.h"
 #include "server/http/http_page.h"
@@ -92,7 +94,6 @@ TEST_F(HttpPageAuthTest, OpenWithoutTokensClosedOnceOneExists) {
   EXPECT_EQ(Get("/api/maps/secret/versions", reader).status, 403);
   // The browser's way: a first visit to /?token= moves the token into a cookie and reloads the
   // page without it in the address; the cookie then opens every route.
-  EXPECT_EQ(Get("/api/maps?token=" + reader).status, 200);
   const test::HttpAnswer first = Get("/?token=" + reader);
   EXPECT_EQ(first.status, 303);
   EXPECT_EQ(first.location, "/");
@@ -125,6 +126,35 @@ TEST_F(HttpPageAuthTest, TheFirstVisitCookieIsTheCheckedToken) {
   EXPECT_EQ(Get("/api/nothing").status, 401);
   EXPECT_EQ(Get("/api/nothing", reader).status, 404);
   EXPECT_EQ(Get("/api/maps/plot-1/nothing", reader).status, 404);
+}
+
+// A token in an address ends up in logs, proxies and browser histories: only the page's first
+// visit takes one there. Every other route, API and OGC alike, refuses ?token= with 400 and says
+// what to send instead, whatever else the request carries and whether tokens are in force or not.
+TEST_F(HttpPageAuthTest, ApiRoutesRefuseATokenInTheAddress) {
+  const std::vector<std::string> routes = {
+      "/api/maps", "/api/maps/plot-1/trees", "/api/maps/plot-1/versions",    "/api/relocalizations",
+      "/ogc",      "/ogc/collections",       "/ogc/collections/plot-1/items"};
+  for (const std::string& path : routes) {
+    const test::HttpAnswer open = Get(path + "?token=fmt_x");
+    EXPECT_EQ(open.status, 400) << path << " (no token exists yet)";
+  }
+  const std::string reader = tokens_->Create("plot-*", storage::Role::kRead).secret;
+  for (const std::string& path : routes) {
+    const test::HttpAnswer in_address = Get(path + "?token=" + reader);
+    EXPECT_EQ(in_address.status, 400) << path;
+    EXPECT_NE(in_address.body.find("Authorization: Bearer"), std::string::npos)
+        << path << ": " << in_address.body;
+    EXPECT_EQ(
+        Get(path + (path.find('?') == std::string::npos ? "?" : "&") + "token=" + reader, reader)
+            .status,
+        400)
+        << path << " (with the header too)";
+    EXPECT_EQ(Get(path, reader).status, 200) << path;
+    EXPECT_EQ(Get(path, "", {{"Cookie", "forestmap_token=" + reader}}).status, 200) << path;
+  }
+  // The page's first visit still moves the token into its cookie.
+  EXPECT_EQ(Get("/?token=" + reader).status, 303);
 }
 
 TEST_F(HttpPageAuthTest, TheBearerSchemeIsReadInAnyCase) {

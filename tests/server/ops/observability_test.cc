@@ -256,12 +256,17 @@ TEST_F(ObservabilityTest, TheMetricsPortAnswersLivenessReadinessAndAnIndex) {
 }
 
 // Connections that connect and send nothing hold a worker each until their read timeout; 50 of
-// them stalled cpp-httplib's 8 workers for ~30 s. The endpoint answers while they are held (the
-// 10 s bound only turns a stall into a failure).
+// them stalled cpp-httplib's 8 workers for ~30 s. The endpoint answers another client (here the
+// idle connections come from 127.0.0.2) while they are held (the 10 s bound only turns a stall
+// into a failure).
 TEST_F(ObservabilityTest, HalfOpenConnectionsDoNotStallTheMetricsPort) {
   std::vector<int> idle;
   for (int i = 0; i < 50; ++i) {
     const int sock = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in from{};
+    from.sin_family = AF_INET;
+    inet_pton(AF_INET, "127.0.0.2", &from.sin_addr);
+    ASSERT_EQ(bind(sock, reinterpret_cast<sockaddr*>(&from), sizeof(from)), 0);
     sockaddr_in address{};
     address.sin_family = AF_INET;
     address.sin_port = htons(static_cast<uint16_t>(http_->port()));
