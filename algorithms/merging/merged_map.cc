@@ -5,7 +5,12 @@
 
 namespace forestmap::algorithms {
 
-MergedMap::MergedMap(const MergeOptions& options) : options_(options) { options_.Check(); }
+MergedMap::MergedMap(const MergeOptions& options, const ChangeOptions& changes)
+    : options_(options), changes_(changes) {
+  options_.Check();
+  changes_.absence.Check();
+  changes_.evidence.Check();
+}
 
 MergedMap::CellKey MergedMap::KeyOf(const Eigen::Vector2d& xy) const {
   const int64_t cx = static_cast<int64_t>(std::floor(xy.x() / cell_size_));
@@ -107,10 +112,7 @@ void MergedMap::RemoveSource(const std::string& source) {
   observations_ = std::move(kept);
   for (const auto& [id, rows] : rows_of) {
     if (rows.empty()) {
-      cells_[cell_of_[id]].erase(
-          std::find(cells_[cell_of_[id]].begin(), cells_[cell_of_[id]].end(), id));
-      cell_of_.erase(id);
-      trees_.erase(id);
+      Erase(id);
     } else {
       Put(EstimateFromObservations(id, rows, options_));
     }

@@ -13,5 +13,6 @@ void AddBenchServerCommand(CLI::App& app, CliContext& context);   // cli_bench_s
 void AddBenchLoadCommand(CLI::App& app, CliContext& context);     // cli_bench_load.cc
 void AddBenchMappingCommand(CLI::App& app, CliContext& context);  // cli_bench_mapping.cc
 void AddSimulateCommand(CLI::App& app, CliContext& context);      // cli_simulate.cc
+void AddBenchChangesCommand(CLI::App& app, CliContext& context);  // cli_bench_changes.cc
 
 }  // namespace forestmap::client

@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
   client::AddBenchServerCommand(app, context);
   client::AddBenchLoadCommand(app, context);
   client::AddBenchMappingCommand(app, context);
+  client::AddBenchChangesCommand(app, context);
   client::AddSimulateCommand(app, context);
   return client::RunCommandLine(app, context, argc, argv);
 }

@@ -47,8 +47,8 @@ TEST_F(LabTest, HelpExitsZeroForEveryCommand) {
   const CliResult top = Lab("--help");
   EXPECT_EQ(top.exit_code, 0);
   EXPECT_NE(top.out.find("--server"), std::string::npos);
-  for (const char* command :
-       {"simulate", "bench-reloc", "bench-mapping", "bench-server", "bench-load", "demo-data"}) {
+  for (const char* command : {"simulate", "bench-reloc", "bench-mapping", "bench-changes",
+                              "bench-server", "bench-load", "demo-data"}) {
     SCOPED_TRACE(command);
     const CliResult result = Lab(std::string(command) + " --help");
     EXPECT_EQ(result.exit_code, 0);
@@ -58,7 +58,8 @@ TEST_F(LabTest, HelpExitsZeroForEveryCommand) {
 }
 
 TEST_F(LabTest, InvalidCommandLinesExitTwoWithAMessage) {
-  for (const char* args : {"", "relocalize m --trees a.csv", "simulate --bogus"}) {
+  for (const char* args : {"", "relocalize m --trees a.csv", "simulate --bogus",
+                           "bench-changes --map /dev/null --frames /dev/null"}) {
     SCOPED_TRACE(args);
     const CliResult result = Lab(args);
     EXPECT_EQ(result.exit_code, 2);
@@ -125,6 +126,26 @@ TEST_F(LabTest, SimulatedScansOfARealStemMapRelocalize) {
   EXPECT_EQ(report["wrong"], 0);
   // Floor at today's level (200 such scans: 77% within 0.3 m; the bar is 98%).
   EXPECT_GE(report["localized_within_rate"].get<double>(), 0.65) << bench.out;
+}
+
+// A stem map's simulated future observed into it: what is felled goes, what stands stays; with
+// nothing changed, nothing goes.
+TEST_F(LabTest, BenchChangesRemovesFelledTreesOnly) {
+  const std::string stemmap = std::string(FORESTMAP_SHARED_DATA) + "/stemmaps/spatstat_waka.csv";
+  if (!fs::exists(stemmap)) FORESTMAP_SKIP_WITHOUT_DATA() << "missing " << stemmap;
+  const CliResult changed =
+      Lab("bench-changes --map '" + stemmap + "' --clear-cut 0.1 --reloc-views 0 --json");
+  ASSERT_EQ(changed.exit_code, 0) << changed.err;
+  const auto report = nlohmann::json::parse(changed.out);
+  EXPECT_GT(report["felled"].get<int>(), 150);
+  EXPECT_GE(report["felled_removed"].get<double>(), 0.9) << changed.out;
+  EXPECT_EQ(report["live_removed_count"], 0) << changed.out;
+  const CliResult unchanged = Lab("bench-changes --map '" + stemmap +
+                                  "' --felled 0 --clear-cut 0 --ingrowth 0 --reloc-views 0 --json");
+  ASSERT_EQ(unchanged.exit_code, 0) << unchanged.err;
+  const auto same = nlohmann::json::parse(unchanged.out);
+  EXPECT_EQ(same["felled"], 0);
+  EXPECT_EQ(same["live_removed_count"], 0) << unchanged.out;
 }
 
 }  // namespace
