@@ -12,9 +12,10 @@
 
 namespace forestmap::client {
 
-void AddMapCommand(CLI::App& app, CliContext& context);            // cli_map.cc
-void AddMapPruneCommand(CLI::App& map_app, CliContext& context);   // cli_prune.cc ("map prune")
-void AddMapUploadCommand(CLI::App& map_app, CliContext& context);  // cli_map_upload.cc
+void AddMapCommand(CLI::App& app, CliContext& context);             // cli_map.cc
+void AddMapPruneCommand(CLI::App& map_app, CliContext& context);    // cli_prune.cc ("map prune")
+void AddMapUploadCommand(CLI::App& map_app, CliContext& context);   // cli_map_upload.cc
+void AddMapChangesCommand(CLI::App& map_app, CliContext& context);  // cli_map_changes.cc
 // cli_map_list.cc: "map list", "map show", "map history" (each with --json) and "map delete".
 void AddMapListingCommands(CLI::App& map_app, CliContext& context);
 void AddRelocalizeCommand(CLI::App& app, CliContext& context);  // cli_relocalize.cc

@@ -422,12 +422,13 @@ void AddRemoveSource(CLI::App& map_app, CliContext& context) {
 void AddMapCommand(CLI::App& app, CliContext& context) {
   CLI::App* map_app = app.add_subcommand(
       "map",
-      "Create, upload into, build, list, show, delete and export maps; history, restore, "
-      "remove-source, prune");
+      "Create, upload into, build, list, show, delete and export maps; history, changes, "
+      "restore, remove-source, prune");
   AddCreate(*map_app, context);
   AddMapUploadCommand(*map_app, context);
   AddBuild(*map_app, context);
   AddMapListingCommands(*map_app, context);
+  AddMapChangesCommand(*map_app, context);
   AddExport(*map_app, context);
   AddRestore(*map_app, context);
   AddRemoveSource(*map_app, context);
