@@ -82,9 +82,10 @@ TEST_F(CliTest, HelpExitsZeroForEveryCommand) {
   EXPECT_EQ(top.exit_code, 0);
   EXPECT_NE(top.out.find("--server"), std::string::npos);
   EXPECT_NE(top.out.find("relocalize"), std::string::npos);
-  for (const char* command : {"map", "map create", "map build", "map list", "map show",
-                              "map delete", "map export", "map history", "map restore",
-                              "map remove-source", "relocalize", "track", "observe", "detect"}) {
+  for (const char* command :
+       {"map", "map create", "map build", "map list", "map show", "map delete", "map export",
+        "map history", "map restore", "map remove-source", "map changes", "relocalize", "track",
+        "observe", "detect"}) {
     SCOPED_TRACE(command);
     const Result result = Run(std::string(command) + " --help");
     EXPECT_EQ(result.exit_code, 0);
