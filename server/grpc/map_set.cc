@@ -56,14 +56,11 @@ std::vector<storage::MapInfo> ResolveMapSet(storage::MapStore& store, const Call
 
 v1::RelocalizeResponse ToProto(const MapSetAnswer& answer) {
   v1::RelocalizeResponse response = ToProto(answer.result);
+  if (answer.rival) response.set_rival_map_name(answer.answers[*answer.rival].map);
   if (answer.reported) {
     const MapAnswer& reported = answer.answers[*answer.reported];
     response.set_map_name(reported.map);
     response.set_map_version(reported.entry.version);
-  }
-  if (answer.rival) response.set_rival_map_name(answer.answers[*answer.rival].map);
-  if (answer.reported) {
-    const MapAnswer& reported = answer.answers[*answer.reported];
     for (size_t i = 0; i < reported.match_maps.size(); ++i) {
       if (reported.match_maps[i] != reported.map) {
         response.mutable_matches(static_cast<int>(i))->set_map_name(reported.match_maps[i]);
