@@ -122,8 +122,10 @@ struct TwoPlots {
     std::vector<storage::TreeRecord> a, b;
     for (const algorithms::MapTree& tree : forest) {
       if (tree.position.x() < 160) a.push_back(Record(tree));
-      if (tree.position.x() >= 140) b.push_back(Record(tree));
-      if (tree.position.x() >= 140) b.back().id = tree.id + 10'000;
+      if (tree.position.x() >= 140) {
+        b.push_back(Record(tree));
+        b.back().id = tree.id + 10'000;
+      }
     }
     for (const auto& [name, trees] : {std::pair{"a", &a}, std::pair{"b", &b}}) {
       store.CreateMap(name, "", "EPSG:32633");
@@ -218,15 +220,10 @@ TEST(RelocalizeInMaps, MapsThatAgreeAreNamedByTheOneHoldingTheSensor) {
   storage::SqliteMapStore store(":memory:");
   std::vector<storage::TreeRecord> a, b;
   for (const algorithms::MapTree& tree : forest) {
-    storage::TreeRecord record;
-    record.id = tree.id;
-    record.x = tree.position.x();
-    record.y = tree.position.y();
-    if (std::isfinite(tree.dbh)) record.dbh = tree.dbh;
     if (tree.position.x() < 150) {
-      a.push_back(record);
+      a.push_back(Record(tree));
     } else if (tree.id % 2 == 0) {
-      b.push_back(record);
+      b.push_back(Record(tree));
     }
   }
   store.CreateMap("a", "", "");
