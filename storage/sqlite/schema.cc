@@ -234,11 +234,27 @@ CREATE TABLE map_boundaries (
 PRAGMA user_version = 10;
 )sql";
 
+// Version 11: folded observation rows (storage::ObservationRecord::folded, summary). A merge
+// reads a tree's summary row and its rows not folded, never its folded rows: the indexes by tree
+// and by cell leave folded rows out of what a merge reads (by tree they are found apart, for a
+// source removal). Existing rows are not folded (their trees fold when a merge next rebuilds them).
+constexpr const char* kStep11 = R"sql(
+ALTER TABLE observations ADD COLUMN folded INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE observations ADD COLUMN summary TEXT;  -- statistics of a summary row, else NULL
+DROP INDEX observations_of_tree;
+CREATE INDEX observations_of_tree ON observations (map_id, tree_id, folded)
+  WHERE valid_to = 9223372036854775807;
+DROP INDEX observations_in_cell;
+CREATE INDEX observations_in_cell ON observations (map_id, cell_x, cell_y)
+  WHERE valid_to = 9223372036854775807 AND folded = 0;
+PRAGMA user_version = 11;
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4, kStep5,
-                                                 kStep6, kStep7, kStep8, kStep9, kStep10};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4,  kStep5, kStep6,
+                                                 kStep7, kStep8, kStep9, kStep10, kStep11};
   return steps;
 }
 
