@@ -122,10 +122,20 @@ CREATE TABLE map_boundaries (
 );
 )sql";
 
+// Step 5: the order of a map's attribute columns, as the SQLite store's schema version 11.
+constexpr const char* kStep5 = R"sql(
+CREATE TABLE map_columns (
+  map_id BIGINT NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
+  version BIGINT NOT NULL,
+  names TEXT NOT NULL,  -- JSON: an array of attribute names
+  PRIMARY KEY (map_id, version)
+);
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4, kStep5};
   return steps;
 }
 
