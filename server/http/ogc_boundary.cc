@@ -76,16 +76,15 @@ Json BoundaryCollectionJson(const storage::MapInfo& info, const storage::Boundar
   const MapCrs crs = CrsOf(info);
   const std::string id = BoundaryCollectionId(info.name);
   const std::string self = base + "/collections/" + id;
-  Json collection = {
-      {"id", id},
-      {"title", info.name + " survey boundary"},
-      {"description", "The area the survey of map '" + info.name + "' covered"},
-      {"itemType", "feature"},
-      {"links",
-       {Link(self, "self", "application/json", ""),
-        Link(self + "/items", "items", kGeoJson, info.name + ": survey boundary"),
-        Link(base + "/collections/" + info.name, "related", "application/json",
-             info.name + ": trees")}}};
+  Json collection = {{"id", id},
+                     {"title", info.name + " survey boundary"},
+                     {"description", "The area the survey of map '" + info.name + "' covered"},
+                     {"itemType", "feature"},
+                     {"links",
+                      {Link(self, "self", "application/json", ""),
+                       Link(self + "/items", "items", kGeoJson, info.name + ": survey boundary"),
+                       Link(base + "/collections/" + info.name, "related", "application/json",
+                            info.name + ": trees")}}};
   if (crs.georeferenced()) {
     collection["crs"] = {kCrs84};
     if (!crs.storage_uri.empty()) {
@@ -127,8 +126,8 @@ void ReplyBoundaryItems(const httplib::Request& request, httplib::Response& resp
     if (*feature != 1) {
       response.status = 404;
       Reply(response, Json{{"code", "NotFound"},
-                           {"description", "the boundary of map '" + info.name +
-                                               "' is feature 1, the only one"}});
+                           {"description",
+                            "the boundary of map '" + info.name + "' is feature 1, the only one"}});
       return;
     }
     Reply(response, Feature(info, boundary, out_crs84), kGeoJson);
@@ -146,8 +145,8 @@ void ReplyBoundaryItems(const httplib::Request& request, httplib::Response& resp
   if (request.has_param("bbox")) {
     const storage::Extent bbox = ParseBox("bbox", request.get_param_value("bbox"));
     const bool bbox_crs84 = crs84("bbox-crs");
-    const std::optional<Coordinates> in_bbox_crs = CoordinatesOf(
-        boundary, bbox_crs84 ? ReprojectionOf(info.crs, kCrs84Proj).get() : nullptr);
+    const std::optional<Coordinates> in_bbox_crs =
+        CoordinatesOf(boundary, bbox_crs84 ? ReprojectionOf(info.crs, kCrs84Proj).get() : nullptr);
     inside = in_bbox_crs && Overlap(in_bbox_crs->box, bbox);
   } else if (request.has_param("bbox-crs")) {
     crs84("bbox-crs");  // checked all the same

@@ -43,8 +43,7 @@ bool IsCrs84(const MapCrs& crs, const std::string& name, const std::string& uri)
 std::shared_ptr<const geo::Reprojection> ReprojectionOf(const std::string& from,
                                                         const std::string& to);
 // x, y moved by `projection`; nullopt off its domain.
-std::optional<std::array<double, 2>> Moved(const geo::Reprojection& projection, double x,
-                                           double y);
+std::optional<std::array<double, 2>> Moved(const geo::Reprojection& projection, double x, double y);
 // The box around `box` moved by `projection`, its edges sampled; nullopt when no point moves.
 std::optional<storage::Extent> MovedBox(const geo::Reprojection& projection,
                                         const storage::Extent& box);

@@ -67,13 +67,13 @@ TEST_P(ColumnOrderTest, AMapWrittenWithoutOneHasNone) {
 }
 
 TEST_P(ColumnOrderTest, AppendAddsNewNamesReplaceSetsItAndVersionsKeepTheirOwn) {
-  store_.CreateMap("m", "", "");                                            // 1
+  store_.CreateMap("m", "", "");                                           // 1
   EXPECT_EQ(Upload(store_, "m", {Surveyed(1, kCrew)}, kCrew).version, 2);  // the crew's order
   // An append: the map's order, then the file's new names in the file's order.
-  EXPECT_EQ(Upload(store_, "m", {Surveyed(2, {"zeta", "notes", "species"})},
-                   {"zeta", "notes", "species"})
-                .version,
-            3);
+  EXPECT_EQ(
+      Upload(store_, "m", {Surveyed(2, {"zeta", "notes", "species"})}, {"zeta", "notes", "species"})
+          .version,
+      3);
   const Names appended = {"species", "height", "crown", "plot_id", "zeta", "notes"};
   EXPECT_EQ(store_.ReadMap("m").attribute_columns, appended);
   // An upload without an order keeps the map's; an order alone makes no version.
@@ -121,7 +121,8 @@ TEST_P(ColumnOrderTest, RestorePruneAndDeleteFollowTheVersions) {
 TEST_P(ColumnOrderTest, MapInfoSaysWhetherTheMapHasABoundary) {
   EXPECT_FALSE(store_.CreateMap("m", "", "").has_boundary);
   EXPECT_FALSE(store_.GetMap("m").has_boundary);
-  EXPECT_TRUE(Upload(store_, "m", {}, {}, WriteMode::kAppend, false, Triangle()).has_boundary);  // 2
+  EXPECT_TRUE(
+      Upload(store_, "m", {}, {}, WriteMode::kAppend, false, Triangle()).has_boundary);  // 2
   EXPECT_TRUE(store_.GetMap("m").has_boundary);
   EXPECT_TRUE(store_.ListMaps().at(0).has_boundary);
   EXPECT_TRUE(store_.ReadMap("m").info.has_boundary);
