@@ -91,6 +91,11 @@ struct ObservationRecord {
   double sensor_x = 0, sensor_y = 0, sensor_z = 0;  // m, map frame
   bool prior = false;                               // a survey prior
   int64_t version = 0;  // map version that added the row; set by the store
+  // Folding (server/app/map_merger.h): a folded row is kept, with its source, but a merge reads
+  // its tree's summary row instead; a summary row holds the statistics of the folded rows of its
+  // tree (opaque text of the server's), with x, y, z, dbh and the weights their means and sums.
+  bool folded = false;
+  std::optional<std::string> summary;
 
   bool operator==(const ObservationRecord&) const = default;
 };
@@ -137,10 +142,16 @@ struct MapChanges {
   std::vector<int64_t> removed_trees;                 // ids of current trees to drop
   std::vector<ObservationRecord> added_observations;  // tree_id must be a tree of the new version
   std::vector<int64_t> removed_observations;          // ids of current observation rows
+  // Current rows (id set) to fold: each is closed and stored again with `folded` set, so that
+  // every version keeps which rows its summaries stand for. Summary rows come and go through
+  // added_observations and removed_summaries; neither they nor folding count as observations
+  // added or removed in the history.
+  std::vector<ObservationRecord> folded_observations;
+  std::vector<int64_t> removed_summaries;  // ids of current summary rows
 
   bool empty() const {
     return put_trees.empty() && removed_trees.empty() && added_observations.empty() &&
-           removed_observations.empty();
+           removed_observations.empty() && folded_observations.empty() && removed_summaries.empty();
   }
 };
 
@@ -154,12 +165,16 @@ class MergeReader {
   virtual std::vector<TreeRecord> TreesInBox(const Extent& box) = 0;
   // Current trees of these ids, by id (unknown ids are left out).
   virtual std::vector<TreeRecord> TreesById(std::span<const int64_t> ids) = 0;
-  // Current observation rows of these trees, by id of the row.
+  // Current observation rows of these trees that are not folded (summaries among them), by id.
   virtual std::vector<ObservationRecord> ObservationsOfTrees(std::span<const int64_t> ids) = 0;
-  // Current observation rows lying in these cells (see ObservationCell), by id of the row.
+  // Current folded observation rows of these trees, by id of the row.
+  virtual std::vector<ObservationRecord> FoldedObservationsOfTrees(
+      std::span<const int64_t> ids) = 0;
+  // Current observation rows lying in these cells (see ObservationCell) that are not folded
+  // (summaries among them), by id of the row.
   virtual std::vector<ObservationRecord> ObservationsInCells(
       std::span<const ObservationCell> cells) = 0;
-  // Current observation rows of one source, by id of the row.
+  // Current observation rows of one source (folded or not), by id of the row.
   virtual std::vector<ObservationRecord> ObservationsOfSource(const std::string& source) = 0;
   // Above every tree id the map ever had (in any version): ids for new trees start here.
   virtual int64_t NextFreeTreeId() = 0;

@@ -111,9 +111,10 @@ void WriteTreeValues(Out& out, int64_t id, const TreeRecord& tree,
 // ---- Observations ----
 
 // Columns of every observation query (table alias o), in the order of ReadObservationRow.
-#define FORESTMAP_OBSERVATION_COLUMNS                                                \
-  "o.id, o.tree_id, o.source, o.frame_id, o.detection_index, o.x, o.y, o.z, o.dbh, " \
-  "o.weight_xy, o.weight_dbh, o.sensor_x, o.sensor_y, o.sensor_z, o.prior, o.valid_from"
+#define FORESTMAP_OBSERVATION_COLUMNS                                                      \
+  "o.id, o.tree_id, o.source, o.frame_id, o.detection_index, o.x, o.y, o.z, o.dbh, "       \
+  "o.weight_xy, o.weight_dbh, o.sensor_x, o.sensor_y, o.sensor_z, o.prior, o.valid_from, " \
+  "o.folded, o.summary"
 template <typename Row>
 ObservationRecord ReadObservationRow(const Row& row) {
   ObservationRecord o;
@@ -133,11 +134,14 @@ ObservationRecord ReadObservationRow(const Row& row) {
   o.sensor_z = row.Double(13);
   o.prior = row.Bool(14);
   o.version = row.Int64(15);
+  o.folded = row.Bool(16);
+  if (!row.IsNull(17)) o.summary = row.Text(17);
   return o;
 }
 
 // The values of an inserted row: tree_id, source, frame_id, detection_index, x, y, z, dbh,
-// weight_xy, weight_dbh, sensor_x, sensor_y, sensor_z, prior, cell_x, cell_y (CellOf(x, y)).
+// weight_xy, weight_dbh, sensor_x, sensor_y, sensor_z, prior, cell_x, cell_y (CellOf(x, y)),
+// folded, summary.
 template <typename Out>
 void WriteObservationValues(Out& out, const ObservationRecord& o) {
   const ObservationCell cell = CellOf(o.x, o.y);
@@ -157,6 +161,8 @@ void WriteObservationValues(Out& out, const ObservationRecord& o) {
   out.Bool(o.prior);
   out.Int64(cell.x);
   out.Int64(cell.y);
+  out.Bool(o.folded);
+  out.OptionalText(o.summary);
 }
 
 // ---- History ----

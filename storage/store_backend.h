@@ -142,6 +142,8 @@ class StoreSession {
                                                              std::span<const int64_t> ids) = 0;
   virtual std::vector<ObservationRecord> ObservationsInCells(
       int64_t map_id, std::span<const ObservationCell> cells) = 0;
+  virtual std::vector<ObservationRecord> FoldedObservationsOfTrees(
+      int64_t map_id, std::span<const int64_t> ids) = 0;
   virtual std::vector<ObservationRecord> ObservationsOfSource(int64_t map_id,
                                                               const std::string& source) = 0;
   virtual void InsertObservations(int64_t map_id, const std::vector<ObservationRecord>& rows,

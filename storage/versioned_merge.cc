@@ -81,6 +81,9 @@ class SessionMergeReader final : public MergeReader {
   std::vector<ObservationRecord> ObservationsOfTrees(std::span<const int64_t> ids) override {
     return session_.ObservationsOfTrees(map_.id, ids);
   }
+  std::vector<ObservationRecord> FoldedObservationsOfTrees(std::span<const int64_t> ids) override {
+    return session_.FoldedObservationsOfTrees(map_.id, ids);
+  }
   std::vector<ObservationRecord> ObservationsInCells(
       std::span<const ObservationCell> cells) override {
     return session_.ObservationsInCells(map_.id, cells);
@@ -133,6 +136,19 @@ std::optional<int64_t> FirstNotClosed(const std::vector<int64_t>& wanted,
   return std::nullopt;
 }
 
+// Closes the current observation rows `ids` at `version`; kInvalidArgument when one is not
+// current (or named twice).
+std::vector<int64_t> CloseObservations(StoreSession& session, const MapRow& map,
+                                       std::span<const int64_t> ids, int64_t version) {
+  if (ids.empty()) return {};
+  std::vector<int64_t> closed = session.CloseObservations(map.id, ids, version);
+  if (const std::optional<int64_t> id =
+          FirstNotClosed(std::vector<int64_t>(ids.begin(), ids.end()), closed)) {
+    throw ObservationToRemoveMissing(map.info.name, *id);
+  }
+  return closed;
+}
+
 // Writes `changes` as version map.version + 1 and updates `map` (row and info).
 void ApplyChanges(StoreSession& session, MapRow& map, const MergeNote& note,
                   const MapChanges& changes) {
@@ -152,12 +168,21 @@ void ApplyChanges(StoreSession& session, MapRow& map, const MergeNote& note,
   session.InsertTrees(map, changes.put_trees, put.ids, record.version);
 
   const std::vector<int64_t> closed =
-      session.CloseObservations(map.id, changes.removed_observations, record.version);
-  if (const std::optional<int64_t> id = FirstNotClosed(changes.removed_observations, closed)) {
-    throw ObservationToRemoveMissing(map.info.name, *id);
+      CloseObservations(session, map, changes.removed_observations, record.version);
+  CloseObservations(session, map, changes.removed_summaries, record.version);
+  std::vector<int64_t> folded_ids;
+  std::vector<ObservationRecord> folded = changes.folded_observations;
+  for (ObservationRecord& row : folded) {
+    folded_ids.push_back(row.id);
+    row.folded = true;
   }
+  CloseObservations(session, map, folded_ids, record.version);
   session.InsertObservations(map.id, changes.added_observations, record.version);
-  record.observations_added = static_cast<int64_t>(changes.added_observations.size());
+  session.InsertObservations(map.id, folded, record.version);
+  // Summaries and folding are no observations of their own.
+  record.observations_added = static_cast<int64_t>(
+      std::count_if(changes.added_observations.begin(), changes.added_observations.end(),
+                    [](const ObservationRecord& row) { return !row.summary; }));
   record.observations_removed = static_cast<int64_t>(closed.size());
 
   std::optional<Extent> extent =

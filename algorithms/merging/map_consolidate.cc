@@ -1,5 +1,4 @@
-// ConsolidateTrees and RebuildTrees: order-free re-association and duplicate merging (see
-// map_merge.h).
+// ConsolidateTrees and RebuildTrees (map_merge.h): order-free re-association and duplicate merging.
 //
 // Incremental merging is greedy: the first frame to see a tree decides where its candidate
 // starts, and two uploads that see a new tree at the same time create two candidates.
@@ -27,12 +26,7 @@
 namespace forestmap::algorithms {
 namespace {
 
-// Frame number first: when the uploads of several drones number their frames along one
-// sequence, the order (and so the map) does not depend on how the sources are named or split.
-bool CanonicalLess(const TreeObservation& a, const TreeObservation& b) {
-  return std::tie(a.frame_id, a.source, a.detection_index, a.tree_id) <
-         std::tie(b.frame_id, b.source, b.detection_index, b.tree_id);
-}
+using internal::CanonicalLess;
 
 bool SameFrame(const TreeObservation& a, const TreeObservation& b) {
   return a.frame_id == b.frame_id && a.source == b.source;
@@ -47,7 +41,8 @@ bool SameFrame(const TreeObservation& a, const TreeObservation& b) {
 // Tree ids handed out by one RebuildTrees call (shared by its components).
 struct IdPool {
   int64_t next_free_id = 1;
-  std::unordered_set<int64_t> taken;
+  std::unordered_set<int64_t> taken, reserved;  // reserved: summarized trees', for them only
+  bool Free(int64_t id) const { return taken.count(id) == 0 && reserved.count(id) == 0; }
 };
 
 // The trees a Restart grows, with a grid of 1 m cells (keyed by the floor of x and y) of their
@@ -114,8 +109,18 @@ class Consolidator {
   void Restart(IdPool& pool) {
     Regrowth growth;
     growth.cluster_of.assign(rows_.size(), -1);
+    // Rows that define their trees (survey priors, summaries) start them; those of one tree
+    // (a prior not folded yet beside a summary) start one.
+    std::unordered_map<int64_t, int> defined;
     for (size_t r = 0; r < rows_.size(); ++r) {
-      if (rows_[r].prior) growth.AddNew(r, rows_[r], options_);
+      if (!rows_[r].defines_tree()) continue;
+      const auto [it, first] =
+          defined.emplace(rows_[r].tree_id, static_cast<int>(growth.clusters.size()));
+      if (first) {
+        growth.AddNew(r, rows_[r], options_);
+      } else {
+        growth.Add(it->second, r, rows_[r], options_);
+      }
     }
     for (size_t begin = 0; begin < rows_.size();) {
       size_t end = begin + 1;
@@ -170,7 +175,7 @@ class Consolidator {
     std::vector<size_t> frame_index;
     std::vector<int> seen;
     for (size_t r = begin; r < end; ++r) {
-      if (rows_[r].prior) continue;
+      if (rows_[r].defines_tree()) continue;
       frame_rows.push_back(rows_[r]);
       frame_index.push_back(r);
       growth.Near(rows_[r].position, reach, seen);
@@ -194,19 +199,30 @@ class Consolidator {
     }
   }
 
-  // Ids of the grown trees, in creation order: the most common previous id of each tree's rows
-  // (ties: the smaller) if still free in `pool`, else a new id from the pool.
+  // Ids of the grown trees, in creation order: a summarized tree keeps its id (its folded rows
+  // refer to it); another takes the most common previous id of its rows (ties: the smaller) if
+  // still free in `pool`, else a new id from the pool.
   std::vector<int64_t> ClusterIds(const Regrowth& growth, IdPool& pool) const {
     std::vector<std::map<int64_t, int>> votes(growth.clusters.size());
-    for (size_t r = 0; r < rows_.size(); ++r) ++votes[growth.cluster_of[r]][original_ids_[r]];
     std::vector<int64_t> cluster_id(growth.clusters.size(), 0);
+    std::vector<char> summarized(growth.clusters.size(), 0);
+    for (size_t r = 0; r < rows_.size(); ++r) {
+      ++votes[growth.cluster_of[r]][original_ids_[r]];
+      if (!rows_[r].summary) continue;
+      cluster_id[growth.cluster_of[r]] = rows_[r].tree_id;
+      summarized[growth.cluster_of[r]] = 1;
+    }
     for (size_t c = 0; c < growth.clusters.size(); ++c) {
+      if (summarized[c]) {
+        pool.taken.insert(cluster_id[c]);
+        continue;
+      }
       int best = 0;
       for (const auto& [id, n] : votes[c]) {
-        if (n > best && pool.taken.count(id) == 0) cluster_id[c] = id, best = n;
+        if (n > best && pool.Free(id)) cluster_id[c] = id, best = n;
       }
       if (best == 0) {
-        while (pool.taken.count(pool.next_free_id) != 0) ++pool.next_free_id;
+        while (!pool.Free(pool.next_free_id)) ++pool.next_free_id;
         cluster_id[c] = pool.next_free_id++;
       }
       pool.taken.insert(cluster_id[c]);
@@ -228,7 +244,7 @@ class Consolidator {
     int frame = -1;
     for (size_t r = 0; r < rows_.size(); ++r) {
       if (r == 0 || !SameFrame(rows_[r], rows_[r - 1])) ++frame;
-      frames[owner_[r]].push_back(frame);
+      if (!rows_[r].summary) frames[owner_[r]].push_back(frame);  // summaries: no frame
     }
     return frames;
   }
@@ -268,14 +284,14 @@ class Consolidator {
 
   // One stem or two? Two stems are seen side by side in the frames that see either (the
   // association is one-to-one per frame); one stem whose DBH fits disagree (partial arcs shift
-  // the centre) never is. Overlapping stems are one whatever the frames say. Two surveyed trees
-  // stay two. Side by side: at least min_shared_frames frames, and more than max_shared_frames of
-  // the fewer frames of the two, see both (two frames that split a stem into two detections 0.4 m
-  // apart do not make two trees).
+  // the centre) never is. Overlapping stems are one whatever the frames say. Two fixed trees
+  // (surveyed or summarized) stay two. Side by side: at least min_shared_frames frames, and more
+  // than max_shared_frames of the fewer frames of the two, see both (two frames that split a stem
+  // into two detections 0.4 m apart do not make two trees).
   bool OneStem(int a, int b, double d2, const std::vector<std::vector<int>>& frames) const {
     const TreeEstimate& ta = estimates_[a];
     const TreeEstimate& tb = estimates_[b];
-    if (ta.surveyed && tb.surveyed) return false;
+    if ((ta.surveyed || ta.summarized) && (tb.surveyed || tb.summarized)) return false;
     const double d = std::sqrt(d2);
     const bool overlap = IsKnown(ta.dbh) && IsKnown(tb.dbh) && d < 0.5 * (ta.dbh + tb.dbh);
     std::vector<int> common;
@@ -299,8 +315,12 @@ class Consolidator {
     for (const auto& [d2, a, b] : pairs) {
       if (root[a] != a || root[b] != b) continue;  // one merge per tree and sweep
       if (!OneStem(a, b, d2, frames)) continue;
-      root[b] = a;  // ids_ is sorted: the smaller id survives
-      root[a] = -1 - a;
+      // ids_ is sorted: the smaller id survives, unless the other is summarized (its folded
+      // rows refer to its id).
+      const bool keep_b = estimates_[b].summarized && !estimates_[a].summarized;
+      const int survivor = keep_b ? b : a;
+      root[keep_b ? a : b] = survivor;
+      root[survivor] = -1 - survivor;
       ++merged;
     }
     if (merged == 0) return 0;
@@ -336,7 +356,7 @@ class Consolidator {
       frame_rows.clear();
       frame_index.clear();
       for (size_t r = begin; r < end; ++r) {
-        if (rows_[r].prior) continue;  // a survey prior defines its tree
+        if (rows_[r].defines_tree()) continue;  // a survey prior or a summary defines its tree
         frame_rows.push_back(rows_[r]);
         frame_index.push_back(r);
       }
@@ -401,7 +421,12 @@ ConsolidateResult RebuildTrees(std::span<const TreeEstimate> trees,
   std::vector<std::vector<TreeObservation>> parts(count);
   for (size_t r = 0; r < rows.size(); ++r) parts[component[r]].push_back(std::move(rows[r]));
   ConsolidateResult result;
-  IdPool pool{next_free_id, {}};
+  IdPool pool{next_free_id, {}, {}};
+  for (const std::vector<TreeObservation>& part : parts) {
+    for (const TreeObservation& row : part) {
+      if (row.summary) pool.reserved.insert(row.tree_id);
+    }
+  }
   for (std::vector<TreeObservation>& part : parts) {
     std::vector<int64_t> ids;
     for (const TreeObservation& row : part) ids.push_back(row.tree_id);

@@ -80,9 +80,15 @@ void MergeOptions::Check() const {
   require(max_shared_frames >= 0 && max_shared_frames <= 1, "max_shared_frames (in [0, 1])");
   require(min_shared_frames >= 1, "min_shared_frames (must be >= 1)");
   require(consolidate_iterations >= 0, "consolidate_iterations (must be >= 0)");
+  require(fold_rows >= 2, "fold_rows (must be >= 2)");
 }
 
 namespace internal {
+
+bool CanonicalLess(const TreeObservation& a, const TreeObservation& b) {
+  return std::tie(a.frame_id, a.source, a.detection_index, a.tree_id) <
+         std::tie(b.frame_id, b.source, b.detection_index, b.tree_id);
+}
 
 void Finalize(TreeEstimate& tree, const MergeOptions& options) {
   tree.position.x() = tree.xy.mean.x();
@@ -267,8 +273,64 @@ TreeObservation SurveyObservation(const MapTree& tree, const MergeOptions& optio
   return row;
 }
 
+TreeObservation SummaryObservation(int64_t tree_id, std::span<const TreeObservation> rows,
+                                   const MergeOptions& options) {
+  if (rows.empty()) throw std::invalid_argument("SummaryObservation: no rows to fold");
+  std::vector<TreeObservation> sorted(rows.begin(), rows.end());
+  std::stable_sort(sorted.begin(), sorted.end(), internal::CanonicalLess);
+  const TreeEstimate tree = EstimateFromObservations(tree_id, sorted, options);
+  auto summary = std::make_shared<ObservationSummary>();
+  summary->xy = tree.xy;
+  summary->z = tree.z;
+  summary->dbh = tree.dbh_stats;
+  summary->rows = tree.observations;
+  summary->surveyed = tree.surveyed;
+  summary->view_anchors = tree.view_anchors;
+  TreeObservation row;
+  row.tree_id = tree_id;
+  row.source = kSummarySource;
+  row.frame_id = 0;
+  row.detection_index = -2;
+  row.position = Eigen::Vector3d(tree.xy.mean.x(), tree.xy.mean.y(),
+                                 tree.z.count > 0 ? tree.z.mean : kUnknown);
+  row.dbh = tree.dbh_stats.weight > 0 ? tree.dbh_stats.mean : kUnknown;
+  row.weight_xy = tree.xy.weight;
+  row.weight_dbh = tree.dbh_stats.weight;
+  const Eigen::Vector2d sensor =
+      tree.view_anchors.empty() ? tree.xy.mean : tree.view_anchors.front();
+  row.sensor_position = Eigen::Vector3d(sensor.x(), sensor.y(), 0);
+  row.summary = std::move(summary);
+  return row;
+}
+
+namespace {
+
+// The rows a summary stands for, added at once: moments merged, view anchors added in order.
+void AddSummary(TreeEstimate& tree, const ObservationSummary& summary,
+                const MergeOptions& options) {
+  tree.xy.Merge(summary.xy);
+  tree.z.Merge(summary.z);
+  tree.dbh_stats.Merge(summary.dbh);
+  tree.observations += summary.rows;
+  tree.surveyed = tree.surveyed || summary.surveyed;
+  tree.summarized = true;
+  const double sep2 = options.min_view_separation * options.min_view_separation;
+  for (const Eigen::Vector2d& view : summary.view_anchors) {
+    if (static_cast<int>(tree.view_anchors.size()) >= TreeEstimate::kMaxViewAnchors) break;
+    bool distinct = true;
+    for (const Eigen::Vector2d& anchor : tree.view_anchors) {
+      if ((anchor - view).squaredNorm() < sep2) distinct = false;
+    }
+    if (distinct) tree.view_anchors.push_back(view);
+  }
+  internal::Finalize(tree, options);
+}
+
+}  // namespace
+
 void AddObservation(TreeEstimate& tree, const TreeObservation& observation,
                     const MergeOptions& options) {
+  if (observation.summary) return AddSummary(tree, *observation.summary, options);
   tree.xy.Add(observation.position.head<2>(), observation.weight_xy);
   if (std::isfinite(observation.position.z())) {
     tree.z.Add(observation.position.z(), observation.weight_xy);

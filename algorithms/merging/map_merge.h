@@ -18,6 +18,7 @@
 // Frames and units as in algorithms/core/geometry.h. Thread-safety: free functions, no state.
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -62,7 +63,8 @@ struct TreeEstimate {
   int observations = 0;              // rows, including a survey prior
   int distinct_views = 0;            // sensor positions >= min_view_separation apart (capped)
   TreeStatus status = TreeStatus::kCandidate;
-  bool surveyed = false;  // has a survey prior observation (always confirmed)
+  bool surveyed = false;    // has a survey prior observation (always confirmed)
+  bool summarized = false;  // has a summary row (ObservationSummary) of folded rows
 
   // Sufficient statistics.
   WeightedMoments2 xy;         // horizontal position, weights weight_xy
@@ -72,7 +74,20 @@ struct TreeEstimate {
   static constexpr int kMaxViewAnchors = 8;
 };
 
-// One tree seen in one frame (or one survey prior), in the MAP frame: a row to persist.
+// The statistics of the rows of one tree folded into one summary row (SummaryObservation): what
+// EstimateFromObservations takes from them, so that the summary stands for them exactly (up to
+// rounding). A summary row defines its tree, as a survey prior does: it is never re-associated.
+struct ObservationSummary {
+  WeightedMoments2 xy;
+  WeightedMoments1 z;
+  WeightedMoments1 dbh;
+  int rows = 0;                               // rows folded (incl. a survey prior)
+  bool surveyed = false;                      // one of them is a survey prior
+  std::vector<Eigen::Vector2d> view_anchors;  // at most TreeEstimate::kMaxViewAnchors
+};
+
+// One tree seen in one frame (or one survey prior, or a summary of rows), in the MAP frame: a row
+// to persist.
 struct TreeObservation {
   int64_t tree_id = 0;      // the tree it belongs to; negative = placeholder of a new tree
   std::string source;       // drone / upload / "survey"
@@ -84,7 +99,16 @@ struct TreeObservation {
   double weight_dbh = 0;  // 1/m^2, inverse variance of the DBH; 0 = DBH not used
   Eigen::Vector3d sensor_position = Eigen::Vector3d::Zero();  // m, map frame
   bool prior = false;  // a surveyed tree: confirms the tree on its own
+  // Set on a summary row (source kSummarySource): the rows it stands for. position, dbh and the
+  // weights are then its means and total weights.
+  std::shared_ptr<const ObservationSummary> summary;
+  // Whether the row defines its tree (a survey prior or a summary): such rows start their trees
+  // and are never re-associated.
+  bool defines_tree() const { return prior || summary != nullptr; }
 };
+
+// The source of summary rows (a name no drone is given: sources are not empty).
+inline constexpr const char* kSummarySource = "";
 
 struct FrameObservations {
   std::string source;
@@ -122,7 +146,11 @@ struct MergeOptions {
   double max_shared_frames = 0.4;   // share of the fewer frames of two trees that see both
   int min_shared_frames = 3;        // frames; fewer seeing both do not make two trees
   int consolidate_iterations = 6;   // re-association sweeps
-  void Check() const;               // throws std::invalid_argument naming the field
+  // Folding (a server's merge, server/app/map_merger.h): once a tree holds this many individual
+  // stored rows, they are folded into one summary row (SummaryObservation), so that a rebuild
+  // reads and re-associates at most about this many rows per tree whatever its history.
+  int fold_rows = 32;
+  void Check() const;  // throws std::invalid_argument naming the field
 };
 
 struct MergeResult {
@@ -153,6 +181,14 @@ std::vector<TreeObservation> ObserveFrame(const FrameObservations& frame,
 
 // A surveyed tree as a prior observation (source "survey", prior = true).
 TreeObservation SurveyObservation(const MapTree& tree, const MergeOptions& options = {});
+
+// One summary row of tree `tree_id` standing for `rows` (rows of that tree, summary rows among
+// them too), added in canonical order: EstimateFromObservations gives the same tree from it as
+// from the rows, up to rounding. Source kSummarySource, frame 0, detection index -2; position,
+// DBH and weights are the rows' weighted means and total weights; the sensor position is the
+// first view anchor (the position when there is none). Throws std::invalid_argument without rows.
+TreeObservation SummaryObservation(int64_t tree_id, std::span<const TreeObservation> rows,
+                                   const MergeOptions& options = {});
 
 // Adds one observation to a tree's statistics and re-derives its fields.
 void AddObservation(TreeEstimate& tree, const TreeObservation& observation,
@@ -193,7 +229,11 @@ ConsolidateResult ConsolidateTrees(std::span<const TreeEstimate> trees,
 // A new tree takes the previous id most of its rows had, when still free (components in the
 // order of their first canonical row), else a new id counting up from `next_free_id`.
 // `trees` must hold every tree that the observations refer to; given trees that keep no row are
-// in removed_ids.
+// in removed_ids. A summary row (SummaryObservation) is a fixed part of its tree, as a survey
+// prior is: its tree keeps its id and is merged with no other summarized or surveyed tree (a tree
+// merged into it takes its id), and only the other rows are merged afresh around it. A map whose
+// trees fold their rows is therefore a function of the set of its rows only up to when each tree
+// folded: the association of folded rows is fixed (docs/design.md).
 ConsolidateResult RebuildTrees(std::span<const TreeEstimate> trees,
                                std::span<const TreeObservation> observations, int64_t next_free_id,
                                const MergeOptions& options = {});

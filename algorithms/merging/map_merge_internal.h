@@ -10,6 +10,11 @@
 
 namespace forestmap::algorithms::internal {
 
+// The canonical order of rows: frame number, source, detection index, tree id (frame number
+// first: when the uploads of several drones number their frames along one sequence, the order,
+// and so the map, does not depend on how the sources are named or split).
+bool CanonicalLess(const TreeObservation& a, const TreeObservation& b);
+
 // Re-derives a tree's position, DBH, sigmas, view count and status from its statistics.
 void Finalize(TreeEstimate& tree, const MergeOptions& options);
 

@@ -12,6 +12,9 @@ namespace forestmap::algorithms {
 namespace {
 
 constexpr double kMaxCells = 134217728.0;  // 2^27 cells covered at most (64 MB of tiles)
+// Row crossings of the rings at most: the fill sorts them (16 bytes each, 64 MB). A survey's
+// boundary at 0.5 m crosses 2^22 rows with 2,000 km of north-south edges.
+constexpr double kMaxCrossings = 4194304.0;  // 2^22
 
 // The boundary of the kept triangles as rings, the kept region on the left of every edge:
 // counter-clockwise outer rings, clockwise holes.
@@ -207,7 +210,8 @@ CoverageGrid::CoverageGrid(const std::vector<Polygon>& polygons,
   if (!(resolution > 0 && margin >= 0)) {
     throw std::invalid_argument("CoverageGrid: need resolution > 0 and margin >= 0");
   }
-  // Coarser cells where the polygons would hold more than kMaxCells cells or row crossings.
+  // Coarser cells where the polygons would hold more than kMaxCells cells or kMaxCrossings row
+  // crossings.
   double outer_area = 0, rows = 0;
   for (const Polygon& p : polygons) {
     outer_area += std::abs(SignedArea(p.outer));
@@ -217,7 +221,7 @@ CoverageGrid::CoverageGrid(const std::vector<Polygon>& polygons,
       }
     }
   }
-  resolution = std::max({resolution, std::sqrt(outer_area / kMaxCells), rows / kMaxCells});
+  resolution = std::max({resolution, std::sqrt(outer_area / kMaxCells), rows / kMaxCrossings});
   inverse_resolution_ = 1.0 / resolution;
   Painter painter(resolution);
   for (const Polygon& p : polygons) painter.Fill(RingsOf(p));

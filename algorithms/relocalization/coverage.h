@@ -59,7 +59,9 @@ class CoverageGrid {
  public:
   // The cells whose centre lies in any of `polygons` (even-odd within each) or within `margin`
   // (m) of a point. Same frame for both (m). The cells are `resolution` wide, coarser when the
-  // polygons hold more than 2^27 of them (over 30 km^2 at 0.5 m).
+  // polygons hold more than 2^27 of them (over 30 km^2 at 0.5 m) or their rings cross more than
+  // 2^22 rows of them (over 2,000 km of north-south edges at 0.5 m): time and memory stay bounded
+  // whatever the polygons' shape.
   CoverageGrid(const std::vector<Polygon>& polygons, const std::vector<Eigen::Vector2d>& points,
                double margin, double resolution);
 

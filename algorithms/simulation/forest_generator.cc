@@ -20,7 +20,6 @@ namespace forestmap::algorithms {
 
 namespace {
 
-constexpr int kMaxPlacementTries = 100;       // per tree / false stem before giving up
 constexpr double kMaxHardCoreCoverage = 0.4;  // RSA jams at ~0.547; stay clear of it
 constexpr double kMaxGeneratedTrees = 1e8;    // guards against a typo allocating terabytes
 constexpr int kMaxFocalTrees = 20000;         // trees used for the statistics of large maps

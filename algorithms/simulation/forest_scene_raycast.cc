@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "algorithms/core/random.h"
 #include "algorithms/simulation/forest_scene.h"
 
 namespace forestmap::algorithms {
@@ -13,18 +14,10 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kMinT = 1e-6;  // m, hits nearer than this along the ray are ignored
 
-// SplitMix64 finaliser: a stateless hash, so that a ray's random draws for one primitive are the
-// same however often (and in whichever cell) the primitive is tested.
-uint64_t Mix(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
-
-// Uniform in [0, 1) from (key, salt).
+// Uniform in [0, 1) from (key, salt), stateless (SplitMix64), so that a ray's random draws for one
+// primitive are the same however often (and in whichever cell) the primitive is tested.
 double HashUniform(uint64_t key, uint64_t salt) {
-  return static_cast<double>(Mix(key ^ Mix(salt)) >> 11) * 0x1.0p-53;
+  return static_cast<double>(SplitMix64(key ^ SplitMix64(salt)) >> 11) * 0x1.0p-53;
 }
 
 // Smallest root of a t^2 + b t + c in [lo, hi], or inf.

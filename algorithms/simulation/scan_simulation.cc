@@ -9,26 +9,21 @@
 
 #include "algorithms/core/check.h"
 #include "algorithms/core/parallel.h"
+#include "algorithms/core/random.h"
 
 namespace forestmap::algorithms {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kNoHit = std::numeric_limits<double>::infinity();  // a ray's range
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-
-uint64_t Mix(uint64_t x) {  // SplitMix64 finaliser
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
 
 // Uniform in (0, 1) from (key, salt); salts here are distinct from the scene's (2i, 2i+1 < 2^62).
 double Uniform01(uint64_t key, uint64_t salt) {
-  return (static_cast<double>(Mix(key ^ Mix(salt | (1ull << 62))) >> 11) + 0.5) * 0x1.0p-53;
+  return (static_cast<double>(SplitMix64(key ^ SplitMix64(salt | (1ull << 62))) >> 11) + 0.5) *
+         0x1.0p-53;
 }
 
-double Gaussian(uint64_t key, uint64_t salt) {  // Box-Muller
+double HashGaussian(uint64_t key, uint64_t salt) {  // Box-Muller
   return std::sqrt(-2 * std::log(Uniform01(key, salt))) *
          std::cos(2 * M_PI * Uniform01(key, salt + 1));
 }
@@ -55,7 +50,7 @@ std::vector<BodyPart> DroneBody() {
 
 // Range (m) at which a ray from the sensor origin along unit `d` enters a segment's cylinder.
 double BodyHit(const std::vector<BodyPart>& body, const Eigen::Vector3d& d) {
-  double best = kInf;
+  double best = kNoHit;
   for (const BodyPart& part : body) {
     const Eigen::Vector3d axis = (part.b - part.a).normalized();
     const double length = (part.b - part.a).norm();
@@ -116,8 +111,8 @@ void SimulateRings(const ScanContext& ctx, int ring_begin, int ring_end,
       const Eigen::Vector3d d_sensor(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
                                      std::sin(el));
       ray.direction = ctx.map_from_sensor.linear() * d_sensor;
-      ray.key = Mix((static_cast<uint64_t>(ctx.seed) << 32) | index);
-      const double body = ctx.noise.drone_body ? BodyHit(ctx.body, d_sensor) : kInf;
+      ray.key = SplitMix64((static_cast<uint64_t>(ctx.seed) << 32) | index);
+      const double body = ctx.noise.drone_body ? BodyHit(ctx.body, d_sensor) : kNoHit;
       ray.max_range = std::min(scanner.max_range, body);
       const RayHit hit = ctx.scene.CastRay(ray);
       double range = hit.range;
@@ -133,10 +128,10 @@ void SimulateRings(const ScanContext& ctx, int ring_begin, int ring_end,
       }
       if (std::isfinite(range) && ctx.noise.dropout > 0 &&
           Uniform01(ray.key, 1) < ctx.noise.dropout) {
-        range = kInf;
+        range = kNoHit;
       }
       if (std::isfinite(range) && ctx.noise.range_noise) {
-        range += scanner.range_noise_sd * Gaussian(ray.key, 2);
+        range += scanner.range_noise_sd * HashGaussian(ray.key, 2);
       }
       if (!std::isfinite(range) || range < scanner.min_range || range > scanner.max_range) {
         result->cloud.points[index] = Eigen::Vector3f::Constant(kNaN);
@@ -146,8 +141,8 @@ void SimulateRings(const ScanContext& ctx, int ring_begin, int ring_end,
       }
       result->cloud.points[index] = (range * d_sensor).cast<float>();
       result->labels[index] = label;
-      result->cloud.intensity[index] =
-          static_cast<float>(std::max(0.0, Reflectivity(label) * (1 + 0.1 * Gaussian(ray.key, 4))));
+      result->cloud.intensity[index] = static_cast<float>(
+          std::max(0.0, Reflectivity(label) * (1 + 0.1 * HashGaussian(ray.key, 4))));
     }
   }
 }

@@ -6,12 +6,10 @@
 #include <stdexcept>
 #include <string>
 
+#include "algorithms/core/check.h"
+
 namespace forestmap::algorithms {
 namespace {
-
-void Require(bool ok, const std::string& what) {
-  if (!ok) throw std::invalid_argument(what);
-}
 
 // The stand's trees relative to the centre of its bounding box; the box's half diagonal.
 std::vector<MapTree> Centred(const std::vector<MapTree>& stand, double* half_diagonal) {

@@ -21,7 +21,6 @@ namespace {
 
 constexpr double kUnknownDbhRadius = 0.15;   // m, trunk radius assumed for occlusion
 constexpr double kFalseStemClearance = 1.0;  // m, false stems keep this far from map trees
-constexpr int kMaxPlacementTries = 100;      // per tree / false stem before giving up
 constexpr double kMaxTilt = 1.5;             // rad
 constexpr double kMinDetectedDbh = 0.01;     // m
 

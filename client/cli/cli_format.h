@@ -58,6 +58,8 @@ std::string FormatExtent(const v1::Map& map);
 std::function<void(int64_t done)> ProgressTo(std::ostream& err, std::string verb, int64_t total,
                                              int64_t chunk);
 
+inline constexpr int64_t kExportChunk = 5000;  // trees per message the server sends, at most
+
 // ProgressTo for an upload of `trees` trees, `chunk` per message ("uploading: ...").
 UploadProgress UploadProgressTo(std::ostream& err, int64_t trees, int64_t chunk);
 

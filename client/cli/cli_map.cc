@@ -284,8 +284,6 @@ int64_t TreesToExport(ForestMapClient& client, const v1::Map& map, int64_t versi
   return 0;
 }
 
-constexpr int64_t kExportChunk = 5000;  // trees per message the server sends, at most
-
 // The trees of map `name` to `out_file` (not standard output) in `format`, with CRS `crs`.
 // The attribute columns in the map's order (ExportedTrees::attribute_columns).
 void WriteExportFile(const std::string& out_file, TreeFormat format, const ExportedTrees& exported,

@@ -18,8 +18,6 @@
 namespace forestmap::client {
 namespace {
 
-constexpr int64_t kExportChunk = 5000;  // trees per message the server sends, at most
-
 struct ChangesOptions {
   std::string name;
   std::string since;

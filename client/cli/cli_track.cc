@@ -19,7 +19,7 @@
 namespace forestmap::client {
 namespace {
 
-constexpr int kProgressEveryFrames = 200;
+constexpr int kTrackProgressEveryFrames = 200;
 
 struct TrackOptions {
   MapSelection maps;  // NAME, or --maps / --maps-matching / --all-maps
@@ -78,7 +78,7 @@ void Run(const TrackOptions& options, const CliContext& context) {
     line["method"] = MethodName(response.method());
     line["frames_lost"] = response.frames_lost();
     *context.out << line.dump() << "\n";
-    if ((i + 1) % kProgressEveryFrames == 0 && i + 1 < frames.size()) {
+    if ((i + 1) % kTrackProgressEveryFrames == 0 && i + 1 < frames.size()) {
       *context.err << "track: " << i + 1 << "/" << frames.size() << " frames\n";
     }
   }

@@ -55,7 +55,8 @@ bool HasPolygons(OGRLayer& layer) {
   return type == wkbPolygon || type == wkbMultiPolygon || type == wkbUnknown;
 }
 
-OGRLayer& ChooseLayer(GDALDataset& dataset, const std::string& name, const std::string& path) {
+OGRLayer& ChooseBoundaryLayer(GDALDataset& dataset, const std::string& name,
+                              const std::string& path) {
   if (!name.empty()) {
     OGRLayer* layer = dataset.GetLayerByName(name.c_str());
     if (!layer) throw CsvError(path + ": no layer named '" + name + "'");
@@ -89,7 +90,7 @@ BoundaryFile ReadGisBoundary(const std::string& path, const std::string& layer_n
       GDALOpenEx(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr, nullptr, nullptr)));
   if (!dataset) throw CsvError(path + ": not a readable GIS file: " + LastGdalError());
   if (dataset->GetLayerCount() < 1) throw CsvError(path + ": no layer");
-  OGRLayer& layer = ChooseLayer(*dataset, layer_name, path);
+  OGRLayer& layer = ChooseBoundaryLayer(*dataset, layer_name, path);
   BoundaryFile file;
   layer.ResetReading();
   int64_t number = 0;

@@ -14,8 +14,10 @@
 namespace forestmap::client {
 namespace {
 
+using scan_io_internal::Get;
+using scan_io_internal::kVlrHeaderSize;
+
 constexpr size_t kHeaderFields = 104;        // bytes up to and including the VLR count
-constexpr size_t kVlrHeaderSize = 54;        // bytes
 constexpr size_t kHeader14Fields = 247;      // bytes up to and including LAS 1.4's EVLR count
 constexpr size_t kEvlrHeaderSize = 60;       // bytes
 constexpr uint64_t kMaxCrsRecord = 1 << 20;  // bytes: a WKT or GeoKeys record is far smaller
@@ -24,13 +26,6 @@ constexpr uint16_t kGeoKeyRecord = 34735;    // LASF_Projection: GeoKeyDirectory
 constexpr uint16_t kProjectedCsKey = 3072;
 constexpr uint16_t kGeographicCsKey = 2048;
 constexpr uint16_t kUserDefined = 32767;  // GeoTIFF: "user-defined", no EPSG code
-
-template <typename T>
-T Get(const std::string& bytes, size_t offset) {
-  T value;
-  std::memcpy(&value, bytes.data() + offset, sizeof(T));
-  return value;
-}
 
 [[noreturn]] void Fail(const std::string& path, size_t byte, const std::string& problem) {
   throw ScanError(path + ": byte " + std::to_string(byte) + ": " + problem);

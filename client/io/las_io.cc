@@ -13,24 +13,17 @@ namespace forestmap::client {
 namespace {
 
 using scan_io_internal::Fail;
+using scan_io_internal::Get;
+using scan_io_internal::kVlrHeaderSize;
 using scan_io_internal::RawScan;
 
 // Public header block sizes by minor version (LAS 1.0-1.2: 227, 1.3: 235, 1.4: 375 bytes).
 constexpr size_t kHeaderSize12 = 227;
 constexpr size_t kHeaderSize13 = 235;
 constexpr size_t kHeaderSize14 = 375;
-constexpr size_t kVlrHeaderSize = 54;
 constexpr size_t kExtraBytesDescriptorSize = 192;
 // Bytes of the standard part of a point record, by point data format 0-10.
 constexpr uint16_t kFormatSize[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
-
-// Little-endian read of a T at `offset`; callers check bounds first.
-template <typename T>
-T Get(const std::string& bytes, size_t offset) {
-  T value;
-  std::memcpy(&value, bytes.data() + offset, sizeof(T));
-  return value;
-}
 
 std::string At(size_t byte) { return StrCat({"byte ", std::to_string(byte), ": "}); }
 

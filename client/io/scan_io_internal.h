@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -45,6 +46,16 @@ std::string ReadFileBytes(const std::string& path);
 void WriteFileBytes(const std::string& path, std::string_view bytes);
 
 [[noreturn]] void Fail(const std::string& where, const std::string& problem);
+
+// Little-endian read of a T at `offset` of `bytes` (the LAS readers); callers check bounds first.
+template <typename T>
+T Get(const std::string& bytes, size_t offset) {
+  T value;
+  std::memcpy(&value, bytes.data() + offset, sizeof(T));
+  return value;
+}
+
+constexpr size_t kVlrHeaderSize = 54;  // bytes of a LAS variable-length record's header
 
 // Checks that the per-point arrays and width x height agree with points.size().
 void CheckCloudForWriting(const algorithms::PointCloud& cloud, const std::string& path);

@@ -50,12 +50,6 @@ double Seconds(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-void Progress(std::ostream& err, size_t done, size_t total, const std::string& what) {
-  if (done % 100 == 0 || done == total)
-    err << "bench-mapping: " << what << " " << done << "/" << total << "\r";
-  if (done == total) err << "\n";
-}
-
 struct Sequence {
   std::vector<Frame> frames;  // the chosen frames, in order
   std::vector<Pose3> truth;   // world_from_sensor of each
@@ -118,7 +112,7 @@ nlohmann::ordered_json SurveyMerge(const BenchMappingOptions& o, std::ostream& e
     frame.map_from_sensor = sequence.truth[i];
     frame.trees = sequence.frames[i].trees;
     map.Merge(frame);
-    Progress(err, i + 1, sequence.frames.size(), "merge");
+    LabProgress(err, "bench-mapping merge", i + 1, sequence.frames.size(), 100);
   }
   const double merge_s = Seconds(start);
   const algorithms::ConsolidateResult consolidated = map.Rebuild();
@@ -156,7 +150,7 @@ void Relocalize(const BenchMappingOptions& o, const std::vector<algorithms::MapT
     const auto start = std::chrono::steady_clock::now();
     const algorithms::RelocalizeResult result = algorithms::Relocalize(index, query);
     evaluator.Add(evaluator.Answerable(query.trees, truth), truth, result, Seconds(start) * 1e3);
-    Progress(err, i + 1, eval.frames.size(), "relocalize");
+    LabProgress(err, "bench-mapping relocalize", i + 1, eval.frames.size(), 100);
   }
   const algorithms::RelocSummary s = evaluator.Summary();
   report["eval_frames"] = s.frames;
@@ -201,7 +195,7 @@ nlohmann::ordered_json BuildMap(const BenchMappingOptions& o, std::ostream& err)
     frame.trees = sequence.frames[i].trees;
     how.push_back(builder.AddFrame(frame).fix);
     ++fixes[static_cast<int>(how.back())];
-    Progress(err, i + 1, sequence.frames.size(), "build");
+    LabProgress(err, "bench-mapping build", i + 1, sequence.frames.size(), 100);
   }
   builder.Finish();
   const double build_s = Seconds(start);

@@ -76,11 +76,6 @@ class LocalMapOffset {
   std::vector<Eigen::Vector2d> session_;
 };
 
-void Progress(std::ostream& err, size_t done, size_t total) {
-  if (done % 200 == 0 || done == total) err << "bench-reloc: " << done << "/" << total << "\r";
-  if (done == total) err << "\n";
-}
-
 void RunSequence(Runner& runner, const BenchOptions& o, std::ostream& err) {
   const auto poses = ReadPosesCsv(o.poses_path);
   const auto frames = ReadFramesCsv(o.frames_path);
@@ -108,7 +103,7 @@ void RunSequence(Runner& runner, const BenchOptions& o, std::ostream& err) {
     Pose3 truth = map_from_world * pose->second;
     if (local_offset) truth.translation().head<2>() += local_offset->At(truth.translation());
     runner.Run(frame.trees, truth);
-    Progress(err, k + 1, chosen.size());
+    LabProgress(err, "bench-reloc", k + 1, chosen.size(), 200);
   }
 }
 
@@ -121,7 +116,7 @@ void RunScans(Runner& runner, const BenchOptions& o, std::ostream& err) {
     const ScanTrees scan = DetectScanTrees(o.scans_dir + name);
     runner.AddDetectionTime(scan.stats.total_us / 1000.0);
     runner.Run(scan.trees, truth);
-    Progress(err, ++done, poses.size());
+    LabProgress(err, "bench-reloc", ++done, poses.size(), 200);
   }
 }
 
@@ -148,7 +143,7 @@ void RunSimulated(const std::vector<algorithms::MapTree>& map, Runner& runner,
     view.seed = o.maps.seed * 100003u + static_cast<unsigned>(i);
     const algorithms::SimulatedView v = simulator.Simulate(poses[i].head<2>(), poses[i].z(), view);
     runner.Run(v.trees, v.map_from_sensor);
-    Progress(err, i + 1, poses.size());
+    LabProgress(err, "bench-reloc", i + 1, poses.size(), 200);
   }
 }
 

@@ -11,11 +11,6 @@ namespace {
 
 using algorithms::MapTree;
 
-void Progress(std::ostream& err, size_t done, size_t total) {
-  if (done % 50 == 0 || done == total) err << "bench-reloc: " << done << "/" << total << "\r";
-  if (done == total) err << "\n";
-}
-
 // A map as searched: without DBH with --no-dbh.
 std::vector<MapTree> Searched(std::vector<MapTree> map, const BenchOptions& o) {
   if (o.maps.no_dbh) {
@@ -54,7 +49,7 @@ nlohmann::ordered_json RunEdge(const std::vector<MapTree>& forest, const BenchOp
       const algorithms::SimulatedView v =
           simulator.Simulate(poses[i].head<2>(), poses[i].z(), view);
       runner->Run(v.trees, v.map_from_sensor);
-      Progress(err, ++done, o.simulate);
+      LabProgress(err, "bench-reloc", ++done, o.simulate, 50);
     }
   }
   if (!runner) throw CommandError("no cut left 3 trees on its side");
@@ -85,7 +80,7 @@ nlohmann::ordered_json RunOverlap(const std::vector<MapTree>& forest, const Benc
     const double yaw = std::uniform_real_distribution<double>(-M_PI, M_PI)(rng);
     const algorithms::SimulatedView v = simulator.Simulate(plots->first, yaw, view);
     runner->Run(v.trees, v.map_from_sensor);
-    Progress(err, pair + 1, o.simulate);
+    LabProgress(err, "bench-reloc", pair + 1, o.simulate, 50);
   }
   if (!runner) throw CommandError("no plot held 3 trees");
   return runner->Report(forest.size());

@@ -1,8 +1,10 @@
 #include "server/app/map_merger.h"
 
 #include <map>
+#include <optional>
 #include <set>
 #include <span>
+#include <stdexcept>
 #include <tuple>
 #include <utility>
 
@@ -51,6 +53,7 @@ std::map<int64_t, std::vector<algorithms::TreeObservation>> ByTree(
 struct Loaded {
   std::map<int64_t, WorkingTree> working;
   std::vector<storage::ObservationRecord> rows;  // current rows of the region (not dropped)
+  std::map<int64_t, std::vector<storage::ObservationRecord>> foldable_outside;  // MergeRegion's
 };
 
 // The trees of the region that `seeds` join (LoadMergeRegion), with their estimates rebuilt from
@@ -60,6 +63,7 @@ Loaded LoadTrees(storage::MergeReader& reader,
                  const algorithms::MergeOptions& options, const std::set<int64_t>& dropped = {}) {
   MergeRegion region = LoadMergeRegion(reader, seeds, options);
   Loaded loaded;
+  loaded.foldable_outside = std::move(region.foldable_outside);
   for (storage::ObservationRecord& row : region.rows) {
     if (dropped.count(row.id) == 0) loaded.rows.push_back(std::move(row));
   }
@@ -95,12 +99,46 @@ RowKey KeyOf(const std::string& source, int64_t frame, int32_t detection, double
   return {source, frame, detection, x, y};
 }
 
+// What folding may fold of one tree: its rows that were stored and keep it.
+struct Foldable {
+  std::optional<int64_t> summary_id;                     // its stored summary row
+  const algorithms::TreeObservation* summary = nullptr;  // that summary, or a new one
+  std::vector<std::pair<int64_t, const algorithms::TreeObservation*>> rows;  // (row id, row)
+};
+
+// Folds every tree of `foldable` that keeps at least options.fold_rows stored rows (not counting
+// its summary): its summary and those rows become one new summary row, and the rows are stored
+// again as folded (storage::MapChanges::folded_observations). A new summary of a tree that does
+// not fold (a source removal's) is added as it is.
+void Fold(const std::map<int64_t, Foldable>& foldable,
+          const std::map<int64_t, const storage::ObservationRecord*>& stored_rows,
+          const algorithms::MergeOptions& options, storage::MapChanges& changes) {
+  for (const auto& [tree, fold] : foldable) {
+    if (static_cast<int>(fold.rows.size()) < options.fold_rows) {
+      if (fold.summary && !fold.summary_id) {
+        changes.added_observations.push_back(ToObservationRecord(*fold.summary));
+      }
+      continue;
+    }
+    std::vector<algorithms::TreeObservation> rows;
+    if (fold.summary) rows.push_back(*fold.summary);
+    for (const auto& [id, row] : fold.rows) {
+      rows.push_back(*row);
+      changes.folded_observations.push_back(*stored_rows.at(id));
+    }
+    if (fold.summary_id) changes.removed_summaries.push_back(*fold.summary_id);
+    changes.added_observations.push_back(
+        ToObservationRecord(algorithms::SummaryObservation(tree, rows, options)));
+  }
+}
+
 // Rebuilds the region (its stored rows, the new rows and unsaved survey priors: whole connected
 // components of the map's rows) afresh with algorithms::RebuildTrees, then turns the outcome into
 // changes: moved rows are closed and re-inserted under their new tree, trees that gained, lost
 // or changed rows (or are in `lost`: their dropped rows are closed by the caller) are put, trees
-// left empty are removed. The region's trees are then what one rebuild of all the map's rows
-// gives them, whatever the order in which requests arrived.
+// left empty are removed, and trees with many stored rows fold them (Fold). Until a tree folds,
+// the region's trees are what one rebuild of all the map's rows gives them, whatever the order
+// in which requests arrived; a summary row fixes the association of the rows it folded.
 storage::MapChanges Consolidate(Loaded& loaded,
                                 const std::vector<algorithms::TreeObservation>& fresh,
                                 const std::set<int64_t>& lost, int64_t next_free_id,
@@ -109,7 +147,9 @@ storage::MapChanges Consolidate(Loaded& loaded,
   for (const auto& [id, tree] : loaded.working) trees.push_back(tree.estimate);
   std::vector<algorithms::TreeObservation> rows;
   std::map<RowKey, std::vector<std::pair<int64_t, int64_t>>> stored;  // key -> (row id, tree)
+  std::map<int64_t, const storage::ObservationRecord*> stored_rows;   // by row id
   for (const storage::ObservationRecord& row : loaded.rows) {
+    stored_rows.emplace(row.id, &row);
     rows.push_back(ToTreeObservation(row));
     stored[KeyOf(row.source, row.frame_id, row.detection_index, row.x, row.y)].emplace_back(
         row.id, row.tree_id);
@@ -124,17 +164,32 @@ storage::MapChanges Consolidate(Loaded& loaded,
   storage::MapChanges changes;
   std::set<int64_t> changed = lost;
   std::vector<const algorithms::TreeObservation*> priors;
+  std::map<int64_t, Foldable> foldable;
   for (const algorithms::TreeObservation& row : result.observations) {
     auto it = stored.find(
         KeyOf(row.source, row.frame_id, row.detection_index, row.position.x(), row.position.y()));
     if (it != stored.end() && !it->second.empty()) {
       const auto [row_id, old_tree] = it->second.back();
       it->second.pop_back();
-      if (old_tree == row.tree_id) continue;
+      if (old_tree == row.tree_id) {
+        Foldable& fold = foldable[row.tree_id];
+        if (row.summary) {
+          fold.summary_id = row_id, fold.summary = &row;
+        } else {
+          fold.rows.emplace_back(row_id, &row);
+        }
+        continue;
+      }
+      // A summary keeps its tree (RebuildTrees): its folded rows refer to it.
+      if (row.summary) throw std::logic_error("merge: a summary row changed its tree");
       changes.removed_observations.push_back(row_id);
       changed.insert(old_tree);
     } else if (row.prior) {
       priors.push_back(&row);  // saved only with its tree, below
+      continue;
+    } else if (row.summary) {
+      foldable[row.tree_id].summary = &row;  // a new summary: added by Fold
+      changed.insert(row.tree_id);
       continue;
     }
     changes.added_observations.push_back(ToObservationRecord(row));
@@ -146,6 +201,27 @@ storage::MapChanges Consolidate(Loaded& loaded,
       changes.added_observations.push_back(ToObservationRecord(*prior));
     }
   }
+  // Neighbours outside the region keep their rows and trees: folding them changes no tree.
+  std::vector<algorithms::TreeObservation> outside_rows;
+  for (const auto& [tree, records] : loaded.foldable_outside) {
+    for (const storage::ObservationRecord& record : records) {
+      outside_rows.push_back(ToTreeObservation(record));
+    }
+  }
+  const algorithms::TreeObservation* outside_row = outside_rows.data();
+  for (const auto& [tree, records] : loaded.foldable_outside) {
+    Foldable& fold = foldable[tree];
+    for (const storage::ObservationRecord& record : records) {
+      stored_rows.emplace(record.id, &record);
+      if (outside_row->summary) {
+        fold.summary_id = record.id, fold.summary = outside_row;
+      } else {
+        fold.rows.emplace_back(record.id, outside_row);
+      }
+      ++outside_row;
+    }
+  }
+  Fold(foldable, stored_rows, options, changes);
   for (const algorithms::TreeEstimate& tree : result.trees) {
     if (changed.count(tree.id) == 0) continue;
     const auto it = loaded.working.find(tree.id);
@@ -256,18 +332,41 @@ SourceRemoval RemoveSourceChanges(storage::MergeReader& reader, const std::strin
   }
   std::set<int64_t> removed_ids;
   std::set<int64_t> lost;
+  std::vector<int64_t> folded_trees;
   std::vector<algorithms::TreeObservation> seeds;
   for (const storage::ObservationRecord& row : removed) {
     removed_ids.insert(row.id);
     lost.insert(row.tree_id);
+    if (row.folded) folded_trees.push_back(row.tree_id);
     seeds.push_back(ToTreeObservation(row));
   }
+  // Trees that lose folded rows: their summaries are made again from the folded rows that stay.
+  std::set<int64_t> dropped = removed_ids;
+  std::vector<int64_t> summaries;
+  std::vector<algorithms::TreeObservation> fresh;
+  if (!folded_trees.empty()) {
+    for (const storage::ObservationRecord& row : reader.ObservationsOfTrees(folded_trees)) {
+      if (!row.summary) continue;
+      summaries.push_back(row.id);
+      dropped.insert(row.id);
+      seeds.push_back(ToTreeObservation(row));
+    }
+    std::map<int64_t, std::vector<algorithms::TreeObservation>> kept;
+    for (const storage::ObservationRecord& row : reader.FoldedObservationsOfTrees(folded_trees)) {
+      if (removed_ids.count(row.id) == 0) kept[row.tree_id].push_back(ToTreeObservation(row));
+    }
+    for (const auto& [tree, rows] : kept) {
+      fresh.push_back(algorithms::SummaryObservation(tree, rows, options));
+    }
+  }
   // The components the source's rows were in, rebuilt from the rows that remain.
-  Loaded loaded = LoadTrees(reader, seeds, options, removed_ids);
+  Loaded loaded = LoadTrees(reader, seeds, options, dropped);
   SourceRemoval removal;
-  removal.changes = Consolidate(loaded, {}, lost, reader.NextFreeTreeId(), options);
+  removal.changes = Consolidate(loaded, fresh, lost, reader.NextFreeTreeId(), options);
   removal.changes.removed_observations.insert(removal.changes.removed_observations.end(),
                                               removed_ids.begin(), removed_ids.end());
+  removal.changes.removed_summaries.insert(removal.changes.removed_summaries.end(),
+                                           summaries.begin(), summaries.end());
   removal.trees_updated = static_cast<int64_t>(removal.changes.put_trees.size());
   removal.trees_removed = static_cast<int64_t>(removal.changes.removed_trees.size());
   return removal;

@@ -6,6 +6,15 @@
 // rebuilds the components it touches (server/app/merge_region.h), so nothing but rows and derived
 // fields is persisted. A surveyed tree without rows gets its survey prior
 // (algorithms::SurveyObservation) as its first row when first touched.
+//
+// Folding bounds what a change reads: once a tree the rebuild went through keeps
+// MergeOptions::fold_rows stored rows, they are folded into one summary row of the tree
+// (algorithms::SummaryObservation, a sufficient statistic of them), which later merges read in
+// their place. Folded rows stay in the map with their sources (storage::ObservationRecord::
+// folded), so a source's removal takes them out and makes the summary again from the rest, and
+// every version keeps which rows its summaries stand for. A merge then reads about fold_rows
+// rows per tree whatever the tree's history; the association of folded rows is fixed from then
+// on (docs/design.md, "Shared maps: merging observations").
 
 #include <cstdint>
 #include <string>

@@ -95,9 +95,11 @@ class RegionLoader {
   void AddRows(std::vector<storage::ObservationRecord> rows) {
     for (storage::ObservationRecord& row : rows) {
       if (!row_ids_.insert(row.id).second) continue;
-      ++rows_of_tree_[row.tree_id];
+      const algorithms::TreeObservation observation = ToTreeObservation(row);
+      // A summary row stands for the folded rows of its tree (its tree record counts them).
+      rows_of_tree_[row.tree_id] += observation.summary ? observation.summary->rows : 1;
       const int point = static_cast<int>(kind_.size());
-      AddPoint(ToTreeObservation(row), Kind::kRow, rows_.size());
+      AddPoint(observation, Kind::kRow, rows_.size());
       const auto [first, inserted] = first_point_of_tree_.emplace(row.tree_id, point);
       if (!inserted) linker_.Link(first->second, point);
       rows_.push_back(std::move(row));
@@ -143,8 +145,12 @@ class RegionLoader {
   void Collect(const std::vector<char>& in_region, MergeRegion& region) {
     std::set<int64_t> tree_ids;
     for (size_t p = seeds_; p < kind_.size(); ++p) {
-      if (!in_region[p]) continue;
       const auto [kind, index] = kind_[p];
+      if (!in_region[p]) {
+        if (kind == Kind::kRow)
+          region.foldable_outside[rows_[index].tree_id].push_back(rows_[index]);
+        continue;
+      }
       if (kind == Kind::kRow) {
         region.rows.push_back(rows_[index]);
         tree_ids.insert(rows_[index].tree_id);
@@ -167,6 +173,12 @@ class RegionLoader {
     for (storage::TreeRecord& tree : reader_.TreesById(missing)) {
       region.trees.emplace(*tree.id, std::move(tree));
     }
+    // Outside: only trees whose record counts exactly the rows loaded, enough to fold.
+    std::erase_if(region.foldable_outside, [&](const auto& entry) {
+      const auto record = trees_.find(entry.first);
+      return record == trees_.end() || record->second.observations != rows_of_tree_[entry.first] ||
+             static_cast<int>(entry.second.size()) <= options_.fold_rows;
+    });
   }
 
   storage::MergeReader& reader_;

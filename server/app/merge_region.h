@@ -27,6 +27,10 @@ struct MergeRegion {
   // the map too, stored once its tree changes.
   std::vector<algorithms::TreeObservation> unsaved_priors;
   int iterations = 0;  // load rounds until the fixpoint
+  // Trees outside the region with at least options.fold_rows rows, all of them loaded with it
+  // (neighbours in its cells), and those rows: a merge folds them (server/app/map_merger.h), so
+  // that the next one around reads their summaries.
+  std::map<int64_t, std::vector<storage::ObservationRecord>> foldable_outside;
 };
 
 // Loads the region of `seeds` (rows to be merged, in the map frame; their tree ids are ignored).

@@ -1,13 +1,67 @@
 #include "server/app/tree_records.h"
 
+#include <charconv>
 #include <cmath>
+#include <memory>
 #include <optional>
+#include <stdexcept>
+#include <string>
 
 namespace forestmap::server {
 namespace {
 
 std::optional<double> Known(double v) {
   return std::isfinite(v) ? std::optional<double>(v) : std::nullopt;
+}
+
+// A summary's statistics as stored: numbers separated by spaces, doubles in their shortest exact
+// form (std::to_chars), so that a stored summary reads back bit for bit:
+//   "1 rows surveyed" then weight mean m2 count of xy (mean x and y), z and DBH, then the number of
+//   view anchors and their x y.
+void Put(std::string& out, double v) {
+  char buffer[32];
+  const auto end = std::to_chars(buffer, buffer + sizeof buffer, v).ptr;
+  out.push_back(' ');
+  out.append(buffer, end);
+}
+
+std::string EncodeSummary(const algorithms::ObservationSummary& s) {
+  std::string out = "1";
+  for (const double v :
+       {double(s.rows), double(s.surveyed), s.xy.weight, s.xy.mean.x(), s.xy.mean.y(), s.xy.m2,
+        double(s.xy.count), s.z.weight, s.z.mean, s.z.m2, double(s.z.count), s.dbh.weight,
+        s.dbh.mean, s.dbh.m2, double(s.dbh.count), double(s.view_anchors.size())}) {
+    Put(out, v);
+  }
+  for (const Eigen::Vector2d& anchor : s.view_anchors) Put(out, anchor.x()), Put(out, anchor.y());
+  return out;
+}
+
+std::shared_ptr<const algorithms::ObservationSummary> DecodeSummary(const std::string& text,
+                                                                    int64_t row) {
+  std::vector<double> v;
+  const char* p = text.data();
+  const char* end = p + text.size();
+  while (p < end) {
+    while (p < end && *p == ' ') ++p;
+    double value = 0;
+    const auto [next, error] = std::from_chars(p, end, value);
+    if (error != std::errc() || next == p) break;
+    v.push_back(value);
+    p = next;
+  }
+  if (p != end || v.size() < 17 || v[0] != 1 || v.size() != 17 + 2 * size_t(v[16])) {
+    throw std::runtime_error("observation row " + std::to_string(row) +
+                             ": the stored summary is not one this server reads");
+  }
+  auto s = std::make_shared<algorithms::ObservationSummary>();
+  s->rows = static_cast<int>(v[1]);
+  s->surveyed = v[2] != 0;
+  s->xy = {v[3], Eigen::Vector2d(v[4], v[5]), v[6], static_cast<int>(v[7])};
+  s->z = {v[8], v[9], v[10], static_cast<int>(v[11])};
+  s->dbh = {v[12], v[13], v[14], static_cast<int>(v[15])};
+  for (size_t k = 17; k + 1 < v.size(); k += 2) s->view_anchors.emplace_back(v[k], v[k + 1]);
+  return s;
 }
 
 }  // namespace
@@ -32,6 +86,7 @@ algorithms::TreeObservation ToTreeObservation(const storage::ObservationRecord& 
   out.weight_dbh = record.weight_dbh;
   out.sensor_position = Eigen::Vector3d(record.sensor_x, record.sensor_y, record.sensor_z);
   out.prior = record.prior;
+  if (record.summary) out.summary = DecodeSummary(*record.summary, record.id);
   return out;
 }
 
@@ -51,6 +106,7 @@ storage::ObservationRecord ToObservationRecord(const algorithms::TreeObservation
   out.sensor_y = observation.sensor_position.y();
   out.sensor_z = observation.sensor_position.z();
   out.prior = observation.prior;
+  if (observation.summary) out.summary = EncodeSummary(*observation.summary);
   return out;
 }
 

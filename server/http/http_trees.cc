@@ -18,25 +18,14 @@
 namespace forestmap::server {
 namespace {
 
-// Shortest text that reads back as `value` (JSON has no NaN or infinity: null).
-void AppendNumber(std::string& out, double value) {
-  if (!std::isfinite(value)) {
-    out += "null";
-    return;
-  }
-  char buffer[32];
-  const std::to_chars_result end = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  out.append(buffer, end.ptr);
-}
-
 void AppendTree(std::string& out, const storage::TreeRecord& tree) {
   out += '[';
-  AppendNumber(out, tree.x);
+  AppendJsonNumber(out, tree.x);
   out += ',';
-  AppendNumber(out, tree.y);
+  AppendJsonNumber(out, tree.y);
   out += ',';
   if (tree.dbh) {
-    AppendNumber(out, *tree.dbh);
+    AppendJsonNumber(out, *tree.dbh);
   } else {
     out += "null";
   }
@@ -82,6 +71,16 @@ struct TreeStream {
 };
 
 }  // namespace
+
+void AppendJsonNumber(std::string& out, double value) {
+  if (!std::isfinite(value)) {
+    out += "null";
+    return;
+  }
+  char buffer[32];
+  const std::to_chars_result end = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  out.append(buffer, end.ptr);
+}
 
 void ReplyTreesStreamed(httplib::Response& response, storage::MapStore& store,
                         const storage::MapInfo& info, const std::string& map_json,

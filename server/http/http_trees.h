@@ -20,6 +20,9 @@ namespace forestmap::server {
 
 inline constexpr int64_t kHttpTreesPage = 4'096;  // trees read and sent per chunk, at most
 
+// Appends the shortest text that reads back as `value` (JSON has no NaN or infinity: null).
+void AppendJsonNumber(std::string& out, double value);
+
 // Answers `response` with {"map": <map_json>, "trees": [[x, y, dbh|null, confirmed, id], ...]}:
 // the trees of version `info.version` of map `info.name` (those inside `box` when set), streamed
 // page by page. If the version disappears meanwhile (deleted, pruned) the connection is closed

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <limits>
 
+#include "server/http/http_trees.h"
 #include "server/http/ogc_features.h"
 
 namespace forestmap::server {
@@ -18,16 +19,6 @@ namespace {
 using Json = nlohmann::json;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-// Shortest text that reads back as `value` (JSON has no NaN or infinity: null).
-void AppendNumber(std::string& out, double value) {
-  if (!std::isfinite(value)) {
-    out += "null";
-    return;
-  }
-  char buffer[32];
-  out.append(buffer, std::to_chars(buffer, buffer + sizeof(buffer), value).ptr);
-}
 
 // `value` as a JSON string (bytes that are not UTF-8 become U+FFFD).
 void AppendString(std::string& out, const std::string& value) {
@@ -42,15 +33,15 @@ void AppendFeature(std::string& out, const storage::TreeRecord& tree,
   out += R"({"type":"Feature","id":)" + std::to_string(*tree.id) + R"(,"geometry":)";
   if (xy) {
     out += R"({"type":"Point","coordinates":[)";
-    AppendNumber(out, (*xy)[0]);
+    AppendJsonNumber(out, (*xy)[0]);
     out += ',';
-    AppendNumber(out, (*xy)[1]);
+    AppendJsonNumber(out, (*xy)[1]);
     out += "]}";
   } else {
     out += "null";
   }
   out += R"(,"properties":{"tree_id":)" + std::to_string(*tree.id) + R"(,"dbh_m":)";
-  AppendNumber(out, tree.dbh.value_or(kNaN));
+  AppendJsonNumber(out, tree.dbh.value_or(kNaN));
   out += tree.status == storage::TreeStatus::kConfirmed ? R"(,"status":"confirmed")"
                                                         : R"(,"status":"candidate")";
   out += R"(,"observations":)" + std::to_string(tree.observations);

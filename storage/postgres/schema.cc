@@ -122,8 +122,21 @@ CREATE TABLE map_boundaries (
 );
 )sql";
 
-// Step 5: the order of a map's attribute columns, as the SQLite store's schema version 11.
+// Step 5: folded observation rows, as the SQLite store's schema version 11: a merge reads a
+// tree's summary row and its rows not folded, never its folded rows.
 constexpr const char* kStep5 = R"sql(
+ALTER TABLE observations ADD COLUMN folded BOOLEAN NOT NULL DEFAULT false;
+ALTER TABLE observations ADD COLUMN summary TEXT;  -- statistics of a summary row, else NULL
+DROP INDEX observations_of_tree;
+CREATE INDEX observations_of_tree ON observations (map_id, tree_id, folded)
+  WHERE valid_to = 9223372036854775807;
+DROP INDEX observations_in_cell;
+CREATE INDEX observations_in_cell ON observations (map_id, cell_x, cell_y)
+  WHERE valid_to = 9223372036854775807 AND NOT folded;
+)sql";
+
+// Step 6: the order of a map's attribute columns, as the SQLite store's schema version 12.
+constexpr const char* kStep6 = R"sql(
 CREATE TABLE map_columns (
   map_id BIGINT NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
   version BIGINT NOT NULL,
@@ -135,7 +148,7 @@ CREATE TABLE map_columns (
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4, kStep5};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4, kStep5, kStep6};
   return steps;
 }
 

@@ -218,7 +218,16 @@ std::vector<ObservationRecord> Session::ObservationsOfTrees(int64_t map_id,
   return ReadObservations(
       conn_.Exec("SELECT " FORESTMAP_OBSERVATION_COLUMNS
                  " FROM observations AS o WHERE o.map_id = $1 AND o.valid_to = " FORESTMAP_CURRENT
-                 " AND o.tree_id = ANY($2::bigint[]) ORDER BY o.id",
+                 " AND o.tree_id = ANY($2::bigint[]) AND NOT o.folded ORDER BY o.id",
+                 Params().Int64(map_id).Text(Int64Array(ids))));
+}
+
+std::vector<ObservationRecord> Session::FoldedObservationsOfTrees(int64_t map_id,
+                                                                  std::span<const int64_t> ids) {
+  return ReadObservations(
+      conn_.Exec("SELECT " FORESTMAP_OBSERVATION_COLUMNS
+                 " FROM observations AS o WHERE o.map_id = $1 AND o.valid_to = " FORESTMAP_CURRENT
+                 " AND o.tree_id = ANY($2::bigint[]) AND o.folded ORDER BY o.id",
                  Params().Int64(map_id).Text(Int64Array(ids))));
 }
 
@@ -229,12 +238,12 @@ std::vector<ObservationRecord> Session::ObservationsInCells(
     xs.push_back(cell.x);
     ys.push_back(cell.y);
   }
-  return ReadObservations(
-      conn_.Exec("SELECT " FORESTMAP_OBSERVATION_COLUMNS
-                 " FROM observations AS o WHERE o.map_id = $1 AND o.valid_to = " FORESTMAP_CURRENT
-                 " AND (o.cell_x, o.cell_y) IN (SELECT * FROM unnest($2::bigint[], "
-                 "$3::bigint[])) ORDER BY o.id",
-                 Params().Int64(map_id).Text(Int64Array(xs)).Text(Int64Array(ys))));
+  return ReadObservations(conn_.Exec(
+      "SELECT " FORESTMAP_OBSERVATION_COLUMNS
+      " FROM observations AS o WHERE o.map_id = $1 AND o.valid_to = " FORESTMAP_CURRENT
+      " AND NOT o.folded AND (o.cell_x, o.cell_y) IN (SELECT * FROM unnest($2::bigint[], "
+      "$3::bigint[])) ORDER BY o.id",
+      Params().Int64(map_id).Text(Int64Array(xs)).Text(Int64Array(ys))));
 }
 
 std::vector<ObservationRecord> Session::ObservationsOfSource(int64_t map_id,
@@ -252,16 +261,17 @@ void Session::InsertObservations(int64_t map_id, const std::vector<ObservationRe
       conn_,
       "INSERT INTO observations (map_id, valid_from, valid_to, tree_id, source, frame_id, "
       "detection_index, x, y, z, dbh, weight_xy, weight_dbh, sensor_x, sensor_y, sensor_z, "
-      "prior, cell_x, cell_y) SELECT $1, $2, " FORESTMAP_CURRENT
+      "prior, cell_x, cell_y, folded, summary) SELECT $1, $2, " FORESTMAP_CURRENT
       ", u.tree_id, u.source, u.frame_id, u.detection_index, u.x, u.y, u.z, u.dbh, "
       "u.weight_xy, u.weight_dbh, u.sensor_x, u.sensor_y, u.sensor_z, u.prior, u.cell_x, "
-      "u.cell_y FROM unnest($3::bigint[], $4::text[], $5::bigint[], $6::integer[], "
-      "$7::float8[], $8::float8[], $9::float8[], $10::float8[], $11::float8[], $12::float8[], "
-      "$13::float8[], $14::float8[], $15::float8[], $16::boolean[], $17::bigint[], "
-      "$18::bigint[], $19::bigint[]) AS u(tree_id, source, frame_id, detection_index, x, y, z, "
-      "dbh, weight_xy, weight_dbh, sensor_x, sensor_y, sensor_z, prior, cell_x, cell_y, ord) "
+      "u.cell_y, u.folded, u.summary FROM unnest($3::bigint[], $4::text[], $5::bigint[], "
+      "$6::integer[], $7::float8[], $8::float8[], $9::float8[], $10::float8[], $11::float8[], "
+      "$12::float8[], $13::float8[], $14::float8[], $15::float8[], $16::boolean[], "
+      "$17::bigint[], $18::bigint[], $19::boolean[], $20::text[], $21::bigint[]) AS "
+      "u(tree_id, source, frame_id, detection_index, x, y, z, dbh, weight_xy, weight_dbh, "
+      "sensor_x, sensor_y, sensor_z, prior, cell_x, cell_y, folded, summary, ord) "
       "ORDER BY u.ord",
-      map_id, valid_from, rows.size(), 17, [&](ColumnArrays& columns, size_t i) {
+      map_id, valid_from, rows.size(), 19, [&](ColumnArrays& columns, size_t i) {
         internal::WriteObservationValues(columns, rows[i]);
         columns.Int64(static_cast<int64_t>(i));  // keeps the ids in the order of the rows
       });

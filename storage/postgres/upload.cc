@@ -77,9 +77,9 @@ void Upload::CheckEarlierIds(const std::vector<int64_t>& ids) {
 }
 
 void Upload::Insert(const std::vector<TreeRecord>& trees, const std::vector<int64_t>& ids) {
-  constexpr size_t kRowsPerInsert = PostgresMapStore::kRowsPerInsert;
-  for (size_t begin = 0; begin < trees.size(); begin += kRowsPerInsert) {
-    const size_t end = std::min(trees.size(), begin + kRowsPerInsert);
+  const size_t step = PostgresMapStore::kRowsPerInsert;
+  for (size_t begin = 0; begin < trees.size(); begin += step) {
+    const size_t end = std::min(trees.size(), begin + step);
     ColumnArrays columns(11);
     for (size_t i = begin; i < end; ++i) {
       const int64_t index = chunks().staged() + static_cast<int64_t>(i);

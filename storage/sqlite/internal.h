@@ -200,6 +200,8 @@ class Session final : public StoreSession {
                                                      std::span<const int64_t> ids) override;
   std::vector<ObservationRecord> ObservationsInCells(
       int64_t map_id, std::span<const ObservationCell> cells) override;
+  std::vector<ObservationRecord> FoldedObservationsOfTrees(int64_t map_id,
+                                                           std::span<const int64_t> ids) override;
   std::vector<ObservationRecord> ObservationsOfSource(int64_t map_id,
                                                       const std::string& source) override;
   void InsertObservations(int64_t map_id, const std::vector<ObservationRecord>& rows,

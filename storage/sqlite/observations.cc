@@ -15,15 +15,16 @@ std::vector<ObservationRecord> ReadObservations(Statement& select) {
   return ReadAll(select, [](const Row& row) { return internal::ReadObservationRow(row); });
 }
 
-}  // namespace
-
-std::vector<ObservationRecord> Session::ObservationsOfTrees(int64_t map_id,
-                                                            std::span<const int64_t> ids) {
-  Statement select(db_,
+// Current rows of the trees `ids`, folded or not (`folded` 0 or 1).
+std::vector<ObservationRecord> RowsOfTrees(Database& db, int64_t map_id,
+                                           std::span<const int64_t> ids, int folded) {
+  Statement select(db,
                    "SELECT " FORESTMAP_OBSERVATION_COLUMNS
-                   " FROM observations AS o WHERE "
-                   "o.map_id = ?1 AND o.tree_id = ?2 AND o.valid_to = " FORESTMAP_CURRENT,
+                   " FROM observations AS o INDEXED BY observations_of_tree WHERE "
+                   "o.map_id = ?1 AND o.tree_id = ?2 AND o.folded = ?3 AND "
+                   "o.valid_to = " FORESTMAP_CURRENT,
                    map_id);
+  select.BindInt64(3, folded);
   std::vector<ObservationRecord> rows;
   for (const int64_t id : std::set<int64_t>(ids.begin(), ids.end())) {
     select.BindInt64(2, id);
@@ -35,13 +36,25 @@ std::vector<ObservationRecord> Session::ObservationsOfTrees(int64_t map_id,
   return rows;
 }
 
+}  // namespace
+
+std::vector<ObservationRecord> Session::ObservationsOfTrees(int64_t map_id,
+                                                            std::span<const int64_t> ids) {
+  return RowsOfTrees(db_, map_id, ids, 0);
+}
+
+std::vector<ObservationRecord> Session::FoldedObservationsOfTrees(int64_t map_id,
+                                                                  std::span<const int64_t> ids) {
+  return RowsOfTrees(db_, map_id, ids, 1);
+}
+
 std::vector<ObservationRecord> Session::ObservationsInCells(
     int64_t map_id, std::span<const ObservationCell> cells) {
   Statement select(db_,
                    "SELECT " FORESTMAP_OBSERVATION_COLUMNS
                    " FROM observations AS o INDEXED BY observations_in_cell WHERE "
                    "o.map_id = ?1 AND o.cell_x = ?2 AND o.cell_y = ?3 AND "
-                   "o.valid_to = " FORESTMAP_CURRENT,
+                   "o.valid_to = " FORESTMAP_CURRENT " AND o.folded = 0",
                    map_id);
   std::vector<ObservationRecord> rows;
   for (const ObservationCell& cell : std::set<ObservationCell>(cells.begin(), cells.end())) {
@@ -68,11 +81,14 @@ std::vector<ObservationRecord> Session::ObservationsOfSource(int64_t map_id,
 
 void Session::InsertObservations(int64_t map_id, const std::vector<ObservationRecord>& rows,
                                  int64_t valid_from) {
-  Statement insert(db_,
-                   "INSERT INTO observations (map_id, valid_from, valid_to, tree_id, source, "
-                   "frame_id, detection_index, x, y, z, dbh, weight_xy, weight_dbh, sensor_x, "
-                   "sensor_y, sensor_z, prior, cell_x, cell_y) VALUES (?1, ?2, " FORESTMAP_CURRENT
-                   ", ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18)");
+  Statement insert(
+      db_,
+      "INSERT INTO observations (map_id, valid_from, valid_to, tree_id, source, "
+      "frame_id, detection_index, x, y, z, dbh, weight_xy, weight_dbh, sensor_x, "
+      "sensor_y, sensor_z, prior, cell_x, cell_y, folded, summary) VALUES (?1, ?2, "
+      "" FORESTMAP_CURRENT
+      ", ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, "
+      "?20)");
   insert.Bind(1, map_id);
   insert.Bind(2, valid_from);
   for (const ObservationRecord& o : rows) {

@@ -234,24 +234,40 @@ CREATE TABLE map_boundaries (
 PRAGMA user_version = 10;
 )sql";
 
-// Version 11: the order of a map's attribute columns (the survey file's order, which exports keep;
-// storage/attribute_json.h). A row holds the order from `version` on, until the next row of the
-// map. A map without a row (all maps of version 10) exports its attributes in name order.
+// Version 11: folded observation rows (storage::ObservationRecord::folded, summary). A merge
+// reads a tree's summary row and its rows not folded, never its folded rows: the indexes by tree
+// and by cell leave folded rows out of what a merge reads (by tree they are found apart, for a
+// source removal). Existing rows are not folded (their trees fold when a merge next rebuilds them).
 constexpr const char* kStep11 = R"sql(
+ALTER TABLE observations ADD COLUMN folded INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE observations ADD COLUMN summary TEXT;  -- statistics of a summary row, else NULL
+DROP INDEX observations_of_tree;
+CREATE INDEX observations_of_tree ON observations (map_id, tree_id, folded)
+  WHERE valid_to = 9223372036854775807;
+DROP INDEX observations_in_cell;
+CREATE INDEX observations_in_cell ON observations (map_id, cell_x, cell_y)
+  WHERE valid_to = 9223372036854775807 AND folded = 0;
+PRAGMA user_version = 11;
+)sql";
+
+// Version 12: the order of a map's attribute columns (the survey file's order, which exports keep;
+// storage/attribute_json.h). A row holds the order from `version` on, until the next row of the
+// map. A map without a row (all maps of version 11) exports its attributes in name order.
+constexpr const char* kStep12 = R"sql(
 CREATE TABLE map_columns (
   map_id INTEGER NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
   version INTEGER NOT NULL,
   names TEXT NOT NULL,  -- JSON: an array of attribute names
   PRIMARY KEY (map_id, version)
 ) WITHOUT ROWID;
-PRAGMA user_version = 11;
+PRAGMA user_version = 12;
 )sql";
 
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4,  kStep5, kStep6,
-                                                 kStep7, kStep8, kStep9, kStep10, kStep11};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4,  kStep5,  kStep6,
+                                                 kStep7, kStep8, kStep9, kStep10, kStep11, kStep12};
   return steps;
 }
 

@@ -292,6 +292,61 @@ TEST(MapMerge, RebuildIsAPureFunctionOfTheSetOfObservations) {
   EXPECT_EQ(States(by_part), States(whole.trees));
 }
 
+// A summary row stands for the rows it folds (the same tree from either) and fixes its tree in a
+// rebuild: the tree keeps its id, 0 too, and the rows since join it around the summary.
+TEST(MapMerge, ASummaryRowStandsForItsRowsAndKeepsItsTree) {
+  std::vector<TreeObservation> folded;
+  for (int k = 0; k < 40; ++k) {
+    TreeObservation row;
+    row.source = "drone";
+    row.frame_id = k;
+    row.detection_index = 0;
+    row.position = Eigen::Vector3d(0.01 * (k % 7), -0.01 * (k % 5), 0.1 * (k % 3));
+    row.dbh = 0.3 + 0.01 * (k % 4);
+    row.weight_xy = 400;
+    row.weight_dbh = 1000;
+    row.sensor_position = Eigen::Vector3d(k, -5, 0);
+    folded.push_back(row);
+  }
+  const TreeObservation summary = SummaryObservation(0, folded);
+  ASSERT_TRUE(summary.summary && summary.defines_tree());
+  const TreeEstimate from_rows = EstimateFromObservations(0, folded);
+  const TreeEstimate from_summary = EstimateFromObservations(0, {&summary, 1});
+  EXPECT_NEAR((from_summary.position - from_rows.position).norm(), 0, 1e-12);
+  EXPECT_NEAR(from_summary.dbh, from_rows.dbh, 1e-12);
+  EXPECT_NEAR(from_summary.position_sigma, from_rows.position_sigma, 1e-12);
+  EXPECT_NEAR(from_summary.dbh_sigma, from_rows.dbh_sigma, 1e-12);
+  EXPECT_EQ(from_summary.observations, 40);
+  EXPECT_EQ(from_summary.distinct_views, from_rows.distinct_views);
+  EXPECT_EQ(from_summary.status, TreeStatus::kConfirmed);
+
+  // Five later rows, stored under another tree (7), near the summary.
+  std::vector<TreeObservation> rows{summary};
+  std::vector<TreeObservation> all = folded;
+  for (int k = 0; k < 5; ++k) {
+    TreeObservation row = folded[k];
+    row.tree_id = 7;
+    row.frame_id = 100 + k;
+    row.position.x() += 0.05;
+    rows.push_back(row);
+    all.push_back(row);
+  }
+  TreeEstimate zero, seven;
+  zero.id = 0, seven.id = 7;
+  const std::vector<TreeEstimate> trees{seven, zero};
+  const ConsolidateResult rebuilt = RebuildTrees(trees, rows, 100);
+  ASSERT_EQ(rebuilt.trees.size(), 1u);
+  EXPECT_EQ(rebuilt.trees[0].id, 0);
+  EXPECT_TRUE(rebuilt.trees[0].summarized);
+  EXPECT_EQ(rebuilt.trees[0].observations, 45);
+  EXPECT_EQ(rebuilt.removed_ids, std::vector<int64_t>{7});
+  for (const TreeObservation& row : rebuilt.observations) EXPECT_EQ(row.tree_id, 0);
+  std::stable_sort(all.begin(), all.end(),
+                   [](const auto& a, const auto& b) { return a.frame_id < b.frame_id; });
+  const TreeEstimate whole = EstimateFromObservations(0, all);
+  EXPECT_NEAR((rebuilt.trees[0].position - whole.position).norm(), 0, 1e-12);
+}
+
 std::filesystem::path Sequence(const std::string& name) {
   return std::filesystem::path(FORESTMAP_SHARED_DATA) / "sequences" / name;
 }
