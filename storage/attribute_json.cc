@@ -1,7 +1,10 @@
 #include "storage/attribute_json.h"
 
+#include <algorithm>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
+
+#include "storage/map_store.h"
 
 namespace forestmap::storage::internal {
 
@@ -33,6 +36,31 @@ TreeAttributes DecodeAttributes(const std::string& text) {
     }
   }
   return attributes;
+}
+
+std::string EncodeColumnOrder(const std::vector<std::string>& names) {
+  if (names.empty()) return {};
+  return nlohmann::json(names).dump();  // throws json::type_error on invalid UTF-8
+}
+
+std::vector<std::string> DecodeColumnOrder(const std::string& map_name, const std::string& text) {
+  if (text.empty()) return {};
+  try {
+    return nlohmann::json::parse(text).get<std::vector<std::string>>();
+  } catch (const nlohmann::json::exception& e) {
+    throw StorageError(StorageError::Code::kInternal,
+                       "map '" + map_name + "': stored attribute order is damaged: " + e.what());
+  }
+}
+
+std::vector<std::string> MergeColumnOrder(const std::vector<std::string>& stored,
+                                          const std::vector<std::string>& uploaded, bool replace) {
+  if (uploaded.empty()) return stored;
+  std::vector<std::string> order = replace ? std::vector<std::string>() : stored;
+  for (const std::string& name : uploaded) {
+    if (std::find(order.begin(), order.end(), name) == order.end()) order.push_back(name);
+  }
+  return order;
 }
 
 }  // namespace forestmap::storage::internal

@@ -6,6 +6,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <vector>
 
 namespace forestmap::storage::internal {
 
@@ -20,5 +21,16 @@ std::optional<std::string> EncodeAttributes(const std::map<std::string, std::str
 
 // Throws std::invalid_argument unless `text` is a JSON object of strings and nulls.
 TreeAttributes DecodeAttributes(const std::string& text);
+
+// The order of a map's attribute columns (MapSnapshot::attribute_columns) as stored: a JSON array
+// of the names, "" for none.
+std::string EncodeColumnOrder(const std::vector<std::string>& names);
+// kInternal naming the map when the stored text is not an array of strings.
+std::vector<std::string> DecodeColumnOrder(const std::string& map_name, const std::string& text);
+// The order after an upload whose file had the attribute columns `uploaded`, in its order: those
+// of `stored` first (an append keeps the map's order), then the new ones; `replace`: `uploaded`
+// alone. Empty `uploaded` (the order unknown): `stored`.
+std::vector<std::string> MergeColumnOrder(const std::vector<std::string>& stored,
+                                          const std::vector<std::string>& uploaded, bool replace);
 
 }  // namespace forestmap::storage::internal

@@ -53,6 +53,7 @@ struct MapInfo {
   std::optional<Extent> extent;  // unset for an empty map
   int64_t created_unix_ms = 0;
   int64_t updated_unix_ms = 0;
+  bool has_boundary = false;  // the version has a survey boundary (MapSnapshot::boundary)
 };
 
 enum class TreeStatus { kCandidate = 0, kConfirmed = 1 };
@@ -210,12 +211,16 @@ using Boundary = std::vector<BoundaryPolygon>;
 // Vertices a boundary may have, all rings together.
 inline constexpr size_t kMaxBoundaryVertices = 100000;
 
-// A consistent snapshot of a map: its info, all its trees (sorted by id) and its boundary, read
-// together.
+// A consistent snapshot of a map: its info, all its trees (sorted by id), its boundary and the
+// order of its attribute columns, read together.
 struct MapSnapshot {
   MapInfo info;
   std::vector<TreeRecord> trees;
   Boundary boundary;
+  // The survey's attribute columns in the order of its files (UploadPlan::attribute_columns), for
+  // exports to keep; names the trees do not have may be listed, and names of the trees that are
+  // not listed (trees written without an order) follow the listed ones in name order on export.
+  std::vector<std::string> attribute_columns;
 };
 
 enum class WriteMode {
@@ -265,6 +270,9 @@ class MapStore {
   // The survey boundary of a version (0 = current; empty when it has none), kNotFound as above.
   // The default reads the whole version.
   virtual Boundary ReadBoundary(const std::string& name, int64_t version);
+  // The order of the attribute columns of a version (MapSnapshot::attribute_columns), kNotFound
+  // as above. The default reads the whole version.
+  virtual std::vector<std::string> ReadAttributeColumns(const std::string& name, int64_t version);
   // The history, oldest first; `limit` > 0 keeps the newest `limit` entries.
   virtual std::vector<VersionRecord> ListVersions(const std::string& name, int64_t limit) = 0;
   // A new version whose trees and observations equal those of `version` (kNotFound as above).

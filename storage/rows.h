@@ -28,9 +28,11 @@ inline constexpr int64_t kForever = std::numeric_limits<int64_t>::max();
 
 // ---- Maps ----
 
-#define FORESTMAP_MAP_COLUMNS                                                     \
-  "id, name, description, crs, version, tree_count, min_x, min_y, max_x, max_y, " \
-  "created_unix_ms, updated_unix_ms, confirmed_count"
+// The last: whether the newest boundary row of the map (that of its current version) holds one.
+#define FORESTMAP_MAP_COLUMNS                                                             \
+  "id, name, description, crs, version, tree_count, min_x, min_y, max_x, max_y, "         \
+  "created_unix_ms, updated_unix_ms, confirmed_count, COALESCE((SELECT b.polygons <> '' " \
+  "FROM map_boundaries AS b WHERE b.map_id = maps.id ORDER BY b.version DESC LIMIT 1), 0 = 1)"
 template <typename Row>
 MapRow ReadMapRow(const Row& row) {
   MapRow map;
@@ -46,6 +48,7 @@ MapRow ReadMapRow(const Row& row) {
   map.info.created_unix_ms = row.Int64(10);
   map.info.updated_unix_ms = row.Int64(11);
   map.info.confirmed_count = row.Int64(12);
+  map.info.has_boundary = row.Bool(13);
   return map;
 }
 

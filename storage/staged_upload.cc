@@ -1,5 +1,6 @@
 #include "storage/staged_upload.h"
 
+#include "storage/attribute_json.h"
 #include "storage/boundary_json.h"
 
 namespace forestmap::storage {
@@ -44,7 +45,12 @@ MapInfo StagedUpload::Commit() {
         const VersionRecord record = chunks_.Apply(map.info, closed);
         session.UpdateMap(map);
         session.InsertVersion(map.id, record);
-        if (boundary) session.InsertBoundary(map.id, map.info.version, *boundary);
+        if (boundary) {
+          session.InsertBoundary(map.id, map.info.version, *boundary);
+          map.info.has_boundary = !boundary->empty();
+        }
+        const std::string columns = NewColumns(session, map.id, version - 1, replace);
+        if (!columns.empty()) session.InsertColumns(map.id, version, columns);
       }
       Forget(session);
       if (changes || plan_.create_map) {
@@ -68,6 +74,15 @@ std::optional<std::string> StagedUpload::NewBoundary(StoreSession& session, cons
   std::string encoded = internal::EncodeBoundary(*plan_.boundary);
   if (encoded == session.BoundaryAt(map.id, map.info.version)) return std::nullopt;
   return encoded;
+}
+
+std::string StagedUpload::NewColumns(StoreSession& session, int64_t map_id, int64_t old_version,
+                                     bool replace) {
+  if (plan_.attribute_columns.empty()) return {};
+  const std::string stored = session.ColumnsAt(map_id, old_version);
+  std::string merged = internal::EncodeColumnOrder(internal::MergeColumnOrder(
+      internal::DecodeColumnOrder(name_, stored), plan_.attribute_columns, replace));
+  return merged == stored ? std::string() : merged;
 }
 
 void StagedUpload::Discard() noexcept {

@@ -57,6 +57,9 @@ class StagedUpload : public TreeUpload {
  private:
   // In the commit: the encoded plan.boundary when it differs from the map's current one.
   std::optional<std::string> NewBoundary(StoreSession& session, const MapRow& map);
+  // In the commit: the encoded order of the attribute columns from the new version on when the
+  // upload changes it (storage/attribute_json.h), else "".
+  std::string NewColumns(StoreSession& session, int64_t map_id, int64_t old_version, bool replace);
 
   std::string name_;
   UploadPlan plan_;

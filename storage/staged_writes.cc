@@ -66,6 +66,10 @@ Boundary MapStore::ReadBoundary(const std::string& name, int64_t version) {
   return ReadMapVersion(name, version).boundary;
 }
 
+std::vector<std::string> MapStore::ReadAttributeColumns(const std::string& name, int64_t version) {
+  return ReadMapVersion(name, version).attribute_columns;
+}
+
 std::vector<TreeRecord> PageOfSnapshot(MapStore& store, const std::string& name,
                                        const TreePageQuery& query) {
   const MapSnapshot snapshot = store.ReadMapVersion(name, query.version);

@@ -23,6 +23,10 @@ struct UploadPlan {
   // Set: the map's survey boundary from the new version on (an empty one removes it); a changed
   // boundary alone makes a new version. Unset: the map keeps its boundary.
   std::optional<Boundary> boundary;
+  // The attribute columns of the uploaded file, in its order (MapSnapshot::attribute_columns):
+  // appended, the new ones follow the map's; replacing, they are the map's order. Empty: the
+  // map keeps its order. Recorded with a version the upload makes; alone, it makes none.
+  std::vector<std::string> attribute_columns;
 };
 
 // An upload of any size in bounded memory. Append stages trees in the database in its own short

@@ -92,8 +92,8 @@ class StoreSession {
   virtual std::optional<int64_t> OldestVersion(int64_t map_id) = 0;
   // Version numbers, newest first; limit > 0 keeps the first `limit`.
   virtual std::vector<int64_t> NewestVersions(int64_t map_id, int64_t limit) = 0;
-  // Deletes the history before `first_kept` and the rows only it held (boundary rows too, but
-  // the one in force at `first_kept`).
+  // Deletes the history before `first_kept` and the rows only it held (boundary and column-order
+  // rows too, but the ones in force at `first_kept`).
   virtual PrunedRows PruneBefore(int64_t map_id, int64_t first_kept) = 0;
 
   // ---- Survey boundary (storage/boundary_json.h): one row per version that set it ----
@@ -102,6 +102,12 @@ class StoreSession {
   virtual std::string BoundaryAt(int64_t map_id, int64_t version) = 0;
   // The boundary from `version` on ("" removes it).
   virtual void InsertBoundary(int64_t map_id, int64_t version, const std::string& encoded) = 0;
+
+  // ---- Order of the attribute columns (storage/attribute_json.h), kept as the boundary ----
+  // The encoded order of `version` ("" when no version up to it stored one).
+  virtual std::string ColumnsAt(int64_t map_id, int64_t version) = 0;
+  // The order from `version` on.
+  virtual void InsertColumns(int64_t map_id, int64_t version, const std::string& encoded) = 0;
 
   // ---- Trees (results by id) ----
   virtual std::vector<TreeRecord> CurrentTrees(const MapRow& map) = 0;

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "storage/attribute_json.h"
 #include "storage/boundary_json.h"
 #include "storage/checks.h"
 #include "storage/store_steps.h"
@@ -93,14 +94,19 @@ MapSnapshot VersionedMapStore::ReadMapVersion(const std::string& name, int64_t v
       snapshot.trees = session.CurrentTrees(map);
       snapshot.boundary =
           internal::DecodeBoundary(name, session.BoundaryAt(map.id, map.info.version));
+      snapshot.attribute_columns =
+          internal::DecodeColumnOrder(name, session.ColumnsAt(map.id, map.info.version));
       transaction.Commit();
       return;
     }
     const VersionRecord record = RequireVersion(session, map, version);
     snapshot.trees = session.TreesAtVersion(map, version);
     snapshot.boundary = internal::DecodeBoundary(name, session.BoundaryAt(map.id, version));
+    snapshot.attribute_columns =
+        internal::DecodeColumnOrder(name, session.ColumnsAt(map.id, version));
     transaction.Commit();
     snapshot.info = InfoAtVersion(map.info, record, snapshot.trees);
+    snapshot.info.has_boundary = !snapshot.boundary.empty();
   });
   return snapshot;
 }
@@ -121,6 +127,21 @@ Boundary VersionedMapStore::ReadBoundary(const std::string& name, int64_t versio
     transaction.Commit();
   });
   return internal::DecodeBoundary(name, encoded);
+}
+
+std::vector<std::string> VersionedMapStore::ReadAttributeColumns(const std::string& name,
+                                                                 int64_t version) {
+  internal::CheckName(name);
+  CheckVersionNumber(name, version);
+  std::string encoded;
+  backend_->WithReader([&](StoreSession& session) {
+    StoreTransaction transaction(session, TransactionKind::kRead);
+    const MapRow map = RequireMap(session, name);
+    if (version != 0 && version != map.info.version) RequireVersion(session, map, version);
+    encoded = session.ColumnsAt(map.id, version == 0 ? map.info.version : version);
+    transaction.Commit();
+  });
+  return internal::DecodeColumnOrder(name, encoded);
 }
 
 std::vector<VersionRecord> VersionedMapStore::ListVersions(const std::string& name, int64_t limit) {
@@ -155,6 +176,11 @@ MapInfo VersionedMapStore::RestoreVersion(const std::string& name, int64_t versi
     const std::string boundary = session.BoundaryAt(map.id, version);
     if (boundary != session.BoundaryAt(map.id, map.info.version)) {
       session.InsertBoundary(map.id, next, boundary);
+    }
+    map.info.has_boundary = !boundary.empty();
+    const std::string columns = session.ColumnsAt(map.id, version);
+    if (columns != session.ColumnsAt(map.id, map.info.version)) {
+      session.InsertColumns(map.id, next, columns);
     }
     StampRestore(map.info, record, old, session.ScanExtent(map.id));
     session.UpdateMap(map);

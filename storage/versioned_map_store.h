@@ -40,6 +40,7 @@ class VersionedMapStore : public MapStore {
 
   MapSnapshot ReadMapVersion(const std::string& name, int64_t version) override;
   Boundary ReadBoundary(const std::string& name, int64_t version) override;
+  std::vector<std::string> ReadAttributeColumns(const std::string& name, int64_t version) override;
   std::vector<VersionRecord> ListVersions(const std::string& name, int64_t limit) override;
   MapInfo RestoreVersion(const std::string& name, int64_t version) override;
   MapInfo Merge(const std::string& name, const MergeNote& note,

@@ -83,9 +83,11 @@ TreeFile ReadDetections(const CompareOptions& o, const CliContext& context) {
   if (o.detections.rfind(prefix, 0) == 0) {
     const std::string name = o.detections.substr(prefix.size());
     ForestMapClient client = context.Connect();
-    return {client.ExportTrees(name).trees, client.GetMap(name).crs()};
+    ExportedTrees exported = client.ExportTrees(name);
+    return {std::move(exported.trees), client.GetMap(name).crs(),
+            std::move(exported.attribute_columns)};
   }
-  if (IsScan(o)) return {DetectInScan(o, context), ReadLasCrs(o.detections)};
+  if (IsScan(o)) return {DetectInScan(o, context), ReadLasCrs(o.detections), {}};
   return ReadTreeFile(o.detections, TreeFileOptionsFrom(o.columns, o.dbh_unit));
 }
 

@@ -273,6 +273,7 @@ std::string FormatMapDetails(const v1::Map& map) {
     const v1::Box2& box = map.extent();
     field("size", Printf("%.2f x %.2f m", box.max_x() - box.min_x(), box.max_y() - box.min_y()));
   }
+  field("boundary", map.has_boundary() ? "yes" : "no");
   field("created", FormatUnixMs(map.created_unix_ms()));
   field("updated", FormatUnixMs(map.updated_unix_ms()));
   return text;

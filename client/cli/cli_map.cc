@@ -41,7 +41,8 @@ struct CreateOptions {
 // in the transaction that commits its trees, so a failed or killed upload leaves no map.
 void CreateWithTrees(const CreateOptions& options, const std::vector<MapTreeRow>& rows,
                      const std::string& source, const CliContext& context,
-                     const std::optional<Boundary>& boundary = std::nullopt) {
+                     const std::optional<Boundary>& boundary = std::nullopt,
+                     const std::vector<std::string>& columns = {}) {
   ForestMapClient client = context.Connect();
   v1::Map map;
   if (rows.empty() && !boundary) {
@@ -52,7 +53,7 @@ void CreateWithTrees(const CreateOptions& options, const std::vector<MapTreeRow>
                 .CreateMapWithTrees(options.name, options.description, options.crs, rows,
                                     UploadProgressTo(*context.err, std::ssize(rows),
                                                      ClientOptions().upload_chunk_trees),
-                                    boundary)
+                                    boundary, columns)
                 .map();
     } catch (const std::exception& upload_error) {
       throw CommandError("creating map '" + options.name + "' with the trees of " + source +
@@ -65,11 +66,13 @@ void CreateWithTrees(const CreateOptions& options, const std::vector<MapTreeRow>
 
 void RunCreate(CreateOptions options, const CliContext& context) {
   std::vector<MapTreeRow> rows;
+  std::vector<std::string> columns;  // the file's attribute columns, in its order
   // Read the file before touching the server, so that a bad file leaves nothing behind.
   if (!options.trees_file.empty()) {
     TreeFile file = ReadTreeFile(
         options.trees_file, TreeFileOptionsFrom(options.columns, options.dbh_unit, options.layer));
     rows = std::move(file.rows);
+    columns = std::move(file.attribute_columns);
     options.crs = CrsOfTrees(options.trees_file, options.crs, file.crs);
     options.crs =
         ReprojectTrees(rows, options.trees_file, options.crs, options.to_crs, *context.err);
@@ -85,7 +88,7 @@ void RunCreate(CreateOptions options, const CliContext& context) {
       options.boundary_file, options.boundary_layer, options.name, options.crs, *context.err);
   CreateWithTrees(options, rows,
                   options.trees_file.empty() ? options.boundary_file : options.trees_file, context,
-                  boundary);
+                  boundary, columns);
 }
 
 void AddCreate(CLI::App& map_app, CliContext& context) {
@@ -282,12 +285,14 @@ int64_t TreesToExport(ForestMapClient& client, const v1::Map& map, int64_t versi
 }
 
 // The trees of map `name` to `out_file` (not standard output) in `format`, with CRS `crs`.
-void WriteExportFile(const std::string& out_file, TreeFormat format,
-                     const std::vector<MapTreeRow>& trees, const std::string& crs,
-                     const std::string& name, std::ostream& err) {
+// The attribute columns in the map's order (ExportedTrees::attribute_columns).
+void WriteExportFile(const std::string& out_file, TreeFormat format, const ExportedTrees& exported,
+                     const std::string& crs, const std::string& name, std::ostream& err) {
+  const std::vector<MapTreeRow>& trees = exported.trees;
+  const std::vector<std::string>& order = exported.attribute_columns;
   if (format == TreeFormat::kCsv) {
     ReplaceFile(out_file,
-                [&](const std::string& temporary) { WriteMapTreesCsv(temporary, trees); });
+                [&](const std::string& temporary) { WriteMapTreesCsv(temporary, trees, order); });
     // The CRS as WKT beside the CSV, as GIS tools keep it (map create --trees reads it back);
     // for a map without one, an old .prj is removed.
     WriteCrsSidecar(out_file, crs);
@@ -297,7 +302,8 @@ void WriteExportFile(const std::string& out_file, TreeFormat format,
   const auto written = ProgressTo(err, "writing " + out_file, std::ssize(trees), kExportChunk);
   for (const std::string& warning : WriteGeoTrees(
            out_file, format, trees, crs, name,
-           written ? [&written](int64_t done, int64_t) { written(done); } : GeoWriteProgress())) {
+           written ? [&written](int64_t done, int64_t) { written(done); } : GeoWriteProgress(),
+           order)) {
     err << "forestmap: warning: " << warning << std::endl;
   }
 }
@@ -338,12 +344,12 @@ void RunExport(const ExportOptions& options, const CliContext& context) {
                  << std::endl;
   }
   if (to_stdout) {
-    WriteMapTreesCsv(*context.out, exported.trees);
+    WriteMapTreesCsv(*context.out, exported.trees, exported.attribute_columns);
     context.out->flush();
     if (!*context.out) throw CommandError("writing to standard output failed");
     return;
   }
-  WriteExportFile(out_file, format, exported.trees, crs, options.name, *context.err);
+  WriteExportFile(out_file, format, exported, crs, options.name, *context.err);
   *context.err << "exported " << exported.trees.size() << " trees of map '" << options.name
                << "' (version " << exported.map_version << ") to " << out_file;
   if (format == TreeFormat::kGeoPackage) *context.err << " (layer '" << options.name << "')";

@@ -53,6 +53,7 @@ nlohmann::ordered_json MapJson(const v1::Map& map) {
   }
   json["created_unix_ms"] = map.created_unix_ms();
   json["updated_unix_ms"] = map.updated_unix_ms();
+  json["has_boundary"] = map.has_boundary();
   return json;
 }
 

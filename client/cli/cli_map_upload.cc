@@ -81,7 +81,7 @@ void RunUpload(const UploadOptions& options, const CliContext& context) {
     response = client.UploadTrees(
         options.name, file.rows, options.replace,
         UploadProgressTo(*context.err, std::ssize(file.rows), ClientOptions().upload_chunk_trees),
-        boundary);
+        boundary, file.attribute_columns);
   } catch (const std::exception& upload_error) {
     throw CommandError("uploading " + what + " to map '" + options.name +
                        "' failed: " + upload_error.what() + "; the map is unchanged");

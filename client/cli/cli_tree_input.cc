@@ -75,13 +75,16 @@ std::string ReadCrsSidecar(const std::string& csv_path) {
 TreeFile ReadTreeFile(const std::string& path, const TreeFileOptions& options) {
   TreeFile file;
   if (TreeFormatOfPath(path) == TreeFormat::kCsv) {
-    file.rows = ReadMapTreesCsv(path, options);
+    std::vector<std::string> header;
+    file.rows = ReadMapTreesCsv(path, options, &header);
     file.crs = ReadCrsSidecar(path);
+    file.attribute_columns = AttributeColumnOrder(header, file.rows);
     return file;
   }
   GeoTrees trees = ReadGeoTrees(path, options);
   file.rows = std::move(trees.rows);
   file.crs = std::move(trees.crs_wkt);
+  file.attribute_columns = AttributeColumnOrder(trees.fields, file.rows);
   return file;
 }
 

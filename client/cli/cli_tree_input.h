@@ -26,7 +26,8 @@ TreeFileOptions TreeFileOptionsFrom(const std::string& columns, const std::strin
 // A tree file and the CRS it declares (empty when it declares none, as CSV never does).
 struct TreeFile {
   std::vector<MapTreeRow> rows;
-  std::string crs;  // WKT
+  std::string crs;                             // WKT
+  std::vector<std::string> attribute_columns;  // in the file's order (AttributeColumnOrder)
 };
 
 // Reads CSV (any other extension) or, by extension, .gpkg, .geojson/.json, .shp. A CSV's CRS is

@@ -329,6 +329,9 @@ GeoTrees ReadGeoTrees(const std::string& path, const TreeFileOptions& options) {
   }
   const FieldColumns fields = ResolveFields(*layer.GetLayerDefn(), options, path);
   GeoTrees trees;
+  for (int i = 0; i < layer.GetLayerDefn()->GetFieldCount(); ++i) {
+    trees.fields.emplace_back(layer.GetLayerDefn()->GetFieldDefn(i)->GetNameRef());
+  }
   std::map<int64_t, int64_t> feature_of_id;
   layer.ResetReading();
   int64_t number = 0;

@@ -5,7 +5,8 @@
 //
 // Written layout: one point layer (named after the map; a shapefile's is its file name); point =
 // (x, y) in the map CRS; fields id (integer), x, y, z, dbh (real, metres; null when unknown), then
-// one field per attribute name of any row, null attributes included (in name order, named as
+// one field per attribute name of any row, null attributes included (in the order given, else in
+// name order; named as
 // ExportedAttributes in tree_columns.h says, GeoPackage's fid and geom renamed attr_fid, attr_geom;
 // null where a row has no value): Integer64 when every value is an integer ("62", not "062"), Real
 // when every one is a number in the form read back ("14.9", not "14.90"), else String. Text is
@@ -47,17 +48,20 @@ const char* TreeFormatName(TreeFormat format);
 // replacing only a layer of that name (the other layers stay); else replacing the file (a
 // shapefile: its parts, an old .prj or .cpg included). `crs` is the map's CRS as stored (EPSG:n,
 // WKT or PROJ string); empty: none. Returns warnings for the user: fields a shapefile renamed
-// (its names have 10 characters).
+// (its names have 10 characters). `attribute_order`: the order of the attribute fields
+// (ExportedAttributes in tree_columns.h).
 // `progress(written, total)` is called after each feature when given.
 using GeoWriteProgress = std::function<void(int64_t written, int64_t total)>;
 std::vector<std::string> WriteGeoTrees(const std::string& path, TreeFormat format,
                                        const std::vector<MapTreeRow>& rows, const std::string& crs,
                                        const std::string& layer = "trees",
-                                       const GeoWriteProgress& progress = {});
+                                       const GeoWriteProgress& progress = {},
+                                       const std::vector<std::string>& attribute_order = {});
 
 struct GeoTrees {
   std::vector<MapTreeRow> rows;
-  std::string crs_wkt;  // the layer's CRS as WKT; empty when it has none
+  std::string crs_wkt;              // the layer's CRS as WKT; empty when it has none
+  std::vector<std::string> fields;  // the layer's field names, in order
 };
 
 // Reads the trees' layer of a GIS file (any vector format GDAL opens; options.layer).

@@ -170,10 +170,11 @@ std::unique_ptr<OGRSpatialReference> SpatialReference(const std::string& crs, Tr
 
 std::vector<std::string> WriteLayer(GDALDataset& dataset, const std::vector<MapTreeRow>& rows,
                                     const LayerSpec& spec, const std::string& path,
-                                    const GeoWriteProgress& progress) {
+                                    const GeoWriteProgress& progress,
+                                    const std::vector<std::string>& order) {
   std::vector<Column> columns;
   std::vector<std::string> rounded;  // shapefile Real columns with values it cannot hold
-  for (const ExportedAttribute& attribute : ExportedAttributes(rows, kGeoReserved)) {
+  for (const ExportedAttribute& attribute : ExportedAttributes(rows, kGeoReserved, order)) {
     columns.push_back({attribute, AttributeType(rows, attribute.name)});
     if (spec.format != TreeFormat::kShapefile || columns.back().type != OFTReal) continue;
     for (const MapTreeRow& row : rows) {
@@ -334,11 +335,12 @@ std::vector<std::string> WriteGeoFile(const std::string& path, TreeFormat format
 
 std::vector<std::string> WriteGeoTrees(const std::string& path, TreeFormat format,
                                        const std::vector<MapTreeRow>& rows, const std::string& crs,
-                                       const std::string& layer, const GeoWriteProgress& progress) {
-  return geo_internal::WriteGeoFile(path, format, crs, layer,
-                                    [&](GDALDataset& dataset, const LayerSpec& spec) {
-                                      return WriteLayer(dataset, rows, spec, path, progress);
-                                    });
+                                       const std::string& layer, const GeoWriteProgress& progress,
+                                       const std::vector<std::string>& attribute_order) {
+  return geo_internal::WriteGeoFile(
+      path, format, crs, layer, [&](GDALDataset& dataset, const LayerSpec& spec) {
+        return WriteLayer(dataset, rows, spec, path, progress, attribute_order);
+      });
 }
 
 }  // namespace forestmap::client

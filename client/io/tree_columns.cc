@@ -225,13 +225,40 @@ bool ReservedOnExport(const std::string& name) {
 
 }  // namespace
 
-std::vector<ExportedAttribute> ExportedAttributes(const std::vector<MapTreeRow>& rows,
-                                                  const std::set<std::string>& also_reserved) {
+namespace {
+
+std::set<std::string> AttributeNames(const std::vector<MapTreeRow>& rows) {
   std::set<std::string> names;
   for (const MapTreeRow& row : rows) {
     for (const auto& [name, value] : row.attributes) names.insert(name);
     names.insert(row.null_attributes.begin(), row.null_attributes.end());
   }
+  return names;
+}
+
+}  // namespace
+
+std::vector<std::string> AttributeColumnOrder(const std::vector<std::string>& header,
+                                              const std::vector<MapTreeRow>& rows) {
+  const std::set<std::string> present = AttributeNames(rows);
+  std::vector<std::string> order;
+  for (const std::string& name : header) {
+    if (present.count(name) != 0 && std::find(order.begin(), order.end(), name) == order.end()) {
+      order.push_back(name);
+    }
+  }
+  return order;
+}
+
+std::vector<ExportedAttribute> ExportedAttributes(const std::vector<MapTreeRow>& rows,
+                                                  const std::set<std::string>& also_reserved,
+                                                  const std::vector<std::string>& order) {
+  std::set<std::string> unordered = AttributeNames(rows);
+  std::vector<std::string> names;
+  for (const std::string& name : order) {
+    if (unordered.erase(name) != 0) names.push_back(name);
+  }
+  names.insert(names.end(), unordered.begin(), unordered.end());
   std::vector<ExportedAttribute> exported;
   std::set<std::string> taken;   // lower-case columns (GeoPackage compares them so)
   std::vector<size_t> clashing;  // attributes whose column another one took first

@@ -65,11 +65,12 @@ struct ResolvedColumns {
 ResolvedColumns ResolveMapColumns(const std::vector<std::string>& header,
                                   const TreeFileOptions& options, const std::string& where);
 
-// The attribute columns of an export (CSV and GIS files), in attribute-name order: each
-// attribute (or null attribute) of any row, with the name it is written under. Names that would
-// read back as a tree column (X_m, treeID, dbh_cm, location_x, Z, ...) or switch a dialect on
-// (h.dist) are written as "attr_NAME", so that reading the file back keeps the tree columns
-// and the DBH unit, and the value stays an attribute; so are the lower-case names in
+// The attribute columns of an export (CSV and GIS files): each attribute (or null attribute) of
+// any row, with the name it is written under; those named in `order` (the survey file's column
+// order, MapSnapshot::attribute_columns) first, in that order, then the others in name order. Names
+// that would read back as a tree column (X_m, treeID, dbh_cm, location_x, Z, ...) or switch a
+// dialect on (h.dist) are written as "attr_NAME", so that reading the file back keeps the tree
+// columns and the DBH unit, and the value stays an attribute; so are the lower-case names in
 // `also_reserved` (a format's own columns: GeoPackage's fid and geom). Two attributes that would
 // be written under one name (compared case-insensitively, as GeoPackage does: Species and
 // species) are not: the later one is written as attr_NAME (or NAME_2, ...).
@@ -78,7 +79,13 @@ struct ExportedAttribute {
   std::string column;  // the column it is written as
 };
 std::vector<ExportedAttribute> ExportedAttributes(const std::vector<MapTreeRow>& rows,
-                                                  const std::set<std::string>& also_reserved = {});
+                                                  const std::set<std::string>& also_reserved = {},
+                                                  const std::vector<std::string>& order = {});
+
+// The attribute columns of a file read into `rows`: the names of `header` (its columns or fields,
+// in file order) that are an attribute or null attribute of some row.
+std::vector<std::string> AttributeColumnOrder(const std::vector<std::string>& header,
+                                              const std::vector<MapTreeRow>& rows);
 
 // A DBH column whose median (in metres, after the unit) is over 3 m holds centimetres or
 // millimetres read as metres (a 14.9 cm stem read as 14.9 m), one under 1 cm holds metres read

@@ -258,13 +258,17 @@ std::map<int64_t, algorithms::Pose3> ReadPoses(CsvReader reader) {
 
 }  // namespace
 
-std::vector<MapTreeRow> ReadMapTreesCsv(const std::string& path, const TreeFileOptions& options) {
-  return ParseMapTreesCsv(ReadCsvFile(path), path, options);
+std::vector<MapTreeRow> ReadMapTreesCsv(const std::string& path, const TreeFileOptions& options,
+                                        std::vector<std::string>* header) {
+  return ParseMapTreesCsv(ReadCsvFile(path), path, options, header);
 }
 
 std::vector<MapTreeRow> ParseMapTreesCsv(std::string content, const std::string& name,
-                                         const TreeFileOptions& options) {
-  return ReadMapTrees(CsvReader(HeaderlessTreeTable(std::move(content), name), name), options);
+                                         const TreeFileOptions& options,
+                                         std::vector<std::string>* header) {
+  CsvReader reader(HeaderlessTreeTable(std::move(content), name), name);
+  if (header) *header = reader.header();
+  return ReadMapTrees(std::move(reader), options);
 }
 
 std::vector<DetectedTreeRow> ReadDetectedTreesCsv(const std::string& path) {

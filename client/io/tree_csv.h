@@ -67,8 +67,10 @@ struct Frame {
 
 // `options` name columns and the DBH unit (io/tree_columns.h); DBH is returned in metres. A DBH
 // column whose median is over 3 m is refused, naming the column.
+// `header` set: receives the file's column names, in order.
 std::vector<MapTreeRow> ReadMapTreesCsv(const std::string& path,
-                                        const TreeFileOptions& options = {});
+                                        const TreeFileOptions& options = {},
+                                        std::vector<std::string>* header = nullptr);
 
 // A tree table without a header row: 3DFin's `*_dbh_and_heights.txt` (blank-separated TH DBH
 // X Y, DBH in m) as CSV text with the header TH,DBH,X,Y (TH stays an attribute); any other
@@ -81,17 +83,21 @@ std::string HeaderlessTreeTable(std::string content, const std::string& path);
 std::vector<algorithms::MapTree> ToMapTrees(const std::vector<MapTreeRow>& rows);
 // As above for text in memory; `name` stands for the file name in messages.
 std::vector<MapTreeRow> ParseMapTreesCsv(std::string content, const std::string& name,
-                                         const TreeFileOptions& options = {});
+                                         const TreeFileOptions& options = {},
+                                         std::vector<std::string>* header = nullptr);
 
-// Writes `id,x,y,z,dbh,<attributes in name order>` with every number in its shortest form that
+// Writes `id,x,y,z,dbh,<attributes>` with every number in its shortest form that
 // reads back exactly, and empty fields for unknown values (null attributes, and attributes other
 // rows have), so that reading the output gives the same rows (a column a row lacks reads back as
 // a null attribute of that row); an attribute named like a tree column is written as attr_NAME
 // (ExportedAttributes, tree_columns.h), and of two attributes one column would take (Species,
 // species) the later one as attr_NAME. Throws CsvError (path form) when the file cannot be
 // written.
-void WriteMapTreesCsv(std::ostream& out, const std::vector<MapTreeRow>& rows);
-void WriteMapTreesCsv(const std::string& path, const std::vector<MapTreeRow>& rows);
+// `order`: the attribute columns' order (ExportedAttributes).
+void WriteMapTreesCsv(std::ostream& out, const std::vector<MapTreeRow>& rows,
+                      const std::vector<std::string>& order = {});
+void WriteMapTreesCsv(const std::string& path, const std::vector<MapTreeRow>& rows,
+                      const std::vector<std::string>& order = {});
 
 // All detections of a file, in file order.
 std::vector<DetectedTreeRow> ReadDetectedTreesCsv(const std::string& path);

@@ -106,8 +106,9 @@ std::ostream& operator<<(std::ostream& out, const MapTreeRow& row) {
   return out << text << "}";
 }
 
-void WriteMapTreesCsv(std::ostream& out, const std::vector<MapTreeRow>& rows) {
-  const std::vector<ExportedAttribute> attribute_columns = ExportedAttributes(rows);
+void WriteMapTreesCsv(std::ostream& out, const std::vector<MapTreeRow>& rows,
+                      const std::vector<std::string>& order) {
+  const std::vector<ExportedAttribute> attribute_columns = ExportedAttributes(rows, {}, order);
   std::string text = "id,x,y,z,dbh";
   for (const ExportedAttribute& attribute : attribute_columns) {
     text.push_back(',');
@@ -126,10 +127,11 @@ void WriteMapTreesCsv(std::ostream& out, const std::vector<MapTreeRow>& rows) {
   out.write(text.data(), static_cast<std::streamsize>(text.size()));
 }
 
-void WriteMapTreesCsv(const std::string& path, const std::vector<MapTreeRow>& rows) {
+void WriteMapTreesCsv(const std::string& path, const std::vector<MapTreeRow>& rows,
+                      const std::vector<std::string>& order) {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) throw CsvError(path + ": cannot write: " + std::strerror(errno));
-  WriteMapTreesCsv(out, rows);
+  WriteMapTreesCsv(out, rows, order);
   out.flush();
   if (!out) throw CsvError(path + ": write failed: " + std::strerror(errno));
 }

@@ -235,24 +235,27 @@ void ForestMapClient::DeleteMap(const std::string& name) {
 v1::UploadTreesResponse ForestMapClient::UploadTrees(const std::string& name,
                                                      const std::vector<MapTreeRow>& rows,
                                                      bool replace, const UploadProgress& progress,
-                                                     const std::optional<Boundary>& boundary) {
+                                                     const std::optional<Boundary>& boundary,
+                                                     const std::vector<std::string>& columns) {
   v1::UploadTreesHeader header;
   header.set_name(name);
   header.set_replace(replace);
   if (boundary) *header.mutable_boundary() = ToProto(*boundary);
+  header.mutable_attribute_columns()->Add(columns.begin(), columns.end());
   return Upload(header, rows, progress);
 }
 
 v1::UploadTreesResponse ForestMapClient::CreateMapWithTrees(
     const std::string& name, const std::string& description, const std::string& crs,
     const std::vector<MapTreeRow>& rows, const UploadProgress& progress,
-    const std::optional<Boundary>& boundary) {
+    const std::optional<Boundary>& boundary, const std::vector<std::string>& columns) {
   v1::UploadTreesHeader header;
   header.set_name(name);
   header.set_create_map(true);
   header.set_description(description);
   header.set_crs(crs);
   if (boundary) *header.mutable_boundary() = ToProto(*boundary);
+  header.mutable_attribute_columns()->Add(columns.begin(), columns.end());
   return Upload(header, rows, progress);
 }
 
@@ -319,6 +322,8 @@ ExportedTrees ForestMapClient::ExportTreesOnce(const v1::ExportTreesRequest& req
     if (first) {
       exported.map_version = chunk.map_version();
       exported.boundary = FromProto(chunk.boundary());
+      exported.attribute_columns.assign(chunk.attribute_columns().begin(),
+                                        chunk.attribute_columns().end());
     }
     if (!first && chunk.map_version() != exported.map_version) {
       context->TryCancel();

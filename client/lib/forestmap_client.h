@@ -98,6 +98,9 @@ struct ExportedTrees {
   std::vector<TreeState> states;  // states[i] belongs to trees[i]
   int64_t map_version = 0;        // the one version every tree comes from (0: no chunk sent)
   std::vector<algorithms::Polygon> boundary;  // the version's survey boundary (empty: none)
+  // The order of the map's attribute columns (ExportTreesResponse.attribute_columns; empty: name
+  // order), as ExportedAttributes (io/tree_columns.h) takes it.
+  std::vector<std::string> attribute_columns;
 };
 
 // One frame for Observe: the trees detected in it (sensor frame) and, when known, its pose.
@@ -187,16 +190,20 @@ class ForestMapClient {
 
   // Streams the rows in chunks; the server applies them in one transaction at the end.
   // `boundary` set: the map's survey boundary from the new version on (map frame; empty removes
-  // it); unset: the map keeps its boundary.
+  // it); unset: the map keeps its boundary. `columns`: the file's attribute columns in its order
+  // (TreeFile::attribute_columns), which exports keep; empty: the map keeps its order.
   v1::UploadTreesResponse UploadTrees(const std::string& name, const std::vector<MapTreeRow>& rows,
                                       bool replace, const UploadProgress& progress = {},
-                                      const std::optional<Boundary>& boundary = std::nullopt);
+                                      const std::optional<Boundary>& boundary = std::nullopt,
+                                      const std::vector<std::string>& columns = {});
   // Creates the map and uploads its trees in one upload stream (create_map): the map exists only
   // if the whole upload succeeds. ALREADY_EXISTS when the map exists.
-  v1::UploadTreesResponse CreateMapWithTrees(
-      const std::string& name, const std::string& description, const std::string& crs,
-      const std::vector<MapTreeRow>& rows, const UploadProgress& progress = {},
-      const std::optional<Boundary>& boundary = std::nullopt);
+  v1::UploadTreesResponse CreateMapWithTrees(const std::string& name,
+                                             const std::string& description, const std::string& crs,
+                                             const std::vector<MapTreeRow>& rows,
+                                             const UploadProgress& progress = {},
+                                             const std::optional<Boundary>& boundary = std::nullopt,
+                                             const std::vector<std::string>& columns = {});
 
   // `version` 0: the current version; else an older one (see ListVersions). `progress` gets the
   // count of trees received after each message.

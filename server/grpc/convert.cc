@@ -30,6 +30,7 @@ v1::Map ToProto(const storage::MapInfo& info) {
   if (info.extent) *map.mutable_extent() = ToProto(*info.extent);
   map.set_created_unix_ms(info.created_unix_ms);
   map.set_updated_unix_ms(info.updated_unix_ms);
+  map.set_has_boundary(info.has_boundary);
   DescribeCrs(map);
   return map;
 }

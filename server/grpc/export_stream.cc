@@ -33,6 +33,7 @@ void ExportTreesReactor::Start() {
   if (request.has_box()) box = FromProto(request.box());
   pages_.emplace(deps_.store, info, deps_.options.export_chunk_trees, box);
   boundary_ = deps_.store.ReadBoundary(request.name(), version_);
+  attribute_columns_ = deps_.store.ReadAttributeColumns(request.name(), version_);
 }
 
 void ExportTreesReactor::LoadPage() {
@@ -72,6 +73,9 @@ void ExportTreesReactor::WriteNext() {
   if (!wrote_any_ && !boundary_.empty()) {
     *response_.mutable_boundary() = ToProto(boundary_);
     boundary_ = {};
+  }
+  if (!wrote_any_) {
+    for (const std::string& name : attribute_columns_) response_.add_attribute_columns(name);
   }
   const int64_t chunk_trees = deps_.options.export_chunk_trees;
   const int64_t chunk_bytes = deps_.options.export_chunk_bytes;

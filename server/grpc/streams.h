@@ -127,7 +127,8 @@ class ExportTreesReactor final : public grpc::ServerWriteReactor<v1::ExportTrees
   std::unique_ptr<StreamLimits::Slot> slot_;
   std::optional<TreePages> pages_;  // from Start
   int64_t version_ = 0;
-  storage::Boundary boundary_;  // of version_, sent with the first message
+  storage::Boundary boundary_;                  // of version_, sent with the first message
+  std::vector<std::string> attribute_columns_;  // of version_, sent with the first message
   std::vector<storage::TreeRecord> page_;
   size_t next_ = 0;  // next tree of page_ to send
   bool wrote_any_ = false;

@@ -133,6 +133,8 @@ void UploadTreesReactor::Accept() {
     plan_.description = header.description();
     plan_.crs = header.crs();
     if (header.has_boundary()) plan_.boundary = FromProto(header.boundary());
+    plan_.attribute_columns.assign(header.attribute_columns().begin(),
+                                   header.attribute_columns().end());
   }
   if (replaying_) return;  // read to know the request, not to write it again
   for (const v1::Tree& tree : trees) chunk_.push_back(FromProto(tree));

@@ -21,6 +21,7 @@ google::protobuf::RepeatedPtrField<v1::Tree> UploadValidator::Accept(
     header_ = message.header();
     ValidateMapName(header_.name(), "header.name");
     if (header_.has_boundary()) ValidateBoundary(header_.boundary(), "header.boundary");
+    ValidateAttributeColumns(header_.attribute_columns(), "header.attribute_columns");
   } else if (message.has_chunk()) {
     if (messages_ == 0) {
       throw ValidationError("header", " is missing: the first message of an upload names the map");

@@ -377,4 +377,19 @@ void ValidateDetectedTree(const v1::DetectedTree& tree, const std::string& path)
   }
 }
 
+void ValidateAttributeColumns(const google::protobuf::RepeatedPtrField<std::string>& names,
+                              const std::string& path) {
+  if (static_cast<size_t>(names.size()) > kMaxAttributes) {
+    throw ValidationError(path, ": " + std::to_string(names.size()) +
+                                    " columns exceed the limit of " +
+                                    std::to_string(kMaxAttributes));
+  }
+  std::set<std::string> seen;
+  for (const std::string& name : names) {
+    if (name.empty()) throw ValidationError(path, " has an empty name");
+    CheckLength(name, kMaxAttributeKeyLength, path + " name " + Quoted(name));
+    if (!seen.insert(name).second) throw ValidationError(path, ": " + Quoted(name) + " is twice");
+  }
+}
+
 }  // namespace forestmap::server

@@ -112,5 +112,9 @@ void ValidateBox(const v1::Box2& box, const std::string& path);
 // kMaxBoundaryVertices vertices in all (the store checks the rest: storage/boundary_json.h).
 inline constexpr int64_t kMaxBoundaryVertices = 100000;
 void ValidateBoundary(const v1::SurveyBoundary& boundary, const std::string& path);
+// The attribute columns of an upload's file: keys as for a tree's attributes, each once, at most
+// as many as a tree may have.
+void ValidateAttributeColumns(const google::protobuf::RepeatedPtrField<std::string>& names,
+                              const std::string& path);
 
 }  // namespace forestmap::server

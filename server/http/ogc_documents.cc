@@ -28,7 +28,8 @@ void AppendString(std::string& out, const std::string& value) {
 }  // namespace
 
 void AppendFeature(std::string& out, const storage::TreeRecord& tree,
-                   const std::optional<std::array<double, 2>>& xy) {
+                   const std::optional<std::array<double, 2>>& xy,
+                   const std::vector<std::string>& order) {
   out += R"({"type":"Feature","id":)" + std::to_string(*tree.id) + R"(,"geometry":)";
   if (xy) {
     out += R"({"type":"Point","coordinates":[)";
@@ -54,13 +55,24 @@ void AppendFeature(std::string& out, const storage::TreeRecord& tree,
     AppendString(out, ours ? "survey_" + name : name);
     out += ':';
   };
+  const auto append = [&](const std::string& name) {
+    if (const auto it = tree.attributes.find(name); it != tree.attributes.end()) {
+      append_name(name);
+      AppendString(out, it->second);
+    } else if (tree.null_attributes.count(name) != 0) {
+      append_name(name);
+      out += "null";
+    }
+  };
+  for (const std::string& name : order) append(name);
+  const auto ordered = [&order](const std::string& name) {
+    return std::find(order.begin(), order.end(), name) != order.end();
+  };
   for (const auto& [name, value] : tree.attributes) {
-    append_name(name);
-    AppendString(out, value);
+    if (!ordered(name)) append(name);
   }
   for (const std::string& name : tree.null_attributes) {
-    append_name(name);
-    out += "null";
+    if (!ordered(name)) append(name);
   }
   out += "}}";
 }
@@ -71,7 +83,7 @@ bool ItemsStream::Write(httplib::DataSink& sink) {
   const size_t end = std::min(trees.size(), next_ + kFeaturesPerChunk);
   for (; next_ < end; ++next_) {
     if (next_ > 0) text_ += ',';
-    AppendFeature(text_, trees[next_], xy[next_]);
+    AppendFeature(text_, trees[next_], xy[next_], order);
   }
   const bool last = next_ == trees.size();
   if (last) text_ += "]}";

@@ -22,10 +22,12 @@ inline constexpr const char* kGeoJson = "application/geo+json";
 
 // A tree as a GeoJSON feature at `xy` (null geometry: off the CRS's domain):
 // {tree_id, dbh_m, status, observations} and the survey's attributes, a survey column named like
-// one of ours (in any case: GIS formats ignore it) renamed survey_<name>. Bytes of an attribute
-// that are not UTF-8 become U+FFFD.
+// one of ours (in any case: GIS formats ignore it) renamed survey_<name>, those named in `order`
+// (the map's attribute column order) first, in that order, then the others by name. Bytes of an
+// attribute that are not UTF-8 become U+FFFD.
 void AppendFeature(std::string& out, const storage::TreeRecord& tree,
-                   const std::optional<std::array<double, 2>>& xy);
+                   const std::optional<std::array<double, 2>>& xy,
+                   const std::vector<std::string>& order = {});
 
 // An items answer written in chunks of kFeaturesPerChunk features, so that a request never holds
 // more text than one chunk (whole pages of 10,000 features kept ~10 MB in each HTTP thread's
@@ -35,6 +37,7 @@ struct ItemsStream {
   std::string head;  // up to and including "features":[
   std::vector<storage::TreeRecord> trees;
   std::vector<std::optional<std::array<double, 2>>> xy;  // per tree, as AppendFeature takes it
+  std::vector<std::string> order;                        // of the attributes, as AppendFeature
 
   // Writes the next chunk to `sink`; false: the client left.
   bool Write(httplib::DataSink& sink);

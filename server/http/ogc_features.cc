@@ -25,6 +25,8 @@
 #include "geo/crs.h"
 #include "server/http/http_route.h"
 #include "server/http/http_trees.h"
+#include "server/http/ogc_boundary.h"
+#include "server/http/ogc_common.h"
 #include "server/http/ogc_documents.h"
 #include "server/http/page_auth.h"
 #include "storage/staged_writes.h"
@@ -35,108 +37,19 @@ namespace {
 using Json = nlohmann::json;
 using httplib::Request;
 using httplib::Response;
-
-constexpr const char* kCrs84 = "http://www.opengis.net/def/crs/OGC/1.3/CRS84";
-constexpr const char* kCrs84Proj = "OGC:CRS84";  // the same CRS as PROJ names it
-constexpr int kEdgePoints = 16;
-constexpr double kNaN =
-    std::numeric_limits<double>::quiet_NaN();  // points per edge when a box moves between CRSs
-
-// A 400 with OGC's exception body.
-struct BadParameter : std::invalid_argument {
-  using std::invalid_argument::invalid_argument;
-};
-
-// The CRSs a map offers: CRS84 when it has a CRS (then the default), its EPSG CRS when it has one.
-struct MapCrs {
-  std::string crs;          // the map's own (MapInfo::crs), "" for none
-  std::string storage_uri;  // "http://www.opengis.net/def/crs/EPSG/0/n", "" when no EPSG code
-  bool georeferenced() const { return !crs.empty(); }
-};
-
-MapCrs CrsOf(const storage::MapInfo& info) {
-  MapCrs out{info.crs, ""};
-  if (out.georeferenced()) {
-    const int epsg = geo::ParseCrs(info.crs).epsg;  // cached; stored CRSs are valid
-    if (epsg > 0) out.storage_uri = "http://www.opengis.net/def/crs/EPSG/0/" + std::to_string(epsg);
-  }
-  return out;
-}
-
-// PROJ transformations by (from, to), made once: creating one takes milliseconds.
-std::shared_ptr<const geo::Reprojection> ReprojectionOf(const std::string& from,
-                                                        const std::string& to) {
-  static std::mutex mutex;
-  static std::map<std::pair<std::string, std::string>, std::shared_ptr<geo::Reprojection>> made;
-  constexpr size_t kMaxKept = 64;  // distinct map CRSs; beyond, start again
-  const std::lock_guard lock(mutex);
-  const auto key = std::make_pair(from, to);
-  if (const auto found = made.find(key); found != made.end()) return found->second;
-  if (made.size() >= kMaxKept) made.clear();
-  auto created = std::make_shared<geo::Reprojection>(from, to);
-  made.emplace(key, created);
-  return created;
-}
-
-// x, y moved by `projection`; nullopt off its domain.
-std::optional<std::array<double, 2>> Moved(const geo::Reprojection& projection, double x,
-                                           double y) {
-  double z = 0;
-  try {
-    projection.Apply(x, y, z);
-  } catch (const geo::CrsError&) {
-    return std::nullopt;
-  }
-  if (!std::isfinite(x) || !std::isfinite(y)) return std::nullopt;
-  return std::array<double, 2>{x, y};
-}
-
-// The box around `box` moved by `projection`, its edges sampled; nullopt when no point moves.
-std::optional<storage::Extent> MovedBox(const geo::Reprojection& projection,
-                                        const storage::Extent& box) {
-  std::optional<storage::Extent> out;
-  for (int i = 0; i <= kEdgePoints; ++i) {
-    const double t = static_cast<double>(i) / kEdgePoints;
-    const double x = box.min_x + t * (box.max_x - box.min_x);
-    const double y = box.min_y + t * (box.max_y - box.min_y);
-    for (const auto& [px, py] : std::array<std::array<double, 2>, 4>{
-             {{x, box.min_y}, {x, box.max_y}, {box.min_x, y}, {box.max_x, y}}}) {
-      const auto moved = Moved(projection, px, py);
-      if (!moved) continue;
-      if (!out) out = storage::Extent{(*moved)[0], (*moved)[1], (*moved)[0], (*moved)[1]};
-      out->min_x = std::min(out->min_x, (*moved)[0]);
-      out->min_y = std::min(out->min_y, (*moved)[1]);
-      out->max_x = std::max(out->max_x, (*moved)[0]);
-      out->max_y = std::max(out->max_y, (*moved)[1]);
-    }
-  }
-  return out;
-}
-
-std::string BaseUrl(const Request& request, const std::string& scheme) {
-  std::string host = request.get_header_value("Host");
-  if (host.empty()) host = request.local_addr + ":" + std::to_string(request.local_port);
-  return scheme + "://" + host + "/ogc";
-}
-
-Json Link(const std::string& href, const char* rel, const char* type, const std::string& title) {
-  Json link = {{"href", href}, {"rel", rel}, {"type", type}};
-  if (!title.empty()) link["title"] = title;
-  return link;
-}
-
-void Reply(Response& response, const Json& body, const char* type = "application/json") {
-  response.set_content(body.dump(-1, ' ', false, Json::error_handler_t::replace), type);
-}
-
-// The Content-Crs header of a feature answer: <uri> (appended piece by piece: GCC 12 warns,
-// -Wrestrict, about "<" + uri + ">").
-void SetContentCrs(Response& response, const std::string& uri) {
-  std::string value = "<";
-  value += uri;
-  value += '>';
-  response.set_header("Content-Crs", value);
-}
+using ogc::BadParameter;
+using ogc::BaseUrl;
+using ogc::CrsOf;
+using ogc::IsCrs84;
+using ogc::kCrs84;
+using ogc::kCrs84Proj;
+using ogc::Link;
+using ogc::MapCrs;
+using ogc::Moved;
+using ogc::MovedBox;
+using ogc::Reply;
+using ogc::ReprojectionOf;
+using ogc::SetContentCrs;
 
 // Runs `body`: BadParameter -> 400, a store or CRS error (unknown map, ...) -> 404.
 template <typename Body>
@@ -162,17 +75,6 @@ int64_t ParseInteger(const std::string& name, const std::string& text, int64_t m
   return value;
 }
 
-// Whether `uri` (a crs or bbox-crs value) names CRS84 (true) or the storage CRS (false).
-bool IsCrs84(const MapCrs& crs, const std::string& name, const std::string& uri) {
-  if (!crs.georeferenced()) {
-    throw BadParameter(name + ": this map has no CRS; leave " + name + " out");
-  }
-  if (uri == kCrs84) return true;
-  if (!crs.storage_uri.empty() && uri == crs.storage_uri) return false;
-  throw BadParameter(name + "=" + uri + ": give " + kCrs84 +
-                     (crs.storage_uri.empty() ? "" : " or " + crs.storage_uri));
-}
-
 Json CollectionJson(const storage::MapInfo& info, const std::string& base) {
   const MapCrs crs = CrsOf(info);
   const std::string self = base + "/collections/" + info.name;
@@ -183,6 +85,11 @@ Json CollectionJson(const storage::MapInfo& info, const std::string& base) {
                      {"links",
                       {Link(self, "self", "application/json", ""),
                        Link(self + "/items", "items", kGeoJson, info.name + ": trees")}}};
+  if (info.has_boundary) {
+    collection["links"].push_back(
+        Link(base + "/collections/" + ogc::BoundaryCollectionId(info.name), "related",
+             "application/json", info.name + ": survey boundary"));
+  }
   if (crs.georeferenced()) {
     collection["crs"] = {kCrs84};
     if (!crs.storage_uri.empty()) {
@@ -284,6 +191,7 @@ void ReplyItems(const Request& request, Response& response, storage::MapStore& s
   const bool more = static_cast<int64_t>(page.size()) == query.limit;  // a next page may follow
   const int64_t last_id = page.empty() ? 0 : *page.back().id;
   auto stream = std::make_shared<ItemsStream>();
+  if (!page.empty()) stream->order = store.ReadAttributeColumns(info.name, page_query.version);
   for (storage::TreeRecord& tree : page) {
     std::optional<std::array<double, 2>> lonlat;
     if (to_crs84) lonlat = Moved(*to_crs84, tree.x, tree.y);
@@ -340,7 +248,7 @@ void ReplyItem(const Request& request, Response& response, storage::MapStore& st
     SetContentCrs(response, crs84 ? kCrs84 : crs.storage_uri);
   }
   std::string feature;
-  AppendFeature(feature, tree, xy);
+  AppendFeature(feature, tree, xy, store.ReadAttributeColumns(info.name, info.version));
   response.set_content(feature, kGeoJson);
 }
 
@@ -384,7 +292,13 @@ void AddOgcFeatureRoutes(httplib::Server& http, storage::MapStore& store,
       const std::string base = BaseUrl(request, scheme);
       Json collections = Json::array();
       for (const storage::MapInfo& info : store.ListMaps()) {
-        if (caller->CanRead(info.name)) collections.push_back(CollectionJson(info, base));
+        if (!caller->CanRead(info.name)) continue;
+        collections.push_back(CollectionJson(info, base));
+        if (!info.has_boundary) continue;
+        const storage::Boundary boundary = store.ReadBoundary(info.name, 0);
+        if (!boundary.empty()) {
+          collections.push_back(ogc::BoundaryCollectionJson(info, boundary, base));
+        }
       }
       Reply(response, Json{{"links", {Link(base + "/collections", "self", "application/json", "")}},
                            {"collections", std::move(collections)},
@@ -416,6 +330,25 @@ void AddOgcFeatureRoutes(httplib::Server& http, storage::MapStore& store,
              ReplyItem(request, response, store, info,
                        ParseInteger("id", request.matches[2], INT64_MIN + 1, INT64_MAX));
            }));
+  // The survey boundary, a collection of its own (server/http/ogc_boundary.h).
+  const auto boundary_route = [&store, &map_route](bool items, bool one) {
+    return map_route([&store, items, one](const Request& request, Response& response,
+                                          const storage::MapInfo& info, const std::string& base) {
+      const storage::Boundary boundary = store.ReadBoundary(info.name, info.version);
+      if (boundary.empty()) {
+        throw storage::StorageError(storage::StorageError::Code::kNotFound,
+                                    "map '" + info.name + "' has no survey boundary");
+      }
+      if (!items) return Reply(response, ogc::BoundaryCollectionJson(info, boundary, base));
+      std::optional<int64_t> feature;
+      if (one) feature = ParseInteger("id", request.matches[2], INT64_MIN + 1, INT64_MAX);
+      ogc::ReplyBoundaryItems(request, response, info, boundary, base, feature);
+    });
+  };
+  http.Get(R"(/ogc/collections/([A-Za-z0-9_.\-]+):boundary)", boundary_route(false, false));
+  http.Get(R"(/ogc/collections/([A-Za-z0-9_.\-]+):boundary/items)", boundary_route(true, false));
+  http.Get(R"(/ogc/collections/([A-Za-z0-9_.\-]+):boundary/items/(-?[0-9]{1,19}))",
+           boundary_route(true, true));
 }
 
 }  // namespace forestmap::server

@@ -11,6 +11,8 @@
 //         GET /ogc/collections/NAME                one map: extent, CRSs
 //         GET /ogc/collections/NAME/items          trees: limit, bbox, bbox-crs, crs (paged)
 //         GET /ogc/collections/NAME/items/ID       one tree
+//         GET /ogc/collections/NAME:boundary[/items[/1]]  the map's survey boundary, when it has
+//                                                  one (server/http/ogc_boundary.h)
 // CRSs: a map with a CRS answers in WGS 84 longitude, latitude (OGC CRS84, the default) or, when
 // its CRS has an EPSG code, in that CRS (its storage CRS); bbox-crs takes the same. A map without a
 // CRS answers in its own coordinates and names no CRS. Paging: at most `limit` trees by increasing

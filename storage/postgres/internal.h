@@ -110,6 +110,8 @@ class Session final : public StoreSession {
 
   std::string BoundaryAt(int64_t map_id, int64_t version) override;
   void InsertBoundary(int64_t map_id, int64_t version, const std::string& encoded) override;
+  std::string ColumnsAt(int64_t map_id, int64_t version) override;
+  void InsertColumns(int64_t map_id, int64_t version, const std::string& encoded) override;
 
   std::vector<TreeRecord> CurrentTrees(const MapRow& map) override;
   std::vector<TreeRecord> TreesAtVersion(const MapRow& map, int64_t version) override;

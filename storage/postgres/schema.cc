@@ -135,10 +135,20 @@ CREATE INDEX observations_in_cell ON observations (map_id, cell_x, cell_y)
   WHERE valid_to = 9223372036854775807 AND NOT folded;
 )sql";
 
+// Step 6: the order of a map's attribute columns, as the SQLite store's schema version 12.
+constexpr const char* kStep6 = R"sql(
+CREATE TABLE map_columns (
+  map_id BIGINT NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
+  version BIGINT NOT NULL,
+  names TEXT NOT NULL,  -- JSON: an array of attribute names
+  PRIMARY KEY (map_id, version)
+);
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4, kStep5};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4, kStep5, kStep6};
   return steps;
 }
 

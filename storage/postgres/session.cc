@@ -158,11 +158,14 @@ PrunedRows Session::PruneBefore(int64_t map_id, int64_t first_kept) {
           .affected();
   pruned.versions =
       conn_.Exec("DELETE FROM map_versions WHERE map_id = $1 AND version < $2", params).affected();
-  // Boundary rows before the one in force at the first kept version.
-  conn_.Exec(
-      "DELETE FROM map_boundaries WHERE map_id = $1 AND version < (SELECT MAX(version) FROM "
-      "map_boundaries WHERE map_id = $1 AND version <= $2)",
-      params);
+  // Boundary and column-order rows before the ones in force at the first kept version.
+  for (const char* sql :
+       {"DELETE FROM map_boundaries WHERE map_id = $1 AND version < (SELECT MAX(version) FROM "
+        "map_boundaries WHERE map_id = $1 AND version <= $2)",
+        "DELETE FROM map_columns WHERE map_id = $1 AND version < (SELECT MAX(version) FROM "
+        "map_columns WHERE map_id = $1 AND version <= $2)"}) {
+    conn_.Exec(sql, params);
+  }
   return pruned;
 }
 
@@ -180,6 +183,23 @@ void Session::InsertBoundary(int64_t map_id, int64_t version, const std::string&
   conn_.Exec(
       "INSERT INTO map_boundaries (map_id, version, polygons) VALUES ($1, $2, $3) "
       "ON CONFLICT (map_id, version) DO UPDATE SET polygons = EXCLUDED.polygons",
+      Params().Int64(map_id).Int64(version).Text(encoded));
+}
+
+// ---- Order of the attribute columns ----
+
+std::string Session::ColumnsAt(int64_t map_id, int64_t version) {
+  const Result select = conn_.Exec(
+      "SELECT names FROM map_columns WHERE map_id = $1 AND version <= $2 "
+      "ORDER BY version DESC LIMIT 1",
+      Params().Int64(map_id).Int64(version));
+  return select.rows() == 0 ? std::string() : select.Text(0, 0);
+}
+
+void Session::InsertColumns(int64_t map_id, int64_t version, const std::string& encoded) {
+  conn_.Exec(
+      "INSERT INTO map_columns (map_id, version, names) VALUES ($1, $2, $3) "
+      "ON CONFLICT (map_id, version) DO UPDATE SET names = EXCLUDED.names",
       Params().Int64(map_id).Int64(version).Text(encoded));
 }
 

@@ -250,11 +250,24 @@ CREATE INDEX observations_in_cell ON observations (map_id, cell_x, cell_y)
 PRAGMA user_version = 11;
 )sql";
 
+// Version 12: the order of a map's attribute columns (the survey file's order, which exports keep;
+// storage/attribute_json.h). A row holds the order from `version` on, until the next row of the
+// map. A map without a row (all maps of version 11) exports its attributes in name order.
+constexpr const char* kStep12 = R"sql(
+CREATE TABLE map_columns (
+  map_id INTEGER NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
+  version INTEGER NOT NULL,
+  names TEXT NOT NULL,  -- JSON: an array of attribute names
+  PRIMARY KEY (map_id, version)
+) WITHOUT ROWID;
+PRAGMA user_version = 12;
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4,  kStep5, kStep6,
-                                                 kStep7, kStep8, kStep9, kStep10, kStep11};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4,  kStep5,  kStep6,
+                                                 kStep7, kStep8, kStep9, kStep10, kStep11, kStep12};
   return steps;
 }
 

@@ -68,7 +68,8 @@ void Session::DeleteMap(const MapRow& map) {
        {"DELETE FROM tree_blocks WHERE min_map <= ?1 AND max_map >= ?1 AND map_id = ?1",
         "DELETE FROM trees WHERE map_id = ?1", "DELETE FROM observations WHERE map_id = ?1",
         "DELETE FROM map_versions WHERE map_id = ?1",
-        "DELETE FROM map_boundaries WHERE map_id = ?1", "DELETE FROM maps WHERE id = ?1"}) {
+        "DELETE FROM map_boundaries WHERE map_id = ?1", "DELETE FROM map_columns WHERE map_id = ?1",
+        "DELETE FROM maps WHERE id = ?1"}) {
     Statement(db_, sql, map.id).Run();
   }
 }
@@ -138,12 +139,14 @@ PrunedRows Session::PruneBefore(int64_t map_id, int64_t first_kept) {
       db_, "DELETE FROM observations WHERE map_id = ?1 AND valid_to <= ?2", map_id, first_kept);
   pruned.versions = DeleteBefore(db_, "DELETE FROM map_versions WHERE map_id = ?1 AND version < ?2",
                                  map_id, first_kept);
-  // Boundary rows before the one in force at the first kept version.
-  Statement(db_,
-            "DELETE FROM map_boundaries WHERE map_id = ?1 AND version < (SELECT MAX(version) "
-            "FROM map_boundaries WHERE map_id = ?1 AND version <= ?2)",
-            map_id, first_kept)
-      .Run();
+  // Boundary and column-order rows before the ones in force at the first kept version.
+  for (const char* sql :
+       {"DELETE FROM map_boundaries WHERE map_id = ?1 AND version < (SELECT MAX(version) FROM "
+        "map_boundaries WHERE map_id = ?1 AND version <= ?2)",
+        "DELETE FROM map_columns WHERE map_id = ?1 AND version < (SELECT MAX(version) FROM "
+        "map_columns WHERE map_id = ?1 AND version <= ?2)"}) {
+    Statement(db_, sql, map_id, first_kept).Run();
+  }
   // Spatial blocks whose rows are all gone.
   Statement(db_,
             "DELETE FROM tree_blocks WHERE id IN (SELECT b.id FROM tree_blocks AS b WHERE "
@@ -169,6 +172,24 @@ void Session::InsertBoundary(int64_t map_id, int64_t version, const std::string&
                    "INSERT OR REPLACE INTO map_boundaries (map_id, version, polygons) "
                    "VALUES (?1, ?2, ?3)",
                    map_id, version);
+  insert.BindText(3, encoded);
+  insert.Run();
+}
+
+// ---- Order of the attribute columns ----
+
+std::string Session::ColumnsAt(int64_t map_id, int64_t version) {
+  Statement select(db_,
+                   "SELECT names FROM map_columns WHERE map_id = ?1 AND version <= ?2 "
+                   "ORDER BY version DESC LIMIT 1",
+                   map_id, version);
+  return select.Step() ? select.ColumnText(0) : std::string();
+}
+
+void Session::InsertColumns(int64_t map_id, int64_t version, const std::string& encoded) {
+  Statement insert(
+      db_, "INSERT OR REPLACE INTO map_columns (map_id, version, names) VALUES (?1, ?2, ?3)",
+      map_id, version);
   insert.BindText(3, encoded);
   insert.Run();
 }

@@ -4,14 +4,15 @@
 // half of its requests); the web page's tree route keeps the server's memory bounded on a
 // 300,000-tree map (before, every request kept ~85 MB in the arena of an HTTP thread); `--help`
 // and the usage block of docs/operations.md list every flag; the names "." and ".." are refused;
-// OGC API - Features serves a surveyed map to GDAL (ogrinfo, ogr2ogr) in WGS 84 as cs2cs moves it,
-// behind tokens, and pages a huge map in bounded memory.
+// OGC API - Features serves a surveyed map and its survey boundary to GDAL (ogrinfo, ogr2ogr) in
+// WGS 84 as cs2cs moves them, behind tokens, and pages a huge map in bounded memory.
 
 #include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <set>
@@ -288,6 +289,101 @@ TEST_F(DaemonHttpTest, OgcApiFeaturesServesASurveyToGdal) {
             404);
   EXPECT_EQ(test::HttpGet("127.0.0.1", port, "/ogc/collections/nosuch/items", admin).status, 404);
   EXPECT_EQ(test::HttpGet("127.0.0.1", port, "/ogc/collections/other/items", reader).status, 403);
+}
+
+// A map's survey boundary as a GIS user reaches it through GDAL's OAPIF driver: a second
+// collection NAME:boundary beside the map's, one MultiPolygon where cs2cs puts it; `map show`
+// says the map has one. The trees' survey columns keep the file's order.
+TEST_F(DaemonHttpTest, OgcApiFeaturesServesTheSurveyBoundaryToGdal) {
+  const auto token = [&](const std::string& map, const std::string& role) {
+    const CommandResult created =
+        Run("'" FORESTMAPD_PATH "' token create --db '" + (dir_ / "first.db").string() +
+            "' --map '" + map + "' --role " + role);
+    std::string secret = created.out;
+    while (!secret.empty() && secret.back() == '\n') secret.pop_back();
+    return secret;
+  };
+  const std::string admin = token("*", "admin"), other_reader = token("other", "read");
+  const int port = ServeWithPage();
+  ASSERT_GT(port, 0);
+  const auto cli = [&](const std::string& args) {
+    return Run(test::ClientCommand(daemon_.address(), args, "FORESTMAP_TOKEN=" + admin));
+  };
+  std::ofstream(dir_ / "trees.csv")
+      << "x,y,dbh,species,height,crown\n312030,5096043,0.2,oak,20,5\n312040,5096050,0.3,ash,18,4\n";
+  std::ofstream(dir_ / "ring.csv")
+      << "x,y\n312000,5096000\n312100,5096000\n312100,5096100\n312000,5096100\n";
+  ASSERT_EQ(cli("map create plot --crs EPSG:2959 --trees '" + (dir_ / "trees.csv").string() +
+                "' --boundary '" + (dir_ / "ring.csv").string() + "'")
+                .exit_code,
+            0);
+  ASSERT_EQ(cli("map create other --crs EPSG:2959 --trees '" + (dir_ / "trees.csv").string() + "'")
+                .exit_code,
+            0);
+  EXPECT_NE(cli("map show plot").out.find("boundary:    yes"), std::string::npos);
+  EXPECT_NE(cli("map show other").out.find("boundary:    no"), std::string::npos);
+  EXPECT_EQ(nlohmann::json::parse(cli("map show plot --json").out)["has_boundary"], true);
+
+  const std::string source = "OAPIF:http://127.0.0.1:" + std::to_string(port) + "/ogc";
+  const std::string with_token = "GDAL_HTTP_HEADERS='Authorization: Bearer " + admin + "' ";
+  // The collections: both maps, and the boundary of the one that has one.
+  const CommandResult layers = Run(with_token + "ogrinfo -ro -q '" + source + "'");
+  ASSERT_EQ(layers.exit_code, 0) << layers.err;
+  EXPECT_NE(layers.out.find(": plot "), std::string::npos) << layers.out;
+  EXPECT_NE(layers.out.find(": other "), std::string::npos) << layers.out;
+  EXPECT_NE(layers.out.find(": plot:boundary "), std::string::npos) << layers.out;
+  EXPECT_EQ(layers.out.find("other:boundary"), std::string::npos) << layers.out;
+  // The trees' survey columns come in the file's order, not by name.
+  const CommandResult trees = Run(with_token + "ogrinfo -ro -so '" + source + "' plot");
+  const size_t species = trees.out.find("\nspecies: "), height = trees.out.find("\nheight: "),
+               crown = trees.out.find("\ncrown: ");
+  ASSERT_NE(crown, std::string::npos) << trees.out;
+  EXPECT_LT(species, height) << trees.out;
+  EXPECT_LT(height, crown) << trees.out;
+  const CommandResult info = Run(with_token + "ogrinfo -ro -so '" + source + "' plot:boundary");
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_NE(info.out.find("Feature Count: 1"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("Multi Polygon"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("ID[\"EPSG\",4326]"), std::string::npos) << info.out;
+
+  // ogr2ogr copies it; its first vertex is where cs2cs moves the ring's first one.
+  const std::string gpkg = (dir_ / "boundary.gpkg").string();
+  const CommandResult copy = Run(with_token + "ogr2ogr -f GPKG '" + gpkg + "' '" + source +
+                                 "' plot:boundary -nln boundary");
+  ASSERT_EQ(copy.exit_code, 0) << copy.err;
+  const CommandResult vertex =
+      Run("ogrinfo -ro -q '" + gpkg + "' -dialect sqlite -sql \"SELECT printf('V %.7f %.7f', " +
+          "ST_X(ST_PointN(ST_ExteriorRing(ST_GeometryN(geom, 1)), 1)), " +
+          "ST_Y(ST_PointN(ST_ExteriorRing(ST_GeometryN(geom, 1)), 1))) AS v FROM boundary\"");
+  const CommandResult expected = Run("echo '312000 5096000' | cs2cs -f %.7f EPSG:2959 OGC:CRS84");
+  double lon = 0, lat = 0;
+  ASSERT_EQ(std::sscanf(expected.out.c_str(), "%lf %lf", &lon, &lat), 2) << expected.out;
+  char point[64];
+  std::snprintf(point, sizeof(point), "V %.7f %.7f", lon, lat);
+  EXPECT_NE(vertex.out.find(point), std::string::npos) << vertex.out << " vs " << point;
+
+  // In the storage CRS: the ring as stored, closed; a bbox off it returns nothing.
+  const std::string items = "/ogc/collections/plot:boundary/items";
+  const test::HttpAnswer stored = test::HttpGet(
+      "127.0.0.1", port, items + "?crs=http://www.opengis.net/def/crs/EPSG/0/2959", admin);
+  ASSERT_EQ(stored.status, 200) << stored.body;
+  const nlohmann::json ring =
+      nlohmann::json::parse(stored.body)["features"][0]["geometry"]["coordinates"][0][0];
+  ASSERT_EQ(ring.size(), 5u) << stored.body;
+  EXPECT_EQ(ring[0], ring[4]);
+  EXPECT_EQ(ring[2], nlohmann::json::parse("[312100.0, 5096100.0]"));
+  const test::HttpAnswer missed = test::HttpGet(
+      "127.0.0.1", port,
+      items + "?bbox=0,0,1,1&bbox-crs=http://www.opengis.net/def/crs/EPSG/0/2959", admin);
+  EXPECT_EQ(nlohmann::json::parse(missed.body)["numberReturned"], 0) << missed.body;
+  // The map's collection links to it; a map without one has none; tokens apply.
+  const test::HttpAnswer map = test::HttpGet("127.0.0.1", port, "/ogc/collections/plot", admin);
+  EXPECT_NE(map.body.find("/ogc/collections/plot:boundary\""), std::string::npos) << map.body;
+  EXPECT_EQ(test::HttpGet("127.0.0.1", port, items + "/1", admin).status, 200);
+  EXPECT_EQ(test::HttpGet("127.0.0.1", port, items + "/2", admin).status, 404);
+  EXPECT_EQ(test::HttpGet("127.0.0.1", port, items + "?colour=red", admin).status, 400);
+  EXPECT_EQ(test::HttpGet("127.0.0.1", port, "/ogc/collections/other:boundary", admin).status, 404);
+  EXPECT_EQ(test::HttpGet("127.0.0.1", port, items, other_reader).status, 403);
 }
 
 TEST_F(DaemonHttpTest, OgcItemsPageAHugeMapInBoundedMemory) {

@@ -398,5 +398,62 @@ TEST_F(GisFilesTest, ShapefilesAreUtf8WithACpgAndSayWhichFieldsTheyRenamed) {
   EXPECT_TRUE(Has(no_dbf.err, Path("s.shp") + ": no s.dbf beside it")) << no_dbf.err;
 }
 
+// Where each of `names` first appears in `text` after `prefix` (npos when it does not).
+std::vector<size_t> Positions(const std::string& text, const std::vector<std::string>& names,
+                              const std::string& prefix, const std::string& suffix) {
+  std::vector<size_t> positions;
+  for (const std::string& name : names) positions.push_back(text.find(prefix + name + suffix));
+  return positions;
+}
+
+// Every name found, in the order given.
+void ExpectInOrder(const std::vector<size_t>& positions, const std::string& text) {
+  for (size_t i = 0; i < positions.size(); ++i) {
+    EXPECT_NE(positions[i], std::string::npos) << i << "\n" << text;
+    if (i > 0) {
+      EXPECT_LT(positions[i - 1], positions[i]) << i << "\n" << text;
+    }
+  }
+}
+
+TEST_F(GisFilesTest, ExportsKeepTheCrewsColumnOrderInEveryFormat) {
+  const std::vector<std::string> crew = {"species", "height", "crown", "plot_id"};
+  CreateLocal("crew", "species,height,crown,plot_id",
+              {"oak,21.5,6,P7", "ash,18,4.5,P7", "elm,25,7,P8"}, "--crs EPSG:2959");
+  // An append keeps the map's order and adds the file's new columns after it, in its order.
+  Write("more.csv", "x,y,zone,plot_id,alpha,species\n20,100,z1,P9,a,fir\n");
+  const Result appended = Cli("map upload crew --trees '" + Path("more.csv") + "'");
+  ASSERT_EQ(appended.exit_code, 0) << appended.err;
+  std::vector<std::string> all = crew;
+  all.insert(all.end(), {"zone", "alpha"});
+
+  const Result csv = Cli("map export crew");
+  ASSERT_EQ(csv.exit_code, 0) << csv.err;
+  EXPECT_EQ(csv.out.substr(0, csv.out.find('\n')),
+            "id,x,y,z,dbh,species,height,crown,plot_id,zone,alpha");
+  for (const std::string file : {"out.gpkg", "out.shp", "out.geojson"}) {
+    const Result exported = Cli("map export crew --out '" + Path(file) + "'");
+    ASSERT_EQ(exported.exit_code, 0) << exported.err;
+    const Result info = Shell("ogrinfo -so -al '" + Path(file) + "'");
+    ASSERT_EQ(info.exit_code, 0) << info.err;
+    ExpectInOrder(Positions(info.out, all, "\n", ": "), info.out);
+  }
+  // GeoJSON's properties are in that order too, in every feature.
+  const std::string geojson = ReadWholeFile(dir_ / "out.geojson");
+  ExpectInOrder(Positions(geojson, crew, "\"", "\": "), geojson);
+
+  // A GeoPackage read back gives the same order: its fields' order is the file's.
+  ASSERT_EQ(Cli("map create again --trees '" + Path("out.gpkg") + "'").exit_code, 0);
+  const Result again = Cli("map export again");
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_EQ(again.out.substr(0, again.out.find('\n')),
+            "id,x,y,z,dbh,species,height,crown,plot_id,zone,alpha");
+  // Replacing the trees replaces the order.
+  Write("new.csv", "x,y,b_col,a_col\n1,2,b,a\n");
+  ASSERT_EQ(Cli("map upload crew --replace --trees '" + Path("new.csv") + "'").exit_code, 0);
+  const Result replaced = Cli("map export crew");
+  EXPECT_EQ(replaced.out.substr(0, replaced.out.find('\n')), "id,x,y,z,dbh,b_col,a_col");
+}
+
 }  // namespace
 }  // namespace forestmap

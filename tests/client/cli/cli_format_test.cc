@@ -246,8 +246,11 @@ TEST(CliFormatTest, MapDetails) {
             "version:     2\n"
             "trees:       10\n"
             "extent:      -\n"
+            "boundary:    no\n"
             "created:     2023-11-14T22:13:20Z\n"
             "updated:     -\n");
+  map.set_has_boundary(true);
+  EXPECT_NE(FormatMapDetails(map).find("\nboundary:    yes\n"), std::string::npos);
 }
 
 }  // namespace
