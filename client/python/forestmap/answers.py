@@ -67,6 +67,7 @@ class MapInfo:
     version: int
     tree_count: int
     extent: Optional[Tuple[float, float, float, float]]  # min_x, min_y, max_x, max_y (m)
+    has_boundary: bool = False  # a survey boundary (Client.boundary), else coverage is derived
 
 
 def map_info(message: maps_pb2.Map) -> MapInfo:
@@ -75,7 +76,8 @@ def map_info(message: maps_pb2.Map) -> MapInfo:
         e = message.extent
         extent = (e.min_x, e.min_y, e.max_x, e.max_y)
     return MapInfo(name=message.name, description=message.description, crs=message.crs,
-                   version=message.version, tree_count=message.tree_count, extent=extent)
+                   version=message.version, tree_count=message.tree_count, extent=extent,
+                   has_boundary=message.has_boundary)
 
 
 @dataclass

@@ -37,12 +37,15 @@ def _NO_CHUNKS():  # an upload of a header alone (a boundary without trees)
     return iter(())
 
 
-def _chunks(trees, columns, chunk):
+def _chunks(trees, columns, chunk, header):
+    """The upload's chunks; a named table's attribute columns, in its order, into `header`."""
     if not isinstance(chunk, int) or chunk < 1:
         raise ValueError(f"chunk must be >= 1 trees, got {chunk!r}")
     if _is_tree_list(trees):
         return lambda: answers.tree_chunks(trees, chunk)
-    return inputs.map_tree_chunks(trees, columns, chunk)
+    chunks = inputs.map_tree_chunks(trees, columns, chunk)
+    header.attribute_columns.extend(chunks.attribute_columns)
+    return chunks
 
 
 def _pages(rpc: str, request, items: str):
@@ -85,7 +88,8 @@ class Methods:
                                             description=description, crs=crs)
         if boundary is not None:
             header.boundary.CopyFrom(boundary_message(boundary))
-        response = yield Upload(header, _NO_CHUNKS if empty else _chunks(trees, columns, chunk))
+        response = yield Upload(header, _NO_CHUNKS if empty
+                                else _chunks(trees, columns, chunk, header))
         return answers.map_info(response.map)
 
     def upload(self, name: str, trees, replace: bool = False, chunk: int = 5000, *,
@@ -101,7 +105,7 @@ class Methods:
         if boundary is not None:
             header.boundary.CopyFrom(boundary_message(boundary))
         response = yield Upload(header, _NO_CHUNKS if trees is None
-                                else _chunks(trees, columns, chunk))
+                                else _chunks(trees, columns, chunk, header))
         return answers.map_info(response.map)
 
     def boundary(self, name: str, version: int = 0) -> List:
@@ -113,6 +117,14 @@ class Methods:
         request.box.CopyFrom(box_message((1e9, 1e9, 1e9, 1e9)))
         gather = Gather(False)
         return self._run(self._one(Export(request, gather), lambda _: gather.boundary))
+
+    def attribute_columns(self, name: str, version: int = 0) -> List[str]:
+        """The order of the map's attribute columns (as the survey's file or table had them), the
+        order exports write them in; [] when no order is known."""
+        request = maps_pb2.ExportTreesRequest(name=name, version=version)
+        request.box.CopyFrom(box_message((1e9, 1e9, 1e9, 1e9)))  # no tree: see boundary()
+        gather = Gather(False)
+        return self._run(self._one(Export(request, gather), lambda _: gather.attribute_columns))
 
     def list_maps(self, page_size: int = 0) -> List[MapInfo]:
         """Every map the caller may read, by name (page by page; 0: the server's page size)."""

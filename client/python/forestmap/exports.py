@@ -33,6 +33,7 @@ class Gather:
         self.parts: List = []
         self.version = None
         self.boundary: List = []
+        self.attribute_columns: List[str] = []
 
     def add(self, response: maps_pb2.ExportTreesResponse) -> None:
         if self.version is not None and response.map_version != self.version:
@@ -42,6 +43,8 @@ class Gather:
         self.version = response.map_version
         if response.HasField("boundary"):
             self.boundary = polygons_of(response.boundary)
+        if response.attribute_columns:
+            self.attribute_columns = list(response.attribute_columns)
         if self.as_array:
             self.parts.append(self._array(response.trees))
         else:

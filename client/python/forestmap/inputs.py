@@ -198,4 +198,5 @@ def map_tree_chunks(trees, columns: Optional[Sequence[str]], chunk: int,
                         tree.attributes[name] = text
                 out.append(tree)
             yield out
+    chunks.attribute_columns = list(extra)  # the table's order, kept on export
     return chunks

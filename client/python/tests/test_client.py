@@ -267,6 +267,7 @@ def test_a_survey_boundary_round_trips_and_is_versioned(server):
     hole = [(10, 10), (10, 20), (20, 20), (20, 10)]
     trees = np.array([(5.0, 5.0), (30.0, 30.0), (45.0, 5.0)])
     info = client.create_map("bounded", trees, columns=("x", "y"), boundary=[(outer, [hole])])
+    assert info.has_boundary and client.get_map("bounded").has_boundary
     [(got_outer, got_holes)] = client.boundary("bounded")
     assert got_outer.tolist() == [list(map(float, p)) for p in outer]
     assert [h.tolist() for h in got_holes] == [[list(map(float, p)) for p in hole]]

@@ -128,3 +128,18 @@ def test_export_attributes_and_a_map_csv(client, data_root, tmp_path):
     assert exported["dbh"][0] == 0.31 and np.isnan(exported["dbh"][1])
     assert read_csv(str(path)).dtype.names == ("tree_id", "x_m", "y_m", "dbh_m", "species")
     client.delete_map("plot-csv")
+
+
+def test_a_tables_attribute_order_is_the_maps(client):
+    table = {"x": np.array([0.5, 3.5]), "y": np.array([1.5, 1.0]),
+             "species": np.array(["Picea", "Abies"]), "height": np.array([21.0, 18.5]),
+             "crown": np.array(["A", "B"])}
+    info = client.create_map("ordered", table)
+    assert client.attribute_columns("ordered") == ["species", "height", "crown"]
+    assert not info.has_boundary
+    client.upload("ordered", {"x": np.array([9.0]), "y": np.array([9.0]),
+                              "plot_id": np.array(["p1"])})
+    assert client.attribute_columns("ordered") == ["species", "height", "crown", "plot_id"]
+    assert client.attribute_columns("ordered", version=info.version) == [
+        "species", "height", "crown"]
+    client.delete_map("ordered")
