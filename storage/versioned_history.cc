@@ -79,6 +79,24 @@ void RestoreObservations(StoreSession& session, const MapRow& map, int64_t versi
   record.observations_added = static_cast<int64_t>(copies.size());
 }
 
+// What `read(session, map id, version)` stores for version `version` of map `name` (0: the
+// current one), read in one transaction after checking that the map and the version exist.
+template <typename Read>
+std::string ReadVersionText(StoreBackend& backend, const std::string& name, int64_t version,
+                            const Read& read) {
+  internal::CheckName(name);
+  CheckVersionNumber(name, version);
+  std::string text;
+  backend.WithReader([&](StoreSession& session) {
+    StoreTransaction transaction(session, TransactionKind::kRead);
+    const MapRow map = RequireMap(session, name);
+    if (version != 0 && version != map.info.version) RequireVersion(session, map, version);
+    text = read(session, map.id, version == 0 ? map.info.version : version);
+    transaction.Commit();
+  });
+  return text;
+}
+
 }  // namespace
 
 MapSnapshot VersionedMapStore::ReadMapVersion(const std::string& name, int64_t version) {
@@ -112,36 +130,20 @@ MapSnapshot VersionedMapStore::ReadMapVersion(const std::string& name, int64_t v
 }
 
 Boundary VersionedMapStore::ReadBoundary(const std::string& name, int64_t version) {
-  internal::CheckName(name);
-  CheckVersionNumber(name, version);
-  std::string encoded;
-  backend_->WithReader([&](StoreSession& session) {
-    StoreTransaction transaction(session, TransactionKind::kRead);
-    const MapRow map = RequireMap(session, name);
-    if (version == 0 || version == map.info.version) {
-      encoded = session.BoundaryAt(map.id, map.info.version);
-    } else {
-      RequireVersion(session, map, version);
-      encoded = session.BoundaryAt(map.id, version);
-    }
-    transaction.Commit();
-  });
-  return internal::DecodeBoundary(name, encoded);
+  return internal::DecodeBoundary(
+      name, ReadVersionText(*backend_, name, version,
+                            [](StoreSession& session, int64_t map_id, int64_t at) {
+                              return session.BoundaryAt(map_id, at);
+                            }));
 }
 
 std::vector<std::string> VersionedMapStore::ReadAttributeColumns(const std::string& name,
                                                                  int64_t version) {
-  internal::CheckName(name);
-  CheckVersionNumber(name, version);
-  std::string encoded;
-  backend_->WithReader([&](StoreSession& session) {
-    StoreTransaction transaction(session, TransactionKind::kRead);
-    const MapRow map = RequireMap(session, name);
-    if (version != 0 && version != map.info.version) RequireVersion(session, map, version);
-    encoded = session.ColumnsAt(map.id, version == 0 ? map.info.version : version);
-    transaction.Commit();
-  });
-  return internal::DecodeColumnOrder(name, encoded);
+  return internal::DecodeColumnOrder(
+      name, ReadVersionText(*backend_, name, version,
+                            [](StoreSession& session, int64_t map_id, int64_t at) {
+                              return session.ColumnsAt(map_id, at);
+                            }));
 }
 
 std::vector<VersionRecord> VersionedMapStore::ListVersions(const std::string& name, int64_t limit) {
