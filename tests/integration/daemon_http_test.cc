@@ -77,6 +77,16 @@ class DaemonHttpTest : public ::testing::Test {
                "' --listen 127.0.0.1:0 " + flags);
   }
   // Starts the first forestmapd with --http 127.0.0.1:0 and returns the page's port.
+  // A new token of `role` on `map` in first.db, made by `forestmapd token create`.
+  std::string Token(const std::string& map, const std::string& role) {
+    const CommandResult created =
+        Run("'" FORESTMAPD_PATH "' token create --db '" + (dir_ / "first.db").string() +
+            "' --map '" + map + "' --role " + role);
+    std::string secret = created.out;
+    while (!secret.empty() && secret.back() == '\n') secret.pop_back();
+    return secret;
+  }
+
   int ServeWithPage(const std::string& flags = "") {
     const fs::path log = dir_ / "first.log";
     EXPECT_TRUE(daemon_.Start("--db '" + (dir_ / "first.db").string() +
@@ -201,15 +211,7 @@ TEST_F(DaemonHttpTest, DotNamesAreRefused) {
 TEST_F(DaemonHttpTest, OgcApiFeaturesServesASurveyToGdal) {
   const std::string survey = FORESTMAP_SHARED_DATA "/survey_vs_lidar/PRF025/PRF025_Field.csv";
   if (!fs::exists(survey)) FORESTMAP_SKIP_WITHOUT_DATA() << "missing " << survey;
-  const auto token = [&](const std::string& map, const std::string& role) {
-    const CommandResult created =
-        Run("'" FORESTMAPD_PATH "' token create --db '" + (dir_ / "first.db").string() +
-            "' --map '" + map + "' --role " + role);
-    std::string secret = created.out;
-    while (!secret.empty() && secret.back() == '\n') secret.pop_back();
-    return secret;
-  };
-  const std::string reader = token("prf", "read"), admin = token("*", "admin");
+  const std::string reader = Token("prf", "read"), admin = Token("*", "admin");
   ASSERT_FALSE(reader.empty());
   const int port = ServeWithPage();
   ASSERT_GT(port, 0);
@@ -295,15 +297,7 @@ TEST_F(DaemonHttpTest, OgcApiFeaturesServesASurveyToGdal) {
 // collection NAME:boundary beside the map's, one MultiPolygon where cs2cs puts it; `map show`
 // says the map has one. The trees' survey columns keep the file's order.
 TEST_F(DaemonHttpTest, OgcApiFeaturesServesTheSurveyBoundaryToGdal) {
-  const auto token = [&](const std::string& map, const std::string& role) {
-    const CommandResult created =
-        Run("'" FORESTMAPD_PATH "' token create --db '" + (dir_ / "first.db").string() +
-            "' --map '" + map + "' --role " + role);
-    std::string secret = created.out;
-    while (!secret.empty() && secret.back() == '\n') secret.pop_back();
-    return secret;
-  };
-  const std::string admin = token("*", "admin"), other_reader = token("other", "read");
+  const std::string admin = Token("*", "admin"), other_reader = Token("other", "read");
   const int port = ServeWithPage();
   ASSERT_GT(port, 0);
   const auto cli = [&](const std::string& args) {
