@@ -71,6 +71,10 @@ struct TreeRecord {
   int64_t observations = 0;              // observation rows behind the tree (incl. a survey prior)
   std::optional<double> position_sigma;  // m, 1-sigma horizontal uncertainty
   std::optional<double> dbh_sigma;       // m
+  // Evidence of absence (server/app/absence_ledger.h): when a drone last saw the tree (unset: none
+  // has since it was written), and the misses since then (JSON of the server's; unset: none).
+  std::optional<int64_t> last_seen_unix_ms;
+  std::optional<std::string> evidence;
 
   bool operator==(const TreeRecord&) const = default;
 };
@@ -134,6 +138,15 @@ struct ObservationCell {
 };
 ObservationCell CellOf(double x, double y);  // x, y in m
 
+// A tree the evidence of absence removed (server/app/absence_ledger.h), as the removal log keeps
+// it: the tree's id and the evidence (JSON of the server's), with the version that removed it.
+struct TreeRemoval {
+  int64_t tree_id = 0;
+  std::string evidence;
+  int64_t version = 0;  // set by the store
+  bool operator==(const TreeRemoval&) const = default;
+};
+
 // Everything one merge changes, computed from what MergeReader showed.
 struct MapChanges {
   // New trees (an id not current in the map) and new states of current trees (same id). Ids are
@@ -148,10 +161,13 @@ struct MapChanges {
   // added or removed in the history.
   std::vector<ObservationRecord> folded_observations;
   std::vector<int64_t> removed_summaries;  // ids of current summary rows
+  // Trees of removed_trees that the evidence of absence removed, for the removal log.
+  std::vector<TreeRemoval> removals;
 
   bool empty() const {
     return put_trees.empty() && removed_trees.empty() && added_observations.empty() &&
-           removed_observations.empty() && folded_observations.empty() && removed_summaries.empty();
+           removed_observations.empty() && folded_observations.empty() &&
+           removed_summaries.empty() && removals.empty();
   }
 };
 
@@ -273,6 +289,9 @@ class MapStore {
   // The order of the attribute columns of a version (MapSnapshot::attribute_columns), kNotFound
   // as above. The default reads the whole version.
   virtual std::vector<std::string> ReadAttributeColumns(const std::string& name, int64_t version);
+  // The removal log (MapChanges::removals) of the versions after `after_version`, by version and
+  // tree id. kNotFound for an unknown map.
+  virtual std::vector<TreeRemoval> ListRemovals(const std::string& name, int64_t after_version) = 0;
   // The history, oldest first; `limit` > 0 keeps the newest `limit` entries.
   virtual std::vector<VersionRecord> ListVersions(const std::string& name, int64_t limit) = 0;
   // A new version whose trees and observations equal those of `version` (kNotFound as above).

@@ -5,8 +5,8 @@
 // rows (reading a million trees costs what hand-written reads cost):
 //   Row (a result row, columns from 0): IsNull(c), Int64(c), Double(c), OptionalDouble(c),
 //       Text(c), Bool(c);
-//   Out (the values of a statement, in order): Int64(v), Double(v), OptionalDouble(v), Text(v),
-//       OptionalText(v), Bool(v).
+//   Out (the values of a statement, in order): Int64(v), OptionalInt64(v), Double(v),
+//       OptionalDouble(v), Text(v), OptionalText(v), Bool(v).
 // Not a public API.
 
 #include <cstdint>
@@ -75,7 +75,7 @@ void WriteMapValues(Out& out, const MapInfo& info) {
 // Columns of every tree query (table alias t), in the order of ReadTreeRow and WriteTreeValues.
 #define FORESTMAP_TREE_COLUMNS                                                                  \
   "t.tree_id, t.x, t.y, t.z, t.dbh, t.attributes, t.status, t.observations, t.position_sigma, " \
-  "t.dbh_sigma"
+  "t.dbh_sigma, t.last_seen_unix_ms, t.evidence"
 template <typename Row>
 TreeRecord ReadTreeRow(const Row& row, const std::string& map_name) {
   TreeRecord tree;
@@ -89,6 +89,8 @@ TreeRecord ReadTreeRow(const Row& row, const std::string& map_name) {
   tree.observations = row.Int64(7);
   tree.position_sigma = row.OptionalDouble(8);
   tree.dbh_sigma = row.OptionalDouble(9);
+  if (!row.IsNull(10)) tree.last_seen_unix_ms = row.Int64(10);
+  if (!row.IsNull(11)) tree.evidence = row.Text(11);
   return tree;
 }
 
@@ -106,6 +108,8 @@ void WriteTreeValues(Out& out, int64_t id, const TreeRecord& tree,
   out.Int64(tree.observations);
   out.OptionalDouble(tree.position_sigma);
   out.OptionalDouble(tree.dbh_sigma);
+  out.OptionalInt64(tree.last_seen_unix_ms);
+  out.OptionalText(tree.evidence);
 }
 
 // ---- Observations ----

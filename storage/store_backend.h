@@ -109,6 +109,12 @@ class StoreSession {
   // The order from `version` on.
   virtual void InsertColumns(int64_t map_id, int64_t version, const std::string& encoded) = 0;
 
+  // ---- Removal log (MapChanges::removals) ----
+  virtual void InsertRemovals(int64_t map_id, int64_t version,
+                              const std::vector<TreeRemoval>& removals) = 0;
+  // Those of the versions after `after_version`, by version and tree id.
+  virtual std::vector<TreeRemoval> RemovalsAfter(int64_t map_id, int64_t after_version) = 0;
+
   // ---- Trees (results by id) ----
   virtual std::vector<TreeRecord> CurrentTrees(const MapRow& map) = 0;
   // The trees of an older `version`: current rows from then and closed rows valid then.

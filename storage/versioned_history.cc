@@ -146,6 +146,18 @@ std::vector<std::string> VersionedMapStore::ReadAttributeColumns(const std::stri
                             }));
 }
 
+std::vector<TreeRemoval> VersionedMapStore::ListRemovals(const std::string& name,
+                                                         int64_t after_version) {
+  internal::CheckName(name);
+  std::vector<TreeRemoval> removals;
+  backend_->WithReader([&](StoreSession& session) {
+    StoreTransaction transaction(session, TransactionKind::kRead);
+    removals = session.RemovalsAfter(RequireMap(session, name).id, after_version);
+    transaction.Commit();
+  });
+  return removals;
+}
+
 std::vector<VersionRecord> VersionedMapStore::ListVersions(const std::string& name, int64_t limit) {
   internal::CheckName(name);
   std::vector<VersionRecord> versions;

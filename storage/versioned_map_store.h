@@ -41,6 +41,7 @@ class VersionedMapStore : public MapStore {
   MapSnapshot ReadMapVersion(const std::string& name, int64_t version) override;
   Boundary ReadBoundary(const std::string& name, int64_t version) override;
   std::vector<std::string> ReadAttributeColumns(const std::string& name, int64_t version) override;
+  std::vector<TreeRemoval> ListRemovals(const std::string& name, int64_t after_version) override;
   std::vector<VersionRecord> ListVersions(const std::string& name, int64_t limit) override;
   MapInfo RestoreVersion(const std::string& name, int64_t version) override;
   MapInfo Merge(const std::string& name, const MergeNote& note,

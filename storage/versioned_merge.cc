@@ -179,6 +179,7 @@ void ApplyChanges(StoreSession& session, MapRow& map, const MergeNote& note,
   CloseObservations(session, map, folded_ids, record.version);
   session.InsertObservations(map.id, changes.added_observations, record.version);
   session.InsertObservations(map.id, folded, record.version);
+  session.InsertRemovals(map.id, record.version, changes.removals);
   // Summaries and folding are no observations of their own.
   record.observations_added = static_cast<int64_t>(
       std::count_if(changes.added_observations.begin(), changes.added_observations.end(),

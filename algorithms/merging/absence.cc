@@ -216,4 +216,25 @@ AbsenceResult ExpectTrees(std::span<const MapTree> established, std::span<const 
   return result;
 }
 
+void SensorPool::Add(const AbsenceResult& frame) {
+  if (frame.range_source == SensorModelSource::kLearned) range = frame.range;
+  (frame.learned_from_standing ? standing_seen : all_seen) += frame.learn_seen;
+  (frame.learned_from_standing ? standing_weight : all_weight) += frame.learn_weight;
+}
+
+AbsenceOptions SensorPool::Apply(const AbsenceOptions& base) const {
+  AbsenceOptions options = base;
+  if (options.range == 0) options.range = range;
+  if (options.detection_probability == 0) {
+    const double min_weight = options.min_learn_trees;
+    const bool standing = standing_weight >= min_weight;
+    const double seen = standing ? standing_seen : all_seen;
+    const double weight = standing ? standing_weight : all_weight;
+    if (weight >= min_weight) {
+      options.detection_probability = std::min(options.max_detection_probability, seen / weight);
+    }
+  }
+  return options;
+}
+
 }  // namespace forestmap::algorithms

@@ -93,6 +93,19 @@ AbsenceResult ExpectTrees(std::span<const MapTree> established, std::span<const 
                           const AbsenceObservation& observation,
                           const AbsenceOptions& options = {});
 
+// What one source's frames teach about its sensor, pooled over them: the range of its last frame
+// that learned one, and its detection rate over all its frames, from the trees known to stand
+// once they weigh min_learn_trees (a felled tree would make the detector look worse than it is).
+struct SensorPool {
+  double range = 0;                               // m, last learned; 0: none yet
+  double standing_seen = 0, standing_weight = 0;  // AbsenceResult::learn_seen, learn_weight
+  double all_seen = 0, all_weight = 0;            // summed over frames (from standing or not)
+  void Add(const AbsenceResult& frame);
+  // `base` with the pooled range and detection probability where it states none (each left 0
+  // while nothing is learned).
+  AbsenceOptions Apply(const AbsenceOptions& base) const;
+};
+
 // The same without candidates.
 AbsenceResult ExpectTrees(std::span<const MapTree> map_trees, const AbsenceObservation& observation,
                           const AbsenceOptions& options = {});

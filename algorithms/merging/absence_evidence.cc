@@ -58,4 +58,14 @@ bool IsGone(const TreeEvidence& evidence, const AbsenceEvidenceOptions& options,
   return GoneLogLikelihoodRatio(evidence, options) >= options.Threshold(candidate);
 }
 
+bool AddView(TreeEvidence& evidence, const TreeVisibility& view, bool candidate,
+             const std::string& source, int64_t frame_id, int64_t time,
+             const AbsenceEvidenceOptions& options) {
+  if (view.visibility == Visibility::kSeen) AddSighting(evidence, source, time);
+  if (view.visibility != Visibility::kMissed) return false;
+  AddMiss(evidence, candidate ? source + "/" + std::to_string(frame_id) : source,
+          view.detection_probability);
+  return IsGone(evidence, options, candidate);
+}
+
 }  // namespace forestmap::algorithms

@@ -29,6 +29,8 @@
 #include <string>
 #include <vector>
 
+#include "algorithms/merging/absence.h"
+
 namespace forestmap::algorithms {
 
 struct AbsenceEvidenceOptions {
@@ -73,5 +75,13 @@ double GoneLogLikelihoodRatio(const TreeEvidence& evidence,
 // GoneLogLikelihoodRatio >= options.Threshold(candidate).
 bool IsGone(const TreeEvidence& evidence, const AbsenceEvidenceOptions& options = {},
             bool candidate = false);
+
+// One view's classification of a tree (ExpectTrees) added to its evidence: kSeen is a sighting by
+// `source` at `time`; kMissed a miss grouped by `source` for an established tree, by the view
+// itself (`source` + "/" + frame_id) for a candidate (whose alternative, a false stem, is one
+// frame's error). Returns whether the tree is gone (IsGone) after a miss, else false.
+bool AddView(TreeEvidence& evidence, const TreeVisibility& view, bool candidate,
+             const std::string& source, int64_t frame_id, int64_t time,
+             const AbsenceEvidenceOptions& options);
 
 }  // namespace forestmap::algorithms

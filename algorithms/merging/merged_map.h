@@ -109,23 +109,11 @@ class MergedMap {
   // Pools what `frame` teaches into its source's sensor model; the options to classify it with.
   AbsenceOptions LearnSource(const std::string& source, const AbsenceResult& frame);
 
-  struct SensorModel {
-    struct Pool {
-      double seen = 0, weight = 0;  // AbsenceResult::learn_seen, learn_weight summed
-      void Add(const AbsenceResult& frame) {
-        seen += frame.learn_seen;
-        weight += frame.learn_weight;
-      }
-    };
-    double range = 0;  // m, last learned
-    Pool standing, all;
-  };
-
   MergeOptions options_;
   ChangeOptions changes_;
   std::unordered_map<int64_t, TreeEvidence> evidence_;
   std::map<int64_t, RemovedTree> removed_;
-  std::unordered_map<std::string, SensorModel> sensors_;
+  std::unordered_map<std::string, SensorPool> sensors_;
   struct PastView {
     int64_t frame_id = 0, time = 0;
     AbsenceObservation observation;

@@ -48,23 +48,9 @@ const TreeEvidence* MergedMap::EvidenceOf(int64_t id) const {
 }
 
 AbsenceOptions MergedMap::LearnSource(const std::string& source, const AbsenceResult& frame) {
-  // The sensor model of a source pools its frames: the range of its last frame that could learn
-  // one, the detection rate over all its frames (from trees known to stand once it has enough).
-  SensorModel& model = sensors_[source];
-  if (frame.range_source == SensorModelSource::kLearned) model.range = frame.range;
-  (frame.learned_from_standing ? model.standing : model.all).Add(frame);
-  AbsenceOptions options = changes_.absence;
-  if (options.range == 0) options.range = model.range;
-  if (options.detection_probability == 0) {
-    const int min_weight = options.min_learn_trees;
-    const SensorModel::Pool& pool =
-        model.standing.weight >= min_weight ? model.standing : model.all;
-    if (pool.weight >= min_weight) {
-      options.detection_probability =
-          std::min(options.max_detection_probability, pool.seen / pool.weight);
-    }
-  }
-  return options;
+  SensorPool& pool = sensors_[source];
+  pool.Add(frame);
+  return pool.Apply(changes_.absence);
 }
 
 MergedMap::NearbyTrees MergedMap::Nearby(const Eigen::Vector2d& sensor_xy) const {
@@ -100,18 +86,12 @@ void MergedMap::LookBack(const std::string& source, const std::vector<TreeEstima
     const NearbyTrees near = Nearby(sensor_xy);
     const AbsenceResult absence =
         ExpectTrees(near.confirmed, near.standing, reach, view.observation, options);
-    const std::string group = source + "/" + std::to_string(view.frame_id);
     for (size_t j = 0; j < reach.size(); ++j) {
       const TreeVisibility& visibility = absence.trees[near.confirmed.size() + j];
-      TreeEvidence& evidence = evidence_[visibility.id];
-      if (visibility.visibility == Visibility::kSeen) {
-        AddSighting(evidence, source, view.time);
-      } else if (visibility.visibility == Visibility::kMissed) {
-        AddMiss(evidence, group, visibility.detection_probability);
-        if (IsGone(evidence, changes_.evidence, /*candidate=*/true)) {
-          removed.push_back(visibility.id);
-          Remove(visibility.id, view.time);
-        }
+      if (AddView(evidence_[visibility.id], visibility, /*candidate=*/true, source, view.frame_id,
+                  view.time, changes_.evidence)) {
+        removed.push_back(visibility.id);
+        Remove(visibility.id, view.time);
       }
     }
   }
@@ -138,16 +118,11 @@ ObserveResult MergedMap::Observe(const TimedFrame& timed) {
         ExpectTrees(near.confirmed, near.standing, near.candidates, observation, source_options);
   }
   if (!frame.trees.empty()) result.merge = Merge(frame);
-  const std::string frame_group = frame.source + "/" + std::to_string(frame.frame_id);
   for (size_t i = 0; i < nearby.size(); ++i) {
     const TreeVisibility& visibility = result.absence.trees[i];
-    TreeEvidence& evidence = evidence_[visibility.id];
-    if (visibility.visibility == Visibility::kSeen) {
-      AddSighting(evidence, frame.source, timed.time);
-    } else if (visibility.visibility == Visibility::kMissed) {
-      const bool candidate = nearby[i].status == TreeStatus::kCandidate;
-      AddMiss(evidence, candidate ? frame_group : frame.source, visibility.detection_probability);
-      if (IsGone(evidence, changes_.evidence, candidate)) result.removed.push_back(visibility.id);
+    if (AddView(evidence_[visibility.id], visibility, nearby[i].status == TreeStatus::kCandidate,
+                frame.source, frame.frame_id, timed.time, changes_.evidence)) {
+      result.removed.push_back(visibility.id);
     }
   }
   // Trees this frame started were seen by it.

@@ -248,6 +248,7 @@ void AddStateColumns(ExportedTrees& exported) {
     attributes["observations"] = std::to_string(state.observations);
     if (state.position_sigma_m) attributes["position_sigma_m"] = number(state.position_sigma_m);
     if (state.dbh_sigma_m) attributes["dbh_sigma_m"] = number(state.dbh_sigma_m);
+    if (state.last_seen_unix_ms) attributes["last_seen"] = FormatUnixMs(*state.last_seen_unix_ms);
   }
 }
 

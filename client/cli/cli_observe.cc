@@ -1,9 +1,12 @@
 // `forestmap observe NAME --frames trees.csv [--poses poses.csv] [--source ID]
-//  [--base-version V --reject-stale] [--batch N] [--from-frame A] [--to-frame B]`:
+//  [--base-version V --reject-stale] [--batch N] [--from-frame A] [--to-frame B]
+//  [--pose-sigma M] [--yaw-sigma DEG] [--sensor-range M] [--detection-probability P]`:
 // adds a drone's per-frame detections to a shared map, in batches of frames (one request and
-// one new map version per batch), with progress on stderr and a summary on stdout.
+// one new map version per batch), with progress on stderr and a summary on stdout. A pose
+// without detections is a frame that saw no tree (evidence of absence).
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <memory>
 #include <optional>
@@ -30,11 +33,15 @@ struct ObserveCliOptions {
   int batch = 25;  // frames per request
   std::optional<int64_t> from_frame;
   std::optional<int64_t> to_frame;
+  double pose_sigma = 0;  // m
+  double yaw_sigma = 0;   // degrees
+  double sensor_range = 0;
+  double detection_probability = 0;
 };
 
 struct Totals {
   int64_t frames = 0, merged = 0, skipped = 0, relocalized = 0;
-  int64_t associated = 0, added = 0, promoted = 0;
+  int64_t associated = 0, added = 0, promoted = 0, missed = 0, removed = 0;
   std::string first_skip;  // the first reason, for the summary
 };
 
@@ -53,6 +60,8 @@ void Count(const v1::ObserveResponse& response, Totals& totals) {
     totals.associated += frame.trees_associated();
     totals.added += frame.trees_added();
     totals.promoted += frame.trees_promoted();
+    totals.missed += frame.trees_missed();
+    totals.removed += frame.trees_removed();
   }
 }
 
@@ -60,15 +69,17 @@ std::vector<ObservedFrame> LoadFrames(const ObserveCliOptions& options) {
   const std::vector<Frame> frames = ReadFramesCsv(options.frames_file);
   std::map<int64_t, algorithms::Pose3> poses;
   if (!options.poses_file.empty()) poses = ReadPosesCsv(options.poses_file);
+  // Frames by number: those with detections, and the poses of frames that detected nothing.
+  std::map<int64_t, ObservedFrame> by_id;
+  for (const Frame& frame : frames) by_id[frame.frame].trees = frame.trees;
+  for (const auto& [id, pose] : poses) by_id[id].map_from_sensor = pose;
   std::vector<ObservedFrame> out;
-  for (const Frame& frame : frames) {
-    if (options.from_frame && frame.frame < *options.from_frame) continue;
-    if (options.to_frame && frame.frame > *options.to_frame) continue;
-    ObservedFrame observed;
-    observed.frame_id = frame.frame;
-    observed.trees = frame.trees;
-    const auto pose = poses.find(frame.frame);
-    if (pose != poses.end()) observed.map_from_sensor = pose->second;
+  for (auto& [id, observed] : by_id) {
+    if (options.from_frame && id < *options.from_frame) continue;
+    if (options.to_frame && id > *options.to_frame) continue;
+    observed.frame_id = id;
+    observed.position_sigma = options.pose_sigma;
+    observed.yaw_sigma = options.yaw_sigma * M_PI / 180;
     out.push_back(std::move(observed));
   }
   return out;
@@ -82,6 +93,8 @@ void RunObserve(const ObserveCliOptions& options, const CliContext& context) {
   request_options.source = options.source;
   request_options.base_version = options.base_version;
   request_options.reject_stale = options.reject_stale;
+  request_options.sensor_range = options.sensor_range;
+  request_options.detection_probability = options.detection_probability;
   Totals totals;
   v1::Map map;
   size_t next = 0;
@@ -100,13 +113,15 @@ void RunObserve(const ObserveCliOptions& options, const CliContext& context) {
     Count(response, totals);
     *context.err << "observe: " << next << "/" << frames.size() << " frames, map version "
                  << response.map_version() << ", " << map.tree_count() << " trees, "
-                 << totals.skipped << " frames skipped" << std::endl;
+                 << totals.skipped << " frames skipped, server " << response.server_time_ms()
+                 << " ms" << std::endl;
   }
   *context.out << "observed " << totals.frames << " frames of '" << options.source << "' into map '"
                << options.map << "': " << totals.merged << " merged (" << totals.relocalized
                << " relocalized by the server), " << totals.skipped << " skipped; "
                << totals.associated << " detections associated, " << totals.added
-               << " new candidates, " << totals.promoted << " promoted; map version "
+               << " new candidates, " << totals.promoted << " promoted; " << totals.missed
+               << " map trees missed, " << totals.removed << " trees removed; map version "
                << map.version() << ", " << map.tree_count() << " trees" << std::endl;
   if (!totals.first_skip.empty()) {
     *context.err << "forestmap: note: first skipped " << totals.first_skip << std::endl;
@@ -142,6 +157,20 @@ void AddObserveCommand(CLI::App& app, CliContext& context) {
       ->capture_default_str();
   sub->add_option("--from-frame", options->from_frame, "Skip frames with a smaller frame number");
   sub->add_option("--to-frame", options->to_frame, "Skip frames with a larger frame number");
+  sub->add_option("--pose-sigma", options->pose_sigma,
+                  "1-sigma horizontal error of the poses (m, per axis; 0: exact)")
+      ->check(CLI::Range(0.0, 1000.0));
+  sub->add_option("--yaw-sigma", options->yaw_sigma,
+                  "1-sigma heading error of the poses (degrees; 0: exact)")
+      ->check(CLI::Range(0.0, 180.0));
+  sub->add_option("--sensor-range", options->sensor_range,
+                  "Horizontal range (m) within which the sensor detects trunks, for the evidence "
+                  "that trees are gone (0: learned from the frames)")
+      ->check(CLI::Range(0.0, 1000.0));
+  sub->add_option("--detection-probability", options->detection_probability,
+                  "Probability that the sensor detects an unhidden trunk near it, in [0, 1) (0: "
+                  "learned from the frames)")
+      ->check(CLI::Range(0.0, 0.999));
   sub->callback([options, &context] {
     if (options->reject_stale && options->base_version == 0) {
       throw CLI::ValidationError("--reject-stale", "needs --base-version");

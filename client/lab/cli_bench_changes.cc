@@ -14,6 +14,9 @@
 // candidates left per real tree, the DBH growth error, the time per frame, and how many views of
 // the future forest relocalize right and wrong on the original and on the updated map (its
 // confirmed trees, removed ones left out) (text or --json).
+// --write DIR also writes each pass as `forestmap observe` reads it (pass<k>_trees.csv, detections
+// in the sensor frame; pass<k>_poses.csv, every frame's pose, those that detected nothing too)
+// and the truth (truth.json: felled ids, new trees, growth), for tests/bench/changes_server.sh.
 // Same day:  --map MAP.csv --frames trees.csv --poses poses.csv [--truth-offset ...]
 //   real frames of the mapped forest, cut into sources of --source-frames frames, observed into
 //   the map: nothing changed, so every tree removed is wrong.
@@ -23,6 +26,7 @@
 #include <cmath>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <random>
 #include <set>
 
@@ -31,6 +35,7 @@
 #include "algorithms/merging/merged_map.h"
 #include "algorithms/simulation/view_simulator.h"
 #include "client/io/tree_csv.h"
+#include "client/lab/bench_changes_files.h"
 #include "client/lab/lab_commands.h"
 
 namespace forestmap::client {
@@ -58,6 +63,7 @@ struct BenchChangesOptions {
   int source_frames = 100;           // frames per source (a drone's share of the traversal)
   int reloc_views = 200;             // views of the future relocalized on both maps (0: none)
   bool no_absence = false;           // merge only, as without the evidence of absence
+  std::string write_dir;             // set: the passes and the truth are written there
   bool json = false;
 };
 
@@ -293,7 +299,13 @@ nlohmann::ordered_json Run(const BenchChangesOptions& o, std::ostream& err) {
   std::uniform_real_distribution<double> unit(0, 1);
   int64_t frame_id = 0;
   double seconds = 0;
+  if (!o.write_dir.empty()) {
+    std::filesystem::create_directories(o.write_dir);
+    WriteChangesTruth(o.write_dir, future.felled, future.ingrowth, o.growth);
+  }
   for (int pass = 0; pass < o.passes; ++pass) {
+    std::optional<PassWriter> writer;
+    if (!o.write_dir.empty()) writer.emplace(o.write_dir, pass);
     const bool along_x = pass % 2 == 0;
     const double offset = unit(rng) * o.line_spacing;
     const Eigen::Vector2d a = along_x ? lo : Eigen::Vector2d(lo.y(), lo.x());
@@ -315,6 +327,7 @@ nlohmann::ordered_json Run(const BenchChangesOptions& o, std::ostream& err) {
         frame.pose_sigma_xy = o.pose_sigma;
         frame.pose_sigma_yaw = o.yaw_sigma * M_PI / 180;
         frame.time = frame_id;
+        if (writer) writer->Add(frame.frame);
         const auto start = std::chrono::steady_clock::now();
         if (!o.no_absence) {
           merged.Observe(frame);
@@ -396,6 +409,9 @@ void AddBenchChangesCommand(CLI::App& app, CliContext& context) {
       ->capture_default_str();
   cmd->add_flag("--no-absence", options->no_absence,
                 "Merge the frames without weighing the evidence of absence (for comparison)");
+  cmd->add_option("--write", options->write_dir,
+                  "Also write each pass as `forestmap observe` reads it (passK_trees.csv, "
+                  "passK_poses.csv) and the truth (truth.json) into this folder");
   cmd->add_flag("--json", options->json, "Print one JSON object");
   cmd->callback([options, &context] {
     if (options->frames_path.empty() != options->poses_path.empty()) {

@@ -24,15 +24,6 @@ std::chrono::system_clock::time_point After(double seconds) {
 // fails at once, and an address that swallows packets should not hang the command.
 constexpr double kUnconnectedCallTimeout = 1.0;  // s
 
-TreeState StateOf(const v1::Tree& tree) {
-  TreeState state;
-  state.confirmed = tree.status() != v1::TREE_STATUS_CANDIDATE;
-  state.observations = tree.observations();
-  if (tree.has_position_sigma_m()) state.position_sigma_m = tree.position_sigma_m();
-  if (tree.has_dbh_sigma_m()) state.dbh_sigma_m = tree.dbh_sigma_m();
-  return state;
-}
-
 // A fresh request id: 128 random bits in hex (exactly-once writes, one id per logical write).
 std::string NewRequestId() {
   static thread_local std::mt19937_64 rng{std::random_device{}()};
@@ -400,7 +391,11 @@ v1::ObserveResponse ForestMapClient::Observe(const std::string& name,
     out->mutable_trees()->Reserve(static_cast<int>(frame.trees.size()));
     for (const algorithms::DetectedTree& tree : frame.trees) *out->add_trees() = ToProto(tree);
     if (frame.map_from_sensor) *out->mutable_map_from_sensor() = ToProto(*frame.map_from_sensor);
+    out->set_position_sigma(frame.position_sigma);
+    out->set_yaw_sigma(frame.yaw_sigma);
   }
+  request.set_sensor_range(options.sensor_range);
+  request.set_detection_probability(options.detection_probability);
   return UnaryWrite<v1::ObserveResponse>(&v1::ForestMap::Stub::Observe, request, "Observe");
 }
 

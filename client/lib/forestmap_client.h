@@ -17,6 +17,7 @@
 #include "algorithms/core/geometry.h"
 #include "algorithms/core/polygon.h"
 #include "client/io/tree_csv.h"
+#include "client/lib/proto_convert.h"
 #include "forestmap/v1/forestmap_service.grpc.pb.h"
 #include "proto/status_code_name.h"
 
@@ -85,14 +86,6 @@ struct Box2 {
   double min_x = 0, min_y = 0, max_x = 0, max_y = 0;
 };
 
-// Shared-map state of an exported tree (observations.proto).
-struct TreeState {
-  bool confirmed = true;                   // false: a candidate
-  int64_t observations = 0;                // observation rows behind the tree
-  std::optional<double> position_sigma_m;  // m, 1-sigma horizontal
-  std::optional<double> dbh_sigma_m;       // m
-};
-
 struct ExportedTrees {
   std::vector<MapTreeRow> trees;  // by id
   std::vector<TreeState> states;  // states[i] belongs to trees[i]
@@ -108,12 +101,16 @@ struct ObservedFrame {
   int64_t frame_id = 0;
   std::vector<algorithms::DetectedTree> trees;
   std::optional<algorithms::Pose3> map_from_sensor;  // absent: the server relocalizes the frame
+  double position_sigma = 0;  // m, 1-sigma per horizontal axis of the pose (0: exact / unknown)
+  double yaw_sigma = 0;       // rad
 };
 
 struct ObserveOptions {
   std::string source = "forestmap-cli";  // drone / upload id: [A-Za-z0-9_.:-], 1..128
   int64_t base_version = 0;              // the map version the data builds on (0: none)
   bool reject_stale = false;             // ABORTED unless the map is still at base_version
+  double sensor_range = 0;               // m, for the evidence of absence (0: learned)
+  double detection_probability = 0;      // near the sensor, in [0, 1) (0: learned)
 };
 
 // One frame of a tracking session.

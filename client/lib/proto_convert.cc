@@ -69,4 +69,14 @@ std::vector<algorithms::Polygon> FromProto(const v1::SurveyBoundary& boundary) {
   return polygons;
 }
 
+TreeState StateOf(const v1::Tree& tree) {
+  TreeState state;
+  state.confirmed = tree.status() != v1::TREE_STATUS_CANDIDATE;
+  state.observations = tree.observations();
+  if (tree.has_position_sigma_m()) state.position_sigma_m = tree.position_sigma_m();
+  if (tree.has_dbh_sigma_m()) state.dbh_sigma_m = tree.dbh_sigma_m();
+  if (tree.has_last_seen_unix_ms()) state.last_seen_unix_ms = tree.last_seen_unix_ms();
+  return state;
+}
+
 }  // namespace forestmap::client

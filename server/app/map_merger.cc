@@ -23,6 +23,8 @@ struct WorkingTree {
   algorithms::TreeEstimate estimate;
   std::map<std::string, std::string> attributes;  // survey columns, kept
   std::set<std::string> null_attributes;          // survey columns unknown for this tree, kept
+  std::optional<int64_t> last_seen_unix_ms;       // evidence of absence, kept
+  std::optional<std::string> evidence;
   bool changed = false;
   bool is_new = false;  // created by this merge (not in the store yet)
   // A surveyed tree without observation rows: its prior becomes a row when it changes.
@@ -38,6 +40,14 @@ storage::Extent FrameBox(const algorithms::FrameObservations& frame,
 
 bool Inside(const storage::Extent& box, const Eigen::Vector3d& p) {
   return p.x() >= box.min_x && p.x() <= box.max_x && p.y() >= box.min_y && p.y() <= box.max_y;
+}
+
+// The tree's estimate as a stored row, with what it keeps of its stored row.
+storage::TreeRecord RecordOf(const WorkingTree& tree, const algorithms::TreeEstimate& estimate) {
+  storage::TreeRecord record = ToTreeRecord(estimate, tree.attributes, tree.null_attributes);
+  record.last_seen_unix_ms = tree.last_seen_unix_ms;
+  record.evidence = tree.evidence;
+  return record;
 }
 
 // Observation rows grouped by tree id.
@@ -57,10 +67,12 @@ struct Loaded {
 };
 
 // The trees of the region that `seeds` join (LoadMergeRegion), with their estimates rebuilt from
-// their rows; rows whose id is in `dropped` are left out (a source being removed).
+// their rows; rows whose id is in `dropped` are left out (a source being removed). Every stored
+// tree of the region is loaded into `ledger` when there is one.
 Loaded LoadTrees(storage::MergeReader& reader,
                  const std::vector<algorithms::TreeObservation>& seeds,
-                 const algorithms::MergeOptions& options, const std::set<int64_t>& dropped = {}) {
+                 const algorithms::MergeOptions& options, const std::set<int64_t>& dropped = {},
+                 AbsenceLedger* ledger = nullptr) {
   MergeRegion region = LoadMergeRegion(reader, seeds, options);
   Loaded loaded;
   loaded.foldable_outside = std::move(region.foldable_outside);
@@ -73,7 +85,10 @@ Loaded LoadTrees(storage::MergeReader& reader,
     priors.emplace(prior.tree_id, std::move(prior));
   }
   for (auto& [id, record] : region.trees) {
+    if (ledger) ledger->Load(record);
     WorkingTree tree;
+    tree.last_seen_unix_ms = record.last_seen_unix_ms;
+    tree.evidence = std::move(record.evidence);
     tree.attributes = std::move(record.attributes);
     tree.null_attributes = std::move(record.null_attributes);
     const auto rows = observations.find(id);
@@ -225,10 +240,8 @@ storage::MapChanges Consolidate(Loaded& loaded,
   for (const algorithms::TreeEstimate& tree : result.trees) {
     if (changed.count(tree.id) == 0) continue;
     const auto it = loaded.working.find(tree.id);
-    changes.put_trees.push_back(
-        it != loaded.working.end()
-            ? ToTreeRecord(tree, it->second.attributes, it->second.null_attributes)
-            : ToTreeRecord(tree, {}));
+    changes.put_trees.push_back(it != loaded.working.end() ? RecordOf(it->second, tree)
+                                                           : ToTreeRecord(tree, {}));
   }
   for (const int64_t id : removed) {
     const auto it = loaded.working.find(id);
@@ -281,7 +294,7 @@ storage::MapChanges ChangesOfWorkingTrees(const std::map<int64_t, WorkingTree>& 
   storage::MapChanges changes;
   for (const auto& [id, tree] : working) {
     if (!tree.changed) continue;
-    changes.put_trees.push_back(ToTreeRecord(tree.estimate, tree.attributes, tree.null_attributes));
+    changes.put_trees.push_back(RecordOf(tree, tree.estimate));
     if (tree.unsaved_prior) {
       changes.added_observations.push_back(ToObservationRecord(*tree.unsaved_prior));
     }
@@ -292,22 +305,62 @@ storage::MapChanges ChangesOfWorkingTrees(const std::map<int64_t, WorkingTree>& 
   return changes;
 }
 
+// The live trees near a frame's sensor (in `box`) for its evidence of absence: those of the
+// merge (`working`) as they stand, and the stored ones around them, loaded into the ledger.
+std::vector<NearTree> NearTrees(storage::MergeReader& reader, AbsenceLedger& ledger,
+                                const storage::Extent& box,
+                                const std::map<int64_t, WorkingTree>& working) {
+  std::vector<NearTree> near;
+  for (const auto& [id, tree] : working) {
+    if (ledger.IsGone(id) || !Inside(box, tree.estimate.position)) continue;
+    near.push_back({{id, tree.estimate.position, tree.estimate.dbh},
+                    tree.estimate.status == algorithms::TreeStatus::kCandidate});
+  }
+  for (const storage::TreeRecord& record : reader.TreesInBox(box)) {
+    if (working.count(*record.id) != 0 || ledger.IsGone(*record.id)) continue;
+    ledger.Load(record);
+    near.push_back({ToMapTree(record), record.status == storage::TreeStatus::kCandidate});
+  }
+  return near;
+}
+
+// Takes the trees the evidence showed gone, and their rows, out of the merge (the ledger removes
+// the stored ones: AbsenceLedger::Finish).
+void DropGone(Loaded& loaded, std::vector<algorithms::TreeObservation>& fresh,
+              const std::set<int64_t>& gone) {
+  for (const int64_t id : gone) {
+    loaded.working.erase(id);
+    loaded.foldable_outside.erase(id);
+  }
+  std::erase_if(loaded.rows, [&](const storage::ObservationRecord& row) {
+    return gone.count(row.tree_id) != 0;
+  });
+  std::erase_if(
+      fresh, [&](const algorithms::TreeObservation& row) { return gone.count(row.tree_id) != 0; });
+}
+
 }  // namespace
 
 FramesMerge MergeFrames(storage::MergeReader& reader,
                         const std::vector<algorithms::FrameObservations>& frames,
-                        const algorithms::MergeOptions& options, bool consolidate) {
-  Loaded loaded = LoadTrees(reader, SeedsOf(frames, options), options);
+                        const algorithms::MergeOptions& options, bool consolidate,
+                        AbsenceLedger* ledger) {
+  Loaded loaded = LoadTrees(reader, SeedsOf(frames, options), options, {}, ledger);
   std::map<int64_t, WorkingTree>& working = loaded.working;
   int64_t next_id = reader.NextFreeTreeId();
   FramesMerge merge;
   std::vector<algorithms::TreeObservation> rows;
   std::vector<algorithms::TreeEstimate> nearby;
-  for (const algorithms::FrameObservations& frame : frames) {
+  for (size_t f = 0; f < frames.size(); ++f) {
+    const algorithms::FrameObservations& frame = frames[f];
     const storage::Extent box = FrameBox(frame, options);
+    AbsenceLedger::View view;
+    if (ledger) view = ledger->Classify(f, frame, NearTrees(reader, *ledger, box, working));
     nearby.clear();
     for (const auto& [id, tree] : working) {
-      if (Inside(box, tree.estimate.position)) nearby.push_back(tree.estimate);
+      if (!(ledger && ledger->IsGone(id)) && Inside(box, tree.estimate.position)) {
+        nearby.push_back(tree.estimate);
+      }
     }
     algorithms::MergeResult result = algorithms::MergeFrame(nearby, frame, options);
     std::vector<int64_t> new_ids;
@@ -316,9 +369,23 @@ FramesMerge MergeFrames(storage::MergeReader& reader,
     Apply(result, working);
     rows.insert(rows.end(), result.observations.begin(), result.observations.end());
     merge.counts.push_back(CountsOf(result));
+    if (ledger) {
+      const size_t gone_before = ledger->gone().size();
+      merge.counts.back().missed = ledger->Apply(view, frame.frame_id, result.new_trees);
+      merge.counts.back().removed = static_cast<int>(ledger->gone().size() - gone_before);
+    }
+  }
+  if (ledger) {
+    std::vector<algorithms::TreeEstimate> started;
+    for (const auto& [id, tree] : working) {
+      if (tree.is_new && !ledger->IsGone(id)) started.push_back(tree.estimate);
+    }
+    ledger->LookBackStored(reader, started);
+    DropGone(loaded, rows, ledger->gone());
   }
   merge.changes = consolidate ? Consolidate(loaded, rows, {}, next_id, options)
                               : ChangesOfWorkingTrees(working, rows);
+  if (ledger) ledger->Finish(reader, merge.changes);
   return merge;
 }
 

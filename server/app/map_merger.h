@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "algorithms/merging/map_merge.h"
+#include "server/app/absence_ledger.h"
 #include "storage/map_store.h"
 
 namespace forestmap::server {
@@ -30,6 +31,8 @@ struct FrameMergeCounts {
   int added = 0;       // detections that started a new candidate
   int promoted = 0;    // candidates confirmed by this frame
   int ignored = 0;     // detections not merged (range, invalid)
+  int missed = 0;      // trees the frame should have seen and did not (evidence of absence)
+  int removed = 0;     // trees its evidence showed gone (removed or retired)
 };
 
 struct FramesMerge {
@@ -42,10 +45,14 @@ struct FramesMerge {
 // connected components of the map's rows, is then rebuilt from its rows and the new ones
 // (algorithms::RebuildTrees), so that the map is a pure function of the set of observations it
 // received: concurrent requests, in any order and batches, give the map one sequential upload
-// gives. Without, the incremental merge is kept (order-dependent).
+// gives. Without, the incremental merge is kept (order-dependent). With a `ledger`, each frame
+// (with trees or none) also weighs the evidence of absence of the live trees near its sensor
+// before its detections merge; the trees it shows gone leave the merge and the map
+// (server/app/absence_ledger.h).
 FramesMerge MergeFrames(storage::MergeReader& reader,
                         const std::vector<algorithms::FrameObservations>& frames,
-                        const algorithms::MergeOptions& options, bool consolidate);
+                        const algorithms::MergeOptions& options, bool consolidate,
+                        AbsenceLedger* ledger = nullptr);
 
 struct SourceRemoval {
   storage::MapChanges changes;

@@ -1,5 +1,8 @@
 #include "server/app/shared_map.h"
 
+#include <algorithm>
+#include <chrono>
+#include <cmath>
 #include <utility>
 
 #include "server/app/limits.h"
@@ -45,6 +48,9 @@ FrameOutcome Relocalized(MapIndexCache& index_cache, const std::string& map_name
   outcome.merged = true;
   outcome.relocalized = true;
   outcome.map_from_sensor = result.map_from_sensor;
+  const Eigen::Matrix<double, 6, 6>& covariance = result.covariance;  // x y z roll pitch yaw
+  outcome.pose_sigma.xy = std::sqrt(std::max(0.0, (covariance(0, 0) + covariance(1, 1)) / 2));
+  outcome.pose_sigma.yaw = std::sqrt(std::max(0.0, result.covariance(5, 5)));
   return outcome;
 }
 
@@ -70,9 +76,24 @@ std::optional<std::string> MergeObserved(
     answer.map = info;
     return encode(answer);
   };
+  std::optional<AbsenceLedger> ledger;
+  const auto now = std::chrono::system_clock::now().time_since_epoch();
+  std::vector<PoseSigma> sigmas;
+  for (const FrameOutcome* frame : merged) sigmas.push_back(frame->pose_sigma);
   std::optional<std::string> replayed = WriteExactlyOnce(store, call.write, encode_answer, [&] {
     outcome.map = store.Merge(call.map_name, note, [&](storage::MergeReader& reader) {
-      merge = MergeFrames(reader, frames, options.merge, options.consolidate);
+      if (options.absence) {
+        AbsenceSettings settings = *options.absence;
+        if (call.sensor_range > 0) settings.absence.range = call.sensor_range;
+        if (call.detection_probability > 0) {
+          settings.absence.detection_probability = call.detection_probability;
+        }
+        ledger.emplace(call.source,
+                       std::chrono::duration_cast<std::chrono::milliseconds>(now).count(),
+                       std::move(settings), sigmas);
+      }
+      merge = MergeFrames(reader, frames, options.merge, options.consolidate,
+                          ledger ? &*ledger : nullptr);
       return merge.changes;
     });
   });
@@ -108,13 +129,14 @@ Written<ObserveOutcome> ApplyObserve(
       return written;
     }
     FrameOutcome placed;
-    if (frame.observations.trees.empty()) {
-      placed = Skipped("the frame has no trees");
-    } else if (!frame.has_pose) {
-      placed = Relocalized(index_cache, call.map_name, frame, options.relocalizer);
+    if (!frame.has_pose) {
+      placed = frame.observations.trees.empty()
+                   ? Skipped("the frame has neither trees nor a pose")
+                   : Relocalized(index_cache, call.map_name, frame, options.relocalizer);
     } else {
       placed.merged = true;
       placed.map_from_sensor = frame.observations.map_from_sensor;
+      placed.pose_sigma = frame.pose_sigma;
     }
     placed.frame_id = frame.observations.frame_id;
     if (placed.merged) {

@@ -27,6 +27,9 @@ struct SharedMapOptions {
   // of observations, and concurrent drones give the map a sequential upload gives. False keeps
   // the incremental, order-dependent merge.
   bool consolidate = true;
+  // The evidence of absence (server/app/absence_ledger.h): which trees each frame should have
+  // seen, and the removal of trees that are gone. Unset: detections are merged only.
+  std::optional<AbsenceSettings> absence = AbsenceSettings{};
 };
 
 // One frame of an Observe call.
@@ -34,6 +37,7 @@ struct ObserveFrame {
   algorithms::FrameObservations observations;  // its map_from_sensor is the pose, when it has one
   bool has_pose = false;                       // false: relocalized in the map first
   std::optional<Eigen::Vector3d> gravity;      // sensor frame, unit: for that relocalization
+  PoseSigma pose_sigma;  // of a given pose (0: exact); a relocalized one has its own
 };
 
 struct ObserveCall {
@@ -43,6 +47,10 @@ struct ObserveCall {
   // Set: refuse the call (ServiceError kAborted) unless the map is at this version.
   std::optional<int64_t> base_version;
   std::vector<ObserveFrame> frames;
+  // The sensor as the caller states it, for the evidence of absence: horizontal range (m) and
+  // detection probability near the sensor; 0: learned from the frames.
+  double sensor_range = 0;
+  double detection_probability = 0;
 };
 
 // What became of one frame.
@@ -52,6 +60,7 @@ struct FrameOutcome {
   bool relocalized = false;  // its pose came from relocalization
   std::string detail;
   Eigen::Isometry3d map_from_sensor = Eigen::Isometry3d::Identity();  // of a merged frame
+  PoseSigma pose_sigma;                                               // of a merged frame
   FrameMergeCounts counts;                                            // of a merged frame
 };
 
@@ -61,9 +70,10 @@ struct ObserveOutcome {
   bool cancelled = false;            // the caller gave up before the merge: nothing was written
 };
 
-// Observe: merges `call.frames` into the map. `encode(outcome)` gives the bytes of the answer
+// Observe: merges `call.frames` into the map and weighs their evidence of absence (frames with a
+// pose and no trees give evidence only). `encode(outcome)` gives the bytes of the answer
 // stored with the write for the request id (`outcome.map` then is the map the write leaves);
-// `cancelled` is asked before each frame. A frame that cannot be placed (no trees, no pose and no
+// `cancelled` is asked before each frame. A frame that cannot be placed (no pose and no
 // relocalization) is skipped, not an error. Throws ValidationError (request id), storage errors
 // (unknown map, ...) and ServiceError kAborted for a stale base version.
 Written<ObserveOutcome> ApplyObserve(

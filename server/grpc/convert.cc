@@ -49,6 +49,7 @@ v1::Tree ToProto(const storage::TreeRecord& tree) {
   out.set_observations(tree.observations);
   if (tree.position_sigma) out.set_position_sigma_m(*tree.position_sigma);
   if (tree.dbh_sigma) out.set_dbh_sigma_m(*tree.dbh_sigma);
+  if (tree.last_seen_unix_ms) out.set_last_seen_unix_ms(*tree.last_seen_unix_ms);
   return out;
 }
 
@@ -301,7 +302,10 @@ ObserveCall FromProto(const v1::ObserveRequest& request) {
     frame.has_pose = in.has_map_from_sensor();
     if (frame.has_pose) frame.observations.map_from_sensor = FromProto(in.map_from_sensor());
     if (in.has_gravity()) frame.gravity = Direction(FromProto(in.gravity()));
+    frame.pose_sigma = {in.position_sigma(), in.yaw_sigma()};
   }
+  call.sensor_range = request.sensor_range();
+  call.detection_probability = request.detection_probability();
   return call;
 }
 
@@ -322,6 +326,8 @@ v1::ObserveResponse ToProto(const ObserveOutcome& outcome) {
     result.set_trees_added(frame.counts.added);
     result.set_trees_promoted(frame.counts.promoted);
     result.set_trees_ignored(frame.counts.ignored);
+    result.set_trees_missed(frame.counts.missed);
+    result.set_trees_removed(frame.counts.removed);
   }
   out.set_map_version(outcome.map.version);
   *out.mutable_map() = ToProto(outcome.map);

@@ -158,6 +158,16 @@ void Validate(const v1::ObserveRequest& request, const ObserveLimits& limits) {
     throw ValidationError("conflict_policy",
                           " " + std::to_string(request.conflict_policy()) + " is unknown");
   }
+  if (!(request.sensor_range() >= 0 && request.sensor_range() <= kMaxSensorRange)) {
+    throw ValidationError("sensor_range", " is " + std::to_string(request.sensor_range()) +
+                                              "; it must be in [0, " +
+                                              std::to_string(int(kMaxSensorRange)) + "] m");
+  }
+  if (!(request.detection_probability() >= 0 && request.detection_probability() < 1)) {
+    throw ValidationError("detection_probability",
+                          " is " + std::to_string(request.detection_probability()) +
+                              "; it must be in [0, 1) (0: learned)");
+  }
   const int frames = request.frames_size();
   if (frames == 0) throw ValidationError("frames", ": an observation needs at least one frame");
   if (frames > limits.max_frames) {
@@ -193,6 +203,14 @@ void Validate(const v1::ObserveRequest& request, const ObserveLimits& limits) {
       CheckTreesInMapFrame(frame, path);
     }
     if (frame.has_gravity()) CheckDirection(frame.gravity(), path + ".gravity");
+    for (const auto& [field, value, max] :
+         {std::tuple{".position_sigma", frame.position_sigma(), kMaxSensorRange},
+          std::tuple{".yaw_sigma", frame.yaw_sigma(), 3.15}}) {
+      if (!(value >= 0 && value <= max)) {
+        throw ValidationError(path + field, " is " + std::to_string(value) +
+                                                "; it must be in [0, " + std::to_string(max) + "]");
+      }
+    }
   }
 }
 

@@ -35,6 +35,7 @@ inline constexpr double kUnitQuaternionTolerance = 1e-3;  // | |q| - 1 | allowed
 inline constexpr double kMaxHorizontalCoordinate = 1e7;   // m, |x| and |y|
 inline constexpr double kMaxVerticalCoordinate = 1e5;     // m, |z|
 inline constexpr double kMaxDbh = 100;                    // m; no stem is thicker
+inline constexpr double kMaxSensorRange = 1000;           // m, a stated range or pose sigma
 inline constexpr size_t kMaxDescriptionLength = 4096;     // bytes
 inline constexpr size_t kMaxCrsLength = 16384;            // bytes
 inline constexpr size_t kMaxAttributes = 64;              // per tree

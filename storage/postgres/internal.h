@@ -51,6 +51,9 @@ class ColumnArrays {
  public:
   explicit ColumnArrays(size_t columns) : columns_(columns) {}
   void Int64(int64_t v) { columns_[next_++].Int64(v); }
+  void OptionalInt64(const std::optional<int64_t>& v) {
+    v ? columns_[next_++].Int64(*v) : columns_[next_++].Null();
+  }
   void Double(double v) { columns_[next_++].Double(v); }
   void OptionalDouble(const std::optional<double>& v) { columns_[next_++].OptionalDouble(v); }
   void Text(std::string_view v) { columns_[next_++].Text(v); }
@@ -112,6 +115,9 @@ class Session final : public StoreSession {
   void InsertBoundary(int64_t map_id, int64_t version, const std::string& encoded) override;
   std::string ColumnsAt(int64_t map_id, int64_t version) override;
   void InsertColumns(int64_t map_id, int64_t version, const std::string& encoded) override;
+  void InsertRemovals(int64_t map_id, int64_t version,
+                      const std::vector<TreeRemoval>& removals) override;
+  std::vector<TreeRemoval> RemovalsAfter(int64_t map_id, int64_t after_version) override;
 
   std::vector<TreeRecord> CurrentTrees(const MapRow& map) override;
   std::vector<TreeRecord> TreesAtVersion(const MapRow& map, int64_t version) override;

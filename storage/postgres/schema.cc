@@ -145,10 +145,24 @@ CREATE TABLE map_columns (
 );
 )sql";
 
+// Step 7: the evidence of absence, as the SQLite store's schema version 13.
+constexpr const char* kStep7 = R"sql(
+ALTER TABLE trees ADD COLUMN last_seen_unix_ms BIGINT;
+ALTER TABLE trees ADD COLUMN evidence TEXT;
+CREATE TABLE tree_removals (
+  map_id BIGINT NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
+  version BIGINT NOT NULL,  -- the version that removed the tree
+  tree_id BIGINT NOT NULL,
+  evidence TEXT NOT NULL,
+  PRIMARY KEY (map_id, version, tree_id)
+);
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4, kStep5, kStep6};
+  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4,
+                                                 kStep5, kStep6, kStep7};
   return steps;
 }
 

@@ -163,7 +163,8 @@ PrunedRows Session::PruneBefore(int64_t map_id, int64_t first_kept) {
        {"DELETE FROM map_boundaries WHERE map_id = $1 AND version < (SELECT MAX(version) FROM "
         "map_boundaries WHERE map_id = $1 AND version <= $2)",
         "DELETE FROM map_columns WHERE map_id = $1 AND version < (SELECT MAX(version) FROM "
-        "map_columns WHERE map_id = $1 AND version <= $2)"}) {
+        "map_columns WHERE map_id = $1 AND version <= $2)",
+        "DELETE FROM tree_removals WHERE map_id = $1 AND version < $2"}) {
     conn_.Exec(sql, params);
   }
   return pruned;
@@ -201,6 +202,34 @@ void Session::InsertColumns(int64_t map_id, int64_t version, const std::string& 
       "INSERT INTO map_columns (map_id, version, names) VALUES ($1, $2, $3) "
       "ON CONFLICT (map_id, version) DO UPDATE SET names = EXCLUDED.names",
       Params().Int64(map_id).Int64(version).Text(encoded));
+}
+
+// ---- Removal log ----
+
+void Session::InsertRemovals(int64_t map_id, int64_t version,
+                             const std::vector<TreeRemoval>& removals) {
+  if (removals.empty()) return;
+  ArrayLiteral ids, evidence;
+  for (const TreeRemoval& removal : removals) {
+    ids.Int64(removal.tree_id);
+    evidence.Text(removal.evidence);
+  }
+  conn_.Exec(
+      "INSERT INTO tree_removals (map_id, version, tree_id, evidence) SELECT $1, $2, u.* FROM "
+      "unnest($3::bigint[], $4::text[]) AS u",
+      Params().Int64(map_id).Int64(version).Text(ids.Finish()).Text(evidence.Finish()));
+}
+
+std::vector<TreeRemoval> Session::RemovalsAfter(int64_t map_id, int64_t after_version) {
+  const Result select = conn_.Exec(
+      "SELECT version, tree_id, evidence FROM tree_removals WHERE map_id = $1 AND version > $2 "
+      "ORDER BY version, tree_id",
+      Params().Int64(map_id).Int64(after_version));
+  std::vector<TreeRemoval> removals;
+  for (int r = 0; r < select.rows(); ++r) {
+    removals.push_back({select.Int64(r, 1), select.Text(r, 2), select.Int64(r, 0)});
+  }
+  return removals;
 }
 
 // ---- Request log ----

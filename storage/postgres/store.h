@@ -35,7 +35,7 @@ struct PostgresMapStoreOptions {
 // under the map's advisory lock (storage/postgres/upload.cc).
 class PostgresMapStore final : public VersionedMapStore {
  public:
-  static constexpr int64_t kSchemaVersion = 6;
+  static constexpr int64_t kSchemaVersion = 7;
   // Trees or observation rows per INSERT ... SELECT FROM unnest(...) statement.
   static constexpr size_t kRowsPerInsert = 10000;
 

@@ -162,10 +162,12 @@ void Session::InsertTrees(const MapRow& map, const std::vector<TreeRecord>& tree
   InsertRows(
       conn_,
       "INSERT INTO trees (map_id, valid_from, valid_to, tree_id, x, y, z, dbh, attributes, status, "
-      "observations, position_sigma, dbh_sigma) SELECT $1, $2, " FORESTMAP_CURRENT
+      "observations, position_sigma, dbh_sigma, last_seen_unix_ms, evidence) SELECT $1, "
+      "$2, " FORESTMAP_CURRENT
       ", u.* FROM unnest($3::bigint[], $4::float8[], $5::float8[], $6::float8[], $7::float8[], "
-      "$8::text[], $9::smallint[], $10::bigint[], $11::float8[], $12::float8[]) AS u",
-      map.id, valid_from, trees.size(), 10, [&](ColumnArrays& columns, size_t i) {
+      "$8::text[], $9::smallint[], $10::bigint[], $11::float8[], $12::float8[], $13::bigint[], "
+      "$14::text[]) AS u",
+      map.id, valid_from, trees.size(), 12, [&](ColumnArrays& columns, size_t i) {
         internal::WriteTreeValues(columns, ids[i], trees[i],
                                   internal::StoredAttributes(map.info.name, trees, i));
       });

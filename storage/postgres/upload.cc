@@ -28,7 +28,8 @@ constexpr const char* kCreateStaging =
     "CREATE TEMP TABLE upload_trees (seq BIGINT NOT NULL, tree_id BIGINT NOT NULL UNIQUE, "
     "x DOUBLE PRECISION NOT NULL, y DOUBLE PRECISION NOT NULL, z DOUBLE PRECISION, "
     "dbh DOUBLE PRECISION, attributes TEXT, status SMALLINT NOT NULL, observations BIGINT NOT "
-    "NULL, position_sigma DOUBLE PRECISION, dbh_sigma DOUBLE PRECISION)";
+    "NULL, position_sigma DOUBLE PRECISION, dbh_sigma DOUBLE PRECISION, last_seen_unix_ms "
+    "BIGINT, evidence TEXT)";
 
 class Upload final : public StagedUpload {
  public:
@@ -80,7 +81,7 @@ void Upload::Insert(const std::vector<TreeRecord>& trees, const std::vector<int6
   const size_t step = PostgresMapStore::kRowsPerInsert;
   for (size_t begin = 0; begin < trees.size(); begin += step) {
     const size_t end = std::min(trees.size(), begin + step);
-    ColumnArrays columns(11);
+    ColumnArrays columns(13);
     for (size_t i = begin; i < end; ++i) {
       const int64_t index = chunks().staged() + static_cast<int64_t>(i);
       std::optional<std::string> attributes;
@@ -99,7 +100,7 @@ void Upload::Insert(const std::vector<TreeRecord>& trees, const std::vector<int6
     conn_->Exec(
         "INSERT INTO upload_trees SELECT * FROM unnest($1::bigint[], $2::bigint[], "
         "$3::float8[], $4::float8[], $5::float8[], $6::float8[], $7::text[], $8::smallint[], "
-        "$9::bigint[], $10::float8[], $11::float8[])",
+        "$9::bigint[], $10::float8[], $11::float8[], $12::bigint[], $13::text[])",
         params);
   }
 }
@@ -157,9 +158,10 @@ void Upload::MakeCurrent(StoreSession& /*session*/, const MapRow& map, int64_t v
   if (plan().mode == WriteMode::kAppend) CheckTakenIds(map);
   conn_->Exec(
       "INSERT INTO trees (map_id, valid_from, valid_to, tree_id, x, y, z, dbh, attributes, "
-      "status, observations, position_sigma, dbh_sigma) SELECT $1, $2, " FORESTMAP_CURRENT
-      ", tree_id, x, y, z, dbh, attributes, status, observations, position_sigma, dbh_sigma "
-      "FROM upload_trees ORDER BY seq",
+      "status, observations, position_sigma, dbh_sigma, last_seen_unix_ms, evidence) SELECT $1, "
+      "$2, " FORESTMAP_CURRENT
+      ", tree_id, x, y, z, dbh, attributes, status, observations, position_sigma, dbh_sigma, "
+      "last_seen_unix_ms, evidence FROM upload_trees ORDER BY seq",
       Params().Int64(map.id).Int64(version));
 }
 

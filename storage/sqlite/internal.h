@@ -78,6 +78,9 @@ class Binder {
  public:
   Binder(Statement& statement, int first) : statement_(statement), next_(first) {}
   void Int64(int64_t v) { statement_.BindInt64(next_++, v); }
+  void OptionalInt64(const std::optional<int64_t>& v) {
+    v ? statement_.BindInt64(next_++, *v) : statement_.BindNull(next_++);
+  }
   void Double(double v) { statement_.BindDouble(next_++, v); }
   void OptionalDouble(const std::optional<double>& v) { statement_.BindOptionalDouble(next_++, v); }
   void Text(std::string_view v) { statement_.BindText(next_++, v); }
@@ -179,6 +182,9 @@ class Session final : public StoreSession {
   void InsertBoundary(int64_t map_id, int64_t version, const std::string& encoded) override;
   std::string ColumnsAt(int64_t map_id, int64_t version) override;
   void InsertColumns(int64_t map_id, int64_t version, const std::string& encoded) override;
+  void InsertRemovals(int64_t map_id, int64_t version,
+                      const std::vector<TreeRemoval>& removals) override;
+  std::vector<TreeRemoval> RemovalsAfter(int64_t map_id, int64_t after_version) override;
 
   std::vector<TreeRecord> CurrentTrees(const MapRow& map) override;
   std::vector<TreeRecord> TreesAtVersion(const MapRow& map, int64_t version) override;

@@ -263,11 +263,27 @@ CREATE TABLE map_columns (
 PRAGMA user_version = 12;
 )sql";
 
+// Version 13: the evidence of absence of a tree (storage::TreeRecord::last_seen_unix_ms and
+// evidence), and the trees removed by it, with their evidence (storage::TreeRemoval).
+constexpr const char* kStep13 = R"sql(
+ALTER TABLE trees ADD COLUMN last_seen_unix_ms INTEGER;
+ALTER TABLE trees ADD COLUMN evidence TEXT;
+CREATE TABLE tree_removals (
+  map_id INTEGER NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
+  version INTEGER NOT NULL,  -- the version that removed the tree
+  tree_id INTEGER NOT NULL,
+  evidence TEXT NOT NULL,
+  PRIMARY KEY (map_id, version, tree_id)
+) WITHOUT ROWID;
+PRAGMA user_version = 13;
+)sql";
+
 }  // namespace
 
 const std::vector<const char*>& SchemaSteps() {
-  static const std::vector<const char*> steps = {kStep1, kStep2, kStep3, kStep4,  kStep5,  kStep6,
-                                                 kStep7, kStep8, kStep9, kStep10, kStep11, kStep12};
+  static const std::vector<const char*> steps = {kStep1,  kStep2,  kStep3, kStep4, kStep5,
+                                                 kStep6,  kStep7,  kStep8, kStep9, kStep10,
+                                                 kStep11, kStep12, kStep13};
   return steps;
 }
 

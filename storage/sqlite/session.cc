@@ -69,7 +69,7 @@ void Session::DeleteMap(const MapRow& map) {
         "DELETE FROM trees WHERE map_id = ?1", "DELETE FROM observations WHERE map_id = ?1",
         "DELETE FROM map_versions WHERE map_id = ?1",
         "DELETE FROM map_boundaries WHERE map_id = ?1", "DELETE FROM map_columns WHERE map_id = ?1",
-        "DELETE FROM maps WHERE id = ?1"}) {
+        "DELETE FROM tree_removals WHERE map_id = ?1", "DELETE FROM maps WHERE id = ?1"}) {
     Statement(db_, sql, map.id).Run();
   }
 }
@@ -144,7 +144,8 @@ PrunedRows Session::PruneBefore(int64_t map_id, int64_t first_kept) {
        {"DELETE FROM map_boundaries WHERE map_id = ?1 AND version < (SELECT MAX(version) FROM "
         "map_boundaries WHERE map_id = ?1 AND version <= ?2)",
         "DELETE FROM map_columns WHERE map_id = ?1 AND version < (SELECT MAX(version) FROM "
-        "map_columns WHERE map_id = ?1 AND version <= ?2)"}) {
+        "map_columns WHERE map_id = ?1 AND version <= ?2)",
+        "DELETE FROM tree_removals WHERE map_id = ?1 AND version < ?2"}) {
     Statement(db_, sql, map_id, first_kept).Run();
   }
   // Spatial blocks whose rows are all gone.
@@ -192,6 +193,34 @@ void Session::InsertColumns(int64_t map_id, int64_t version, const std::string& 
       map_id, version);
   insert.BindText(3, encoded);
   insert.Run();
+}
+
+// ---- Removal log ----
+
+void Session::InsertRemovals(int64_t map_id, int64_t version,
+                             const std::vector<TreeRemoval>& removals) {
+  if (removals.empty()) return;
+  Statement insert(db_,
+                   "INSERT INTO tree_removals (map_id, version, tree_id, evidence) VALUES "
+                   "(?1, ?2, ?3, ?4)",
+                   map_id, version);
+  for (const TreeRemoval& removal : removals) {
+    insert.BindInt64(3, removal.tree_id);
+    insert.BindText(4, removal.evidence);
+    insert.Run();
+  }
+}
+
+std::vector<TreeRemoval> Session::RemovalsAfter(int64_t map_id, int64_t after_version) {
+  Statement select(db_,
+                   "SELECT version, tree_id, evidence FROM tree_removals WHERE map_id = ?1 AND "
+                   "version > ?2 ORDER BY version, tree_id",
+                   map_id, after_version);
+  std::vector<TreeRemoval> removals;
+  while (select.Step()) {
+    removals.push_back({select.ColumnInt64(1), select.ColumnText(2), select.ColumnInt64(0)});
+  }
+  return removals;
 }
 
 // ---- Request log ----

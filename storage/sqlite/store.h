@@ -57,7 +57,7 @@ struct SqliteMapStoreOptions {
 class SqliteMapStore final : public VersionedMapStore {
  public:
   // Schema version this code writes; a database with a newer PRAGMA user_version is refused.
-  static constexpr int64_t kSchemaVersion = 12;
+  static constexpr int64_t kSchemaVersion = 13;
   static constexpr size_t kTreesPerBlock = 32;
 
   // Opens (creating if missing) the database at `path` and migrates its schema to

@@ -92,8 +92,9 @@ std::vector<size_t> InsertTrees(Database& db, const MapRow& map,
   const bool pending = pending_base >= 0 && valid_to < 0;
   Statement insert_tree(db,
                         "INSERT INTO trees (map_id, valid_from, valid_to, tree_id, x, y, z, dbh, "
-                        "attributes, status, observations, position_sigma, dbh_sigma) VALUES "
-                        "(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)");
+                        "attributes, status, observations, position_sigma, dbh_sigma, "
+                        "last_seen_unix_ms, evidence) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, "
+                        "?9, ?10, ?11, ?12, ?13, ?14, ?15)");
   Statement insert_block(db,
                          "INSERT INTO tree_blocks (min_map, max_map, min_x, max_x, min_y, max_y, "
                          "map_id, first_rowid, last_rowid) VALUES (?1, ?1, ?2, ?3, ?4, ?5, ?1, "

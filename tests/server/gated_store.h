@@ -97,6 +97,10 @@ class GatedStore final : public storage::MapStore {
   storage::MapSnapshot ReadMapVersion(const std::string& name, int64_t version) override {
     return inner_.ReadMapVersion(name, version);
   }
+  std::vector<storage::TreeRemoval> ListRemovals(const std::string& name,
+                                                 int64_t after_version) override {
+    return inner_.ListRemovals(name, after_version);
+  }
   std::vector<storage::VersionRecord> ListVersions(const std::string& name,
                                                    int64_t limit) override {
     return inner_.ListVersions(name, limit);

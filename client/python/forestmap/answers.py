@@ -35,6 +35,7 @@ class Tree:
     attributes: Dict[str, Optional[str]] = field(default_factory=dict)
     confirmed: bool = True    # False: a candidate of a shared map
     observations: int = 0     # observations merged into the tree
+    last_seen_unix_ms: Optional[int] = None  # when a drone last saw it (None: not since the survey)
 
 
 def tree_message(tree: Tree) -> maps_pb2.Tree:
@@ -56,7 +57,9 @@ def tree_of(t: maps_pb2.Tree) -> Tree:
                 dbh=t.dbh if t.HasField("dbh") else None, id=t.id,
                 attributes={**dict(t.attributes), **{k: None for k in t.null_attributes}},
                 confirmed=t.status != maps_pb2.TREE_STATUS_CANDIDATE,
-                observations=t.observations)
+                observations=t.observations,
+                last_seen_unix_ms=(t.last_seen_unix_ms if t.HasField("last_seen_unix_ms")
+                                   else None))
 
 
 @dataclass
@@ -201,6 +204,8 @@ class ObserveResult:
     merged: int   # frames merged
     skipped: int  # frames not merged (see details)
     details: List[str]
+    missed: int = 0   # map trees the frames should have seen and did not
+    removed: int = 0  # trees their evidence showed gone (removed from the map)
 
 
 def observe_result(response: observations_pb2.ObserveResponse) -> ObserveResult:
@@ -208,7 +213,9 @@ def observe_result(response: observations_pb2.ObserveResponse) -> ObserveResult:
                  for f in response.frames)
     details = [f"frame {f.frame_id}: {f.detail}" for f in response.frames if f.detail]
     return ObserveResult(map_version=response.map_version, merged=merged,
-                         skipped=len(response.frames) - merged, details=details)
+                         skipped=len(response.frames) - merged, details=details,
+                         missed=sum(f.trees_missed for f in response.frames),
+                         removed=sum(f.trees_removed for f in response.frames))
 
 
 def tree_chunks(trees: Iterable[Tree], chunk: int) -> Iterator[List[maps_pb2.Tree]]:

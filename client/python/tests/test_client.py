@@ -5,6 +5,8 @@ import json
 import subprocess
 
 import grpc
+import math
+
 import numpy as np
 import pytest
 
@@ -252,6 +254,25 @@ def test_observe_builds_a_shared_map(server, data_dir):
     trees = client.export("observed")
     assert len(trees) > 20 and result.map_version == 2
     assert all(t.observations >= 1 for t in trees)
+
+
+def test_frames_that_see_nothing_remove_the_trees_of_a_clear_cut(server):
+    client = Client(server)
+    trees = np.array([(x, y, 0.3) for x in range(0, 40, 4) for y in range(0, 40, 4)], float)
+    client.create_map("clear-cut", trees, columns=("x", "y", "dbh"))
+    pose = np.eye(4)
+    pose[:3, 3] = (18.0, 18.0, 1.5)
+    frames = [(k, np.empty((0, 2)), pose) for k in range(3)]
+    results = [client.observe("clear-cut", frames, source=f"drone-{d}", columns=("x", "y"),
+                              sensor_range=10.0, detection_probability=0.9, pose_sigma=0.05)
+               for d in range(4)]
+    assert results[0].missed > 0 and results[0].removed == 0
+    assert sum(r.removed for r in results) > 0
+    left = client.export("clear-cut")
+    assert len(left) == len(trees) - sum(r.removed for r in results)
+    # The trees near the sensor are gone, those far from it stand, unseen since the survey.
+    assert all(math.hypot(t.x - 18, t.y - 18) > 2 for t in left)
+    assert all(t.last_seen_unix_ms is None for t in left)
 
 
 def test_replicas_fail_over(server):

@@ -1,8 +1,8 @@
 // The writes of a shared map without gRPC (server/app/shared_map.h), on an in-memory store and a
 // surveyed plot whose tree positions and sensor poses are the truth: frames with a pose merge as
-// one new version, frames without one are relocalized or skipped with the reason, a stale base is
-// ABORTED before anything is done, a request id answers its repeat from the store, and a
-// source's observations can be taken out again.
+// one new version (one without trees too: it saw none), frames without one are relocalized or
+// skipped with the reason, a stale base is ABORTED before anything is done, a request id answers
+// its repeat from the store, and a source's observations can be taken out again.
 
 #include "server/app/shared_map.h"
 
@@ -99,8 +99,9 @@ TEST_F(SharedMapTest, FramesWithAPoseMergeAsOneNewVersion) {
   EXPECT_FALSE(outcome.frames[0].relocalized);
   EXPECT_EQ(outcome.frames[0].counts.associated, 20);  // every detection met its survey tree
   EXPECT_EQ(outcome.frames[0].counts.added, 0);
-  EXPECT_FALSE(outcome.frames[1].merged);
-  EXPECT_EQ(outcome.frames[1].detail, "the frame has no trees");
+  // A pose without trees saw nothing: evidence of absence only.
+  EXPECT_TRUE(outcome.frames[1].merged);
+  EXPECT_EQ(outcome.frames[1].counts.associated + outcome.frames[1].counts.added, 0);
   EXPECT_EQ(outcome.frames[2].counts.associated, 25);
   EXPECT_EQ(outcome.map.version, 3);
   EXPECT_EQ(store_.GetMap("plot").version, 3);
@@ -143,7 +144,7 @@ TEST_F(SharedMapTest, AStaleBaseIsAbortedBeforeAnything) {
 }
 
 TEST_F(SharedMapTest, ARepeatedRequestIdIsAnsweredFromTheStore) {
-  ObserveCall call = Call({Frame(1, 20, true), Frame(2, 0, true)});
+  ObserveCall call = Call({Frame(1, 20, true), Frame(2, 2, false)});
   call.write.request_id = "observe-1";
   const Written<ObserveOutcome> first = Run(call);
   ASSERT_FALSE(first.replayed.has_value());
