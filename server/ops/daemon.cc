@@ -6,6 +6,7 @@
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
@@ -34,6 +35,7 @@ struct TokenArgs {
   std::string note;
   std::string expires_in;  // "" (never), or a duration: 90d, 12h, 30m, 3600s
   int64_t id = 0;
+  bool json = false;  // token list: one JSON object per line instead of the table
 };
 
 // Milliseconds in a duration "<count><unit>" (unit s, m, h or d; 1 s to 100 years).
@@ -87,8 +89,29 @@ int CreateToken(const TokenArgs& args, std::ostream& out) {
   return 0;
 }
 
+// A token as one JSON object (as `forestmap map list --json` prints maps): times in Unix ms, null
+// for never.
+nlohmann::ordered_json TokenJson(const storage::TokenRecord& token) {
+  const auto time_or_null = [](int64_t unix_ms) {
+    return unix_ms != 0 ? nlohmann::ordered_json(unix_ms) : nlohmann::ordered_json(nullptr);
+  };
+  nlohmann::ordered_json json;
+  json["id"] = token.id;
+  json["role"] = storage::RoleName(token.role);
+  json["maps"] = token.map_pattern;
+  json["created_unix_ms"] = token.created_unix_ms;
+  json["revoked_unix_ms"] = time_or_null(token.revoked_unix_ms);
+  json["expires_unix_ms"] = time_or_null(token.expires_unix_ms);
+  json["note"] = token.note;
+  return json;
+}
+
 int ListTokens(const TokenArgs& args, std::ostream& out) {
   storage::TokenStore tokens(args.db);
+  if (args.json) {
+    for (const storage::TokenRecord& token : tokens.List()) out << TokenJson(token).dump() << "\n";
+    return 0;
+  }
   out << "id\trole\tmaps\tcreated\trevoked\texpires\tnote\n";
   for (const storage::TokenRecord& token : tokens.List()) {
     out << token.id << "\t" << storage::RoleName(token.role) << "\t" << token.map_pattern << "\t"
@@ -130,6 +153,9 @@ void AddTokenCommands(CLI::App& app, const std::string& server_db, std::function
   create->add_option("--expires-in", args->expires_in,
                      "the token stops working after this long: 90d, 12h, 30m, 3600s "
                      "(default: never)");
+  list->add_flag("--json", args->json,
+                 "one JSON object per token and line (id, role, maps, created_unix_ms, "
+                 "revoked_unix_ms, expires_unix_ms, note) instead of the table");
   revoke->add_option("id", args->id, "token id (see token list)")->required();
   // The server's --db is read when the command runs: after parsing, with every source applied.
   const auto command = [&run, &out, &server_db,

@@ -6,8 +6,10 @@
       build (forestmapd and forestmap, no tests, no lab): every file a find_package,
       pkg_check_modules, find_program or find_path found (the configure's CMakeCache.txt) belongs
       to a package that the list installs (itself or through its Depends), and every -dev package
-      of the list owns one of those files. The runtime stage installs only the project's .deb
-      files, so that its libraries are their Depends (dpkg-shlibdeps), one list.
+      of the list owns one of those files; deploy/install-deps.sh's PRODUCT_PACKAGES (what
+      `install-deps.sh --product` installs for deploy/package.sh) is the same list. The runtime
+      stage installs only the project's .deb files, so that its libraries are their Depends
+      (dpkg-shlibdeps), one list.
 
   image_test.py rootfs BUILD_DIR DATA_DIR
       The runtime stage for real: a Debian 12 root filesystem (mmdebstrap minbase, as the
@@ -142,6 +144,16 @@ def found_dependencies(source):
             and not path.startswith(source)}
 
 
+def product_packages(source):
+    """PRODUCT_PACKAGES of deploy/install-deps.sh: the words of its bash array, comments dropped."""
+    text = pathlib.Path(source, "deploy", "install-deps.sh").read_text()
+    match = re.search(r"^PRODUCT_PACKAGES=\((.*?)^\)", text, re.MULTILINE | re.DOTALL)
+    if not match:
+        fail("deploy/install-deps.sh has no PRODUCT_PACKAGES=( ... ) list")
+    return [word for line in match.group(1).splitlines()
+            for word in line.partition("#")[0].split()]
+
+
 def check_lists(source):
     build_stage, *_, runtime_stage = stages(os.path.join(source, "deploy", "Dockerfile"))
     build_list = apt_installs(build_stage)
@@ -149,6 +161,11 @@ def check_lists(source):
         fail("no apt-get install in the build stage")
     closure = dependency_closure(build_list)
     problems, owning = [], set()
+    product = product_packages(source)
+    if sorted(product) != sorted(build_list):
+        problems.append("deploy/install-deps.sh's PRODUCT_PACKAGES differ from the build stage's "
+                        f"list: only in install-deps.sh {sorted(set(product) - set(build_list))}, "
+                        f"only in the Dockerfile {sorted(set(build_list) - set(product))}")
     found = found_dependencies(source)
     owned_by = owners(found.values())
     for name, path in sorted(found.items()):

@@ -202,6 +202,28 @@ TEST_F(DaemonConfigTest, StartupFailuresAreOneJsonLineNamingTheFlag) {
   }
 }
 
+// A port another forestmapd holds, for the gRPC listener or the metrics port: one JSON line that
+// names the flag, and no line of gRPC's own before it.
+TEST_F(DaemonConfigTest, APortInUseIsOneJsonLineNamingTheFlag) {
+  Serve("--listen 127.0.0.1:0");
+  const std::string taken = daemon_.address();
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"--listen " + taken, "--listen"},
+      {"--listen 127.0.0.1:0 --metrics " + taken, "--metrics"},
+  };
+  for (const auto& [args, flag] : cases) {
+    const Result result = Forestmapd("--db '" + File("second.db") + "' --log-format json " + args);
+    EXPECT_EQ(result.exit_code, 1) << args;
+    const std::vector<std::string> lines = Lines(result.err);
+    ASSERT_EQ(lines.size(), 1u) << args << ":\n" << result.err;
+    const nlohmann::json line = nlohmann::json::parse(lines[0]);
+    EXPECT_EQ(line["level"], "error") << lines[0];
+    EXPECT_EQ(line["flag"], flag) << lines[0];
+    EXPECT_EQ(line["msg"].get<std::string>().rfind(flag + " " + taken + ": ", 0), 0u) << lines[0];
+  }
+  EXPECT_EQ(kill(daemon_.pid(), 0), 0) << "the first server stopped";
+}
+
 TEST_F(DaemonConfigTest, VersionHelpAndThePostgresBackupAnswer) {
   Write("forestmapd.conf", "");
   const Result version = Forestmapd("--version");
@@ -237,6 +259,27 @@ TEST_F(DaemonConfigTest, TokenCommandsUseTheConfiguredDatabase) {
   EXPECT_NE(listed.out.find("bootstrap"), std::string::npos) << listed.out;
   EXPECT_EQ(Lines(listed.out).size(), 2u) << listed.out;  // header + the file's db token only
   EXPECT_EQ(Lines(Forestmapd("token list --db '" + other + "'").out).size(), 2u);
+
+  // The listing for scripts: one JSON object per token and line, a revoked one with its time.
+  ASSERT_EQ(Forestmapd("token create --role read --map 'plot-*' --expires-in 1d").exit_code, 0);
+  ASSERT_EQ(Forestmapd("token revoke 1").exit_code, 0);
+  const Result json = Forestmapd("token list --json");
+  ASSERT_EQ(json.exit_code, 0) << json.err;
+  const std::vector<std::string> tokens = Lines(json.out);
+  ASSERT_EQ(tokens.size(), 2u) << json.out;
+  const nlohmann::json first = nlohmann::json::parse(tokens[0]);
+  EXPECT_EQ(first["id"], 1);
+  EXPECT_EQ(first["role"], "admin");
+  EXPECT_EQ(first["maps"], "*");
+  EXPECT_EQ(first["note"], "bootstrap");
+  EXPECT_GT(first["revoked_unix_ms"].get<int64_t>(), first["created_unix_ms"].get<int64_t>() - 1);
+  EXPECT_TRUE(first["expires_unix_ms"].is_null()) << tokens[0];
+  const nlohmann::json second = nlohmann::json::parse(tokens[1]);
+  EXPECT_EQ(second["role"], "read");
+  EXPECT_EQ(second["maps"], "plot-*");
+  EXPECT_TRUE(second["revoked_unix_ms"].is_null()) << tokens[1];
+  EXPECT_NEAR(second["expires_unix_ms"].get<double>() - second["created_unix_ms"].get<double>(),
+              86'400'000.0, 60'000.0);
 }
 
 TEST_F(DaemonConfigTest, SighupReloadsTlsFilesAndLogLevel) {

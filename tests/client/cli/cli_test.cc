@@ -169,6 +169,15 @@ TEST_F(CliTest, AnAddressWithoutAPortDialsForestmapdsPort) {
   EXPECT_EQ(result.exit_code, 1);
   EXPECT_NE(result.err.find("127.0.0.1:50051"), std::string::npos) << result.err;
   EXPECT_EQ(result.err.find(":443"), std::string::npos) << result.err;
+  // A host name too, and each of several replicas.
+  const Result named = Run("--server localhost map list");
+  EXPECT_EQ(named.exit_code, 1);
+  EXPECT_NE(named.err.find("localhost:50051"), std::string::npos) << named.err;
+  EXPECT_EQ(named.err.find(":443"), std::string::npos) << named.err;
+  const Result replicas = Run("--server localhost,127.0.0.1:1 health --timeout 0.5");
+  EXPECT_EQ(replicas.exit_code, 1);
+  EXPECT_NE((replicas.out + replicas.err).find("localhost:50051"), std::string::npos)
+      << replicas.out << replicas.err;
 }
 
 TEST_F(CliTest, InvalidCommandLinesExitNonZeroWithAMessage) {

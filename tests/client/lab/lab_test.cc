@@ -121,6 +121,11 @@ TEST_F(LabTest, SimulatedScansOfARealStemMapRelocalize) {
   const CliResult bench =
       Lab("bench-reloc --map '" + dir + "/map.csv' --scans '" + dir + "' --within 0.3 --json");
   ASSERT_EQ(bench.exit_code, 0) << bench.err;
+  // The index build says so before it starts and when it is done (seconds on a large map).
+  const size_t building = bench.err.find("bench-reloc: building the index of ");
+  EXPECT_NE(building, std::string::npos) << bench.err;
+  const size_t built = bench.err.find("bench-reloc: index built");
+  EXPECT_TRUE(built != std::string::npos && built > building) << bench.err;
   const auto report = nlohmann::json::parse(bench.out);
   EXPECT_EQ(report["frames"], 40);
   EXPECT_EQ(report["wrong"], 0);

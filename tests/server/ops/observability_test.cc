@@ -9,6 +9,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -243,6 +244,68 @@ TEST_F(ObservabilityTest, PromtoolAcceptsTheMetricsAndCountersMove) {
   EXPECT_EQ(Sample(after, R"(forestmap_rpc_requests_total{rpc="CreateMap",code="OK"})"), 2);
   EXPECT_EQ(Sample(after, R"(forestmap_rpc_requests_total{rpc="Track",code="OK"})"), 1);
   EXPECT_EQ(Sample(after, "forestmap_open_streams"), 0);
+}
+
+// Each answer counted under its own labels: a query of 2 trees is NOT_FOUND for TOO_FEW_TREES, a
+// frame without trees is LOST; the other answers under the status and state they had.
+TEST_F(ObservabilityTest, RelocalizationsByStatusAndReasonTrackFramesByState) {
+  CreateMap("plot-1");
+  Upload("plot-1");
+  const auto lower = [](std::string name, const std::string& prefix) {
+    name = name.substr(prefix.size());
+    std::transform(name.begin(), name.end(), name.begin(), ::tolower);
+    return name;
+  };
+  v1::RelocalizeRequest plot;
+  plot.set_name("plot-1");
+  for (const auto& p : {std::pair{0.0, 0.0}, {7.0, 1.0}, {3.0, 9.0}, {12.0, 4.0}}) {
+    v1::DetectedTree* tree = plot.add_trees();
+    tree->mutable_position()->set_x(p.first);
+    tree->mutable_position()->set_y(p.second);
+  }
+  v1::RelocalizeRequest few = plot;
+  few.mutable_trees()->DeleteSubrange(2, 2);  // 2 trees: nothing to match
+  v1::RelocalizeResponse too_few, answer;
+  ASSERT_TRUE(stub_->Relocalize(Context().get(), few, &too_few).ok());
+  ASSERT_EQ(too_few.reason(), v1::RelocalizeResponse::REASON_TOO_FEW_TREES);
+  ASSERT_TRUE(stub_->Relocalize(Context().get(), plot, &answer).ok());
+
+  auto track_context = Context();
+  auto track = stub_->Track(track_context.get());
+  v1::TrackRequest header;
+  header.mutable_header()->set_name("plot-1");
+  ASSERT_TRUE(track->Write(header));
+  std::vector<std::string> states;
+  for (const bool empty : {true, false}) {
+    v1::TrackRequest frame;
+    frame.mutable_frame();  // an empty frame: nothing seen
+    if (!empty) *frame.mutable_frame()->mutable_trees() = plot.trees();
+    ASSERT_TRUE(track->Write(frame));
+    v1::TrackResponse tracked;
+    ASSERT_TRUE(track->Read(&tracked));
+    states.push_back(lower(v1::TrackResponse::State_Name(tracked.state()), "STATE_"));
+  }
+  EXPECT_EQ(states[0], "lost");
+  ASSERT_TRUE(track->WritesDone());
+  ASSERT_TRUE(track->Finish().ok());
+
+  const std::string text = Scrape();
+  const std::string file = (dir_ / "metrics.txt").string();
+  std::ofstream(file) << text;
+  EXPECT_EQ(std::system(("promtool check metrics < " + file).c_str()), 0) << text;
+  const std::string status = lower(v1::RelocalizeResponse::Status_Name(answer.status()), "STATUS_");
+  EXPECT_EQ(SumOf(text, "forestmap_relocalizations_total{"), 2) << text;
+  EXPECT_EQ(
+      Sample(text, R"(forestmap_relocalizations_total{status="not_found",reason="too_few_trees"})"),
+      status == "not_found" && answer.reason() == too_few.reason() ? 2 : 1)
+      << text;
+  EXPECT_GE(SumOf(text, "forestmap_relocalizations_total{status=\"" + status + "\",reason=\""), 1)
+      << text;
+  EXPECT_EQ(SumOf(text, "forestmap_track_frames_total{"), 2) << text;
+  EXPECT_EQ(Sample(text, "forestmap_track_frames_total{state=\"lost\"}"),
+            states[1] == "lost" ? 2 : 1)
+      << text;
+  EXPECT_GE(Sample(text, "forestmap_track_frames_total{state=\"" + states[1] + "\"}"), 1) << text;
 }
 
 TEST_F(ObservabilityTest, TheMetricsPortAnswersLivenessReadinessAndAnIndex) {
