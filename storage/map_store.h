@@ -192,6 +192,11 @@ class MergeReader {
       std::span<const ObservationCell> cells) = 0;
   // Current observation rows of one source (folded or not), by id of the row.
   virtual std::vector<ObservationRecord> ObservationsOfSource(const std::string& source) = 0;
+  // Current observation rows of one source that are not folded and lie in the cells from `lo` to
+  // `hi` (inclusive, both axes), by id of the row.
+  virtual std::vector<ObservationRecord> ObservationsOfSourceIn(const std::string& source,
+                                                                ObservationCell lo,
+                                                                ObservationCell hi) = 0;
   // Above every tree id the map ever had (in any version): ids for new trees start here.
   virtual int64_t NextFreeTreeId() = 0;
 };

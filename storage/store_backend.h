@@ -152,6 +152,10 @@ class StoreSession {
       int64_t map_id, std::span<const int64_t> ids) = 0;
   virtual std::vector<ObservationRecord> ObservationsOfSource(int64_t map_id,
                                                               const std::string& source) = 0;
+  virtual std::vector<ObservationRecord> ObservationsOfSourceIn(int64_t map_id,
+                                                                const std::string& source,
+                                                                ObservationCell lo,
+                                                                ObservationCell hi) = 0;
   virtual void InsertObservations(int64_t map_id, const std::vector<ObservationRecord>& rows,
                                   int64_t valid_from) = 0;
   // Closes these current rows at `version`; returns the ids of those that were current.

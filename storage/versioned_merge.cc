@@ -91,6 +91,11 @@ class SessionMergeReader final : public MergeReader {
   std::vector<ObservationRecord> ObservationsOfSource(const std::string& source) override {
     return session_.ObservationsOfSource(map_.id, source);
   }
+  std::vector<ObservationRecord> ObservationsOfSourceIn(const std::string& source,
+                                                        ObservationCell lo,
+                                                        ObservationCell hi) override {
+    return session_.ObservationsOfSourceIn(map_.id, source, lo, hi);
+  }
 
   int64_t NextFreeTreeId() override {
     const std::optional<int64_t> max_id = session_.MaxTreeIdEver(map_.id);

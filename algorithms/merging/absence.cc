@@ -1,6 +1,7 @@
 #include "algorithms/merging/absence.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "algorithms/core/check.h"
@@ -17,10 +18,49 @@ struct Silhouette {
   int seen_index = -1;    // for a detection: the map tree in whose gate it lies, else -1
 };
 
+// Between two bearings in [-pi, pi] (std::atan2's).
 double AngleBetween(double a, double b) {
-  const double d = std::remainder(a - b, 2 * M_PI);
-  return std::abs(d);
+  const double d = std::abs(a - b);
+  return d > M_PI ? 2 * M_PI - d : d;
 }
+
+// The occluders (trunks and detections that can hide a tree) by bearing: each listed in every bin
+// of kBins around the sensor that its angular extent [bearing - half_angle, bearing + half_angle]
+// touches, so that those that may overlap a target's extent are found in the bins of the target's.
+class BearingBins {
+ public:
+  static constexpr int kBins = 256;
+  void Add(const Silhouette& s, int index) {
+    ForBins(s, [&](int bin) { bins_[bin].push_back(index); });
+  }
+  // Calls visit(index) for each occluder in the bins of `target` (an index may come again) until
+  // it returns true; returns whether it did.
+  template <typename Visit>
+  bool Any(const Silhouette& target, const Visit& visit) const {
+    bool found = false;
+    ForBins(target, [&](int bin) {
+      for (const int index : bins_[bin]) {
+        if (!found && visit(index)) found = true;
+      }
+    });
+    return found;
+  }
+
+ private:
+  template <typename Each>
+  static void ForBins(const Silhouette& s, const Each& each) {
+    constexpr double kWidth = 2 * M_PI / kBins;
+    const double from = s.bearing - s.half_angle, to = s.bearing + s.half_angle;
+    if (to - from >= 2 * M_PI - kWidth) {
+      for (int bin = 0; bin < kBins; ++bin) each(bin);
+      return;
+    }
+    const long first = std::lround(std::floor(from / kWidth)),
+               last = std::lround(std::floor(to / kWidth));
+    for (long k = first; k <= last; ++k) each(static_cast<int>(((k % kBins) + kBins) % kBins));
+  }
+  std::array<std::vector<int>, kBins> bins_;
+};
 
 Silhouette SilhouetteOf(const Eigen::Vector2d& sensor_xy, const Eigen::Vector2d& xy, double dbh,
                         const AbsenceObservation& observation, const AbsenceOptions& options) {
@@ -155,22 +195,24 @@ AbsenceResult ExpectTrees(std::span<const MapTree> established, std::span<const 
   // in the tree's own gate is the tree, not an occluder.
   std::vector<char> expected(n, 0);
   const double far = result.range - options.edge_margin;
+  BearingBins occluders;
+  for (size_t k = 0; k < silhouettes.size(); ++k) {
+    // A candidate may be a false stem: it hides nothing.
+    if (silhouettes[k].map_index < static_cast<int>(n_established)) {
+      occluders.Add(silhouettes[k], static_cast<int>(k));
+    }
+  }
   for (size_t i = 0; i < n; ++i) {
     const Silhouette& target = silhouettes[i];
     if (target.range < options.min_range || target.range > far) continue;
-    bool hidden = false;
-    for (const Silhouette& other : silhouettes) {
-      // A candidate may be a false stem: it hides nothing.
+    const bool hidden = occluders.Any(target, [&](int k) {
+      const Silhouette& other = silhouettes[static_cast<size_t>(k)];
       if (other.map_index == static_cast<int>(i) || other.seen_index == static_cast<int>(i) ||
-          other.map_index >= static_cast<int>(n_established)) {
-        continue;
+          other.range >= target.range) {
+        return false;
       }
-      if (other.range >= target.range) continue;
-      if (AngleBetween(other.bearing, target.bearing) < other.half_angle + target.half_angle) {
-        hidden = true;
-        break;
-      }
-    }
+      return AngleBetween(other.bearing, target.bearing) < other.half_angle + target.half_angle;
+    });
     expected[i] = !hidden;
   }
   const auto shape = [&](double r) {

@@ -1,11 +1,11 @@
 #include "server/app/absence_ledger.h"
 
-#include "server/app/tree_records.h"
-
 #include <algorithm>
 #include <nlohmann/json.hpp>
 #include <tuple>
 #include <utility>
+
+#include "server/app/tree_records.h"
 
 namespace forestmap::server {
 namespace {
@@ -34,8 +34,8 @@ algorithms::TreeEvidence ToTreeEvidence(const storage::TreeRecord& tree) {
     evidence.misses = stored.value("misses", 0);
     evidence.last_seen_group = stored.value("seen_by", std::string());
     for (const json& g : stored.value("groups", json::array())) {
-      evidence.groups.push_back({g.at(0).get<std::string>(), g.at(2).get<double>(),
-                                 g.at(1).get<int>()});
+      evidence.groups.push_back(
+          {g.at(0).get<std::string>(), g.at(2).get<double>(), g.at(1).get<int>()});
     }
   } catch (const json::exception&) {
     evidence.groups.clear();
@@ -71,8 +71,8 @@ algorithms::TreeEvidence& AbsenceLedger::EvidenceOf(int64_t id) {
   auto it = evidence_.find(id);
   if (it != evidence_.end()) return it->second;
   const auto stored = stored_.find(id);
-  return evidence_[id] = stored == stored_.end() ? algorithms::TreeEvidence{}
-                                                 : ToTreeEvidence(stored->second);
+  return evidence_[id] =
+             stored == stored_.end() ? algorithms::TreeEvidence{} : ToTreeEvidence(stored->second);
 }
 
 AbsenceLedger::View AbsenceLedger::Classify(size_t index,
@@ -102,8 +102,8 @@ AbsenceLedger::View AbsenceLedger::Classify(size_t index,
   observation.trees = frame.trees;
   // What the frame teaches about the sensor, then the classification with the call's pooled
   // model (a frame over a clear-cut, which detects no map tree, uses what the others taught).
-  view.result = algorithms::ExpectTrees(established, standing, candidates, observation,
-                                        settings_.absence);
+  view.result =
+      algorithms::ExpectTrees(established, standing, candidates, observation, settings_.absence);
   pool_.Add(view.result);
   const algorithms::AbsenceOptions pooled = pool_.Apply(settings_.absence);
   current_.reset();
@@ -116,20 +116,39 @@ AbsenceLedger::View AbsenceLedger::Classify(size_t index,
 }
 
 void AbsenceLedger::LookBackAt(const PastView& view,
+                               std::span<const algorithms::MapTree> view_established,
+                               std::span<const char> view_standing,
                                std::span<const algorithms::TreeEstimate> started) {
   const Eigen::Vector2d sensor = view.observation.map_from_sensor.translation().head<2>();
   std::vector<algorithms::MapTree> reach;
+  double farthest = 0;
   for (const algorithms::TreeEstimate& tree : started) {
-    if (gone_.count(tree.id) == 0 &&
-        (tree.position.head<2>() - sensor).norm() <= view.options.range) {
+    const double range = (tree.position.head<2>() - sensor).norm();
+    if (gone_.count(tree.id) == 0 && range <= view.options.range) {
       reach.push_back({tree.id, tree.position, tree.dbh});
+      farthest = std::max(farthest, range);
     }
   }
   if (reach.empty()) return;
-  const algorithms::AbsenceResult result = algorithms::ExpectTrees(
-      view.established, view.standing, reach, view.observation, view.options);
+  // Only what is nearer than the farthest of them (and its gate) can hide or see one of them;
+  // the sensor model is known, so nothing else is needed.
+  const double near = farthest + view.options.gate_distance;
+  std::vector<algorithms::MapTree> established;
+  std::vector<char> standing;
+  for (size_t i = 0; i < view_established.size(); ++i) {
+    if ((view_established[i].position.head<2>() - sensor).norm() <= near) {
+      established.push_back(view_established[i]);
+      standing.push_back(i < view_standing.size() && view_standing[i]);
+    }
+  }
+  algorithms::AbsenceObservation observation = view.observation;
+  std::erase_if(observation.trees, [&](const algorithms::DetectedTree& tree) {
+    return ((observation.map_from_sensor * tree.position).head<2>() - sensor).norm() > near;
+  });
+  const algorithms::AbsenceResult result =
+      algorithms::ExpectTrees(established, standing, reach, observation, view.options);
   for (size_t j = 0; j < reach.size(); ++j) {
-    if (algorithms::AddView(EvidenceOf(reach[j].id), result.trees[view.established.size() + j],
+    if (algorithms::AddView(EvidenceOf(reach[j].id), result.trees[established.size() + j],
                             /*candidate=*/true, source_, view.frame_id, time_,
                             settings_.evidence)) {
       gone_.insert(reach[j].id);
@@ -138,27 +157,26 @@ void AbsenceLedger::LookBackAt(const PastView& view,
 }
 
 void AbsenceLedger::LookBack(std::span<const algorithms::TreeEstimate> started) {
-  for (const PastView& view : views_) LookBackAt(view, started);
+  for (const PastView& view : views_) {
+    LookBackAt(view, view.established, view.standing, started);
+  }
 }
 
 void AbsenceLedger::LookBackStored(storage::MergeReader& reader,
                                    std::span<const algorithms::TreeEstimate> started) {
   const algorithms::AbsenceOptions options = pool_.Apply(settings_.absence);
   if (started.empty() || !(options.range > 0 && options.detection_probability > 0)) return;
-  std::vector<storage::ObservationCell> cells;
+  Eigen::Vector2d lo = started.front().position.head<2>(), hi = lo;
   for (const algorithms::TreeEstimate& tree : started) {
-    const storage::ObservationCell lo = storage::CellOf(tree.position.x() - options.range,
-                                                        tree.position.y() - options.range);
-    const storage::ObservationCell hi = storage::CellOf(tree.position.x() + options.range,
-                                                        tree.position.y() + options.range);
-    for (int64_t x = lo.x; x <= hi.x; ++x) {
-      for (int64_t y = lo.y; y <= hi.y; ++y) cells.push_back({x, y});
-    }
+    lo = lo.cwiseMin(tree.position.head<2>());
+    hi = hi.cwiseMax(tree.position.head<2>());
   }
   // The source's earlier frames around the started trees: their detections there, by frame.
   std::map<std::tuple<int64_t, double, double>, PastView> views;  // by frame and sensor
-  for (const storage::ObservationRecord& row : reader.ObservationsInCells(cells)) {
-    if (row.source != source_ || row.prior || row.summary) continue;
+  for (const storage::ObservationRecord& row : reader.ObservationsOfSourceIn(
+           source_, storage::CellOf(lo.x() - options.range, lo.y() - options.range),
+           storage::CellOf(hi.x() + options.range, hi.y() + options.range))) {
+    if (row.prior || row.summary) continue;
     PastView& view = views[{row.frame_id, row.sensor_x, row.sensor_y}];
     const Eigen::Vector3d sensor(row.sensor_x, row.sensor_y, row.sensor_z);
     view.frame_id = row.frame_id;
@@ -169,20 +187,21 @@ void AbsenceLedger::LookBackStored(storage::MergeReader& reader,
     seen.dbh = row.dbh.value_or(algorithms::kUnknown);
     view.observation.trees.push_back(seen);
   }
+  // The confirmed trees around them, read once for every view.
+  const double reach = options.range + options.gate_distance;
+  std::vector<algorithms::MapTree> established;
+  std::vector<char> standing;
+  for (const storage::TreeRecord& tree : reader.TreesInBox(
+           {lo.x() - 2 * reach, lo.y() - 2 * reach, hi.x() + 2 * reach, hi.y() + 2 * reach})) {
+    if (tree.status != storage::TreeStatus::kConfirmed || gone_.count(*tree.id) != 0) continue;
+    established.push_back(ToMapTree(tree));
+    const auto known = evidence_.find(*tree.id);
+    standing.push_back(known != evidence_.end() ? known->second.sightings > 0
+                                                : tree.last_seen_unix_ms.has_value());
+  }
   for (auto& [frame, view] : views) {
     view.options = options;
-    const Eigen::Vector3d sensor = view.observation.map_from_sensor.translation();
-    const double reach = options.range + options.gate_distance;
-    for (const storage::TreeRecord& tree : reader.TreesInBox(
-             {sensor.x() - reach, sensor.y() - reach, sensor.x() + reach, sensor.y() + reach})) {
-      if (tree.status != storage::TreeStatus::kConfirmed || gone_.count(*tree.id) != 0) continue;
-      Load(tree);
-      view.established.push_back(ToMapTree(tree));
-      const auto known = evidence_.find(*tree.id);
-      view.standing.push_back(known != evidence_.end() ? known->second.sightings > 0
-                                                       : tree.last_seen_unix_ms.has_value());
-    }
-    LookBackAt(view, started);
+    LookBackAt(view, established, standing, started);
   }
 }
 
@@ -193,8 +212,8 @@ int AbsenceLedger::Apply(const View& view, int64_t frame_id,
     const algorithms::TreeVisibility& visibility = view.result.trees[i];
     if (gone_.count(visibility.id) != 0) continue;
     missed += visibility.visibility == algorithms::Visibility::kMissed;
-    if (algorithms::AddView(EvidenceOf(visibility.id), visibility, view.trees[i].candidate,
-                            source_, frame_id, time_, settings_.evidence)) {
+    if (algorithms::AddView(EvidenceOf(visibility.id), visibility, view.trees[i].candidate, source_,
+                            frame_id, time_, settings_.evidence)) {
       gone_.insert(visibility.id);
     }
   }
@@ -245,14 +264,14 @@ void AbsenceLedger::Finish(storage::MergeReader& reader, storage::MapChanges& ch
     }
     const algorithms::TreeEvidence& evidence = evidence_.at(id);
     const bool candidate = stored->second.status == storage::TreeStatus::kCandidate;
-    json note = {{"kind", candidate ? "retired" : "removed"},
-                 {"x", stored->second.x},
-                 {"y", stored->second.y},
-                 {"log_likelihood_ratio", algorithms::GoneLogLikelihoodRatio(evidence,
-                                                                            settings_.evidence)},
-                 {"threshold", settings_.evidence.Threshold(candidate)},
-                 {"misses", evidence.misses},
-                 {"groups", GroupsJson(evidence)}};
+    json note = {
+        {"kind", candidate ? "retired" : "removed"},
+        {"x", stored->second.x},
+        {"y", stored->second.y},
+        {"log_likelihood_ratio", algorithms::GoneLogLikelihoodRatio(evidence, settings_.evidence)},
+        {"threshold", settings_.evidence.Threshold(candidate)},
+        {"misses", evidence.misses},
+        {"groups", GroupsJson(evidence)}};
     if (stored->second.dbh) note["dbh"] = *stored->second.dbh;
     if (stored->second.last_seen_unix_ms) {
       note["last_seen_unix_ms"] = *stored->second.last_seen_unix_ms;

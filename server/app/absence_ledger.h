@@ -62,8 +62,7 @@ class AbsenceLedger {
   // After the frame merged: its sightings and misses, and the trees it started (seen by it), which
   // are also weighed against the call's earlier views of their places (one source: within a pass
   // a stem does not appear). Returns how many trees it missed; the trees shown gone join gone().
-  int Apply(const View& view, int64_t frame_id,
-            std::span<const algorithms::TreeEstimate> started);
+  int Apply(const View& view, int64_t frame_id, std::span<const algorithms::TreeEstimate> started);
 
   // The trees the call started (`started`: live, not stored), weighed against the views of the
   // same source that earlier calls stored (its observation rows around them, frame by frame, as
@@ -81,15 +80,18 @@ class AbsenceLedger {
   struct PastView {
     int64_t frame_id = 0;
     algorithms::AbsenceObservation observation;
-    algorithms::AbsenceOptions options;  // the sensor model it was classified with
-    std::vector<algorithms::MapTree> established;
+    algorithms::AbsenceOptions options;            // the sensor model it was classified with
+    std::vector<algorithms::MapTree> established;  // a view of the call: those around it
     std::vector<char> standing;
   };
 
   algorithms::TreeEvidence& EvidenceOf(int64_t id);
   void LookBack(std::span<const algorithms::TreeEstimate> started);
-  void LookBackAt(const PastView& view, std::span<const algorithms::TreeEstimate> started);
-
+  // `established` and `standing`: the confirmed trees around the view (its own, or a stored
+  // view's, read once for all).
+  void LookBackAt(const PastView& view, std::span<const algorithms::MapTree> established,
+                  std::span<const char> standing,
+                  std::span<const algorithms::TreeEstimate> started);
 
   std::string source_;
   int64_t time_;
@@ -97,8 +99,8 @@ class AbsenceLedger {
   std::vector<PoseSigma> sigmas_;
   algorithms::SensorPool pool_;
   std::vector<PastView> views_;
-  std::optional<PastView> current_;  // classified, not yet applied
-  std::map<int64_t, storage::TreeRecord> stored_;  // loaded trees, as stored
+  std::optional<PastView> current_;                       // classified, not yet applied
+  std::map<int64_t, storage::TreeRecord> stored_;         // loaded trees, as stored
   std::map<int64_t, algorithms::TreeEvidence> evidence_;  // weighed by this call
   std::set<int64_t> gone_;
 };

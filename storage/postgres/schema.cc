@@ -149,6 +149,9 @@ CREATE TABLE map_columns (
 constexpr const char* kStep7 = R"sql(
 ALTER TABLE trees ADD COLUMN last_seen_unix_ms BIGINT;
 ALTER TABLE trees ADD COLUMN evidence TEXT;
+DROP INDEX observations_of_source;
+CREATE INDEX observations_of_source ON observations (map_id, source, cell_x, cell_y)
+  WHERE valid_to = 9223372036854775807;
 CREATE TABLE tree_removals (
   map_id BIGINT NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
   version BIGINT NOT NULL,  -- the version that removed the tree

@@ -248,6 +248,18 @@ std::vector<ObservationRecord> Session::ObservationsInCells(
       Params().Int64(map_id).Text(Int64Array(xs)).Text(Int64Array(ys))));
 }
 
+std::vector<ObservationRecord> Session::ObservationsOfSourceIn(int64_t map_id,
+                                                               const std::string& source,
+                                                               ObservationCell lo,
+                                                               ObservationCell hi) {
+  return ReadObservations(conn_.Exec(
+      "SELECT " FORESTMAP_OBSERVATION_COLUMNS
+      " FROM observations AS o WHERE o.map_id = $1 AND o.source = $2 AND o.cell_x BETWEEN $3 "
+      "AND $4 AND o.cell_y BETWEEN $5 AND $6 AND o.valid_to = " FORESTMAP_CURRENT
+      " AND NOT o.folded ORDER BY o.id",
+      Params().Int64(map_id).Text(source).Int64(lo.x).Int64(hi.x).Int64(lo.y).Int64(hi.y)));
+}
+
 std::vector<ObservationRecord> Session::ObservationsOfSource(int64_t map_id,
                                                              const std::string& source) {
   return ReadObservations(

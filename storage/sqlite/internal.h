@@ -210,6 +210,9 @@ class Session final : public StoreSession {
                                                            std::span<const int64_t> ids) override;
   std::vector<ObservationRecord> ObservationsOfSource(int64_t map_id,
                                                       const std::string& source) override;
+  std::vector<ObservationRecord> ObservationsOfSourceIn(int64_t map_id, const std::string& source,
+                                                        ObservationCell lo,
+                                                        ObservationCell hi) override;
   void InsertObservations(int64_t map_id, const std::vector<ObservationRecord>& rows,
                           int64_t valid_from) override;
   std::vector<int64_t> CloseObservations(int64_t map_id, std::span<const int64_t> ids,

@@ -68,6 +68,25 @@ std::vector<ObservationRecord> Session::ObservationsInCells(
   return rows;
 }
 
+std::vector<ObservationRecord> Session::ObservationsOfSourceIn(int64_t map_id,
+                                                               const std::string& source,
+                                                               ObservationCell lo,
+                                                               ObservationCell hi) {
+  Statement select(db_,
+                   "SELECT " FORESTMAP_OBSERVATION_COLUMNS
+                   " FROM observations AS o INDEXED BY observations_of_source WHERE "
+                   "o.map_id = ?1 AND o.source = ?2 AND o.cell_x BETWEEN ?3 AND ?4 AND "
+                   "o.cell_y BETWEEN ?5 AND ?6 AND o.valid_to = " FORESTMAP_CURRENT
+                   " AND o.folded = 0 ORDER BY o.id",
+                   map_id);
+  select.BindText(2, source);
+  select.BindInt64(3, lo.x);
+  select.BindInt64(4, hi.x);
+  select.BindInt64(5, lo.y);
+  select.BindInt64(6, hi.y);
+  return ReadAll(select, [](const Row& row) { return internal::ReadObservationRow(row); });
+}
+
 std::vector<ObservationRecord> Session::ObservationsOfSource(int64_t map_id,
                                                              const std::string& source) {
   Statement select(db_,

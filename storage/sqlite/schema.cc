@@ -264,10 +264,14 @@ PRAGMA user_version = 12;
 )sql";
 
 // Version 13: the evidence of absence of a tree (storage::TreeRecord::last_seen_unix_ms and
-// evidence), and the trees removed by it, with their evidence (storage::TreeRemoval).
+// evidence), and the trees removed by it, with their evidence (storage::TreeRemoval); the rows of
+// a source found by their cells too (MergeReader::ObservationsOfSourceIn).
 constexpr const char* kStep13 = R"sql(
 ALTER TABLE trees ADD COLUMN last_seen_unix_ms INTEGER;
 ALTER TABLE trees ADD COLUMN evidence TEXT;
+DROP INDEX observations_of_source;
+CREATE INDEX observations_of_source ON observations (map_id, source, cell_x, cell_y)
+  WHERE valid_to = 9223372036854775807;
 CREATE TABLE tree_removals (
   map_id INTEGER NOT NULL REFERENCES maps(id) ON DELETE CASCADE,
   version INTEGER NOT NULL,  -- the version that removed the tree

@@ -48,6 +48,11 @@ class CountingReader final : public storage::MergeReader {
   std::vector<storage::ObservationRecord> ObservationsOfSource(const std::string& source) override {
     return Count(reader_.ObservationsOfSource(source));
   }
+  std::vector<storage::ObservationRecord> ObservationsOfSourceIn(
+      const std::string& source, storage::ObservationCell lo,
+      storage::ObservationCell hi) override {
+    return Count(reader_.ObservationsOfSourceIn(source, lo, hi));
+  }
   int64_t NextFreeTreeId() override { return reader_.NextFreeTreeId(); }
 
   int64_t rows = 0;
