@@ -26,7 +26,7 @@
 namespace forestmap::server {
 namespace {
 
-constexpr double kPlot = 60;        // m, square plot
+constexpr double kPlot = 60;         // m, square plot
 constexpr double kSensorRange = 12;  // m, what the drones detect
 constexpr double kStep = 4;          // m between frames along a line
 
@@ -257,9 +257,9 @@ TEST(AbsenceRealFramesTest, AnUnchangedForestKeepsItsTrees) {
       observed.observations.trees = frame.trees;
       observed.observations.map_from_sensor = poses.at(frame.frame);
       if (call.frames.size() == 50) {
-        ASSERT_NO_THROW(ApplyObserve(store, index_cache, call, SharedMapOptions{},
-                                     [](const ObserveOutcome&) { return ""; },
-                                     [] { return false; }));
+        ASSERT_NO_THROW(ApplyObserve(
+            store, index_cache, call, SharedMapOptions{}, [](const ObserveOutcome&) { return ""; },
+            [] { return false; }));
         call.frames.clear();
       }
     }
