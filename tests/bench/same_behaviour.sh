@@ -8,8 +8,9 @@
 #
 # BASE_BUILD, NEW_BUILD: CMake build directories holding client/cli/forestmap and
 # client/lab/forestmap-lab (or, built before the lab was apart, client/forestmap doing both) and
-# tests/algorithms/**/{trunk_detection_sim_test,trunk_detection_real_data_test,drone_scan_pair_test,
-# map_merge_test,map_builder_test}. Data from FORESTMAP_SHARED_DATA (default ../shared/data).
+# the tests of tests/algorithms/**/{trunk_detection_sim_test,trunk_detection_real_data_test,
+# drone_scan_pair_test,map_merge_test,map_builder_test}.cc (a program of that name, or the test
+# program of its folder, run with a filter for the file's suites in both builds). Data from FORESTMAP_SHARED_DATA (default ../shared/data).
 # FORESTMAP_SAME_QUICK=1 skips the slow runs (the 120-pose detection test, bench-mapping without
 # poses). Exits 0 when every output is identical, 1 on any difference, 2 on a usage error.
 set -uo pipefail
@@ -74,6 +75,25 @@ strip_timing() {
     -e 's/[0-9]+([.][0-9]+)? *(frames|scans|queries)\/s/<t>/g'
 }
 
+# test_program BUILD NAME: the test program NAME in BUILD or, one program a test folder, the
+# program of the folder holding NAME.cc (tests/algorithms/merging -> algorithms_merging_tests).
+SOURCE=$(realpath "$(dirname "$0")/../..")
+test_program() {
+  local program dir
+  program=$(find "$1/tests" -type f -perm -u+x -name "$2" | head -1)
+  if [[ -z $program ]]; then
+    dir=$(dirname "$(find "$SOURCE/tests" -name "$2.cc" | head -1)")
+    dir=${dir#"$SOURCE"/tests/}
+    program=$(find "$1/tests/$dir" -maxdepth 1 -type f -perm -u+x -name "${dir//\//_}_tests")
+  fi
+  echo "$program"
+}
+# suite_filter NAME: a --gtest_filter of the test suites of NAME.cc.
+suite_filter() {
+  grep -hoE '^TEST(_F|_P)?\([A-Za-z0-9_]+,' $(find "$SOURCE/tests" -name "$1.cc") |
+    sed -E 's/.*\(//; s/,$/.*/' | sort -u | paste -sd:
+}
+
 # run NAME CMD...: runs CMD with @B@ replaced by each build, @CLI@ and @LAB@ by its programs (and
 # @OUT@ by that build's output directory), stores its timing-free stdout + stderr and compares
 # them.
@@ -83,13 +103,16 @@ run() {
   for side in base new; do
     local build=$BASE
     [[ $side == new ]] && build=$NEW
-    local args=()
+    local args=(env)
     for a in "$@"; do
       a=${a//@CLI@/$(cli_of "$build")}
       a=${a//@LAB@/$(lab_of "$build")}
       a=${a//@B@/$build}
-      # @TEST@/NAME: the test executable NAME wherever that build's tree keeps it.
-      [[ $a == @TEST@/* ]] && a=$(find "$build/tests" -type f -perm -u+x -name "${a#@TEST@/}" | head -1)
+      # @TEST@/NAME: the tests of NAME.cc in that build (test_program, suite_filter).
+      if [[ $a == @TEST@/* ]]; then
+        args+=("GTEST_FILTER=$(suite_filter "${a#@TEST@/}")")
+        a=$(test_program "$build" "${a#@TEST@/}")
+      fi
       a=${a//@OUT@/$WORK/$side}
       args+=("$a")
     done

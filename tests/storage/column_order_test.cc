@@ -23,9 +23,10 @@ TreeRecord Surveyed(int64_t id, const std::vector<std::string>& columns) {
   return tree;
 }
 
-MapInfo Upload(MapStore& store, const std::string& name, const std::vector<TreeRecord>& trees,
-               const Names& columns, WriteMode mode = WriteMode::kAppend, bool create = false,
-               std::optional<Boundary> boundary = std::nullopt) {
+MapInfo UploadWithColumns(MapStore& store, const std::string& name,
+                          const std::vector<TreeRecord>& trees, const Names& columns,
+                          WriteMode mode = WriteMode::kAppend, bool create = false,
+                          std::optional<Boundary> boundary = std::nullopt) {
   UploadPlan plan;
   plan.mode = mode;
   plan.create_map = create;
@@ -36,7 +37,7 @@ MapInfo Upload(MapStore& store, const std::string& name, const std::vector<TreeR
   return upload->Commit();
 }
 
-Boundary Triangle() {
+Boundary TriangleBoundary() {
   BoundaryPolygon polygon;
   polygon.outer = {{0, 0}, {50, 0}, {0, 50}};
   return {polygon};
@@ -52,7 +53,8 @@ INSTANTIATE_TEST_SUITE_P(Backends, ColumnOrderTest, kAllBackends, BackendName);
 const Names kCrew = {"species", "height", "crown", "plot_id"};
 
 TEST_P(ColumnOrderTest, AnUploadStoresTheFilesOrder) {
-  const MapInfo info = Upload(store_, "m", {Surveyed(1, kCrew)}, kCrew, WriteMode::kAppend, true);
+  const MapInfo info =
+      UploadWithColumns(store_, "m", {Surveyed(1, kCrew)}, kCrew, WriteMode::kAppend, true);
   EXPECT_EQ(store_.ReadMap("m").attribute_columns, kCrew);
   EXPECT_EQ(store_.ReadMapVersion("m", info.version).attribute_columns, kCrew);
   EXPECT_EQ(store_.ReadAttributeColumns("m", 0), kCrew);
@@ -67,23 +69,26 @@ TEST_P(ColumnOrderTest, AMapWrittenWithoutOneHasNone) {
 }
 
 TEST_P(ColumnOrderTest, AppendAddsNewNamesReplaceSetsItAndVersionsKeepTheirOwn) {
-  store_.CreateMap("m", "", "");                                           // 1
-  EXPECT_EQ(Upload(store_, "m", {Surveyed(1, kCrew)}, kCrew).version, 2);  // the crew's order
+  store_.CreateMap("m", "", "");  // 1
+  EXPECT_EQ(UploadWithColumns(store_, "m", {Surveyed(1, kCrew)}, kCrew).version,
+            2);  // the crew's order
   // An append: the map's order, then the file's new names in the file's order.
-  EXPECT_EQ(
-      Upload(store_, "m", {Surveyed(2, {"zeta", "notes", "species"})}, {"zeta", "notes", "species"})
-          .version,
-      3);
+  EXPECT_EQ(UploadWithColumns(store_, "m", {Surveyed(2, {"zeta", "notes", "species"})},
+                              {"zeta", "notes", "species"})
+                .version,
+            3);
   const Names appended = {"species", "height", "crown", "plot_id", "zeta", "notes"};
   EXPECT_EQ(store_.ReadMap("m").attribute_columns, appended);
   // An upload without an order keeps the map's; an order alone makes no version.
-  EXPECT_EQ(Upload(store_, "m", {Surveyed(3, {"alpha"})}, {}).version, 4);
+  EXPECT_EQ(UploadWithColumns(store_, "m", {Surveyed(3, {"alpha"})}, {}).version, 4);
   EXPECT_EQ(store_.ReadMap("m").attribute_columns, appended);
-  EXPECT_EQ(Upload(store_, "m", {}, {"other"}).version, 4);
+  EXPECT_EQ(UploadWithColumns(store_, "m", {}, {"other"}).version, 4);
   EXPECT_EQ(store_.ReadMap("m").attribute_columns, appended);
   // A replace: the file's order alone.
-  EXPECT_EQ(Upload(store_, "m", {Surveyed(9, {"b", "a"})}, {"b", "a"}, WriteMode::kReplace).version,
-            5);
+  EXPECT_EQ(
+      UploadWithColumns(store_, "m", {Surveyed(9, {"b", "a"})}, {"b", "a"}, WriteMode::kReplace)
+          .version,
+      5);
   EXPECT_EQ(store_.ReadMap("m").attribute_columns, (Names{"b", "a"}));
   // Merges and other writes leave it.
   store_.WriteTrees("m", {Surveyed(10, {"c"})}, WriteMode::kAppend);  // 6
@@ -98,10 +103,10 @@ TEST_P(ColumnOrderTest, AppendAddsNewNamesReplaceSetsItAndVersionsKeepTheirOwn) 
 }
 
 TEST_P(ColumnOrderTest, RestorePruneAndDeleteFollowTheVersions) {
-  store_.CreateMap("m", "", "");                                                    // 1
-  Upload(store_, "m", {Surveyed(1, kCrew)}, kCrew);                                 // 2
-  Upload(store_, "m", {Surveyed(2, {"b", "a"})}, {"b", "a"}, WriteMode::kReplace);  // 3
-  Upload(store_, "m", {Surveyed(3, {"b"})}, {});                                    // 4
+  store_.CreateMap("m", "", "");                                                               // 1
+  UploadWithColumns(store_, "m", {Surveyed(1, kCrew)}, kCrew);                                 // 2
+  UploadWithColumns(store_, "m", {Surveyed(2, {"b", "a"})}, {"b", "a"}, WriteMode::kReplace);  // 3
+  UploadWithColumns(store_, "m", {Surveyed(3, {"b"})}, {});                                    // 4
   EXPECT_EQ(store_.RestoreVersion("m", 2).version, 5);
   EXPECT_EQ(store_.ReadMap("m").attribute_columns, kCrew);
   EXPECT_EQ(store_.ReadAttributeColumns("m", 4), (Names{"b", "a"}));
@@ -121,8 +126,8 @@ TEST_P(ColumnOrderTest, RestorePruneAndDeleteFollowTheVersions) {
 TEST_P(ColumnOrderTest, MapInfoSaysWhetherTheMapHasABoundary) {
   EXPECT_FALSE(store_.CreateMap("m", "", "").has_boundary);
   EXPECT_FALSE(store_.GetMap("m").has_boundary);
-  EXPECT_TRUE(
-      Upload(store_, "m", {}, {}, WriteMode::kAppend, false, Triangle()).has_boundary);  // 2
+  EXPECT_TRUE(UploadWithColumns(store_, "m", {}, {}, WriteMode::kAppend, false, TriangleBoundary())
+                  .has_boundary);  // 2
   EXPECT_TRUE(store_.GetMap("m").has_boundary);
   EXPECT_TRUE(store_.ListMaps().at(0).has_boundary);
   EXPECT_TRUE(store_.ReadMap("m").info.has_boundary);
@@ -130,7 +135,8 @@ TEST_P(ColumnOrderTest, MapInfoSaysWhetherTheMapHasABoundary) {
   EXPECT_TRUE(store_.GetMap("m").has_boundary);
   EXPECT_FALSE(store_.ReadMapVersion("m", 1).info.has_boundary);
   EXPECT_TRUE(store_.ReadMapVersion("m", 2).info.has_boundary);
-  EXPECT_FALSE(Upload(store_, "m", {}, {}, WriteMode::kAppend, false, Boundary{}).has_boundary);
+  EXPECT_FALSE(
+      UploadWithColumns(store_, "m", {}, {}, WriteMode::kAppend, false, Boundary{}).has_boundary);
   EXPECT_FALSE(store_.GetMap("m").has_boundary);
   EXPECT_TRUE(store_.RestoreVersion("m", 3).has_boundary);
   EXPECT_TRUE(store_.GetMap("m").has_boundary);

@@ -8,8 +8,8 @@
 namespace forestmap::algorithms {
 namespace {
 
-constexpr double kDbhTolerance = 0.01;       // m
-constexpr double kPositionTolerance = 0.03;  // m
+constexpr double kStemDbhTolerance = 0.01;       // m
+constexpr double kStemPositionTolerance = 0.03;  // m
 
 TEST(StemModelTest, TaperFitIsExactOnACubic) {
   std::vector<TaperSample> samples;
@@ -66,10 +66,10 @@ TEST(StemModelTest, TwoTouchingStemsInOneClusterAreSplit) {
   ASSERT_EQ(result.trunks.size(), 2u);
   for (const DetectedTrunk& trunk : result.trunks) {
     const double x = std::abs(trunk.tree.position.x() - xs[0]) < 0.2 ? xs[0] : xs[1];
-    EXPECT_NEAR(trunk.tree.position.x(), x, kPositionTolerance);
-    EXPECT_NEAR(trunk.tree.position.y(), 1.0, kPositionTolerance);
+    EXPECT_NEAR(trunk.tree.position.x(), x, kStemPositionTolerance);
+    EXPECT_NEAR(trunk.tree.position.y(), 1.0, kStemPositionTolerance);
     EXPECT_NEAR(trunk.tree.position.z(), -5.0, 1e-6);  // the ground intersection
-    EXPECT_NEAR(trunk.tree.dbh, 0.4, kDbhTolerance);
+    EXPECT_NEAR(trunk.tree.dbh, 0.4, kStemDbhTolerance);
     EXPECT_TRUE(trunk.ground_known);
     EXPECT_NEAR(trunk.dbh_height, 1.3, 1e-9);
     EXPECT_GT(trunk.tree.score, 0.3);
@@ -90,9 +90,9 @@ TEST(StemModelTest, SingleViewScanGivesGroundPointAndDbh) {
                                           FlatGround(-6), StemModelOptions{});
   ASSERT_EQ(result.trunks.size(), 1u);
   const DetectedTrunk& trunk = result.trunks[0];
-  EXPECT_NEAR(trunk.tree.position.x(), 6.0, kPositionTolerance);
-  EXPECT_NEAR(trunk.tree.position.y(), 2.0, kPositionTolerance);
-  EXPECT_NEAR(trunk.tree.dbh, 0.32, kDbhTolerance);
+  EXPECT_NEAR(trunk.tree.position.x(), 6.0, kStemPositionTolerance);
+  EXPECT_NEAR(trunk.tree.position.y(), 2.0, kStemPositionTolerance);
+  EXPECT_NEAR(trunk.tree.dbh, 0.32, kStemDbhTolerance);
   EXPECT_GT(trunk.tree.axis.z(), 0.99);
   EXPECT_NEAR(trunk.breast_height_point.z(), -6 + 1.3, 0.02);
   EXPECT_LT(trunk.arc_coverage, 0.55);  // one side only
@@ -110,7 +110,7 @@ TEST(StemModelTest, WithoutGroundThePositionIsTheLowestStemPoint) {
   EXPECT_FALSE(trunk.ground_known);
   EXPECT_TRUE(std::isnan(trunk.ground_z));
   EXPECT_NEAR(trunk.tree.position.z(), 1.1, 0.01);
-  EXPECT_NEAR(trunk.tree.dbh, 0.30, kDbhTolerance);
+  EXPECT_NEAR(trunk.tree.dbh, 0.30, kStemDbhTolerance);
   EXPECT_NEAR(trunk.breast_height_point.z(), 1.3, 0.1);  // middle of the slices seen
 }
 

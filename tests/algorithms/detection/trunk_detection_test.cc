@@ -13,7 +13,7 @@ constexpr double kPositionTolerance = 0.05;  // m, horizontal
 constexpr double kHeightTolerance = 0.1;     // m, ground intersection z
 constexpr double kDbhTolerance = 0.02;       // m
 
-testing::SyntheticScene Stand(double slope_x) {
+testing::SyntheticScene DroneStand(double slope_x) {
   testing::SyntheticScene scene;
   scene.ground_z = -3;  // a drone 3 m up: the 45-degree field of view sees every stem's base
   scene.slope_x = slope_x;
@@ -51,14 +51,14 @@ void ExpectAllStemsFound(const testing::SyntheticScene& scene, const PointCloud&
 TEST(TrunkDetectionTest, FlatAndSlopedGround) {
   for (double slope : {0.0, 0.3}) {
     SCOPED_TRACE(slope);
-    const testing::SyntheticScene scene = Stand(slope);
+    const testing::SyntheticScene scene = DroneStand(slope);
     ExpectAllStemsFound(scene, testing::CastScan(scene, testing::SyntheticScanner{}, 1),
                         Eigen::Matrix3d::Identity());
   }
 }
 
 TEST(TrunkDetectionTest, TiltedSensorAndDroneReturns) {
-  const testing::SyntheticScene scene = Stand(0.0);
+  const testing::SyntheticScene scene = DroneStand(0.0);
   PointCloud cloud = testing::CastScan(scene, testing::SyntheticScanner{}, 2);
   const Eigen::Matrix3d sensor_from_scene =
       Eigen::AngleAxisd(0.08, Eigen::Vector3d(1, 0.5, 0).normalized()).toRotationMatrix();
@@ -109,7 +109,7 @@ TEST(TrunkDetectionTest, FarThinStemsFromAFewReturnsPerRing) {
 // A crown-like volume reaching into the stem layer: as wide as a big stem, but most beams pass
 // through it. The solid stems of the stand are found, the porous volume is not.
 TEST(TrunkDetectionTest, PorousVolumesAreNoStems) {
-  testing::SyntheticScene scene = Stand(0.0);
+  testing::SyntheticScene scene = DroneStand(0.0);
   scene.stems.push_back({-6.0, 3.0, 0.6, 0.0, 3.0, 0.6});
   const PointCloud cloud = testing::CastScan(scene, testing::SyntheticScanner{}, 5);
   const TrunkDetectionResult result = DetectTrunks(cloud, TrunkDetectionOptions{});
@@ -155,7 +155,7 @@ TEST(TrunkDetectionTest, OccludedEdgesLeaveTheDbhUnknown) {
 }
 
 TEST(TrunkDetectionTest, StatsAndEmptyInput) {
-  const testing::SyntheticScene scene = Stand(0.0);
+  const testing::SyntheticScene scene = DroneStand(0.0);
   const PointCloud cloud = testing::CastScan(scene, testing::SyntheticScanner{}, 3);
   const TrunkDetectionResult result = DetectTrunks(cloud, TrunkDetectionOptions{});
   const TrunkDetectionStats& s = result.stats;

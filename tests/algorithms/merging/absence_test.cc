@@ -21,7 +21,7 @@ MapTree Tree(int64_t id, double x, double y, double dbh = 0.3) {
   return {id, Eigen::Vector3d(x, y, 0), dbh};
 }
 
-DetectedTree Detection(double x, double y, double dbh = 0.3) {
+DetectedTree DetectionAt(double x, double y, double dbh = 0.3) {
   DetectedTree tree;
   tree.position = Eigen::Vector3d(x, y, 0);
   tree.dbh = dbh;
@@ -45,7 +45,7 @@ AbsenceObservation At(std::vector<DetectedTree> trees) {
 
 TEST(ExpectTrees, InRangeUnhiddenAndUndetectedIsMissed) {
   const std::vector<MapTree> map = {Tree(1, 5, 0), Tree(2, 0, 8), Tree(3, -6, -6)};
-  const AbsenceResult result = ExpectTrees(map, At({Detection(0.2, 8.1)}), Stated());
+  const AbsenceResult result = ExpectTrees(map, At({DetectionAt(0.2, 8.1)}), Stated());
   ASSERT_EQ(result.trees.size(), 3u);
   EXPECT_EQ(result.trees[0].visibility, Visibility::kMissed);
   EXPECT_EQ(result.trees[1].visibility, Visibility::kSeen);
@@ -59,7 +59,7 @@ TEST(ExpectTrees, InRangeUnhiddenAndUndetectedIsMissed) {
 TEST(ExpectTrees, TreeBehindANearerTrunkIsNotExpected) {
   // Tree 2 stands 10 m out on the bearing of tree 1 at 4 m; tree 3 is 2 m beside tree 2.
   const std::vector<MapTree> map = {Tree(1, 4, 0), Tree(2, 10, 0), Tree(3, 10, 2)};
-  const AbsenceResult result = ExpectTrees(map, At({Detection(4, 0)}), Stated());
+  const AbsenceResult result = ExpectTrees(map, At({DetectionAt(4, 0)}), Stated());
   EXPECT_EQ(result.trees[0].visibility, Visibility::kSeen);
   EXPECT_EQ(result.trees[1].visibility, Visibility::kNotExpected);
   EXPECT_EQ(result.trees[2].visibility, Visibility::kMissed);
@@ -69,7 +69,7 @@ TEST(ExpectTrees, AStemTheMapDoesNotHaveAlsoHides) {
   // A detection at 3 m (ingrowth, not in the map) shadows the map tree at 9 m behind it.
   const std::vector<MapTree> map = {Tree(1, 9, 0.1)};
   EXPECT_EQ(ExpectTrees(map, At({}), Stated()).trees[0].visibility, Visibility::kMissed);
-  EXPECT_EQ(ExpectTrees(map, At({Detection(3, 0)}), Stated()).trees[0].visibility,
+  EXPECT_EQ(ExpectTrees(map, At({DetectionAt(3, 0)}), Stated()).trees[0].visibility,
             Visibility::kNotExpected);
 }
 
@@ -88,7 +88,7 @@ TEST(ExpectTrees, ACandidateHidesNothingAndTeachesNothing) {
   std::vector<DetectedTree> detections;
   for (int k = 0; k < 5; ++k) {
     five.push_back(Tree(10 + k, 3.0 + k, 2.0 * k));
-    detections.push_back(Detection(3.0 + k, 2.0 * k));
+    detections.push_back(DetectionAt(3.0 + k, 2.0 * k));
   }
   EXPECT_EQ(ExpectTrees({}, {}, five, At(detections)).range_source, SensorModelSource::kNone);
   EXPECT_EQ(ExpectTrees(five, {}, {}, At(detections)).range_source, SensorModelSource::kLearned);
@@ -105,7 +105,7 @@ TEST(ExpectTrees, TheDetectionRateIsLearnedFromTreesKnownToStand) {
     const double bearing = 2 * M_PI * k / 12;
     map.push_back(Tree(k + 1, 5 * std::cos(bearing), 5 * std::sin(bearing)));
     standing.push_back(k % 2 == 0);
-    if (k % 2 == 0) detections.push_back(Detection(5 * std::cos(bearing), 5 * std::sin(bearing)));
+    if (k % 2 == 0) detections.push_back(DetectionAt(5 * std::cos(bearing), 5 * std::sin(bearing)));
   }
   AbsenceOptions options;
   options.range = 15;
@@ -122,12 +122,12 @@ TEST(ExpectTrees, ADetectionSeesOnlyTheNearestTreeInItsGate) {
   // Two trees 0.4 m apart across the line of sight; one detection on the first: the second,
   // standing beside it and not behind it, is missed (one stem, one tree).
   const std::vector<MapTree> map = {Tree(1, 8, 0, 0.2), Tree(2, 8, 0.4, 0.1)};
-  const AbsenceResult result = ExpectTrees(map, At({Detection(8.02, 0, 0.2)}), Stated());
+  const AbsenceResult result = ExpectTrees(map, At({DetectionAt(8.02, 0, 0.2)}), Stated());
   EXPECT_EQ(result.trees[0].visibility, Visibility::kSeen);
   EXPECT_EQ(result.trees[1].visibility, Visibility::kMissed);
   // The same pair along the line of sight: the detection in front hides the tree behind it.
   const std::vector<MapTree> in_line = {Tree(1, 8, 0, 0.2), Tree(2, 8.4, 0, 0.1)};
-  EXPECT_EQ(ExpectTrees(in_line, At({Detection(8.02, 0, 0.2)}), Stated()).trees[1].visibility,
+  EXPECT_EQ(ExpectTrees(in_line, At({DetectionAt(8.02, 0, 0.2)}), Stated()).trees[1].visibility,
             Visibility::kNotExpected);
 }
 
@@ -147,7 +147,7 @@ TEST(ExpectTrees, RangeAndRateAreLearnedFromTheDetectionsOfMapTrees) {
   for (int k = 0; k < 10; ++k) {
     const double bearing = 0.5 * k, r = 2.0 + k;
     map.push_back(Tree(k + 1, r * std::cos(bearing), r * std::sin(bearing)));
-    detections.push_back(Detection(r * std::cos(bearing), r * std::sin(bearing)));
+    detections.push_back(DetectionAt(r * std::cos(bearing), r * std::sin(bearing)));
   }
   map.push_back(Tree(11, 6 * std::cos(5.25), 6 * std::sin(5.25)));
   map.push_back(Tree(12, 14 * std::cos(5.75), 14 * std::sin(5.75)));
@@ -175,7 +175,7 @@ TEST(ExpectTrees, NothingToLearnFromGivesNoEvidence) {
 
 TEST(ExpectTrees, PoseUncertaintyWidensTheGate) {
   const std::vector<MapTree> map = {Tree(1, 10, 0)};
-  AbsenceObservation observation = At({Detection(10, 0.9)});
+  AbsenceObservation observation = At({DetectionAt(10, 0.9)});
   EXPECT_EQ(ExpectTrees(map, observation, Stated()).trees[0].visibility, Visibility::kMissed);
   observation.pose_sigma_yaw = 0.05;  // rad: 0.5 m at 10 m, 1.5 m with 3 sigmas
   EXPECT_EQ(ExpectTrees(map, observation, Stated()).trees[0].visibility, Visibility::kSeen);
@@ -251,10 +251,10 @@ std::vector<TimedFrame> LineFlight(const std::vector<MapTree>& survey, const std
     for (const MapTree& tree : survey) {
       if ((tree.position - sensor).head<2>().norm() <= 15) {
         frame.frame.trees.push_back(
-            Detection(tree.position.x() - sensor.x(), tree.position.y() - sensor.y(), tree.dbh));
+            DetectionAt(tree.position.x() - sensor.x(), tree.position.y() - sensor.y(), tree.dbh));
       }
     }
-    if (k == 20) frame.frame.trees.push_back(Detection(30 - sensor.x(), 2.5, 0.3));
+    if (k == 20) frame.frame.trees.push_back(DetectionAt(30 - sensor.x(), 2.5, 0.3));
     frame.time = k;
     frames.push_back(frame);
   }

@@ -40,8 +40,8 @@ struct Outcomes {
 
 // `count` views of `views` (15 m, occlusion, 30% misses, 20% false stems, 5 cm noise), at least
 // `margin` m inside it, relocalized in `index`.
-Outcomes RunViews(const std::vector<MapTree>& views, const MapIndex& index, int count,
-                  unsigned seed, double margin = 15.0) {
+Outcomes RunViewOutcomes(const std::vector<MapTree>& views, const MapIndex& index, int count,
+                         unsigned seed, double margin = 15.0) {
   ViewSimulator simulator(views);
   Outcomes out;
   for (const Eigen::Vector3d& pose : simulator.SamplePoses(count, margin, seed, 8, 15.0)) {
@@ -80,7 +80,7 @@ double Mean(const std::vector<double>& v) {
 TEST(RelocalizerDecision, PerfectGridNeverMatchesItsShiftedCopy) {
   const std::vector<MapTree> grid = GeneratePlantation(Grid(4, 0.0, 0.0, 1));
   const MapIndex index(grid);
-  const Outcomes o = RunViews(grid, index, 40, 3, /*margin=*/25.0);
+  const Outcomes o = RunViewOutcomes(grid, index, 40, 3, /*margin=*/25.0);
   EXPECT_EQ(o.views, 40);
   EXPECT_EQ(o.localized, 0);
 }
@@ -92,11 +92,11 @@ TEST(RelocalizerDecision, RegularStandTellsItsOwnGridFromAnotherOfTheSameDesign)
   const std::vector<MapTree> own = GeneratePlantation(Grid(4, 0.2, 0.1, 1));
   const std::vector<MapTree> other = GeneratePlantation(Grid(4, 0.2, 0.1, 2));
   const MapIndex own_index(own), other_index(other);
-  const Outcomes found = RunViews(own, own_index, 50, 5);
+  const Outcomes found = RunViewOutcomes(own, own_index, 50, 5);
   EXPECT_GE(found.correct, 48) << found.localized;
   EXPECT_EQ(found.correct, found.localized);
-  EXPECT_EQ(RunViews(own, other_index, 80, 6).localized, 0);
-  EXPECT_EQ(RunViews(other, own_index, 80, 7).localized, 0);
+  EXPECT_EQ(RunViewOutcomes(own, other_index, 80, 6).localized, 0);
+  EXPECT_EQ(RunViewOutcomes(other, own_index, 80, 7).localized, 0);
 }
 
 // Sparse natural stands, where a view holds 8-15 trees: the best of the search's chance poses
@@ -104,11 +104,11 @@ TEST(RelocalizerDecision, RegularStandTellsItsOwnGridFromAnotherOfTheSameDesign)
 TEST(RelocalizerDecision, SparseForeignStandsAreNeverLocalized) {
   const std::vector<MapTree> a = Forest(11, 200, 0.03), b = Forest(12, 200, 0.03);
   const MapIndex index_a(a), index_b(b);
-  const Outcomes own = RunViews(a, index_a, 60, 8);
+  const Outcomes own = RunViewOutcomes(a, index_a, 60, 8);
   EXPECT_GE(own.correct, 57) << own.localized;
   EXPECT_EQ(own.correct, own.localized);
-  EXPECT_EQ(RunViews(a, index_b, 150, 9).localized, 0);
-  EXPECT_EQ(RunViews(b, index_a, 150, 10).localized, 0);
+  EXPECT_EQ(RunViewOutcomes(a, index_b, 150, 9).localized, 0);
+  EXPECT_EQ(RunViewOutcomes(b, index_a, 150, 10).localized, 0);
 }
 
 // The exact query of the map trees within 15 m of `truth` (kd coordinates), nearest first.
@@ -364,7 +364,7 @@ TEST(RelocalizerDecision, CovarianceIsCalibratedInADenseStand) {
   if (!std::filesystem::exists(path)) FORESTMAP_SKIP_WITHOUT_DATA() << "missing " << path;
   const std::vector<MapTree> dense = client::ToMapTrees(client::ReadMapTreesCsv(path));
   const MapIndex index(dense);
-  const Outcomes o = RunViews(dense, index, 100, 17, /*margin=*/5.0);
+  const Outcomes o = RunViewOutcomes(dense, index, 100, 17, /*margin=*/5.0);
   ASSERT_GE(o.nees.size(), 95u) << o.localized;
   EXPECT_GE(Mean(o.nees), 0.5 * 3) << "covariance too large";
   EXPECT_LE(Mean(o.nees), 2.0 * 3) << "covariance too small";

@@ -15,8 +15,8 @@ namespace {
 
 using testing_util::Forest;
 
-SimulatedView ViewAt(const std::vector<MapTree>& map, double x, double y, double yaw,
-                     unsigned seed) {
+SimulatedView SimulatedViewAt(const std::vector<MapTree>& map, double x, double y, double yaw,
+                              unsigned seed) {
   ViewOptions view;
   view.seed = seed;
   return ViewSimulator(map).Simulate({x, y}, yaw, view);
@@ -25,7 +25,7 @@ SimulatedView ViewAt(const std::vector<MapTree>& map, double x, double y, double
 TEST(RelocalizerReasons, TooFewTreesIsNotFoundWithItsReason) {
   const std::vector<MapTree> map = Forest(1);
   const MapIndex index(map);
-  const SimulatedView view = ViewAt(map, 100, 100, 0, 1);
+  const SimulatedView view = SimulatedViewAt(map, 100, 100, 0, 1);
   for (size_t n : {0, 1, 2}) {
     RelocalizeQuery query;
     query.trees.assign(view.trees.begin(), view.trees.begin() + n);
@@ -40,7 +40,7 @@ TEST(RelocalizerReasons, LocalizedAnswerHasNoReasonAndAForeignOneSaysWhy) {
   const std::vector<MapTree> map = Forest(1), other = Forest(2);
   const MapIndex index(map);
   RelocalizeQuery query;
-  const SimulatedView v = ViewAt(map, 100, 100, 0.3, 2);
+  const SimulatedView v = SimulatedViewAt(map, 100, 100, 0.3, 2);
   query.trees = v.trees;
   const RelocalizeResult found = Relocalize(index, query);
   ASSERT_EQ(found.status, RelocalizeStatus::kLocalized) << found.detail;
@@ -49,7 +49,7 @@ TEST(RelocalizerReasons, LocalizedAnswerHasNoReasonAndAForeignOneSaysWhy) {
 
   int not_found = 0;
   for (unsigned k = 0; k < 20; ++k) {
-    query.trees = ViewAt(other, 30 + 7 * k, 40 + 6 * k, 0.1 * k, 10 + k).trees;
+    query.trees = SimulatedViewAt(other, 30 + 7 * k, 40 + 6 * k, 0.1 * k, 10 + k).trees;
     const RelocalizeResult r = Relocalize(index, query);
     ASSERT_NE(r.status, RelocalizeStatus::kLocalized) << "view " << k << ": " << r.detail;
     if (r.status != RelocalizeStatus::kNotFound) continue;
@@ -81,7 +81,7 @@ TEST(RelocalizerReasons, RepeatedPatchIsAmbiguousWithTheRivalsPose) {
   });
   const MapIndex index(map);
   RelocalizeQuery query;
-  const SimulatedView v = ViewAt(map, 30, 30, 1.0, 4);
+  const SimulatedView v = SimulatedViewAt(map, 30, 30, 1.0, 4);
   query.trees = v.trees;
   const RelocalizeResult r = Relocalize(index, query);
   ASSERT_EQ(r.status, RelocalizeStatus::kAmbiguous) << r.detail;
@@ -96,7 +96,7 @@ TEST(RelocalizerReasons, RepeatedPatchIsAmbiguousWithTheRivalsPose) {
 TEST(RelocalizerReasons, PoseOutsideThePriorSaysSo) {
   const std::vector<MapTree> map = Forest(1);
   const MapIndex index(map);
-  const SimulatedView v = ViewAt(map, 100, 100, -0.5, 5);
+  const SimulatedView v = SimulatedViewAt(map, 100, 100, -0.5, 5);
   RelocalizeQuery query;
   query.trees = v.trees;
   PriorPose prior;
@@ -111,8 +111,8 @@ TEST(RelocalizerReasons, PoseOutsideThePriorSaysSo) {
 }
 
 // Views of `views` relocalized in `index` (built from `views` or from another stand).
-RelocSummary RunViews(const std::vector<MapTree>& views, const MapIndex& index, int count,
-                      unsigned seed, std::vector<double>* nees = nullptr) {
+RelocSummary RunDistrictViews(const std::vector<MapTree>& views, const MapIndex& index, int count,
+                              unsigned seed, std::vector<double>* nees = nullptr) {
   ViewSimulator simulator(views);
   RelocEvaluator evaluator(views);
   const auto poses = simulator.SamplePoses(count, 15.0, seed, 8, 15.0);
@@ -174,11 +174,11 @@ TEST(RelocalizerPlantation, OwnMapIsFoundAndAnotherPlantationIsNeverLocalized) {
     PlantationOptions other = design;
     other.seed = 2;
     const MapIndex own_index(own), other_index(GeneratePlantation(other));
-    const RelocSummary found = RunViews(own, own_index, 60, 21);
+    const RelocSummary found = RunDistrictViews(own, own_index, 60, 21);
     EXPECT_GE(found.recall, 0.95) << design.spacing_x << " m: " << found.correct << " of "
                                   << found.answerable;
     EXPECT_EQ(found.wrong, 0) << design.spacing_x << " m";
-    const RelocSummary foreign = RunViews(own, other_index, 60, 22);
+    const RelocSummary foreign = RunDistrictViews(own, other_index, 60, 22);
     EXPECT_EQ(foreign.localized, 0) << design.spacing_x << " m";
   }
 }
@@ -202,7 +202,7 @@ TEST(RelocalizerMosaic, DenseAndSparseStandsAreEachIndexedAtTheirOwnScale) {
   EXPECT_GT(short_sides, 5 * district.size() / 10);  // the dense stands
   EXPECT_GT(long_sides, district.size() / 10);       // the sparse ones: 10-30 m
   EXPECT_LT(index.triangle_count(), 13 * district.size());
-  const RelocSummary s = RunViews(district, index, 120, 31);
+  const RelocSummary s = RunDistrictViews(district, index, 120, 31);
   EXPECT_GE(s.recall, 0.95) << s.correct << " of " << s.answerable;
   EXPECT_EQ(s.wrong, 0);
 }
@@ -211,7 +211,7 @@ TEST(RelocalizerCovariance, NormalisedErrorMatchesItsDegreesOfFreedom) {
   const std::vector<MapTree> map = Forest(7);
   const MapIndex index(map);
   std::vector<double> nees;
-  const RelocSummary s = RunViews(map, index, 150, 23, &nees);
+  const RelocSummary s = RunDistrictViews(map, index, 150, 23, &nees);
   ASSERT_GT(nees.size(), 100u) << s.localized;
   double mean = 0;
   for (double v : nees) mean += v / nees.size();

@@ -14,8 +14,8 @@ namespace {
 
 using testing_util::Forest;
 
-RelocalizeQuery ViewAt(const std::vector<MapTree>& map, double x, double y, double yaw,
-                       unsigned seed, Pose3* truth = nullptr) {
+RelocalizeQuery QueryAt(const std::vector<MapTree>& map, double x, double y, double yaw,
+                        unsigned seed, Pose3* truth = nullptr) {
   ViewOptions view;
   view.seed = seed;
   const SimulatedView v = ViewSimulator(map).Simulate({x, y}, yaw, view);
@@ -28,7 +28,7 @@ RelocalizeQuery ViewAt(const std::vector<MapTree>& map, double x, double y, doub
 TEST(QuerySearchArea, IsTheCoverageGrownByTheViewOrThePriorsDiscWhenSmaller) {
   const std::vector<MapTree> map = Forest(1);  // 200 m x 200 m
   const MapIndex index(map);
-  RelocalizeQuery query = ViewAt(map, 100, 100, 0.2, 1);
+  RelocalizeQuery query = QueryAt(map, 100, 100, 0.2, 1);
   const double global = QuerySearchArea(index, query);
   // At least the coverage, at most the forest grown by the largest reach (60 m) on every side.
   EXPECT_GE(global, index.coverage_area());
@@ -45,7 +45,7 @@ TEST(OtherSearchArea, AddsToTheLookElsewhereTestAndNeverMakesAnAnswerWrong) {
   const std::vector<MapTree> map = Forest(4);
   const MapIndex index(map);
   Pose3 truth;
-  RelocalizeQuery query = ViewAt(map, 90, 110, 0.7, 3, &truth);
+  RelocalizeQuery query = QueryAt(map, 90, 110, 0.7, 3, &truth);
   const RelocalizeResult alone = Relocalize(index, query);
   ASSERT_EQ(alone.status, RelocalizeStatus::kLocalized) << alone.detail;
   // A district of 100 such maps: still found, at the same pose.
@@ -64,7 +64,7 @@ TEST(OtherSearchArea, ForeignViewsStayUnlocalizedOverADistrict) {
   const std::vector<MapTree> map = Forest(1), other = Forest(2);
   const MapIndex index(map);
   for (unsigned k = 0; k < 10; ++k) {
-    RelocalizeQuery query = ViewAt(other, 30 + 13 * k, 40 + 11 * k, 0.3 * k, 20 + k);
+    RelocalizeQuery query = QueryAt(other, 30 + 13 * k, 40 + 11 * k, 0.3 * k, 20 + k);
     query.other_search_area = 49 * QuerySearchArea(index, query);
     const RelocalizeResult r = Relocalize(index, query);
     EXPECT_NE(r.status, RelocalizeStatus::kLocalized) << "view " << k << ": " << r.detail;

@@ -9,16 +9,11 @@
 #include "algorithms/evaluation/reloc_evaluation.h"
 #include "algorithms/relocalization/relocalizer.h"
 #include "client/io/tree_csv.h"
+#include "tests/algorithms/relocalization/venman_sequences.h"
 #include "tests/shared_data.h"
 
 namespace forestmap::algorithms {
 namespace {
-
-const std::string kSequences = std::string(FORESTMAP_SHARED_DATA) + "/sequences/";
-
-// Wild_V02's ground truth is offset from Wild_V01's (../shared/data/README.md):
-// map_V01_from_map_V02 = translation (0.051, 0.102, -0.039) m, yaw -0.014 deg.
-const Pose3 kV01FromV02 = PoseFromXyzYaw(0.051, 0.102, -0.039, -0.014 * M_PI / 180.0);
 
 std::vector<MapTree> ReadMap(const std::string& name) {
   return client::ToMapTrees(client::ReadMapTreesCsv(kSequences + name + "/map.csv"));

@@ -11,14 +11,11 @@
 #include "algorithms/simulation/forest_generator.h"
 #include "algorithms/simulation/view_simulator.h"
 #include "client/io/tree_csv.h"
+#include "tests/algorithms/relocalization/venman_sequences.h"
 #include "tests/shared_data.h"
 
 namespace forestmap::algorithms {
 namespace {
-
-const std::string kSequences = std::string(FORESTMAP_SHARED_DATA) + "/sequences/";
-// Wild_V02's ground truth is offset from Wild_V01's (../shared/data/README.md).
-const Pose3 kV01FromV02 = PoseFromXyzYaw(0.051, 0.102, -0.039, -0.014 * M_PI / 180.0);
 
 class Venman : public ::testing::Test {
  protected:

@@ -18,7 +18,7 @@
 namespace forestmap::algorithms {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
+constexpr double kDegree = M_PI / 180.0;
 constexpr double kNoiseTolerance = 4 * 0.015;  // m, 4 sigma of the Ouster presets' range noise
 constexpr double kFloatTolerance = 1e-4;       // m, float storage of points
 
@@ -84,9 +84,9 @@ TEST(ScannerModelTest, PresetBeamAnglesAndLayout) {
     EXPECT_NO_THROW(model.Check());
     ASSERT_EQ(model.rings(), e.rings);
     EXPECT_EQ(model.columns, e.columns);
-    EXPECT_NEAR(model.beam_elevations.front(), e.top_deg * kDeg, 1e-12);  // ring 0 = highest
-    EXPECT_NEAR(model.beam_elevations.back(), -e.top_deg * kDeg, 1e-12);
-    const double spacing = 2 * e.top_deg * kDeg / (e.rings - 1);  // uniform
+    EXPECT_NEAR(model.beam_elevations.front(), e.top_deg * kDegree, 1e-12);  // ring 0 = highest
+    EXPECT_NEAR(model.beam_elevations.back(), -e.top_deg * kDegree, 1e-12);
+    const double spacing = 2 * e.top_deg * kDegree / (e.rings - 1);  // uniform
     for (int r = 1; r < model.rings(); ++r) {
       EXPECT_NEAR(model.beam_elevations[r - 1] - model.beam_elevations[r], spacing, 1e-12);
     }
@@ -95,13 +95,13 @@ TEST(ScannerModelTest, PresetBeamAnglesAndLayout) {
     EXPECT_NEAR(WrapAngle(model.Azimuth(0) - M_PI), 0, 1e-12);
     EXPECT_NEAR(model.Azimuth(model.columns / 2), 0, 1e-12);
   }
-  EXPECT_NEAR(Vlp16Scanner().beam_elevations[0] - Vlp16Scanner().beam_elevations[1], 2 * kDeg,
+  EXPECT_NEAR(Vlp16Scanner().beam_elevations[0] - Vlp16Scanner().beam_elevations[1], 2 * kDegree,
               1e-12);
   const ScannerModel planar = PlanarScanner();
   EXPECT_TRUE(planar.IsPlanar());
   EXPECT_EQ(planar.columns, 1081);
-  EXPECT_NEAR(planar.Azimuth(0), -135 * kDeg, 1e-12);
-  EXPECT_NEAR(planar.Azimuth(1080), 135 * kDeg, 1e-9);
+  EXPECT_NEAR(planar.Azimuth(0), -135 * kDegree, 1e-12);
+  EXPECT_NEAR(planar.Azimuth(1080), 135 * kDegree, 1e-9);
   EXPECT_DOUBLE_EQ(planar.max_range, 30);
   EXPECT_THROW(ScannerPreset("os3-64"), std::invalid_argument);
   EXPECT_THROW(ScannerPreset("os1-48"), std::invalid_argument);

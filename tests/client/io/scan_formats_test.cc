@@ -17,12 +17,9 @@ namespace forestmap::client {
 namespace {
 
 using algorithms::PointCloud;
+using testing_util::Absolute;
 
 class ScanFormatsTest : public testing_util::ScanDirTest {};
-
-Eigen::Vector3d Absolute(const PointCloud& cloud, size_t i) {
-  return cloud.origin + cloud.points[i].cast<double>();
-}
 
 template <typename T>
 std::string Bytes(T value, bool big_endian = false) {

@@ -20,6 +20,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using algorithms::PointCloud;
+using testing_util::Absolute;
 using testing_util::ErrorOf;
 using testing_util::ScanDirTest;
 
@@ -33,10 +34,6 @@ size_t CountFinite(const PointCloud& cloud) {
   size_t n = 0;
   for (const auto& p : cloud.points) n += p.allFinite() ? 1 : 0;
   return n;
-}
-
-Eigen::Vector3d Absolute(const PointCloud& cloud, size_t i) {
-  return cloud.origin + cloud.points[i].cast<double>();
 }
 
 TEST(ScanIoRealData, TreescopeTrunkSlicesHaveReferencePointCounts) {

@@ -37,6 +37,11 @@ class ScanDirTest : public ::testing::Test {
   std::filesystem::path dir_;
 };
 
+// A point of `cloud` in the cloud's frame (its origin added back).
+inline Eigen::Vector3d Absolute(const algorithms::PointCloud& cloud, size_t i) {
+  return cloud.origin + cloud.points[i].cast<double>();
+}
+
 // The message of the ScanError that `read` throws, or "" (with a test failure) when it does not.
 template <typename F>
 std::string ErrorOf(F&& read) {

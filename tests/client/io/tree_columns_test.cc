@@ -9,6 +9,7 @@
 #include <string>
 
 #include "client/io/tree_csv.h"
+#include "tests/client/io/csv_test_util.h"
 
 namespace forestmap::client {
 namespace {
@@ -16,15 +17,7 @@ namespace {
 const std::string kPlot = std::string(FORESTMAP_SHARED_DATA) + "/survey_vs_lidar/PRF025/";
 constexpr double kTolerance = 1e-9;
 
-template <typename Read>
-std::string ErrorOf(Read read) {
-  try {
-    read();
-  } catch (const CsvError& error) {
-    return error.what();
-  }
-  return "";
-}
+using testing_util::CsvErrorOf;
 
 TreeFileOptions FieldOptions() {
   TreeFileOptions options;
@@ -66,7 +59,8 @@ TEST(TreeColumnsTest, CentimetreDbhWithoutUnitIsRefusedNamingFileAndColumn) {
   SkipWithoutData();
   TreeFileOptions options = FieldOptions();
   options.dbh_unit.reset();
-  const std::string error = ErrorOf([&] { ReadMapTreesCsv(kPlot + "PRF025_Field.csv", options); });
+  const std::string error =
+      CsvErrorOf([&] { ReadMapTreesCsv(kPlot + "PRF025_Field.csv", options); });
   EXPECT_NE(error.find("PRF025_Field.csv"), std::string::npos) << error;
   EXPECT_NE(error.find("column 'DBH'"), std::string::npos) << error;
   EXPECT_NE(error.find("--dbh-unit cm"), std::string::npos) << error;
@@ -75,12 +69,12 @@ TEST(TreeColumnsTest, CentimetreDbhWithoutUnitIsRefusedNamingFileAndColumn) {
 TEST(TreeColumnsTest, UnmappedAndMissingColumnsAreNamed) {
   SkipWithoutData();
   const std::string path = kPlot + "PRF025_Field.csv";
-  const std::string unmapped = ErrorOf([&] { ReadMapTreesCsv(path); });
+  const std::string unmapped = CsvErrorOf([&] { ReadMapTreesCsv(path); });
   EXPECT_NE(unmapped.find("PRF025_Field.csv:1: missing required column 'x'"), std::string::npos)
       << unmapped;
   TreeFileOptions options = FieldOptions();
   options.columns["x"] = "Field_Xpjj";
-  const std::string wrong = ErrorOf([&] { ReadMapTreesCsv(path, options); });
+  const std::string wrong = CsvErrorOf([&] { ReadMapTreesCsv(path, options); });
   EXPECT_NE(wrong.find("PRF025_Field.csv:1: --columns x=Field_Xpjj: no column 'Field_Xpjj'"),
             std::string::npos)
       << wrong;
@@ -208,7 +202,7 @@ TEST(TreeColumnsTest, ErrorsNameTheFlagAndAColumnMappedTwice) {
   TreeFileOptions options;
   options.columns_flag = "--reference-columns";
   options.columns = {{"dbh", "DBHX"}};
-  EXPECT_EQ(ErrorOf([&] { ParseMapTreesCsv("x,y,dbh\n1,2,0.3\n", "r.csv", options); }),
+  EXPECT_EQ(CsvErrorOf([&] { ParseMapTreesCsv("x,y,dbh\n1,2,0.3\n", "r.csv", options); }),
             "r.csv:1: --reference-columns dbh=DBHX: no column 'DBHX' (columns: x,y,dbh)");
 }
 
@@ -229,14 +223,14 @@ TEST(TreeColumnsTest, InchesAreADbhUnit) {
 TEST(TreeColumnsTest, ImplausibleDbhUnitsAreRefused) {
   TreeFileOptions options;
   options.dbh_unit = DbhUnit::kMillimetre;
-  EXPECT_EQ(ErrorOf([&] { ParseMapTreesCsv("x,y,dbh_cm\n1,2,31\n", "a.csv", options); }),
+  EXPECT_EQ(CsvErrorOf([&] { ParseMapTreesCsv("x,y,dbh_cm\n1,2,31\n", "a.csv", options); }),
             "a.csv:1: column 'dbh_cm' is in cm by its name, but --dbh-unit says mm: drop "
             "--dbh-unit or rename the column");
   options.dbh_unit = DbhUnit::kCentimetre;
   EXPECT_NEAR(*ParseMapTreesCsv("x,y,dbh_cm\n1,2,31\n", "a.csv", options)[0].dbh, 0.31,
               kTolerance);  // the same unit twice is fine
   EXPECT_EQ(
-      ErrorOf(
+      CsvErrorOf(
           [&] { ParseMapTreesCsv("x,y,dbh\n1,2,0.31\n3,4,0.25\n5,6,0.4\n", "a.csv", options); }),
       "a.csv: column 'dbh': the median DBH is 0.0031 m read in cm (under 1 cm: no inventory of "
       "trees); if the column is in metres, drop --dbh-unit or give --dbh-unit m");

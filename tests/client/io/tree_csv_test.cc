@@ -12,6 +12,7 @@
 #include <string>
 
 #include "client/io/utf8.h"
+#include "tests/client/io/csv_test_util.h"
 #include "tests/shared_data.h"
 
 namespace forestmap::client {
@@ -19,23 +20,14 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The message of the CsvError thrown by `read`, or "" when nothing was thrown.
-template <typename Read>
-std::string ErrorOf(Read read) {
-  try {
-    read();
-  } catch (const CsvError& error) {
-    return error.what();
-  }
-  return "";
-}
+using testing_util::CsvErrorOf;
 
 std::string MapError(const std::string& content) {
-  return ErrorOf([&] { ParseMapTreesCsv(content, "t.csv"); });
+  return CsvErrorOf([&] { ParseMapTreesCsv(content, "t.csv"); });
 }
 
 std::string DetectionError(const std::string& content) {
-  return ErrorOf([&] { ParseDetectedTreesCsv(content, "d.csv"); });
+  return CsvErrorOf([&] { ParseDetectedTreesCsv(content, "d.csv"); });
 }
 
 TEST(TreeCsvTest, FindsColumnsByNameAndAlias) {
@@ -164,10 +156,10 @@ TEST(TreeCsvTest, AttributesMustBeUtf8) {
 
 TEST(TreeCsvTest, FileErrorsNameTheFile) {
   const std::string missing = (fs::temp_directory_path() / "forestmap_no_such_file.csv").string();
-  EXPECT_EQ(ErrorOf([&] { ReadMapTreesCsv(missing); }),
+  EXPECT_EQ(CsvErrorOf([&] { ReadMapTreesCsv(missing); }),
             missing + ": cannot open: No such file or directory");
   const std::string dir = fs::temp_directory_path().string();
-  EXPECT_EQ(ErrorOf([&] { ReadFramesCsv(dir); }), dir + ": is a directory");
+  EXPECT_EQ(CsvErrorOf([&] { ReadFramesCsv(dir); }), dir + ": is a directory");
 }
 
 TEST(TreeCsvTest, DetectionsReadAxisScoreAndFrame) {
@@ -202,7 +194,7 @@ TEST(TreeCsvTest, DetectionErrors) {
             "d.csv:2: column 'score': 'Inf' is not a finite number");
   EXPECT_EQ(DetectionError("frame,x,y\n,1,2\n"),
             "d.csv:2: column 'frame': missing value (required)");
-  EXPECT_EQ(ErrorOf([] { ParseFramesCsv("x,y\n1,2\n", "f.csv"); }),
+  EXPECT_EQ(CsvErrorOf([] { ParseFramesCsv("x,y\n1,2\n", "f.csv"); }),
             "f.csv:1: missing required column 'frame' (columns: x,y)");
 }
 
@@ -225,9 +217,10 @@ TEST(TreeCsvTest, PosesAreNormalisedAndChecked) {
   // 90 degrees about z: sensor x points along world y.
   EXPECT_TRUE((world_from_sensor.linear() * Eigen::Vector3d::UnitX())
                   .isApprox(Eigen::Vector3d::UnitY(), 1e-9));
-  EXPECT_EQ(ErrorOf([] { ParsePosesCsv("frame,x,y,z,qx,qy,qz,qw\n0,1,2,3,0,0,0,0.5\n", "p.csv"); }),
-            "p.csv:2: column 'qw': quaternion norm 0.500000 is not 1");
-  EXPECT_EQ(ErrorOf([] {
+  EXPECT_EQ(
+      CsvErrorOf([] { ParsePosesCsv("frame,x,y,z,qx,qy,qz,qw\n0,1,2,3,0,0,0,0.5\n", "p.csv"); }),
+      "p.csv:2: column 'qw': quaternion norm 0.500000 is not 1");
+  EXPECT_EQ(CsvErrorOf([] {
               ParsePosesCsv("frame,x,y,z,qx,qy,qz,qw\n3,1,2,3,0,0,0,1\n3,1,2,3,0,0,0,1\n", "p.csv");
             }),
             "p.csv:3: column 'frame': duplicate frame 3 (lines 2 and 3)");
@@ -308,7 +301,7 @@ TEST(TreeCsvTest, WriteRejectsWhatWouldNotReadBack) {
   MapTreeRow row;
   row.id = 4;
   row.y = std::nan("");
-  EXPECT_EQ(ErrorOf([&] { RoundTrip({row}); }), "cannot write tree #1 (id 4): y is not finite");
+  EXPECT_EQ(CsvErrorOf([&] { RoundTrip({row}); }), "cannot write tree #1 (id 4): y is not finite");
 }
 
 TEST(TreeCsvTest, WritesToFile) {
@@ -483,7 +476,7 @@ TEST(TreeCsvTest, ThreeDfinDbhAndHeightsTableIsRead) {
   EXPECT_DOUBLE_EQ(*rows[0].dbh, 0.251);
   EXPECT_EQ(rows[0].attributes.at("TH"), "17.234");
   EXPECT_DOUBLE_EQ(*rows[1].dbh, 0.18);
-  EXPECT_EQ(ErrorOf([&] { ParseMapTreesCsv(table, "trees.txt"); }),
+  EXPECT_EQ(CsvErrorOf([&] { ParseMapTreesCsv(table, "trees.txt"); }),
             "trees.txt: no header row (the first line is numbers): a tree table needs one naming "
             "its columns (x,y,dbh,...); 3DFin's *_dbh_and_heights.txt (TH DBH X Y) is read by "
             "that name");

@@ -17,7 +17,7 @@
 namespace forestmap::server {
 namespace {
 
-std::vector<storage::TreeRecord> Trees(int count) {
+std::vector<storage::TreeRecord> SpreadTrees(int count) {
   std::vector<storage::TreeRecord> trees(count);
   for (int i = 0; i < count; ++i) {
     trees[i].x = 3.0 * i;
@@ -31,7 +31,7 @@ class ReadinessTest : public ::testing::Test {
   ReadinessTest() {
     options_.interval = std::chrono::milliseconds(10);
     store_.CreateMap("forest", "", "");
-    store_.WriteTrees("forest", Trees(50), storage::WriteMode::kAppend);
+    store_.WriteTrees("forest", SpreadTrees(50), storage::WriteMode::kAppend);
     store_.CreateMap("empty", "", "");
   }
   std::unique_ptr<Readiness> Start() {
@@ -78,7 +78,7 @@ TEST_F(ReadinessTest, APreloadedMapThatWasWrittenToIsRebuiltWithoutAQuery) {
   const auto readiness = Start();
   ASSERT_TRUE(Eventually([&] { return readiness->state().ready; }));
   ASSERT_EQ(cache_.stats().builds, 1);
-  store_.WriteTrees("forest", Trees(60), storage::WriteMode::kReplace);
+  store_.WriteTrees("forest", SpreadTrees(60), storage::WriteMode::kReplace);
   EXPECT_TRUE(Eventually([&] { return cache_.stats().builds == 2; }));
   EXPECT_EQ(cache_.Get("forest").version, store_.GetMap("forest").version);
   EXPECT_EQ(cache_.stats().builds, 2);  // the query found the index warm

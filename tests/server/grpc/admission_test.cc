@@ -26,11 +26,11 @@
 namespace forestmap::server {
 namespace {
 
-constexpr auto kCallDeadline = std::chrono::seconds(30);  // turns a hang into a failure
+constexpr auto kAdmissionDeadline = std::chrono::seconds(30);  // turns a hang into a failure
 // A relocalization beside held writes gets this long; before, it waited for them all.
 constexpr auto kReadDeadline = std::chrono::seconds(5);
 
-std::vector<storage::TreeRecord> Forest(int count) {
+std::vector<storage::TreeRecord> HistoryForest(int count) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> coord(0.0, 100.0);
   std::vector<storage::TreeRecord> trees(count);
@@ -100,7 +100,7 @@ class AdmissionTest : public ::testing::Test {
     store_.WriteTrees("forest", forest_, storage::WriteMode::kAppend);
     store_.CreateMap("history", "", "");
     for (int i = 0; i < 3; ++i) {
-      store_.WriteTrees("history", Forest(10 + i), storage::WriteMode::kReplace);
+      store_.WriteTrees("history", HistoryForest(10 + i), storage::WriteMode::kReplace);
     }
     store_.before_prune = [this] { gate_.Enter(); };
   }
@@ -115,7 +115,8 @@ class AdmissionTest : public ::testing::Test {
         request.set_name("history");
         request.set_keep(1);
         v1::PruneVersionsResponse response;
-        return stub_->PruneVersions(test::CallContext(kCallDeadline).get(), request, &response);
+        return stub_->PruneVersions(test::CallContext(kAdmissionDeadline).get(), request,
+                                    &response);
       }));
     }
     return writes;
@@ -126,7 +127,7 @@ class AdmissionTest : public ::testing::Test {
     return stub_->Relocalize(test::CallContext(kReadDeadline).get(), ViewOf(forest_), &response);
   }
 
-  const std::vector<storage::TreeRecord> forest_ = Forest(400);
+  const std::vector<storage::TreeRecord> forest_ = HistoryForest(400);
   storage::SqliteMapStore sqlite_{":memory:"};
   GatedStore store_{sqlite_};
   WriteGate gate_;

@@ -16,6 +16,7 @@
 #include "server/grpc/server.h"
 #include "server/grpc/service.h"
 #include "storage/sqlite/store.h"
+#include "tests/server/grpc/validation_test_util.h"
 #include "tests/server/rpc_test_support.h"
 
 namespace forestmap::server {
@@ -24,7 +25,7 @@ namespace {
 using ::testing::ElementsAre;
 using ::testing::HasSubstr;
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+using test::kNaN;
 
 // The fields of the status's BadRequest details; the description is the status message.
 std::vector<std::string> BadFields(const grpc::Status& status) {

@@ -18,6 +18,7 @@
 #include "server/grpc/upload_validator.h"
 #include "server/grpc/validation.h"
 #include "storage/sqlite/store.h"
+#include "tests/server/grpc/validation_test_util.h"
 #include "tests/server/rpc_test_support.h"
 
 // Old clients set these fields; so do these tests.
@@ -28,15 +29,7 @@ namespace {
 
 using ::testing::HasSubstr;
 
-template <typename Body>
-std::string BadField(Body&& body) {
-  try {
-    body();
-  } catch (const ValidationError& e) {
-    return e.field();
-  }
-  return "";
-}
+using test::BadField;
 
 v1::UploadTreesRequest OldUpload(const std::string& name, int first_id, int count) {
   v1::UploadTreesRequest message;

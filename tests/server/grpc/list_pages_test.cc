@@ -11,22 +11,14 @@
 
 #include "server/grpc/status.h"
 #include "storage/sqlite/store.h"
+#include "tests/server/grpc/validation_test_util.h"
 
 namespace forestmap::server {
 namespace {
 
 const Caller kEveryone;  // open mode: no token, every map readable
 
-// The field a ValidationError of `body` names (google.rpc.BadRequest), or "" when none is thrown.
-template <typename Body>
-std::string BadField(Body&& body) {
-  try {
-    body();
-  } catch (const ValidationError& e) {
-    return e.field();
-  }
-  return "";
-}
+using test::BadField;
 
 std::vector<std::string> AllNames(storage::MapStore& store, int page_size, int* pages) {
   std::vector<std::string> names;

@@ -30,9 +30,9 @@ using algorithms::MapTree;
 using ::testing::HasSubstr;
 using ::testing::UnorderedElementsAre;
 
-constexpr auto kCallDeadline = std::chrono::seconds(60);  // turns a hang into a failure
-constexpr double kPoseTolerance = 0.3;                    // m, horizontal error of a found pose
-constexpr double kPlotWidth = 150;                        // m: x in [0, 150) and [150, 300)
+constexpr auto kMapSetDeadline = std::chrono::seconds(60);  // turns a hang into a failure
+constexpr double kMapSetPoseTolerance = 0.3;                // m, horizontal error of a found pose
+constexpr double kPlotWidth = 150;                          // m: x in [0, 150) and [150, 300)
 
 // One generated forest, 300 m x 300 m, and another that no map holds.
 const std::vector<MapTree>& District() {
@@ -111,7 +111,7 @@ class MapSetTest : public ::testing::Test {
 
   void Create(const std::string& name, const std::vector<v1::Tree>& trees,
               const std::string& crs = "") {
-    auto context = test::CallContext(kCallDeadline);
+    auto context = test::CallContext(kMapSetDeadline);
     v1::UploadTreesResponse response;
     auto writer = stub_->UploadTrees(context.get(), &response);
     v1::UploadTreesRequest header = test::UploadHeader(name, false, true);
@@ -131,7 +131,7 @@ class MapSetTest : public ::testing::Test {
 
   grpc::Status Relocalize(const v1::RelocalizeRequest& request, v1::RelocalizeResponse* answer,
                           const std::string& token = "") {
-    auto context = test::CallContext(kCallDeadline);
+    auto context = test::CallContext(kMapSetDeadline);
     if (!token.empty()) context->AddMetadata("authorization", "Bearer " + token);
     return stub_->Relocalize(context.get(), request, answer);
   }
@@ -163,7 +163,7 @@ TEST_F(MapSetTest, ViewInOnePlotIsFoundWithItsMapNameByNamesPatternOrAllMaps) {
       ASSERT_EQ(answer.status(), v1::RelocalizeResponse::STATUS_LOCALIZED)
           << "set " << k << ", " << map << ": " << answer.detail();
       EXPECT_EQ(answer.map_name(), map) << "set " << k;
-      EXPECT_LT(HorizontalError(answer, truth), kPoseTolerance) << "set " << k;
+      EXPECT_LT(HorizontalError(answer, truth), kMapSetPoseTolerance) << "set " << k;
       EXPECT_EQ(answer.map_version(), 2);  // created and written by one upload
       EXPECT_TRUE(answer.rival_map_name().empty());
     }
@@ -214,7 +214,7 @@ TEST_F(MapSetTest, OverlappingMapsOfOneFrameAgreeOnThePose) {
   ASSERT_TRUE(Relocalize(request, &answer).ok());
   ASSERT_EQ(answer.status(), v1::RelocalizeResponse::STATUS_LOCALIZED) << answer.detail();
   EXPECT_THAT(answer.map_name(), ::testing::AnyOf("district-a", "overlap-ab"));
-  EXPECT_LT(HorizontalError(answer, truth), kPoseTolerance);
+  EXPECT_LT(HorizontalError(answer, truth), kMapSetPoseTolerance);
 }
 
 // Plot maps in one CRS are one forest: a view on their boundary is found in the index of their
@@ -232,7 +232,7 @@ TEST_F(MapSetTest, MapsOfOneCrsFindAViewOnTheirBoundaryWithEachMatchsMap) {
     const grpc::Status status = Relocalize(request, &answer);
     ASSERT_TRUE(status.ok()) << status.error_message();
     ASSERT_EQ(answer.status(), v1::RelocalizeResponse::STATUS_LOCALIZED) << answer.detail();
-    EXPECT_LT(HorizontalError(answer, truth), kPoseTolerance);
+    EXPECT_LT(HorizontalError(answer, truth), kMapSetPoseTolerance);
     EXPECT_THAT(answer.map_name(), ::testing::AnyOf("utm-a", "utm-b"));
     EXPECT_TRUE(answer.has_geodetic());
     std::set<std::string> maps;
@@ -337,7 +337,7 @@ constexpr int kFlightFrames = 46;  // to x = 200
 
 Flight Fly(v1::ForestMap::Stub& stub, const v1::TrackHeader& header) {
   Flight flight;
-  auto context = test::CallContext(kCallDeadline);
+  auto context = test::CallContext(kMapSetDeadline);
   auto stream = stub.Track(context.get());
   v1::TrackRequest first;
   *first.mutable_header() = header;
@@ -377,7 +377,8 @@ TEST_F(MapSetTest, ATrackOverTheDistrictCrossesFromOnePlotMapIntoTheNext) {
     const double x = flight.truths[k].translation().x();
     if (answer.state() == v1::TrackResponse::STATE_LOST) continue;
     ++with_pose;
-    EXPECT_LT(HorizontalError(answer.result(), flight.truths[k]), kPoseTolerance) << "x " << x;
+    EXPECT_LT(HorizontalError(answer.result(), flight.truths[k]), kMapSetPoseTolerance)
+        << "x " << x;
     if (x < 140) {
       EXPECT_EQ(answer.result().map_name(), "district-a") << "x " << x;
     } else if (x > 165) {

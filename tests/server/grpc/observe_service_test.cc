@@ -25,9 +25,11 @@ namespace forestmap::server {
 namespace {
 
 using ::testing::HasSubstr;
-constexpr auto kCallDeadline = std::chrono::seconds(60);  // turns a hang into a failure
+constexpr auto kObserveDeadline = std::chrono::seconds(60);  // turns a hang into a failure
 
-std::unique_ptr<grpc::ClientContext> Context() { return test::CallContext(kCallDeadline); }
+std::unique_ptr<grpc::ClientContext> ObserveContext() {
+  return test::CallContext(kObserveDeadline);
+}
 
 // 500 trees at least 2.5 m apart in a 200 x 60 m strip; 100 frames every 2 m along it, each
 // seeing the trees within 25 m (2 cm position noise, 1 cm DBH noise), sensor 1.5 m up, yawing.
@@ -116,11 +118,11 @@ class ObserveServiceTest : public ::testing::Test {
     v1::CreateMapRequest request;
     request.set_name(name);
     v1::Map map;
-    ASSERT_TRUE(stub_->CreateMap(Context().get(), request, &map).ok());
+    ASSERT_TRUE(stub_->CreateMap(ObserveContext().get(), request, &map).ok());
   }
 
   grpc::Status Observe(const v1::ObserveRequest& request, v1::ObserveResponse* response) {
-    return stub_->Observe(Context().get(), request, response);
+    return stub_->Observe(ObserveContext().get(), request, response);
   }
 
   v1::ObserveResponse ObserveOk(const v1::ObserveRequest& request) {
@@ -142,7 +144,7 @@ class ObserveServiceTest : public ::testing::Test {
     v1::ExportTreesRequest request;
     request.set_name(map);
     request.set_version(version);
-    auto context = Context();
+    auto context = ObserveContext();
     auto reader = stub_->ExportTrees(context.get(), request);
     std::vector<v1::Tree> trees;
     v1::ExportTreesResponse message;
@@ -231,7 +233,7 @@ TEST_F(ObserveServiceTest, FramesMergeIntoASurveyWithoutHeights) {
     tree->set_dbh(forest.dbh[t]);  // no z
   }
   v1::UploadTreesResponse uploaded;
-  auto context = Context();
+  auto context = ObserveContext();
   auto writer = stub_->UploadTrees(context.get(), &uploaded);
   ASSERT_TRUE(writer->Write(header));
   ASSERT_TRUE(writer->Write(upload));
@@ -338,7 +340,7 @@ TEST_F(ObserveServiceTest, HistoryRestoreAndRemoveSource) {
   remove.set_name("both");
   remove.set_source("drone-b");
   v1::RemoveSourceResponse removed;
-  ASSERT_TRUE(stub_->RemoveSource(Context().get(), remove, &removed).ok());
+  ASSERT_TRUE(stub_->RemoveSource(ObserveContext().get(), remove, &removed).ok());
   EXPECT_EQ(removed.map().version(), 8);
   EXPECT_GT(removed.trees_removed(), 50);  // trees only drone-b saw
   EXPECT_GT(removed.trees_updated(), 50);  // trees both saw
@@ -351,7 +353,7 @@ TEST_F(ObserveServiceTest, HistoryRestoreAndRemoveSource) {
     EXPECT_EQ(a[i].status(), b[i].status());
     EXPECT_EQ(a[i].observations(), b[i].observations());
   }
-  grpc::Status status = stub_->RemoveSource(Context().get(), remove, &removed);
+  grpc::Status status = stub_->RemoveSource(ObserveContext().get(), remove, &removed);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::NOT_FOUND);
   EXPECT_THAT(status.error_message(), HasSubstr("no observations of source \"drone-b\""));
 
@@ -359,18 +361,18 @@ TEST_F(ObserveServiceTest, HistoryRestoreAndRemoveSource) {
   restore.set_name("both");
   restore.set_version(7);
   v1::RestoreVersionResponse restored;
-  ASSERT_TRUE(stub_->RestoreVersion(Context().get(), restore, &restored).ok());
+  ASSERT_TRUE(stub_->RestoreVersion(ObserveContext().get(), restore, &restored).ok());
   EXPECT_EQ(restored.map().version(), 9);
   EXPECT_EQ(Export("both").size(), Export("both", 7).size());
   EXPECT_EQ(Export("both", 4).size(), version4.size());
   restore.set_version(99);
-  status = stub_->RestoreVersion(Context().get(), restore, &restored);
+  status = stub_->RestoreVersion(ObserveContext().get(), restore, &restored);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::NOT_FOUND);
 
   v1::ListVersionsRequest list;
   list.set_name("both");
   v1::ListVersionsResponse history;
-  ASSERT_TRUE(stub_->ListVersions(Context().get(), list, &history).ok());
+  ASSERT_TRUE(stub_->ListVersions(ObserveContext().get(), list, &history).ok());
   ASSERT_EQ(history.versions_size(), 9);
   EXPECT_EQ(history.versions(0).kind(), v1::MapVersion::KIND_CREATE);
   EXPECT_EQ(history.versions(4).kind(), v1::MapVersion::KIND_OBSERVE);
@@ -397,8 +399,8 @@ TEST_F(ObserveServiceTest, ConcurrentDronesEqualTheSequentialUpload) {
       for (int begin = q * 25; begin < q * 25 + 25; begin += 5) {
         v1::ObserveResponse response;
         const grpc::Status status = stub->Observe(
-            Context().get(), Request("concurrent", "drone-" + std::to_string(q), begin, begin + 5),
-            &response);
+            ObserveContext().get(),
+            Request("concurrent", "drone-" + std::to_string(q), begin, begin + 5), &response);
         if (!status.ok()) ++failures;
       }
     });

@@ -24,11 +24,13 @@ namespace {
 
 using ::testing::HasSubstr;
 
-constexpr auto kCallDeadline = std::chrono::seconds(20);  // turns a hang into a failure
+constexpr auto kRobustnessDeadline = std::chrono::seconds(20);  // turns a hang into a failure
 
-std::unique_ptr<grpc::ClientContext> Context() { return test::CallContext(kCallDeadline); }
+std::unique_ptr<grpc::ClientContext> RobustnessContext() {
+  return test::CallContext(kRobustnessDeadline);
+}
 
-std::filesystem::path TestDir() { return test::FreshTestDir("forestmap_robust_"); }
+std::filesystem::path RobustnessTestDir() { return test::FreshTestDir("forestmap_robust_"); }
 
 v1::Tree TreeAt(double x, double y) {
   v1::Tree tree;
@@ -40,7 +42,7 @@ v1::Tree TreeAt(double x, double y) {
 class RobustnessTest : public ::testing::Test {
  protected:
   explicit RobustnessTest(ServiceOptions options = {})
-      : dir_(TestDir()),
+      : dir_(RobustnessTestDir()),
         store_((dir_ / "maps.db").string()),
         gated_(store_),
         service_(gated_, options),
@@ -53,7 +55,7 @@ class RobustnessTest : public ::testing::Test {
     v1::CreateMapRequest request;
     request.set_name(name);
     v1::Map map;
-    return stub_->CreateMap(Context().get(), request, &map);
+    return stub_->CreateMap(RobustnessContext().get(), request, &map);
   }
 
   // Uploads `trees` in one chunk after the header.
@@ -61,7 +63,7 @@ class RobustnessTest : public ::testing::Test {
                       v1::UploadTreesResponse* response = nullptr,
                       const std::string& request_id = "", bool replace = false) {
     v1::UploadTreesResponse ignored;
-    auto context = Context();
+    auto context = RobustnessContext();
     auto writer = stub_->UploadTrees(context.get(), response ? response : &ignored);
     v1::UploadTreesRequest header = test::UploadHeader(name, replace);
     header.mutable_header()->set_request_id(request_id);
@@ -81,12 +83,13 @@ class RobustnessTest : public ::testing::Test {
       tree->mutable_position()->set_y(y);
     }
     v1::RelocalizeResponse response;
-    return stub_->Relocalize(Context().get(), request, &response);
+    return stub_->Relocalize(RobustnessContext().get(), request, &response);
   }
 
   void ExpectServing() {
     v1::ListMapsResponse response;
-    const grpc::Status status = stub_->ListMaps(Context().get(), v1::ListMapsRequest(), &response);
+    const grpc::Status status =
+        stub_->ListMaps(RobustnessContext().get(), v1::ListMapsRequest(), &response);
     EXPECT_TRUE(status.ok()) << status.error_message();
   }
 
@@ -131,7 +134,7 @@ TEST_F(RobustnessTest, FarObservationPoseIsRejectedByName) {
   frame->mutable_map_from_sensor()->mutable_translation()->set_x(1e45);
   for (int i = 0; i < 3; ++i) frame->add_trees()->mutable_position()->set_x(2.0 * i);
   v1::ObserveResponse response;
-  const grpc::Status status = stub_->Observe(Context().get(), request, &response);
+  const grpc::Status status = stub_->Observe(RobustnessContext().get(), request, &response);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(status.error_message(),
               HasSubstr("frames[0].map_from_sensor.translation.x is 1e+45"));
@@ -143,7 +146,7 @@ TEST_F(RobustnessTest, FarObservationPoseIsRejectedByName) {
 TEST_F(RobustnessTest, UndecodableUploadMessageFailsTheUploadAndWritesNothing) {
   ASSERT_TRUE(CreateMap("plot").ok());
   v1::UploadTreesResponse response;
-  auto context = Context();
+  auto context = RobustnessContext();
   auto writer = stub_->UploadTrees(context.get(), &response);
   ASSERT_TRUE(writer->Write(test::UploadHeader("plot")));
   for (int m = 0; m < 5; ++m) {
@@ -199,17 +202,17 @@ int64_t ObservationRows(storage::MapStore& store, const std::string& name) {
 TEST_F(RobustnessTest, RepeatedRequestIdsAreAppliedOnceAndAnsweredAlike) {
   ASSERT_TRUE(CreateMap("shared").ok());
   v1::ObserveResponse first, second;
-  ASSERT_TRUE(stub_->Observe(Context().get(), ObserveFrames("obs-1"), &first).ok());
+  ASSERT_TRUE(stub_->Observe(RobustnessContext().get(), ObserveFrames("obs-1"), &first).ok());
   const int64_t rows = ObservationRows(store_, "shared");
   EXPECT_GE(rows, 12);  // 3 frames x 6 trees, less what the merge ignores
-  ASSERT_TRUE(stub_->Observe(Context().get(), ObserveFrames("obs-1"), &second).ok());
+  ASSERT_TRUE(stub_->Observe(RobustnessContext().get(), ObserveFrames("obs-1"), &second).ok());
   EXPECT_EQ(ObservationRows(store_, "shared"), rows);  // not applied again
   EXPECT_EQ(second.map_version(), first.map_version());
   EXPECT_EQ(second.frames_size(), 3);
   EXPECT_EQ(second.frames(1).trees_associated(), first.frames(1).trees_associated());
   EXPECT_EQ(store_.GetMap("shared").version, first.map_version());
   // A new id is a new write.
-  ASSERT_TRUE(stub_->Observe(Context().get(), ObserveFrames("obs-2"), &second).ok());
+  ASSERT_TRUE(stub_->Observe(RobustnessContext().get(), ObserveFrames("obs-2"), &second).ok());
   EXPECT_EQ(ObservationRows(store_, "shared"), 2 * rows);
 
   ASSERT_TRUE(CreateMap("plot").ok());
@@ -225,8 +228,8 @@ TEST_F(RobustnessTest, RepeatedRequestIdsAreAppliedOnceAndAnsweredAlike) {
   create.set_name("again");
   create.set_request_id("create-1");
   v1::Map made1, made2;
-  ASSERT_TRUE(stub_->CreateMap(Context().get(), create, &made1).ok());
-  const grpc::Status retried = stub_->CreateMap(Context().get(), create, &made2);
+  ASSERT_TRUE(stub_->CreateMap(RobustnessContext().get(), create, &made1).ok());
+  const grpc::Status retried = stub_->CreateMap(RobustnessContext().get(), create, &made2);
   EXPECT_TRUE(retried.ok()) << retried.error_message();  // not ALREADY_EXISTS
   EXPECT_EQ(made2.created_unix_ms(), made1.created_unix_ms());
 
@@ -262,22 +265,22 @@ TEST_F(RobustnessTest, ARequestIdReusedForAnotherRequestIsRefusedNeverAnswered) 
 
   ASSERT_TRUE(CreateMap("shared").ok());
   v1::ObserveResponse observed;
-  ASSERT_TRUE(stub_->Observe(Context().get(), ObserveFrames("obs-1"), &observed).ok());
+  ASSERT_TRUE(stub_->Observe(RobustnessContext().get(), ObserveFrames("obs-1"), &observed).ok());
   v1::ObserveRequest elsewhere = ObserveFrames("obs-1");
   elsewhere.set_name("other");
-  refused(stub_->Observe(Context().get(), elsewhere, &observed));
+  refused(stub_->Observe(RobustnessContext().get(), elsewhere, &observed));
   EXPECT_EQ(ObservationRows(store_, "other"), 0);
   v1::ObserveRequest moved = ObserveFrames("obs-1");
   moved.mutable_frames(0)->mutable_trees(0)->set_dbh(0.5);
-  refused(stub_->Observe(Context().get(), moved, &observed));
+  refused(stub_->Observe(RobustnessContext().get(), moved, &observed));
 
   v1::CreateMapRequest create;
   create.set_name("made");
   create.set_request_id("create-1");
   v1::Map made;
-  ASSERT_TRUE(stub_->CreateMap(Context().get(), create, &made).ok());
+  ASSERT_TRUE(stub_->CreateMap(RobustnessContext().get(), create, &made).ok());
   create.set_name("made-too");
-  refused(stub_->CreateMap(Context().get(), create, &made));
+  refused(stub_->CreateMap(RobustnessContext().get(), create, &made));
   EXPECT_THROW(store_.GetMap("made-too"), storage::StorageError);
 }
 
@@ -296,11 +299,11 @@ TEST_F(RobustnessTest, WriteWhoseDeadlinePassedBeforeTheCommitIsNotCommitted) {
   EXPECT_EQ(ObservationRows(store_, "shared"), 0);
   // The retry with the same id (and time enough) is applied, once.
   gated_.merge_delay = std::chrono::milliseconds(0);
-  ASSERT_TRUE(stub_->Observe(Context().get(), ObserveFrames("obs-late"), &response).ok());
+  ASSERT_TRUE(stub_->Observe(RobustnessContext().get(), ObserveFrames("obs-late"), &response).ok());
   const int64_t rows = ObservationRows(store_, "shared");
   EXPECT_GE(rows, 12);
   EXPECT_EQ(store_.GetMap("shared").version, version + 1);
-  ASSERT_TRUE(stub_->Observe(Context().get(), ObserveFrames("obs-late"), &response).ok());
+  ASSERT_TRUE(stub_->Observe(RobustnessContext().get(), ObserveFrames("obs-late"), &response).ok());
   EXPECT_EQ(ObservationRows(store_, "shared"), rows);
 }
 
@@ -316,7 +319,7 @@ TEST_F(RobustnessTest, PruneVersionsKeepsTheNewestVersions) {
   request.set_name("plot");
   request.set_keep(2);
   v1::PruneVersionsResponse response;
-  grpc::Status status = stub_->PruneVersions(Context().get(), request, &response);
+  grpc::Status status = stub_->PruneVersions(RobustnessContext().get(), request, &response);
   ASSERT_TRUE(status.ok()) << status.error_message();
   EXPECT_EQ(response.versions_removed(), 3);     // 1, 2, 3 of 1..5
   EXPECT_EQ(response.tree_rows_removed(), 100);  // the trees of versions 2 and 3
@@ -324,7 +327,7 @@ TEST_F(RobustnessTest, PruneVersionsKeepsTheNewestVersions) {
   EXPECT_EQ(store_.ListVersions("plot", 0).size(), 2u);
   EXPECT_EQ(store_.GetMap("plot").tree_count, 50);
   request.set_keep(0);
-  status = stub_->PruneVersions(Context().get(), request, &response);
+  status = stub_->PruneVersions(RobustnessContext().get(), request, &response);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(status.error_message(), HasSubstr("keep is 0"));
 }
@@ -343,8 +346,10 @@ TEST_F(RetentionTest, KeepVersionsPolicyPrunesAfterEveryWrite) {
   ASSERT_TRUE(CreateMap("shared").ok());
   for (int i = 0; i < 6; ++i) {
     v1::ObserveResponse response;
-    ASSERT_TRUE(
-        stub_->Observe(Context().get(), ObserveFrames("obs-" + std::to_string(i)), &response).ok());
+    ASSERT_TRUE(stub_
+                    ->Observe(RobustnessContext().get(), ObserveFrames("obs-" + std::to_string(i)),
+                              &response)
+                    .ok());
     EXPECT_LE(store_.ListVersions("shared", 0).size(), 3u) << "after observe " << i;
   }
   EXPECT_EQ(store_.GetMap("shared").version, 7);
@@ -372,7 +377,8 @@ TEST_F(RetentionTest, AFailedRetentionIsLoggedAndTheWriteStands) {
   };
   ::testing::internal::CaptureStderr();
   v1::ObserveResponse observed;
-  const grpc::Status observe = stub_->Observe(Context().get(), ObserveFrames("obs-1"), &observed);
+  const grpc::Status observe =
+      stub_->Observe(RobustnessContext().get(), ObserveFrames("obs-1"), &observed);
   const grpc::Status upload = Upload("shared", {TreeAt(50, 50)});
   const std::string log = ::testing::internal::GetCapturedStderr();
   EXPECT_TRUE(observe.ok()) << observe.error_message();

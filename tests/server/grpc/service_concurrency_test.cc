@@ -28,14 +28,16 @@ namespace {
 
 using ::testing::HasSubstr;
 
-constexpr auto kCallDeadline = std::chrono::seconds(20);  // turns a hang into a failure
-constexpr double kPositionTolerance = 0.05;               // m, noise-free query
-constexpr double kYawTolerance = 0.005;                   // rad
+constexpr auto kConcurrencyDeadline = std::chrono::seconds(20);  // turns a hang into a failure
+constexpr double kPositionTolerance = 0.05;                      // m, noise-free query
+constexpr double kYawTolerance = 0.005;                          // rad
 
-std::unique_ptr<grpc::ClientContext> Context() { return test::CallContext(kCallDeadline); }
+std::unique_ptr<grpc::ClientContext> ConcurrencyContext() {
+  return test::CallContext(kConcurrencyDeadline);
+}
 
 // A forest of `count` trees with ids 1..count, x, y uniform in [0, 100) m, z = 0, dbh known.
-std::vector<storage::TreeRecord> Forest(int count, unsigned seed) {
+std::vector<storage::TreeRecord> RandomForest(int count, unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> coord(0.0, 100.0);
   std::uniform_real_distribution<double> dbh(0.1, 0.5);
@@ -84,12 +86,13 @@ class ServiceConcurrencyTest : public ::testing::Test {
   }
 
   grpc::Status Relocalize(const v1::RelocalizeRequest& request, v1::RelocalizeResponse* response) {
-    return stub_->Relocalize(Context().get(), request, response);
+    return stub_->Relocalize(ConcurrencyContext().get(), request, response);
   }
 
   void ExpectServing() {
     v1::ListMapsResponse response;
-    const grpc::Status status = stub_->ListMaps(Context().get(), v1::ListMapsRequest(), &response);
+    const grpc::Status status =
+        stub_->ListMaps(ConcurrencyContext().get(), v1::ListMapsRequest(), &response);
     EXPECT_TRUE(status.ok()) << status.error_message();
   }
 
@@ -110,7 +113,7 @@ std::pair<grpc::Status, std::string> RawCall(const std::shared_ptr<grpc::Channel
   const grpc::ByteBuffer request(&slice, 1);
   grpc::ByteBuffer response;
   std::promise<grpc::Status> done;
-  auto context = Context();
+  auto context = ConcurrencyContext();
   stub.UnaryCall(context.get(), method, grpc::StubOptions(), &request, &response,
                  [&done](grpc::Status status) { done.set_value(std::move(status)); });
   const grpc::Status status = done.get_future().get();
@@ -135,7 +138,7 @@ int64_t HealthStatus(const std::string& bytes) {
 }
 
 TEST_F(ServiceConcurrencyTest, RelocalizeAnswersWithTheMapVersionItUsed) {
-  const std::vector<storage::TreeRecord> forest = Forest(500, 1);
+  const std::vector<storage::TreeRecord> forest = RandomForest(500, 1);
   AddMap("plot", forest);
   const algorithms::Pose3 truth = algorithms::PoseFromXyzYaw(50, 50, 1.5, 0.7);
   const v1::RelocalizeRequest request = ViewOf("plot", forest, truth, 15.0);
@@ -162,7 +165,7 @@ TEST_F(ServiceConcurrencyTest, RelocalizeAnswersWithTheMapVersionItUsed) {
 }
 
 TEST_F(ServiceConcurrencyTest, IndexIsRebuiltAfterAnUpload) {
-  const std::vector<storage::TreeRecord> forest = Forest(300, 2);
+  const std::vector<storage::TreeRecord> forest = RandomForest(300, 2);
   AddMap("plot", forest);
   const v1::RelocalizeRequest request =
       ViewOf("plot", forest, algorithms::PoseFromXyzYaw(40, 60, 1.5, -1.0), 15.0);
@@ -172,7 +175,7 @@ TEST_F(ServiceConcurrencyTest, IndexIsRebuiltAfterAnUpload) {
   EXPECT_EQ(store_.reads("plot"), 1);  // the second call used the cached index
 
   v1::UploadTreesResponse uploaded;
-  auto context = Context();
+  auto context = ConcurrencyContext();
   auto writer = stub_->UploadTrees(context.get(), &uploaded);
   v1::UploadTreesRequest header;
   header.mutable_header()->set_name("plot");
@@ -194,7 +197,7 @@ TEST_F(ServiceConcurrencyTest, IndexIsRebuiltAfterAnUpload) {
 }
 
 TEST_F(ServiceConcurrencyTest, ConcurrentRelocalizationsShareOneIndex) {
-  const std::vector<storage::TreeRecord> forest = Forest(400, 3);
+  const std::vector<storage::TreeRecord> forest = RandomForest(400, 3);
   AddMap("plot", forest);
   const int64_t version = store_.GetMap("plot").version;
   constexpr int kThreads = 8;
@@ -218,8 +221,8 @@ TEST_F(ServiceConcurrencyTest, ConcurrentRelocalizationsShareOneIndex) {
 }
 
 TEST_F(ServiceConcurrencyTest, AnIndexBuildDoesNotBlockOtherCalls) {
-  const std::vector<storage::TreeRecord> slow_forest = Forest(200, 4);
-  const std::vector<storage::TreeRecord> fast_forest = Forest(200, 5);
+  const std::vector<storage::TreeRecord> slow_forest = RandomForest(200, 4);
+  const std::vector<storage::TreeRecord> fast_forest = RandomForest(200, 5);
   AddMap("slow", slow_forest);
   AddMap("fast", fast_forest);
   const algorithms::Pose3 pose = algorithms::PoseFromXyzYaw(50, 50, 1.5, 2.0);
@@ -246,7 +249,7 @@ TEST_F(ServiceConcurrencyTest, AnIndexBuildDoesNotBlockOtherCalls) {
 }
 
 TEST_F(ServiceConcurrencyTest, RelocalizeRejectsBadQueries) {
-  const std::vector<storage::TreeRecord> forest = Forest(100, 6);
+  const std::vector<storage::TreeRecord> forest = RandomForest(100, 6);
   AddMap("plot", forest);
   AddMap("empty", {});
   const v1::RelocalizeRequest good =
@@ -291,7 +294,7 @@ TEST_F(ServiceConcurrencyTest, RelocalizeRejectsBadQueries) {
 }
 
 TEST_F(ServiceConcurrencyTest, CancelledUploadChangesNothing) {
-  AddMap("plot", Forest(10, 7));
+  AddMap("plot", RandomForest(10, 7));
   const storage::MapInfo before = store_.GetMap("plot");
   const int uploads_begun = store_.uploads_begun();
 
@@ -358,7 +361,7 @@ TEST_F(SmallMessageLimitTest, MessageOverTheLimitIsResourceExhausted) {
   request.set_name("big");
   request.set_description(std::string(2 << 20, 'd'));
   v1::Map map;
-  const grpc::Status status = stub_->CreateMap(Context().get(), request, &map);
+  const grpc::Status status = stub_->CreateMap(ConcurrencyContext().get(), request, &map);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
   ExpectServing();
   EXPECT_TRUE(store_.ListMaps().empty());

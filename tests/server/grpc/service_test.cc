@@ -14,6 +14,7 @@
 
 #include "server/grpc/server.h"
 #include "storage/sqlite/store.h"
+#include "tests/server/grpc/validation_test_util.h"
 #include "tests/server/rpc_test_support.h"
 
 namespace forestmap::server {
@@ -22,7 +23,7 @@ namespace {
 using google::protobuf::util::MessageDifferencer;
 using ::testing::HasSubstr;
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+using test::kNaN;
 constexpr auto kCallDeadline = std::chrono::seconds(20);  // turns a hang into a failure
 
 std::unique_ptr<grpc::ClientContext> Context() { return test::CallContext(kCallDeadline); }

@@ -29,11 +29,11 @@ namespace {
 using ::testing::HasSubstr;
 using Stub = v1::ForestMap::Stub;
 
-constexpr auto kCallDeadline = std::chrono::seconds(60);  // turns a hang into a failure
+constexpr auto kBoundsDeadline = std::chrono::seconds(60);  // turns a hang into a failure
 
-std::unique_ptr<grpc::ClientContext> Context() { return test::CallContext(kCallDeadline); }
+std::unique_ptr<grpc::ClientContext> BoundsContext() { return test::CallContext(kBoundsDeadline); }
 
-std::filesystem::path TestDir() { return test::FreshTestDir("forestmap_bounds_"); }
+std::filesystem::path BoundsTestDir() { return test::FreshTestDir("forestmap_bounds_"); }
 
 // A chunk of `count` trees with ids first_id.. on a grid.
 v1::UploadTreesRequest Chunk(int64_t first_id, int count) {
@@ -59,7 +59,7 @@ ServiceOptions Options() {
 class StreamBoundsTest : public ::testing::Test {
  protected:
   StreamBoundsTest()
-      : dir_(TestDir()),
+      : dir_(BoundsTestDir()),
         path_((dir_ / "maps.db").string()),
         store_(path_),
         gated_(store_),
@@ -80,13 +80,13 @@ class StreamBoundsTest : public ::testing::Test {
     v1::CreateMapRequest request;
     request.set_name(name);
     v1::Map map;
-    return stub_->CreateMap(Context().get(), request, &map);
+    return stub_->CreateMap(BoundsContext().get(), request, &map);
   }
 
   grpc::Status Upload(const std::string& name, int count, bool create = false,
                       bool replace = false) {
     v1::UploadTreesResponse response;
-    auto context = Context();
+    auto context = BoundsContext();
     auto writer = stub_->UploadTrees(context.get(), &response);
     bool open = writer->Write(test::UploadHeader(name, replace, create));
     for (int sent = 0; open && sent < count; sent += 1000) {
@@ -100,7 +100,7 @@ class StreamBoundsTest : public ::testing::Test {
     v1::GetMapRequest request;
     request.set_name(name);
     v1::Map map;
-    const grpc::Status got = stub_->GetMap(Context().get(), request, &map);
+    const grpc::Status got = stub_->GetMap(BoundsContext().get(), request, &map);
     if (status) *status = got;
     return map;
   }
@@ -129,7 +129,7 @@ class StreamBoundsTest : public ::testing::Test {
 // and map B is created and written while A's upload is open and staged.
 TEST_F(StreamBoundsTest, UploadIsStagedWhileItStreamsAndOtherMapsAreWrittenMeanwhile) {
   v1::UploadTreesResponse response;
-  auto context = Context();
+  auto context = BoundsContext();
   auto writer = stub_->UploadTrees(context.get(), &response);
   constexpr int kMessages = 20;
   ASSERT_TRUE(writer->Write(test::UploadHeader("a", false, /*create_map=*/true)));
@@ -155,7 +155,7 @@ TEST_F(StreamBoundsTest, UploadIsStagedWhileItStreamsAndOtherMapsAreWrittenMeanw
 TEST_F(StreamBoundsTest, CancelledCreateWithTreesLeavesNoMapAndNoStagedRows) {
   {
     v1::UploadTreesResponse response;
-    auto context = Context();
+    auto context = BoundsContext();
     auto writer = stub_->UploadTrees(context.get(), &response);
     ASSERT_TRUE(writer->Write(test::UploadHeader("plot", false, /*create_map=*/true)));
     for (int m = 0; m < 5; ++m) ASSERT_TRUE(writer->Write(Chunk(m * 1000 + 1, 1000)));
@@ -183,7 +183,7 @@ TEST_F(StreamBoundsTest, SlowReaderGetsTheWholeVersionItStartedOn) {
   gated_.Close("big");  // the second page waits until the map has changed
   v1::ExportTreesRequest request;
   request.set_name("big");
-  auto context = Context();
+  auto context = BoundsContext();
   auto reader = stub_->ExportTrees(context.get(), request);
   v1::ExportTreesResponse message;
   ASSERT_TRUE(reader->Read(&message));
@@ -210,7 +210,7 @@ TEST_F(StreamBoundsTest, PruningTheExportedVersionAbortsTheExport) {
   gated_.Close("big");  // the second page waits until the version is pruned
   v1::ExportTreesRequest request;
   request.set_name("big");
-  auto context = Context();
+  auto context = BoundsContext();
   auto reader = stub_->ExportTrees(context.get(), request);
   v1::ExportTreesResponse message;
   ASSERT_TRUE(reader->Read(&message));
@@ -227,7 +227,7 @@ TEST_F(StreamBoundsTest, PruningTheExportedVersionAbortsTheExport) {
 TEST_F(StreamBoundsTest, StreamsOverTheLimitsAreResourceExhausted) {
   ASSERT_TRUE(CreateMap("m").ok());
   struct Open {
-    std::unique_ptr<grpc::ClientContext> context = Context();
+    std::unique_ptr<grpc::ClientContext> context = BoundsContext();
     v1::UploadTreesResponse response;
     std::unique_ptr<grpc::ClientWriter<v1::UploadTreesRequest>> writer;
   };
@@ -249,7 +249,7 @@ TEST_F(StreamBoundsTest, StreamsOverTheLimitsAreResourceExhausted) {
   ASSERT_TRUE(Eventually([&] { return service_.stream_limits().open() == 3; }));
   v1::ExportTreesRequest request;
   request.set_name("m");
-  auto context = Context();
+  auto context = BoundsContext();
   auto reader = NewStub()->ExportTrees(context.get(), request);  // a third client: server full
   status = reader->Finish();
   EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);

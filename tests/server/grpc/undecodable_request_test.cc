@@ -20,7 +20,7 @@
 namespace forestmap::server {
 namespace {
 
-constexpr auto kCallDeadline = std::chrono::seconds(20);  // turns a hang into a failure
+constexpr auto kUndecodableDeadline = std::chrono::seconds(20);  // turns a hang into a failure
 
 // Bytes that are no protobuf message: a length-delimited field 1 announcing 5 bytes and holding
 // 2, a varint longer than 10 bytes, and a string field 1 (every request but ListMaps' has one)
@@ -56,7 +56,7 @@ class UndecodableRequestTest : public ::testing::Test {
 
   grpc::Status Unary(const std::string& method, const std::string& bytes) {
     grpc::ClientContext context;
-    context.set_deadline(std::chrono::system_clock::now() + kCallDeadline);
+    context.set_deadline(std::chrono::system_clock::now() + kUndecodableDeadline);
     const grpc::ByteBuffer request = Bytes(bytes);
     grpc::ByteBuffer response;
     std::promise<grpc::Status> done;
@@ -69,7 +69,7 @@ class UndecodableRequestTest : public ::testing::Test {
   grpc::Status ServerStreaming(const std::string& method, const std::string& bytes) {
     grpc::CompletionQueue queue;
     grpc::ClientContext context;
-    context.set_deadline(std::chrono::system_clock::now() + kCallDeadline);
+    context.set_deadline(std::chrono::system_clock::now() + kUndecodableDeadline);
     auto call = generic_.PrepareCall(&context, method, &queue);
     void* tag = nullptr;
     bool ok = false;

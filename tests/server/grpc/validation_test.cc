@@ -13,13 +13,14 @@
 #include "server/grpc/convert.h"
 #include "server/grpc/map_set.h"
 #include "server/grpc/upload_validator.h"
+#include "tests/server/grpc/validation_test_util.h"
 
 namespace forestmap::server {
 namespace {
 
 using ::testing::HasSubstr;
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+using test::kNaN;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Runs `body`, expects it to throw ErrorType and returns the message.

@@ -20,7 +20,7 @@ namespace {
 
 using Json = nlohmann::json;
 
-std::vector<storage::TreeRecord> Trees(int count) {
+std::vector<storage::TreeRecord> RowTrees(int count) {
   std::vector<storage::TreeRecord> trees(count);
   for (int i = 0; i < count; ++i) trees[i].x = 2.0 * i;
   return trees;
@@ -30,8 +30,8 @@ class HttpApiTest : public ::testing::Test {
  protected:
   HttpApiTest() {
     store_.CreateMap("plot", "", "");
-    store_.WriteTrees("plot", Trees(4), storage::WriteMode::kAppend);
-    store_.WriteTrees("plot", Trees(3), storage::WriteMode::kReplace);
+    store_.WriteTrees("plot", RowTrees(4), storage::WriteMode::kAppend);
+    store_.WriteTrees("plot", RowTrees(3), storage::WriteMode::kReplace);
     page_ = std::make_unique<HttpPage>(store_, answers_, "127.0.0.1:0");
   }
   Json GetJson(const std::string& path) {

@@ -27,7 +27,7 @@ using test::HttpGet;
 using Json = nlohmann::json;
 constexpr int kPlotTrees = 40;
 
-std::vector<storage::TreeRecord> Trees(int count) {
+std::vector<storage::TreeRecord> GridTrees(int count) {
   std::vector<storage::TreeRecord> trees(count);
   for (int i = 0; i < count; ++i) {
     trees[i].x = (i % 8) * 4.0;
@@ -45,7 +45,7 @@ class HttpPageAuthTest : public ::testing::Test {
     fs::create_directories(dir_);
     tokens_ = std::make_unique<storage::TokenStore>((dir_ / "tokens.db").string());
     store_.CreateMap("plot-1", "", "");
-    store_.WriteTrees("plot-1", Trees(kPlotTrees), storage::WriteMode::kAppend);
+    store_.WriteTrees("plot-1", GridTrees(kPlotTrees), storage::WriteMode::kAppend);
     store_.CreateMap("secret", "", "");
     page_ = std::make_unique<HttpPage>(store_, answers_, "127.0.0.1:0", tokens_.get());
     port_ = std::stoi(page_->address().substr(page_->address().rfind(':') + 1));

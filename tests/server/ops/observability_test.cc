@@ -38,11 +38,11 @@ namespace forestmap::server {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr auto kCallDeadline = std::chrono::seconds(20);  // turns a hang into a failure
+constexpr auto kObservabilityDeadline = std::chrono::seconds(20);  // turns a hang into a failure
 
-std::unique_ptr<grpc::ClientContext> Context(const std::string& request_id = "") {
+std::unique_ptr<grpc::ClientContext> TracedContext(const std::string& request_id = "") {
   auto context = std::make_unique<grpc::ClientContext>();
-  context->set_deadline(std::chrono::system_clock::now() + kCallDeadline);
+  context->set_deadline(std::chrono::system_clock::now() + kObservabilityDeadline);
   if (!request_id.empty()) context->AddMetadata(kRequestIdHeader, request_id);
   return context;
 }
@@ -135,13 +135,13 @@ class ObservabilityTest : public ::testing::Test {
     v1::CreateMapRequest request;
     request.set_name(name);
     v1::Map map;
-    EXPECT_TRUE(stub_->CreateMap(Context().get(), request, &map).ok());
+    EXPECT_TRUE(stub_->CreateMap(TracedContext().get(), request, &map).ok());
     return map;
   }
 
   void Upload(const std::string& name) {
     v1::UploadTreesResponse response;
-    auto context = Context();
+    auto context = TracedContext();
     auto writer = stub_->UploadTrees(context.get(), &response);
     v1::UploadTreesRequest request;
     const double plot[][2] = {{0, 0}, {7, 1}, {3, 9}, {12, 4}, {9, 13}, {15, 11}};
@@ -179,7 +179,7 @@ TEST_F(ObservabilityTest, PromtoolAcceptsTheMetricsAndCountersMove) {
   v1::GetMapRequest missing;
   missing.set_name("no-such-map");
   v1::Map map;
-  EXPECT_EQ(stub_->GetMap(Context().get(), missing, &map).error_code(),
+  EXPECT_EQ(stub_->GetMap(TracedContext().get(), missing, &map).error_code(),
             grpc::StatusCode::NOT_FOUND);
   v1::RelocalizeRequest query;
   query.set_name("plot-1");
@@ -189,10 +189,10 @@ TEST_F(ObservabilityTest, PromtoolAcceptsTheMetricsAndCountersMove) {
     tree->mutable_position()->set_y(p.second);
   }
   v1::RelocalizeResponse answer;
-  ASSERT_TRUE(stub_->Relocalize(Context().get(), query, &answer).ok());
+  ASSERT_TRUE(stub_->Relocalize(TracedContext().get(), query, &answer).ok());
 
   // A tracking stream held open while scraping.
-  auto track_context = Context();
+  auto track_context = TracedContext();
   auto track = stub_->Track(track_context.get());
   v1::TrackRequest header;
   header.mutable_header()->set_name("plot-1");
@@ -352,7 +352,7 @@ TEST_F(ObservabilityTest, HalfOpenConnectionsDoNotStallTheMetricsPort) {
 // gave it.
 grpc::StatusCode CallRawMethod(grpc::GenericStub& stub, const std::string& method) {
   grpc::CompletionQueue queue;
-  auto context = Context();
+  auto context = TracedContext();
   grpc::ByteBuffer request, response;
   grpc::Status status;
   std::unique_ptr<grpc::GenericClientAsyncResponseReader> call =
@@ -428,10 +428,10 @@ TEST_F(ObservabilityTest, EveryRpcLogsOneJsonLineWithItsRequestId) {
   v1::GetMapRequest request;
   request.set_name("plot-1");
   v1::Map map;
-  auto with_id = Context("client-req-42");
+  auto with_id = TracedContext("client-req-42");
   ASSERT_TRUE(stub_->GetMap(with_id.get(), request, &map).ok());
   request.set_name("nope");
-  auto without_id = Context();
+  auto without_id = TracedContext();
   EXPECT_FALSE(stub_->GetMap(without_id.get(), request, &map).ok());
   const std::string log = ::testing::internal::GetCapturedStderr();
   ConfigureLogging({});

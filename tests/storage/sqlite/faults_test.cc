@@ -23,6 +23,7 @@ namespace forestmap::storage {
 namespace {
 
 constexpr uid_t kNobody = 65534;  // Debian's nobody / nogroup
+using Code = StorageError::Code;
 
 std::vector<TreeRecord> Trees(int count, int first_id) {
   std::vector<TreeRecord> trees(count);
@@ -117,7 +118,6 @@ TEST_F(DbFaultsTest, ReadOnlyDirectoryIsRefused) {
 }
 
 TEST(DbFaultCodesTest, SqliteResultsMapToFaultCodes) {
-  using Code = StorageError::Code;
   EXPECT_EQ(sqlite::CodeForResult(SQLITE_FULL), Code::kFull);
   EXPECT_EQ(sqlite::CodeForResult(SQLITE_READONLY), Code::kReadOnly);
   EXPECT_EQ(sqlite::CodeForResult(SQLITE_READONLY_DBMOVED), Code::kReadOnly);

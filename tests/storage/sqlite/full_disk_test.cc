@@ -28,7 +28,7 @@ namespace {
 
 using Code = StorageError::Code;
 
-std::vector<TreeRecord> Trees(int count, int first_id) {
+std::vector<TreeRecord> FillerTrees(int count, int first_id) {
   std::vector<TreeRecord> trees(count);
   for (int i = 0; i < count; ++i) {
     trees[i].id = first_id + i;
@@ -49,7 +49,7 @@ int FillWithHistory(MapStore& store, const std::string& name) {
   for (const int batch : {500, 50, 5, 1}) {
     for (;; ++written) {
       try {
-        store.WriteTrees(name, Trees(batch, 1), WriteMode::kReplace);
+        store.WriteTrees(name, FillerTrees(batch, 1), WriteMode::kReplace);
       } catch (const StorageError& e) {
         EXPECT_EQ(e.code(), Code::kFull) << e.what();
         break;
@@ -78,10 +78,10 @@ void WithRequestId(const std::string& id, const std::string& rpc, const Write& w
 // for the writes that failed before.
 void ExpectDeleteAndPruneFreeAFullDatabase(MapStore& store) {
   store.CreateMap("kept", "", "");
-  store.WriteTrees("kept", Trees(100, 1), WriteMode::kAppend);
+  store.WriteTrees("kept", FillerTrees(100, 1), WriteMode::kAppend);
   store.CreateMap("history", "", "");
   store.CreateMap("doomed", "", "");
-  store.WriteTrees("doomed", Trees(2000, 1), WriteMode::kAppend);
+  store.WriteTrees("doomed", FillerTrees(2000, 1), WriteMode::kAppend);
   ASSERT_GT(FillWithHistory(store, "history"), 3);
 
   PruneResult pruned;
@@ -90,12 +90,12 @@ void ExpectDeleteAndPruneFreeAFullDatabase(MapStore& store) {
   EXPECT_GT(pruned.tree_rows_removed, 0);
   EXPECT_EQ(store.ListVersions("history", 0).size(), 1u);
   // The room pruning freed takes a write that did not fit.
-  EXPECT_EQ(store.WriteTrees("kept", Trees(500, 1000), WriteMode::kAppend).tree_count, 600);
+  EXPECT_EQ(store.WriteTrees("kept", FillerTrees(500, 1000), WriteMode::kAppend).tree_count, 600);
 
   ASSERT_GT(FillWithHistory(store, "history"), 0);
   WithRequestId("delete-1", "DeleteMap", [&] { store.DeleteMap("doomed"); });
   EXPECT_THROW(store.GetMap("doomed"), StorageError);
-  EXPECT_EQ(store.WriteTrees("kept", Trees(500, 2000), WriteMode::kAppend).tree_count, 1100);
+  EXPECT_EQ(store.WriteTrees("kept", FillerTrees(500, 2000), WriteMode::kAppend).tree_count, 1100);
   EXPECT_EQ(store.ReadMap("kept").trees.size(), 1100u);
 }
 
@@ -105,13 +105,13 @@ void ExpectFullDatabaseOpens(const std::string& path, const SqliteMapStoreOption
   EXPECT_EQ(store.ReadMap("kept").trees.size(), 100u);
   EXPECT_EQ(store.ListMaps().size(), 3u);
   try {
-    store.WriteTrees("kept", Trees(2000, 1000), WriteMode::kAppend);
+    store.WriteTrees("kept", FillerTrees(2000, 1000), WriteMode::kAppend);
     ADD_FAILURE() << "a write fitted into a full database";
   } catch (const StorageError& e) {
     EXPECT_EQ(e.code(), Code::kFull) << e.what();
   }
   store.DeleteMap("doomed");
-  EXPECT_EQ(store.WriteTrees("kept", Trees(500, 1000), WriteMode::kAppend).tree_count, 600);
+  EXPECT_EQ(store.WriteTrees("kept", FillerTrees(500, 1000), WriteMode::kAppend).tree_count, 600);
 }
 
 class FullDiskTest : public ::testing::Test {
@@ -141,9 +141,9 @@ TEST_F(FullDiskTest, AtTheSizeLimitTheDatabaseOpensAgain) {
   {
     SqliteMapStore store(path, options);
     store.CreateMap("kept", "", "");
-    store.WriteTrees("kept", Trees(100, 1), WriteMode::kAppend);
+    store.WriteTrees("kept", FillerTrees(100, 1), WriteMode::kAppend);
     store.CreateMap("doomed", "", "");
-    store.WriteTrees("doomed", Trees(2000, 1), WriteMode::kAppend);
+    store.WriteTrees("doomed", FillerTrees(2000, 1), WriteMode::kAppend);
     store.CreateMap("history", "", "");
     ASSERT_GT(FillWithHistory(store, "history"), 3);
   }
@@ -194,7 +194,7 @@ void AbandonAnUpload(const std::string& path) {
   if (child == 0) {
     SqliteMapStore store(path);
     const std::unique_ptr<TreeUpload> upload = store.BeginUpload("kept", UploadPlan{});
-    upload->Append(Trees(20000, 10000));
+    upload->Append(FillerTrees(20000, 10000));
     _exit(0);
   }
   int status = 0;
@@ -214,10 +214,10 @@ TEST_F(FullDiskTest, OnAFullFileSystemDeletePruneAndOpenWork) {
       ExpectDeleteAndPruneFreeAFullDatabase(store);
       // Full again, then the store closes and opens on the full file system.
       store.CreateMap("doomed", "", "");
-      store.WriteTrees("doomed", Trees(2000, 1), WriteMode::kAppend);
-      store.WriteTrees("kept", Trees(1000, 1), WriteMode::kReplace);
+      store.WriteTrees("doomed", FillerTrees(2000, 1), WriteMode::kAppend);
+      store.WriteTrees("kept", FillerTrees(1000, 1), WriteMode::kReplace);
       store.PruneVersions("kept", 1);
-      store.WriteTrees("kept", Trees(100, 1), WriteMode::kReplace);
+      store.WriteTrees("kept", FillerTrees(100, 1), WriteMode::kReplace);
       FillWithHistory(store, "history");
     }
     ExpectFullDatabaseOpens(path, options);
@@ -236,7 +236,7 @@ TEST_F(FullDiskTest, OnAFullFileSystemDeletePruneAndOpenWork) {
     EXPECT_EQ(store.ReadMap("kept").trees.size(), 600u);
     EXPECT_EQ(store.ListMaps().size(), 2u);
     try {
-      store.WriteTrees("kept", Trees(2000, 5000), WriteMode::kAppend);
+      store.WriteTrees("kept", FillerTrees(2000, 5000), WriteMode::kAppend);
       ADD_FAILURE() << "a write fitted into a full file system";
     } catch (const StorageError& e) {
       EXPECT_EQ(e.code(), Code::kFull) << e.what();
