@@ -220,14 +220,18 @@ TEST_F(FullDiskTest, OnAFullFileSystemDeletePruneAndOpenWork) {
       store.WriteTrees("kept", FillerTrees(100, 1), WriteMode::kReplace);
       FillWithHistory(store, "history");
     }
+    // Closing gave the write-ahead log's room back to the file system: fill it again, leaving
+    // 256 KiB, room for a delete's log but not for the 2,000 trees a write then tries.
+    FillFileSystem(mount_point / "filler", /*leave_bytes=*/256 << 10);
     ExpectFullDatabaseOpens(path, options);
+    std::filesystem::remove(mount_point / "filler");
     // A start on a full disk whose reserve was used up: an upload abandoned by a process that
     // stopped has rows to remove and the file system has room for the -shm index but not for
     // that removal. The store opens all the same, says so, serves reads and fails writes as
     // kFull.
     std::filesystem::remove(path + "-reserve");
     AbandonAnUpload(path);
-    FillFileSystem(mount_point / "other-file", /*leave_bytes=*/64 << 10);
+    FillFileSystem(mount_point / "other-file", /*leave_bytes=*/160 << 10);
     options.reserve_mib = 0;
     SqliteMapStore store(path, options);
     EXPECT_NE(store.OpenWarning().find("database full: the removal of abandoned uploads skipped"),
