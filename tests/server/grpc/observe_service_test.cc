@@ -276,7 +276,7 @@ TEST_F(ObserveServiceTest, FramesWithoutPosesAreRelocalizedFirst) {
   EXPECT_EQ(response.frames(9).status(), v1::FrameResult::STATUS_SKIPPED);
   EXPECT_THAT(response.frames(9).detail(), HasSubstr("fewer than 3 trees"));
   EXPECT_EQ(response.frames(10).status(), v1::FrameResult::STATUS_SKIPPED);
-  EXPECT_THAT(response.frames(10).detail(), HasSubstr("no trees"));
+  EXPECT_THAT(response.frames(10).detail(), HasSubstr("neither trees nor a pose"));
 }
 
 TEST_F(ObserveServiceTest, StaleBaseVersionIsAbortedOrMergedByPolicy) {
