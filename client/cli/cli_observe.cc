@@ -37,6 +37,7 @@ struct ObserveCliOptions {
   double yaw_sigma = 0;   // degrees
   double sensor_range = 0;
   double detection_probability = 0;
+  bool merge_only = false;
 };
 
 struct Totals {
@@ -95,6 +96,7 @@ void RunObserve(const ObserveCliOptions& options, const CliContext& context) {
   request_options.reject_stale = options.reject_stale;
   request_options.sensor_range = options.sensor_range;
   request_options.detection_probability = options.detection_probability;
+  request_options.merge_only = options.merge_only;
   Totals totals;
   v1::Map map;
   size_t next = 0;
@@ -171,6 +173,9 @@ void AddObserveCommand(CLI::App& app, CliContext& context) {
                   "Probability that the sensor detects an unhidden trunk near it, in [0, 1) (0: "
                   "learned from the frames)")
       ->check(CLI::Range(0.0, 0.999));
+  sub->add_flag("--merge-only", options->merge_only,
+                "Merge the detections without weighing what the frames did not see (frames that "
+                "do not list every trunk the sensor detected): removes no tree");
   sub->callback([options, &context] {
     if (options->reject_stale && options->base_version == 0) {
       throw CLI::ValidationError("--reject-stale", "needs --base-version");

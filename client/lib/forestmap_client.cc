@@ -396,6 +396,7 @@ v1::ObserveResponse ForestMapClient::Observe(const std::string& name,
   }
   request.set_sensor_range(options.sensor_range);
   request.set_detection_probability(options.detection_probability);
+  request.set_merge_only(options.merge_only);
   return UnaryWrite<v1::ObserveResponse>(&v1::ForestMap::Stub::Observe, request, "Observe");
 }
 

@@ -111,6 +111,7 @@ struct ObserveOptions {
   bool reject_stale = false;             // ABORTED unless the map is still at base_version
   double sensor_range = 0;               // m, for the evidence of absence (0: learned)
   double detection_probability = 0;      // near the sensor, in [0, 1) (0: learned)
+  bool merge_only = false;               // merge without weighing the evidence of absence
 };
 
 // One frame of a tracking session.

@@ -82,7 +82,7 @@ std::optional<std::string> MergeObserved(
   for (const FrameOutcome* frame : merged) sigmas.push_back(frame->pose_sigma);
   std::optional<std::string> replayed = WriteExactlyOnce(store, call.write, encode_answer, [&] {
     outcome.map = store.Merge(call.map_name, note, [&](storage::MergeReader& reader) {
-      if (options.absence) {
+      if (options.absence && !call.merge_only) {
         AbsenceSettings settings = *options.absence;
         if (call.sensor_range > 0) settings.absence.range = call.sensor_range;
         if (call.detection_probability > 0) {

@@ -51,6 +51,7 @@ struct ObserveCall {
   // detection probability near the sensor; 0: learned from the frames.
   double sensor_range = 0;
   double detection_probability = 0;
+  bool merge_only = false;  // no evidence of absence (ObserveRequest.merge_only)
 };
 
 // What became of one frame.

@@ -306,6 +306,7 @@ ObserveCall FromProto(const v1::ObserveRequest& request) {
   }
   call.sensor_range = request.sensor_range();
   call.detection_probability = request.detection_probability();
+  call.merge_only = request.merge_only();
   return call;
 }
 

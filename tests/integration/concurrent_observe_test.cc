@@ -51,6 +51,7 @@ std::vector<client::ObservedFrame> WildV01() {
 int Upload(client::ForestMapClient& client, const std::string& map, const std::string& source,
            const std::vector<client::ObservedFrame>& frames, size_t first, size_t last) {
   client::ObserveOptions options;
+  options.merge_only = true;  // the merge alone is a function of the set of observations
   options.source = source;
   int failures = 0;
   for (size_t begin = first; begin < last; begin += kBatch) {

@@ -197,26 +197,28 @@ class Methods:
     def observe(self, name: str, frames: Iterable[Tuple], source: str = "forestmap-python", *,
                 columns: Optional[Sequence[str]] = None, base_version: int = 0,
                 reject_stale: bool = False, pose_sigma: float = 0.0, yaw_sigma: float = 0.0,
-                sensor_range: float = 0.0,
-                detection_probability: float = 0.0) -> answers.ObserveResult:
+                sensor_range: float = 0.0, detection_probability: float = 0.0,
+                merge_only: bool = False) -> answers.ObserveResult:
         """Merges frames (frame_id, trees in the sensor frame, 4 x 4 map_from_sensor or None:
         the server relocalizes the frame) into the map as ONE new version, or nothing. A frame
         with a pose is evidence of absence too (trees may be empty: it saw none); map trees that
         several sources should have seen and did not are removed.
         reject_stale: ABORTED unless the map is still at base_version.
         pose_sigma (m per axis), yaw_sigma (rad): the error of the poses (0: exact).
-        sensor_range (m), detection_probability (near the sensor): 0 learns them."""
+        sensor_range (m), detection_probability (near the sensor): 0 learns them.
+        merge_only: merge the detections without weighing what the frames did not see."""
         return self._run(self._observe(name, frames, source, columns, base_version,
                                        reject_stale, pose_sigma, yaw_sigma, sensor_range,
-                                       detection_probability))
+                                       detection_probability, merge_only))
 
     def _observe(self, name, frames, source, columns, base_version, reject_stale, pose_sigma,
-                 yaw_sigma, sensor_range, detection_probability):
+                 yaw_sigma, sensor_range, detection_probability, merge_only):
         request = observations_pb2.ObserveRequest(
             name=name, source=source, base_version=base_version,
             conflict_policy=(observations_pb2.CONFLICT_POLICY_REJECT_IF_STALE if reject_stale
                              else observations_pb2.CONFLICT_POLICY_MERGE),
-            sensor_range=sensor_range, detection_probability=detection_probability)
+            sensor_range=sensor_range, detection_probability=detection_probability,
+            merge_only=merge_only)
         for frame_id, trees, map_from_sensor in frames:
             frame = request.frames.add(frame_id=frame_id, trees=inputs.detected_trees(
                 trees, columns, f"frames[{len(request.frames)}].trees"),
