@@ -75,6 +75,12 @@ algorithms::TreeEvidence& AbsenceLedger::EvidenceOf(int64_t id) {
              stored == stored_.end() ? algorithms::TreeEvidence{} : ToTreeEvidence(stored->second);
 }
 
+bool AbsenceLedger::Standing(int64_t id, const storage::TreeRecord* stored) const {
+  const auto known = evidence_.find(id);
+  if (known != evidence_.end()) return known->second.sightings > 0;
+  return stored != nullptr && stored->last_seen_unix_ms.has_value();
+}
+
 AbsenceLedger::View AbsenceLedger::Classify(size_t index,
                                             const algorithms::FrameObservations& frame,
                                             std::vector<NearTree> nearby) {
@@ -87,11 +93,8 @@ AbsenceLedger::View AbsenceLedger::Classify(size_t index,
   for (const NearTree& near : view.trees) {
     (near.candidate ? candidates : established).push_back(near.tree);
     if (near.candidate) continue;
-    const auto known = evidence_.find(near.tree.id);
     const auto stored = stored_.find(near.tree.id);
-    standing.push_back(known != evidence_.end()
-                           ? known->second.sightings > 0
-                           : stored != stored_.end() && stored->second.last_seen_unix_ms);
+    standing.push_back(Standing(near.tree.id, stored != stored_.end() ? &stored->second : nullptr));
   }
   algorithms::AbsenceObservation observation;
   observation.map_from_sensor = frame.map_from_sensor;
@@ -195,9 +198,7 @@ void AbsenceLedger::LookBackStored(storage::MergeReader& reader,
            {lo.x() - 2 * reach, lo.y() - 2 * reach, hi.x() + 2 * reach, hi.y() + 2 * reach})) {
     if (tree.status != storage::TreeStatus::kConfirmed || gone_.count(*tree.id) != 0) continue;
     established.push_back(ToMapTree(tree));
-    const auto known = evidence_.find(*tree.id);
-    standing.push_back(known != evidence_.end() ? known->second.sightings > 0
-                                                : tree.last_seen_unix_ms.has_value());
+    standing.push_back(Standing(*tree.id, &tree));
   }
   for (auto& [frame, view] : views) {
     view.options = options;

@@ -86,6 +86,8 @@ class AbsenceLedger {
   };
 
   algorithms::TreeEvidence& EvidenceOf(int64_t id);
+  // Seen since the survey (what this call weighed, else `stored`'s last-seen time).
+  bool Standing(int64_t id, const storage::TreeRecord* stored) const;
   void LookBack(std::span<const algorithms::TreeEstimate> started);
   // `established` and `standing`: the confirmed trees around the view (its own, or a stored
   // view's, read once for all).
