@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <string>
@@ -277,6 +278,27 @@ TEST(ValidationTest, CoordinatesMustLieInALocalFrame) {
 }
 
 // Observe writes trees as upload does: what upload refuses, Observe refuses, in the map frame.
+TEST(ValidationTest, TheStatedSensorAndPoseSigmasAreCheckedByName) {
+  const auto error_of = [](const std::function<void(v1::ObserveRequest&)>& set) {
+    v1::ObserveRequest observe;
+    observe.set_name("shared");
+    observe.set_source("drone");
+    observe.add_frames();
+    set(observe);
+    return ErrorOf<ValidationError>([&] { Validate(observe, ObserveLimits{}); });
+  };
+  EXPECT_THAT(error_of([](v1::ObserveRequest& r) { r.set_detection_probability(1); }),
+              HasSubstr("detection_probability is 1"));
+  EXPECT_THAT(error_of([](v1::ObserveRequest& r) { r.set_sensor_range(-2); }),
+              HasSubstr("sensor_range is -2"));
+  EXPECT_THAT(error_of([](v1::ObserveRequest& r) { r.set_sensor_range(NAN); }),
+              HasSubstr("sensor_range is nan"));
+  EXPECT_THAT(error_of([](v1::ObserveRequest& r) { r.mutable_frames(0)->set_position_sigma(NAN); }),
+              HasSubstr("frames[0].position_sigma is nan"));
+  EXPECT_THAT(error_of([](v1::ObserveRequest& r) { r.mutable_frames(0)->set_yaw_sigma(7); }),
+              HasSubstr("frames[0].yaw_sigma is 7"));
+}
+
 TEST(ValidationTest, ObservedTreesFollowTheUploadRulesInTheMapFrame) {
   v1::Tree huge_dbh;
   huge_dbh.set_dbh(1e308);
