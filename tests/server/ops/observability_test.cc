@@ -266,11 +266,11 @@ TEST_F(ObservabilityTest, RelocalizationsByStatusAndReasonTrackFramesByState) {
   v1::RelocalizeRequest few = plot;
   few.mutable_trees()->DeleteSubrange(2, 2);  // 2 trees: nothing to match
   v1::RelocalizeResponse too_few, answer;
-  ASSERT_TRUE(stub_->Relocalize(Context().get(), few, &too_few).ok());
+  ASSERT_TRUE(stub_->Relocalize(TracedContext().get(), few, &too_few).ok());
   ASSERT_EQ(too_few.reason(), v1::RelocalizeResponse::REASON_TOO_FEW_TREES);
-  ASSERT_TRUE(stub_->Relocalize(Context().get(), plot, &answer).ok());
+  ASSERT_TRUE(stub_->Relocalize(TracedContext().get(), plot, &answer).ok());
 
-  auto track_context = Context();
+  auto track_context = TracedContext();
   auto track = stub_->Track(track_context.get());
   v1::TrackRequest header;
   header.mutable_header()->set_name("plot-1");
