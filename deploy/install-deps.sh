@@ -28,6 +28,7 @@ PRODUCT_PACKAGES=(
 PACKAGES=(
   "${PRODUCT_PACKAGES[@]}"
   libgtest-dev libgmock-dev libbenchmark-dev
+  ninja-build             # deploy/build.sh and deploy/test.sh build with Ninja
   proj-bin                # cs2cs checks the WGS84 answers in the tests
   gdal-bin                # ogrinfo / ogr2ogr check the GIS exports in the tests
   chromium                # the web page's browser test (tests/server/http/http_page_test.cc)

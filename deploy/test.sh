@@ -11,6 +11,8 @@ cd "$(dirname "$0")/.."
 # The sanitizer builds: -O1 (the sanitizers' own advice: reports stay exact, the build is fast).
 SANITIZER_FLAGS=(-DCMAKE_BUILD_TYPE=Release "-DCMAKE_CXX_FLAGS_RELEASE=-O1 -DNDEBUG")
 bash deploy/install-deps.sh
+# Ninja for new build folders (an existing one keeps the generator it was made with).
+export CMAKE_GENERATOR="${CMAKE_GENERATOR:-Ninja}"
 echo "test: the product in Release and its end-to-end, packaging and lint tests (build)"
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DFORESTMAP_UNIT_TESTS=OFF >/dev/null
 cmake --build build -j"$(nproc)"

@@ -93,7 +93,7 @@ TEST_F(CliTest, HelpExitsZeroForEveryCommand) {
         << result.out;
   }
   EXPECT_NE(Run("relocalize --help").out.find("X,Y,YAW_DEG,RADIUS_M"), std::string::npos);
-  // Benchmarks, the simulator and demo data are forestmap-lab's (tests/client/lab).
+  // Benchmarks, the simulator and demo data are forestmap-lab's (tests/integration/lab_test.cc).
   for (const char* lab :
        {"simulate", "bench-reloc", "bench-mapping", "bench-server", "bench-load", "demo-data"}) {
     EXPECT_EQ(top.out.find("\n  " + std::string(lab) + " "), std::string::npos) << lab;
