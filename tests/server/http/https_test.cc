@@ -11,7 +11,6 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
-#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -29,6 +28,7 @@
 #include "server/ops/tls.h"
 #include "storage/sqlite/store.h"
 #include "storage/token_store.h"
+#include "tests/server/http/closed_by_server.h"
 #include "tests/server/http_get.h"
 #include "tests/tls_certificate.h"
 
@@ -62,13 +62,6 @@ int Connect(int port, const char* source = "127.0.0.1") {
     return -1;
   }
   return sock;
-}
-
-// True once the server closed `sock` (end of stream, a reset, or an alert before it).
-bool ClosedByServer(int sock) {
-  char byte = 0;
-  const ssize_t got = recv(sock, &byte, 1, MSG_DONTWAIT);
-  return got >= 0 || (errno != EAGAIN && errno != EWOULDBLOCK);
 }
 
 class HttpsTest : public ::testing::Test {
@@ -168,7 +161,7 @@ TEST_F(HttpsTest, IdleConnectionsThatNeverHandshakeDoNotStallThePage) {
   for (const int sock : idle) ASSERT_GE(sock, 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(100));  // all of them accepted
   int closed = 0;
-  for (const int sock : idle) closed += ClosedByServer(sock) ? 1 : 0;
+  for (const int sock : idle) closed += test::ClosedByServer(sock) ? 1 : 0;
   EXPECT_EQ(closed, 50 - kConnectionsPerClient);
   const Clock::time_point start = Clock::now();
   auto answer = std::async(std::launch::async, [this] {
@@ -195,7 +188,7 @@ TEST_F(HttpsTest, AHandshakeDrippedByteByByteIsCutAtTheLimit) {
   bool closed = false;
   while (!closed && SecondsSince(start) < 20) {
     const unsigned char byte = 0x01;
-    closed = send(sock, &byte, 1, MSG_NOSIGNAL) != 1 || ClosedByServer(sock);
+    closed = send(sock, &byte, 1, MSG_NOSIGNAL) != 1 || test::ClosedByServer(sock);
     if (!closed) std::this_thread::sleep_for(std::chrono::milliseconds(250));
   }
   const double seconds = SecondsSince(start);
