@@ -111,7 +111,9 @@ TEST_F(HttpConnectionsTest, OneClientsConnectionsBeyondTheLimitAreAnswered503AtO
   // The held connections are taken up as workers reach them, and each is closed by the read
   // timeout 2 s later: before the first of them is closed, the same client's next request is
   // refused.
-  const auto all_held = [&] { return std::none_of(held_.begin(), held_.end(), test::ClosedByServer); };
+  const auto all_held = [&] {
+    return std::none_of(held_.begin(), held_.end(), test::ClosedByServer);
+  };
   const Clock::time_point start = Clock::now();
   std::string refused;
   while (all_held() && Clock::now() - start < kPatience) {
