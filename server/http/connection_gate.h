@@ -13,12 +13,12 @@
 //
 // Thread-safety: connections are served on the gate's worker threads; the counts are guarded.
 
-#include <httplib.h>
-
 #include <atomic>
 #include <map>
 #include <mutex>
 #include <string>
+
+#include "server/http/httplib_include.h"
 
 namespace forestmap::server {
 

@@ -1,6 +1,5 @@
 #include "server/http/http_listen.h"
 
-#include <httplib.h>
 #include <netdb.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -15,6 +14,7 @@
 
 #include "server/http/connection_gate.h"
 #include "server/http/handshake_deadline.h"
+#include "server/http/httplib_include.h"
 
 namespace forestmap::server {
 namespace {

@@ -7,7 +7,7 @@
 #include "server/http/ogc_features.h"
 #include "server/http/page_auth.h"
 // clang-format off
-#include <httplib.h>
+#include "server/http/httplib_include.h"
 // clang-format on
 
 #include <algorithm>

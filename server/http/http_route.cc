@@ -1,8 +1,8 @@
 #include "server/http/http_route.h"
 
-#include <httplib.h>
-
 #include <algorithm>
+
+#include "server/http/httplib_include.h"
 
 namespace forestmap::server {
 namespace {

@@ -1,8 +1,8 @@
 #include "server/http/metrics_http.h"
 
-#include <httplib.h>
-
 #include <utility>
+
+#include "server/http/httplib_include.h"
 
 namespace forestmap::server {
 namespace {

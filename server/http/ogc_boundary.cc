@@ -1,7 +1,7 @@
 #include "server/http/ogc_boundary.h"
 
 // clang-format off
-#include <httplib.h>
+#include "server/http/httplib_include.h"
 // clang-format on
 
 #include <algorithm>

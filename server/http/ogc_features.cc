@@ -1,7 +1,7 @@
 #include "server/http/ogc_features.h"
 
 // clang-format off
-#include <httplib.h>
+#include "server/http/httplib_include.h"
 // clang-format on
 
 #include <algorithm>

@@ -1,7 +1,7 @@
 #include "server/http/page_auth.h"
 
 // clang-format off
-#include <httplib.h>
+#include "server/http/httplib_include.h"
 // clang-format on
 
 #include <nlohmann/json.hpp>
