@@ -5,9 +5,10 @@
 #include <stdexcept>
 
 namespace forestmap::storage::internal {
-namespace {
 
 using Code = StorageError::Code;
+
+namespace {
 
 nlohmann::json RingJson(const BoundaryRing& ring) {
   nlohmann::json points = nlohmann::json::array();

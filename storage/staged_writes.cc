@@ -5,9 +5,10 @@
 #include <utility>
 
 namespace forestmap::storage {
-namespace {
 
 using Code = StorageError::Code;
+
+namespace {
 
 class InMemoryUpload final : public TreeUpload {
  public:

@@ -12,9 +12,10 @@
 #include "storage/versioned_map_store.h"
 
 namespace forestmap::storage {
-namespace {
 
 using Code = StorageError::Code;
+
+namespace {
 
 // kInvalidArgument for a negative version number (0 reads the current version).
 void CheckVersionNumber(const std::string& name, int64_t version) {

@@ -12,9 +12,10 @@
 #include "storage/versioned_map_store.h"
 
 namespace forestmap::storage {
-namespace {
 
 using Code = StorageError::Code;
+
+namespace {
 
 // The trees a merge puts, counted into `info` (each as a new row: the caller subtracts the rows
 // it closes): their ids in order and their extent.

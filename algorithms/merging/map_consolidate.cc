@@ -45,8 +45,8 @@ struct IdPool {
   bool Free(int64_t id) const { return taken.count(id) == 0 && reserved.count(id) == 0; }
 };
 
-// The trees a Restart grows, with a grid of 1 m cells (keyed by the floor of x and y) of their
-// positions, to find the trees near a row.
+// The trees a Restart grows, with a grid of 1 m cells (keyed by the floor of x and y, as int64_t:
+// a negative double cast to unsigned is undefined) of their positions, to find the trees nearby.
 struct Regrowth {
   std::vector<TreeEstimate> clusters;
   std::vector<int> cluster_of;  // per row, -1 before it joins a tree
@@ -54,7 +54,7 @@ struct Regrowth {
 
   static int64_t Cell(const Eigen::Vector3d& p) {
     return (static_cast<int64_t>(std::floor(p.x())) << 32) ^
-           static_cast<int64_t>(static_cast<uint32_t>(std::floor(p.y())));
+           static_cast<int64_t>(static_cast<uint32_t>(static_cast<int64_t>(std::floor(p.y()))));
   }
   // Row `r` joins tree `cluster`, which moves to its new cell if its position changed cells.
   void Add(int cluster, size_t r, const TreeObservation& row, const MergeOptions& options) {

@@ -70,7 +70,7 @@ void UploadTreesReactor::OnReadDone(bool ok) {
     return;
   }
   const bool first = validator_.messages() == 0;
-  const grpc::Status status = RunGuarded("UploadTrees", [this, first] {
+  const grpc::Status status = RunGuarded("UploadTrees", [this] {
     Accept();  // decodes and checks the message; the first one names the map
   });
   if (!status.ok()) {

@@ -23,9 +23,10 @@
 #include <vector>
 
 namespace forestmap::server {
-namespace {
 
 using Json = nlohmann::json;
+
+namespace {
 
 Json MapJson(const storage::MapInfo& info) {
   Json map = {{"name", info.name},

@@ -12,9 +12,10 @@
 #include "server/http/ogc_documents.h"
 
 namespace forestmap::server::ogc {
-namespace {
 
 using Json = nlohmann::json;
+
+namespace {
 
 // The boundary's GeoJSON MultiPolygon coordinates (rings closed) moved by `to` (null: as stored),
 // and their bounding box; nullopt when a vertex is off the CRS's domain.

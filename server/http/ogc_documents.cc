@@ -14,9 +14,10 @@
 #include "server/http/ogc_features.h"
 
 namespace forestmap::server {
-namespace {
 
 using Json = nlohmann::json;
+
+namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 

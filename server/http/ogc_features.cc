@@ -32,9 +32,11 @@
 #include "storage/staged_writes.h"
 
 namespace forestmap::server {
-namespace {
 
 using Json = nlohmann::json;
+
+namespace {
+
 using httplib::Request;
 using httplib::Response;
 using ogc::BadParameter;
