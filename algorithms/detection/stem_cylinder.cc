@@ -237,4 +237,22 @@ std::vector<TaperSample> RadialProfile(const GatheredStem& stem, const Eigen::Ve
   return samples;
 }
 
+bool EmptyInside(std::span<const Eigen::Vector3d> cluster, const Eigen::Vector3d& position,
+                 const Eigen::Vector3d& axis, double s_lo, double s_hi,
+                 const DetectedTrunk& trunk) {
+  constexpr double kInsideMargin = 0.02;  // m, the least depth below the surface
+  constexpr double kMaxInsideShare = 0.5;
+  const double dbh = std::isfinite(trunk.cylinder_dbh) ? std::min(trunk.raw_dbh, trunk.cylinder_dbh)
+                                                       : trunk.raw_dbh;
+  const double radius = 0.5 * dbh - std::max(3 * trunk.residual, kInsideMargin);
+  if (!(radius > 0)) return true;
+  int inside = 0;
+  for (const Eigen::Vector3d& p : cluster) {
+    const Eigen::Vector3d v = p - position;
+    const double s = v.dot(axis);
+    if (s >= s_lo && s <= s_hi && (v - s * axis).norm() < radius) ++inside;
+  }
+  return inside <= kMaxInsideShare * trunk.points_used;
+}
+
 }  // namespace forestmap::algorithms::internal

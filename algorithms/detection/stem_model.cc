@@ -313,6 +313,7 @@ Reject BuildStem(const std::vector<SliceCircle>& circles, const std::vector<int>
   trunk.tree.axis = a;
   trunk.tree.dbh = trunk.raw_dbh - options.divergence_bias_factor * footprint;
   trunk.tree.score = ScoreStem(trunk.residual, trunk.arc_coverage, trunk.slices);
+  if (!internal::EmptyInside(cluster, position, a, e.s_lo, e.s_hi, trunk)) return Reject::kShape;
   return CheckStem(trunk,
                    fitted ? gathered.z_hi - gathered.z_lo : e.s_hi - e.s_lo + options.slice_height,
                    options);

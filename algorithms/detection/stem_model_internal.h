@@ -138,4 +138,11 @@ EdgeSilhouette EdgeSilhouetteOf(std::span<const Eigen::Vector3d> points,
 std::vector<TaperSample> RadialProfile(const GatheredStem& stem, const Eigen::Vector3d& position,
                                        const Eigen::Vector3d& axis, double slice_height);
 
+// A trunk is solid: no return comes from inside it, beyond its surface's noise. True unless
+// `cluster` holds over half as many points as the stem's surface (trunk.points_used) deeper
+// inside `trunk` (axis `axis` from `position`, over [s_lo, s_hi] along it) than 3 rms of its fit
+// (at least 2 cm): a circle fitted through a blob of clutter (a shrub, foliage) fails.
+bool EmptyInside(std::span<const Eigen::Vector3d> cluster, const Eigen::Vector3d& position,
+                 const Eigen::Vector3d& axis, double s_lo, double s_hi, const DetectedTrunk& trunk);
+
 }  // namespace forestmap::algorithms::internal
