@@ -1,11 +1,13 @@
 # Run after a GoogleTest program is built (forestmap_discover_tests in tests/CMakeLists.txt):
 # lists its tests and writes CTEST_FILE, one CTest test per test suite (`Suite` or
-# `Prefix/Suite` of a parameterized one), which runs the program with --gtest_filter=Suite.*.
+# `Prefix/Suite` of a parameterized one), which runs the program with --gtest_filter=Suite.*
+# through tests/tools/run_suite.sh (skipped when every test of the suite skipped).
 # A suite's tests run one after the other in one process: a program that links the server starts
 # in up to 0.6 CPU-s under the sanitizers, and the suites still run in parallel.
-# Variables: EXECUTABLE, WORKING_DIR, CTEST_FILE, LABELS (a list), REAL_DATA_SUITES (the suites
-# that read the real data: they also get the label real_data), PROPERTIES (further test
-# properties: name, value, name, value...; no value holds a ";").
+# Variables: EXECUTABLE, RUN_SUITE (tests/tools/run_suite.sh), WORKING_DIR, CTEST_FILE, LABELS
+# (a list), REAL_DATA_SUITES (the suites that read the real data: they also get the label
+# real_data), PROPERTIES (further test properties: name, value, name, value...; no value holds
+# a ";").
 cmake_policy(VERSION 3.22)
 execute_process(COMMAND "${EXECUTABLE}" --gtest_list_tests
   WORKING_DIRECTORY "${WORKING_DIR}" TIMEOUT 60
@@ -30,9 +32,9 @@ foreach(line IN LISTS lines)
   endif()
   list(JOIN suite_labels "\\;" suite_labels)
   string(APPEND script
-    "add_test([==[${suite}]==] [==[${EXECUTABLE}]==] [==[--gtest_filter=${suite}.*]==])\n"
+    "add_test([==[${suite}]==] [==[${RUN_SUITE}]==] [==[${EXECUTABLE}]==] [==[${suite}]==])\n"
     "set_tests_properties([==[${suite}]==] PROPERTIES WORKING_DIRECTORY [==[${WORKING_DIR}]==]\n"
-    "  LABELS \"${suite_labels}\" SKIP_REGULAR_EXPRESSION [==[\\[  SKIPPED \\]]==]")
+    "  LABELS \"${suite_labels}\" SKIP_RETURN_CODE 77")
   set(key "")
   foreach(item IN LISTS PROPERTIES)
     if(key STREQUAL "")
